@@ -1,0 +1,49 @@
+# Shoal: the two user-facing entry points.
+#   make demo   install missing Debian packages, configure, build, run the main job
+#   make test   the same set-up, then the whole test suite through CTest
+# Everything else here is plumbing for those two.
+
+BUILD_DIR ?= build
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
+
+# Debian packages the build, the tests and the demo need.
+DEB_PACKAGES := cmake g++ make pkg-config \
+  liblcm-dev liblcm-bin libglib2.0-dev \
+  libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev
+
+.PHONY: demo test deps build configure clean
+
+demo: build
+	@echo "== shoal sim scenarios/paper_example2.toml"
+	$(BUILD_DIR)/tools/shoal sim scenarios/paper_example2.toml --out $(BUILD_DIR)/paper_example2.lcmlog
+	@echo "== log written to $(BUILD_DIR)/paper_example2.lcmlog (replay: lcm-logplayer $(BUILD_DIR)/paper_example2.lcmlog)"
+
+test: build
+	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
+
+deps:
+	@missing=""; \
+	for p in $(DEB_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
+	done; \
+	if [ -z "$$missing" ]; then exit 0; fi; \
+	if [ "$$(id -u)" = 0 ]; then \
+	  echo "== installing missing Debian packages:$$missing"; \
+	  export DEBIAN_FRONTEND=noninteractive; \
+	  apt-get update -q && apt-get install -y -q --no-install-recommends $$missing; \
+	else \
+	  echo "Missing Debian packages:$$missing"; \
+	  echo "Install them with:"; \
+	  echo "  sudo apt-get update && sudo apt-get install -y$$missing"; \
+	  exit 1; \
+	fi
+
+configure: deps
+	cmake -S . -B $(BUILD_DIR) $(CMAKE_FLAGS)
+
+build: configure
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+clean:
+	rm -rf $(BUILD_DIR)

@@ -1,0 +1,17 @@
+# shoal_test(NAME <name> SOURCES <src>... [LIBS <lib>...] [LABELS <label>...] [TIMEOUT <s>])
+# One helper registers every GoogleTest executable (as Ceres' ceres_test does).
+include(GoogleTest)
+function(shoal_test)
+  cmake_parse_arguments(ARG "" "NAME;TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${ARG_NAME} ${ARG_SOURCES})
+  target_link_libraries(${ARG_NAME} PRIVATE ${ARG_LIBS} GTest::gtest GTest::gtest_main shoal_warnings)
+  target_compile_definitions(${ARG_NAME} PRIVATE
+    SHOAL_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+    SHOAL_BINARY_DIR="${PROJECT_BINARY_DIR}")
+  if(NOT ARG_TIMEOUT)
+    set(ARG_TIMEOUT 300)
+  endif()
+  gtest_discover_tests(${ARG_NAME}
+    PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}"
+    DISCOVERY_TIMEOUT 60)
+endfunction()

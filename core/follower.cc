@@ -1,0 +1,173 @@
+#include "core/follower.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/channel_model.h"
+#include "core/leader_path.h"
+
+namespace shoal {
+
+Follower::Follower(const Scenario& s, const Topology& topo, int id,
+                   std::shared_ptr<const LeaderPath> leader_path)
+    : id_(id),
+      k1_(s.k1),
+      k2_(s.k2),
+      offset_(OffsetVec(s.offsets_m.at(id - 1))),
+      period_us_(s.period_us()),
+      timeout_us_(static_cast<Micros>(std::llround(s.neighbour_timeout_s * 1e6))),
+      substeps_(std::max(1, static_cast<int>(std::lround(ToSeconds(s.period_us()) /
+                                                         s.vehicle.integrator_step_s)))),
+      tau_max_(s.vehicle.tau_max),
+      disturbance_(s.disturbance.kind),
+      disturbance_delay_(s.delay),
+      disturbance_relative_(s.disturbance.relative_to_leader),
+      leader_path_(leader_path ? std::move(leader_path)
+                               : std::make_shared<const LeaderPath>(s.leader)),
+      current_(s.disturbance.current, Rng(s.seed, 0xC0FFEEULL, static_cast<std::uint64_t>(id))),
+      slot_of_(topo.n() + 1, -1) {
+  // Initial state: as given, or at the leader's start + offset, at rest.
+  const FollowerInit& init = s.initial.at(id - 1);
+  if (init.given) {
+    x_.eta = init.eta;
+    x_.nu = init.nu;
+  } else {
+    x_.eta = leader_path_->At(0.0).eta + offset_;
+    x_.nu.setZero();
+  }
+  x_.eta(4) = WrapAngle(x_.eta(4));
+
+  // In-neighbours: the leader (if pinned) and followers j with a_ij = 1.
+  if (topo.Pinned(id)) {
+    Slot sl;
+    sl.sender = 0;
+    sl.weight = topo.D()(id - 1, id - 1);
+    slots_.push_back(sl);
+  }
+  for (int j : topo.Neighbours(id)) {
+    Slot sl;
+    sl.sender = j;
+    sl.weight = topo.A()(id - 1, j - 1);
+    sl.offset = OffsetVec(s.offsets_m.at(j - 1));
+    slots_.push_back(sl);
+  }
+  for (std::size_t k = 0; k < slots_.size(); ++k) slot_of_[slots_[k].sender] = static_cast<int>(k);
+  terms_.resize(slots_.size());
+
+  // The history must reach back to the oldest send time still usable: the neighbour
+  // timeout, plus the largest delay of any delay model, plus a margin of two periods.
+  double max_delay = MaxDelaySeconds(s.delay);
+  for (const LinkOverride& o : s.links) {
+    if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
+  }
+  const double span_s = s.neighbour_timeout_s + max_delay + 2.0 * ToSeconds(period_us_);
+  history_ = StateHistory(static_cast<int>(std::ceil(span_s / ToSeconds(period_us_))) + 2);
+
+  out_.vehicle_id = id_;
+  out_.seq = -1;
+}
+
+RxResult Follower::Receive(const StateMsg& m) {
+  if (m.vehicle_id < 0 || m.vehicle_id >= static_cast<int>(slot_of_.size()) ||
+      slot_of_[m.vehicle_id] < 0) {
+    ++counters_.msgs_dropped_invalid;
+    return RxResult::kUnknownSender;
+  }
+  if (!m.AllFinite()) {
+    ++counters_.msgs_dropped_invalid;
+    return RxResult::kNonFinite;
+  }
+  Slot& sl = slots_[slot_of_[m.vehicle_id]];
+  if (sl.have && (m.utime <= sl.msg.utime || m.seq <= sl.msg.seq)) {
+    ++counters_.msgs_dropped_old;
+    return RxResult::kOld;
+  }
+  sl.msg = m;
+  sl.have = true;
+  sl.stale = false;
+  ++counters_.msgs_received;
+  return RxResult::kAccepted;
+}
+
+const StateMsg& Follower::Tick(Micros now) {
+  const AttitudeTrig<double> trig(x_.eta);
+  const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);
+  history_.Push(HistorySample{now, x_.eta, eta_dot});
+
+  // Protocol (10): one term per live neighbour, own state at the neighbour's send time.
+  int count = 0;
+  bool any_stale = false;
+  for (Slot& sl : slots_) {
+    if (!sl.have) continue;
+    if (now - sl.msg.utime > timeout_us_) {
+      if (!sl.stale) {
+        sl.stale = true;
+        ++counters_.neighbour_timeouts;
+      }
+      any_stale = true;
+      continue;
+    }
+    HistorySample own;
+    if (sl.msg.utime > now || !history_.At(sl.msg.utime, &own)) continue;
+    NeighbourTerm& t = terms_[count++];
+    t.weight = sl.weight;
+    t.eta_j = sl.msg.eta;
+    t.eta_dot_j = sl.msg.eta_dot;
+    t.offset_j = sl.offset;
+    t.eta_i = own.eta;
+    t.eta_dot_i = own.eta_dot;
+  }
+  counters_.active_neighbours = count;
+  const Vec5 a = Protocol10(k1_, k2_, offset_, terms_.data(), count);
+
+  // Inner loop: feedback linearisation, saturated to the actuator limits.
+  Vec5 tau, tau_wanted;
+  const bool saturated =
+      SaturatedFeedbackLinearise(model_, trig, x_.nu, a, tau_max_, &tau, &tau_wanted);
+  if (saturated) {
+    ++counters_.saturated_ticks;
+    for (int k = 0; k < 5; ++k) {
+      counters_.saturated_channel[k] += std::abs(tau(k)) >= tau_max_(k) && tau(k) != tau_wanted(k);
+    }
+  }
+
+  // Uncertain factor, held over the control period.
+  Vec5 tau_dist = Vec5::Zero();
+  Vec3 current = Vec3::Zero();
+  const double period_s = ToSeconds(period_us_);
+  if (disturbance_ == DisturbanceKind::kPaperExample2) {
+    // f(eta(t - tau(t)), eta_dot(t - tau(t))) in eta'': as a force, M J^{-1} f.
+    const Micros delay_us = static_cast<Micros>(
+        std::llround(NominalDelaySeconds(disturbance_delay_, ToSeconds(now)) * 1e6));
+    HistorySample past;
+    if (!history_.At(now - delay_us, &past)) past = history_.Oldest();
+    Vec5 f = PaperExample2F(past.eta, past.eta_dot);
+    if (disturbance_relative_) {
+      const LeaderSample& l = leader_path_->AtCached(std::max(0.0, ToSeconds(now - delay_us)));
+      f -= PaperExample2F(l.eta, l.eta_dot);
+    }
+    tau_dist = model_.M() * (FossenModel::JInv(trig) * f);
+  } else if (disturbance_ == DisturbanceKind::kOceanCurrent) {
+    current = current_.Step(period_s);
+  }
+
+  out_.seq += 1;
+  out_.utime = now;
+  out_.eta = x_.eta;
+  out_.nu = x_.nu;
+  out_.eta_dot = eta_dot;
+  out_.accel_cmd = a;
+  out_.tau = tau;
+  out_.flags = (saturated ? StateMsg::kFlagSaturated : 0) |
+               (any_stale ? StateMsg::kFlagStaleNeighbour : 0);
+
+  Integrate(model_, tau + tau_dist, current, period_s, substeps_, &x_);
+  x_.eta(4) = WrapAngle(x_.eta(4));
+  ++counters_.ticks;
+  if (!x_.eta.allFinite() || !x_.nu.allFinite() || std::abs(x_.eta(3)) > 80.0 * kPi / 180.0) {
+    diverged_ = true;
+  }
+  return out_;
+}
+
+}  // namespace shoal

@@ -1,0 +1,93 @@
+// One follower UUV: protocol (10) + feedback linearisation on its Fossen plant.
+// The same object runs inside shoal sim and inside the vehicle process, which is what
+// makes a lockstep SIL run equal to shoal sim.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/control.h"
+#include "core/fossen.h"
+#include "core/disturbance.h"
+#include "core/history.h"
+#include "core/leader_path.h"
+#include "core/scenario.h"
+#include "core/state_msg.h"
+#include "core/topology.h"
+
+namespace shoal {
+
+struct FollowerCounters {
+  std::int64_t ticks = 0;
+  std::int64_t msgs_received = 0;
+  std::int64_t msgs_dropped_invalid = 0;  // non-finite, unknown sender
+  std::int64_t msgs_dropped_old = 0;      // replayed or out of order
+  std::int64_t neighbour_timeouts = 0;
+  std::int64_t saturated_ticks = 0;
+  std::int64_t saturated_channel[5] = {0, 0, 0, 0, 0};
+  int active_neighbours = 0;
+};
+
+enum class RxResult { kAccepted, kUnknownSender, kNonFinite, kOld };
+
+class Follower {
+ public:
+  /// Follower `id` (1..n) of a validated scenario.
+  /// `leader_path` may be shared between the followers of one process (it caches its last
+  /// query); null builds a private one.
+  Follower(const Scenario& s, const Topology& topo, int id,
+           std::shared_ptr<const LeaderPath> leader_path = nullptr);
+
+  int id() const { return id_; }
+
+  /// Offers a message received on SHOAL_RX_<id>. Only a finite message from an
+  /// in-neighbour (or the leader, if pinned) that is newer than the one held is kept;
+  /// everything else is counted and ignored. Never throws, never allocates.
+  RxResult Receive(const StateMsg& m);
+
+  /// One control tick at `now`: records the current state, computes protocol (10) from
+  /// the newest data of each live neighbour, feedback-linearises and saturates, returns
+  /// the message to publish (the state at `now`), then integrates the plant to
+  /// now + period. Never throws, never allocates.
+  const StateMsg& Tick(Micros now);
+
+  const PlantState& state() const { return x_; }
+  const FollowerCounters& counters() const { return counters_; }
+  /// True once the state became non-finite or |pitch| exceeded 80 deg (J singular at 90).
+  bool diverged() const { return diverged_; }
+
+ private:
+  struct Slot {
+    int sender = 0;
+    double weight = 1.0;
+    Vec5 offset = Vec5::Zero();
+    bool have = false;
+    bool stale = false;
+    StateMsg msg;
+  };
+
+  int id_;
+  double k1_, k2_;
+  Vec5 offset_;
+  Micros period_us_;
+  Micros timeout_us_;
+  int substeps_;
+  Vec5 tau_max_;
+  DisturbanceKind disturbance_;
+  DelayConfig disturbance_delay_;
+  bool disturbance_relative_;
+  std::shared_ptr<const LeaderPath> leader_path_;  // environment's knowledge of the leader
+  OceanCurrent current_;
+  FossenModel model_;
+
+  PlantState x_;
+  StateHistory history_;
+  std::vector<Slot> slots_;
+  std::vector<int> slot_of_;  // sender id -> slot index, -1 if not a neighbour
+  std::vector<NeighbourTerm> terms_;  // preallocated scratch
+  StateMsg out_;
+  FollowerCounters counters_;
+  bool diverged_ = false;
+};
+
+}  // namespace shoal

@@ -1,0 +1,47 @@
+// Fixed-capacity history of a vehicle's own states, for protocol (10)'s own state at a
+// neighbour message's send time and for delayed disturbance arguments.
+#pragma once
+
+#include <vector>
+
+#include "core/types.h"
+
+namespace shoal {
+
+struct HistorySample {
+  Micros utime = 0;
+  Vec5 eta = Vec5::Zero();
+  Vec5 eta_dot = Vec5::Zero();
+};
+
+/// Ring buffer of samples with strictly increasing utime. Preallocated: Push() and At()
+/// never allocate (safe inside a real-time tick).
+class StateHistory {
+ public:
+  explicit StateHistory(int capacity = 1) : buf_(capacity > 0 ? capacity : 1) {}
+
+  int capacity() const { return static_cast<int>(buf_.size()); }
+  int size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+
+  /// Appends a sample; returns false (and ignores it) unless utime is newer than the last.
+  bool Push(const HistorySample& s);
+
+  /// The state at utime t: the exact sample if one was pushed at t, otherwise linear
+  /// interpolation between its neighbours (angles along the short arc). Returns false
+  /// if t is outside [oldest, newest].
+  bool At(Micros t, HistorySample* out) const;
+
+  const HistorySample& Newest() const { return Get(size_ - 1); }
+  const HistorySample& Oldest() const { return Get(0); }
+
+ private:
+  // i-th oldest sample, 0 <= i < size_.
+  const HistorySample& Get(int i) const { return buf_[(head_ + i) % buf_.size()]; }
+
+  std::vector<HistorySample> buf_;
+  int head_ = 0;  // index of the oldest sample
+  int size_ = 0;
+};
+
+}  // namespace shoal

@@ -1,0 +1,93 @@
+#include "core/leader_path.h"
+
+#include <cmath>
+
+#include "core/control.h"
+#include "core/fossen.h"
+
+namespace shoal {
+
+LeaderPath::LeaderPath(const LeaderConfig& c) : c_(c) {
+  if (c_.path == PathKind::kWaypoints) {
+    double t = 0.0;
+    const auto& w = c_.waypoints_m;
+    for (std::size_t k = 0; k + 1 < w.size(); ++k) {
+      seg_start_s_.push_back(t);
+      t += (w[k + 1] - w[k]).norm() / c_.speed_mps;
+    }
+    if (c_.loop && w.size() >= 2) {
+      seg_start_s_.push_back(t);
+      t += (w.front() - w.back()).norm() / c_.speed_mps;
+    }
+    total_s_ = t;
+  }
+}
+
+void LeaderPath::Point(double t, Vec3* p, Vec3* v, Vec3* a) const {
+  switch (c_.path) {
+    case PathKind::kPaperHelix: {
+      // Paper Sec. IV: x0 = 60 cos(0.0022 pi t) + 25 sin(0.0011 pi t),
+      // y0 = 60 sin(0.0022 pi t) + 25 cos(0.0011 pi t), z0 = -0.12 t.
+      const double wa = 0.0022 * kPi, wb = 0.0011 * kPi;
+      const double ca = std::cos(wa * t), sa = std::sin(wa * t);
+      const double cb = std::cos(wb * t), sb = std::sin(wb * t);
+      *p = Vec3(60 * ca + 25 * sb, 60 * sa + 25 * cb, -0.12 * t);
+      *v = Vec3(-60 * wa * sa + 25 * wb * cb, 60 * wa * ca - 25 * wb * sb, -0.12);
+      *a = Vec3(-60 * wa * wa * ca - 25 * wb * wb * sb, -60 * wa * wa * sa - 25 * wb * wb * cb,
+                0.0);
+      return;
+    }
+    case PathKind::kLine:
+      *p = c_.start_m + c_.velocity_mps * t;
+      *v = c_.velocity_mps;
+      *a = Vec3::Zero();
+      return;
+    case PathKind::kWaypoints: {
+      const auto& w = c_.waypoints_m;
+      *a = Vec3::Zero();
+      if (c_.loop && total_s_ > 0.0) t = std::fmod(t, total_s_);
+      if (t >= total_s_) {  // finished: hold at the last waypoint
+        *p = w.back();
+        *v = Vec3::Zero();
+        return;
+      }
+      std::size_t k = 0;
+      while (k + 1 < seg_start_s_.size() && seg_start_s_[k + 1] <= t) ++k;
+      const Vec3& from = w[k];
+      const Vec3& to = (k + 1 < w.size()) ? w[k + 1] : w.front();
+      const Vec3 dir = (to - from).normalized();
+      *p = from + dir * c_.speed_mps * (t - seg_start_s_[k]);
+      *v = dir * c_.speed_mps;
+      return;
+    }
+  }
+}
+
+LeaderSample LeaderPath::At(double t_s) const {
+  Vec3 p, v, a;
+  Point(t_s, &p, &v, &a);
+  LeaderSample s;
+  const double h2 = v.x() * v.x() + v.y() * v.y();
+  const double h = std::sqrt(h2);
+  double psi = 0.0, theta = 0.0, psi_dot = 0.0, theta_dot = 0.0;
+  if (v.norm() > 1e-9) {
+    psi = h > 1e-9 ? std::atan2(v.y(), v.x()) : 0.0;
+    theta = std::atan2(-v.z(), h);
+    if (h > 1e-9) {
+      psi_dot = (v.x() * a.y() - v.y() * a.x()) / h2;
+      const double h_dot = (v.x() * a.x() + v.y() * a.y()) / h;
+      theta_dot = (-h * a.z() + v.z() * h_dot) / (h2 + v.z() * v.z());
+    }
+  } else if (c_.path == PathKind::kWaypoints && c_.waypoints_m.size() >= 2) {
+    // At rest at the end: keep the last segment's attitude.
+    const Vec3 d = c_.waypoints_m.back() - c_.waypoints_m[c_.waypoints_m.size() - 2];
+    psi = std::atan2(d.y(), d.x());
+    theta = std::atan2(-d.z(), std::hypot(d.x(), d.y()));
+  }
+  s.eta << p, theta, WrapAngle(psi);
+  s.eta_dot << v, theta_dot, psi_dot;
+  s.nu = FossenModel::JInv(s.eta) * s.eta_dot;
+  return s;
+}
+
+}  // namespace shoal

@@ -1,0 +1,43 @@
+// Paths of the leader (id 0): the paper's helix, a straight line, or waypoints.
+#pragma once
+
+#include "core/scenario.h"
+
+namespace shoal {
+
+/// Position, attitude and their rates of the leader at time t.
+/// Attitude follows the path tangent: psi = atan2(y', x'), theta = atan2(-z', |(x', y')|).
+struct LeaderSample {
+  Vec5 eta = Vec5::Zero();
+  Vec5 eta_dot = Vec5::Zero();
+  Vec5 nu = Vec5::Zero();  // J(eta)^{-1} eta_dot
+};
+
+class LeaderPath {
+ public:
+  explicit LeaderPath(const LeaderConfig& c);
+  LeaderSample At(double t_s) const;
+  /// At(t_s) through a one-entry cache, for callers that ask for the same time repeatedly
+  /// (every follower's environment model asks for the leader at the same delayed time).
+  const LeaderSample& AtCached(double t_s) const {
+    if (!cache_valid_ || cache_t_ != t_s) {
+      cache_ = At(t_s);
+      cache_t_ = t_s;
+      cache_valid_ = true;
+    }
+    return cache_;
+  }
+
+ private:
+  // Position, velocity, acceleration of the path point (NED).
+  void Point(double t, Vec3* p, Vec3* v, Vec3* a) const;
+
+  LeaderConfig c_;
+  std::vector<double> seg_start_s_;  // waypoints: time at which each segment starts
+  double total_s_ = 0.0;
+  mutable bool cache_valid_ = false;
+  mutable double cache_t_ = 0.0;
+  mutable LeaderSample cache_;
+};
+
+}  // namespace shoal

@@ -1,0 +1,136 @@
+// The scenario: one plain struct per concern, with defaults. Loading and validation of
+// the TOML file live in runtime/scenario_loader; this header is pure data so that core/
+// stays free of I/O. Every key is documented in docs/scenario.md.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/types.h"
+
+namespace shoal {
+
+enum class DelayKind { kNone, kConstant, kSinusoid, kUniform };
+
+/// tau(t) for one directed link.
+///   none:      tau = 0
+///   constant:  tau = base_s
+///   sinusoid:  tau = base_s + amplitude_s * cos(omega_rad_s * t)   (paper Example 2)
+///   uniform:   tau = base_s + U(-amplitude_s, amplitude_s), drawn per message (seeded)
+struct DelayConfig {
+  DelayKind kind = DelayKind::kNone;
+  double base_s = 0.0;
+  double amplitude_s = 0.0;
+  double omega_rad_s = 0.0;
+};
+
+enum class LossKind { kNone, kBernoulli };
+
+/// Message loss for one directed link: none, or independent drops with `probability`.
+struct LossConfig {
+  LossKind kind = LossKind::kNone;
+  double probability = 0.0;
+};
+
+/// A per-link override of the channel defaults; `from` 0 is the leader.
+struct LinkOverride {
+  int from = 0;
+  int to = 0;
+  std::optional<DelayConfig> delay;
+  std::optional<LossConfig> loss;
+};
+
+enum class DisturbanceKind { kNone, kPaperExample2, kOceanCurrent };
+
+/// Gauss-Markov ocean current (Fossen 2011, sec. 8.3): dV/dt + mu V = w, V clamped to
+/// [min_speed_mps, max_speed_mps]; horizontal, from direction `direction_rad` (NED).
+struct OceanCurrentConfig {
+  double speed_mps = 0.5;        // initial (and mean) speed
+  double min_speed_mps = 0.0;
+  double max_speed_mps = 1.0;
+  double mu_per_s = 0.01;        // Gauss-Markov time constant 1/mu
+  double noise_mps = 0.1;        // standard deviation of w (per sqrt(s))
+  double direction_rad = 0.5235987755982988;  // beta_c, 30 deg as Fossen's remus100
+};
+
+struct DisturbanceConfig {
+  DisturbanceKind kind = DisturbanceKind::kNone;
+  /// paper_example2 only. true: follower i feels F_i = f(x_i(t-tau), v_i(t-tau)) -
+  /// f(x_0(t-tau), v_0(t-tau)), exactly the uncertain term of the paper's error system (13)
+  /// (the leader, eq. (4), is subject to the same f and its given path already contains
+  /// it). false: the absolute f(x_i(t-tau), v_i(t-tau)), which a PD consensus law without
+  /// integral action can only hold to a bias of about H^{-1} f / k1.
+  bool relative_to_leader = true;
+  OceanCurrentConfig current;
+};
+
+enum class PathKind { kPaperHelix, kLine, kWaypoints };
+
+struct LeaderConfig {
+  PathKind path = PathKind::kPaperHelix;
+  Vec3 start_m = Vec3::Zero();        // line: position at t = 0
+  Vec3 velocity_mps = Vec3(1, 0, 0);  // line: constant velocity
+  std::vector<Vec3> waypoints_m;      // waypoints: visited in order
+  double speed_mps = 1.0;             // waypoints: along-path speed
+  bool loop = false;                  // waypoints: return to the first and repeat
+};
+
+/// Initial state of one follower.
+struct FollowerInit {
+  Vec5 eta = Vec5::Zero();  // [x y z theta psi]
+  Vec5 nu = Vec5::Zero();   // [u v w q r]
+  bool given = false;       // false: starts at the leader's start + offset, at rest
+};
+
+struct VehicleConfig {
+  /// Per-channel limits of tau = [X Y Z M N] (N, N, N, N m, N m); REFERENCE.md.
+  Vec5 tau_max = (Vec5() << 100.0, 10.0, 10.0, 6.0, 6.0).finished();
+  /// RK4 step inside each control period; the period is split into whole steps.
+  double integrator_step_s = 0.01;
+};
+
+struct MetricsConfig {
+  double position_tol_m = 0.5;
+  double velocity_tol_mps = 0.05;
+};
+
+struct Scenario {
+  // Provenance.
+  std::string name;         // [run] name, default: file stem
+  std::string source_path;  // file it was loaded from ("" if built in code)
+  std::string source_text;  // the file's text, logged so that a log reproduces its run
+
+  // [run]
+  double duration_s = 600.0;
+  double control_rate_hz = 50.0;
+  std::uint64_t seed = 1;
+
+  // [swarm]  followers are 1..n, the leader is 0.
+  int followers = 0;
+  std::vector<std::pair<int, int>> edges;  // (i, j): follower i receives from follower j
+  std::vector<int> leader_links;           // followers that receive the leader
+  double neighbour_timeout_s = 1.0;
+
+  // [control]
+  double k1 = 0.0;
+  double k2 = 0.0;
+  std::vector<Vec3> offsets_m;  // d_i, size n (NED, relative to the leader)
+
+  LeaderConfig leader;
+  DelayConfig delay;            // [channel.delay], default for every link
+  LossConfig loss;              // [channel.loss]
+  std::vector<LinkOverride> links;  // [[channel.link]]
+  DisturbanceConfig disturbance;
+  VehicleConfig vehicle;
+  MetricsConfig metrics;
+  std::vector<FollowerInit> initial;  // size n, index i-1 for follower i
+
+  /// Control period in whole microseconds.
+  Micros period_us() const {
+    return static_cast<Micros>(1e6 / control_rate_hz + 0.5);
+  }
+};
+
+}  // namespace shoal

@@ -1,0 +1,70 @@
+// The whole swarm in one process with the step semantics every mode shares:
+//   tick k at t_k = k * period:
+//     1. the channel delivers every message due at or before t_k (SHOAL_RX_<id>);
+//     2. the leader and each follower step once and publish their state at t_k;
+//     3. each published state enters the channel (usable from tick k+1 at the earliest).
+// shoal sim runs this loop as fast as the CPU allows; the SIL processes run the same
+// objects (Leader, Follower, Channel) split across processes.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/channel_model.h"
+#include "core/follower.h"
+#include "core/leader.h"
+#include "core/metrics.h"
+
+namespace shoal {
+
+/// Receives everything the swarm "publishes", in bus order. Default: ignore.
+class SwarmObserver {
+ public:
+  virtual ~SwarmObserver() = default;
+  virtual void OnTick(std::int64_t /*tick*/, Micros /*utime*/, bool /*final_tick*/) {}
+  virtual void OnDeliver(int /*receiver*/, const StateMsg& /*msg*/) {}
+  virtual void OnState(const StateMsg& /*msg*/) {}
+  virtual void OnChannel(const ChannelDecision& /*decision*/) {}
+  /// Once per simulated second, and at the final tick, for each follower.
+  virtual void OnHealth(Micros /*utime*/, const Follower& /*f*/) {}
+};
+
+class Swarm {
+ public:
+  /// A validated scenario; `duration_s` < 0 uses the scenario's.
+  explicit Swarm(const Scenario& s, double duration_s = -1.0);
+
+  /// Runs tick `next_tick()`; returns false when the run is over (after the final tick).
+  bool Step(SwarmObserver* obs);
+  /// Runs to the end, or until `*stop` becomes true (checked each tick).
+  void Run(SwarmObserver* obs, const volatile bool* stop = nullptr);
+
+  std::int64_t next_tick() const { return tick_; }
+  std::int64_t final_tick() const { return final_tick_; }
+  Micros period_us() const { return period_us_; }
+  double sim_time_s() const { return ToSeconds(last_utime_); }
+  const FormationMetrics& metrics() const { return metrics_; }
+  const std::vector<std::unique_ptr<Follower>>& followers() const { return followers_; }
+  /// Id of the first follower that diverged (0 if none); the run stops there.
+  int diverged_id() const { return diverged_id_; }
+  std::int64_t delivered() const { return delivered_; }
+  std::int64_t dropped() const { return dropped_; }
+
+ private:
+  Topology topo_;
+  Micros period_us_;
+  std::int64_t final_tick_;
+  std::int64_t tick_ = 0;
+  Micros last_utime_ = 0;
+  Leader leader_;
+  std::vector<std::unique_ptr<Follower>> followers_;
+  Channel<StateMsg> channel_;
+  FormationMetrics metrics_;
+  std::vector<const StateMsg*> published_;
+  std::vector<ChannelDecision> decisions_;
+  int diverged_id_ = 0;
+  std::int64_t delivered_ = 0;
+  std::int64_t dropped_ = 0;
+};
+
+}  // namespace shoal

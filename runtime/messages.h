@@ -1,0 +1,97 @@
+// Translation between core structs and the LCM types (the only place that knows both).
+#pragma once
+
+#include <shoal/channel_event_t.hpp>
+#include <shoal/clock_tick_t.hpp>
+#include <shoal/health_t.hpp>
+#include <shoal/run_status_t.hpp>
+#include <shoal/vehicle_state_t.hpp>
+
+#include "core/channel_model.h"
+#include "core/follower.h"
+#include "core/state_msg.h"
+
+namespace shoal {
+
+inline void Copy5(const Vec5& v, double* out) {
+  for (int k = 0; k < 5; ++k) out[k] = v(k);
+}
+inline Vec5 Load5(const double* in) { return Eigen::Map<const Vec5>(in); }
+
+inline vehicle_state_t ToLcm(const StateMsg& m) {
+  vehicle_state_t o;
+  o.utime = m.utime;
+  o.vehicle_id = m.vehicle_id;
+  o.seq = m.seq;
+  Copy5(m.eta, o.eta);
+  Copy5(m.nu, o.nu);
+  Copy5(m.eta_dot, o.eta_dot);
+  Copy5(m.accel_cmd, o.accel_cmd);
+  Copy5(m.tau, o.tau);
+  o.flags = m.flags;
+  return o;
+}
+
+inline StateMsg FromLcm(const vehicle_state_t& o) {
+  StateMsg m;
+  m.utime = o.utime;
+  m.vehicle_id = o.vehicle_id;
+  m.seq = o.seq;
+  m.eta = Load5(o.eta);
+  m.nu = Load5(o.nu);
+  m.eta_dot = Load5(o.eta_dot);
+  m.accel_cmd = Load5(o.accel_cmd);
+  m.tau = Load5(o.tau);
+  m.flags = o.flags;
+  return m;
+}
+
+inline channel_event_t ToLcm(const ChannelDecision& d, std::int32_t seq) {
+  channel_event_t e;
+  e.utime = d.send_utime;
+  e.vehicle_id = -1;
+  e.seq = seq;
+  e.sender = d.sender;
+  e.receiver = d.receiver;
+  e.msg_seq = d.msg_seq;
+  e.send_utime = d.send_utime;
+  e.delay_s = d.delay_s;
+  e.deliver_utime = d.deliver_utime;
+  e.status = d.status;
+  switch (d.status) {
+    case ChannelDecision::kDelivered:
+      e.reason = "";
+      break;
+    case ChannelDecision::kDroppedLoss:
+      e.reason = "loss model";
+      break;
+    case ChannelDecision::kDroppedQueue:
+      e.reason = "pending queue full";
+      break;
+  }
+  return e;
+}
+
+/// Health of a follower; lateness/overrun fields are the caller's (zero in sim/lockstep).
+inline health_t ToLcmHealth(Micros utime, const Follower& f, std::int32_t seq) {
+  const FollowerCounters& c = f.counters();
+  health_t h;
+  h.utime = utime;
+  h.vehicle_id = f.id();
+  h.seq = seq;
+  h.ticks = c.ticks;
+  h.lateness_p50_s = 0.0;
+  h.lateness_p99_s = 0.0;
+  h.lateness_max_s = 0.0;
+  h.overruns = 0;
+  h.msgs_received = c.msgs_received;
+  h.msgs_dropped_invalid = c.msgs_dropped_invalid;
+  h.msgs_dropped_old = c.msgs_dropped_old;
+  h.neighbour_timeouts = c.neighbour_timeouts;
+  h.active_neighbours = c.active_neighbours;
+  h.saturated_ticks = c.saturated_ticks;
+  h.saturation_fraction = c.ticks > 0 ? static_cast<double>(c.saturated_ticks) / c.ticks : 0.0;
+  return h;
+}
+
+}  // namespace shoal

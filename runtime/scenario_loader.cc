@@ -1,0 +1,1017 @@
+// Scenario TOML loading and validation. Every key is documented in docs/scenario.md.
+//
+// The whole file is validated before anything runs; the first problem found is thrown as
+// a ScenarioError that names the file, the line, the dotted key, what is wrong, the value
+// that was given and how to fix it. Unknown keys are errors at every level.
+#include "runtime/scenario_loader.h"
+
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string_view>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "core/topology.h"
+
+namespace shoal {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// A dense n x n topology is built for validation; 1000 followers is far beyond any
+// practical swarm and keeps a typo (followers = 1000000) from exhausting memory.
+constexpr std::int64_t kMaxFollowers = 1000;
+// Times are converted to int64 microseconds by the core; 1e9 s (~32 years) keeps every
+// conversion far from overflow.
+constexpr double kMaxSeconds = 1e9;
+constexpr double kMaxControlRateHz = 10000.0;
+constexpr double kMaxPitchRad = 0.5235987755982988;  // 30 deg, REMUS 100 limit
+constexpr std::size_t kMaxShownChars = 80;           // of a value quoted in a message
+constexpr int kMaxSuggestionDistance = 2;
+
+// ---------------------------------------------------------------------------------------
+// Schema: the keys each table accepts.
+
+/// A non-owning view of a constexpr array of key names.
+class KeySet {
+ public:
+  constexpr KeySet() = default;
+  template <std::size_t N>
+  constexpr KeySet(const std::array<std::string_view, N>& keys)  // NOLINT: implicit on purpose
+      : data_(keys.data()), size_(N) {}
+
+  const std::string_view* begin() const { return data_; }
+  const std::string_view* end() const { return data_ + size_; }
+  bool Contains(std::string_view key) const { return std::find(begin(), end(), key) != end(); }
+
+ private:
+  const std::string_view* data_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+constexpr std::array<std::string_view, 9> kTopKeys = {"run",     "swarm",   "control",
+                                                      "leader",  "channel", "disturbance",
+                                                      "vehicle", "metrics", "follower"};
+constexpr std::array<std::string_view, 4> kRunKeys = {"name", "duration_s", "control_rate_hz",
+                                                      "seed"};
+constexpr std::array<std::string_view, 4> kSwarmKeys = {"followers", "edges", "leader_links",
+                                                        "neighbour_timeout_s"};
+constexpr std::array<std::string_view, 3> kControlKeys = {"k1", "k2", "offsets_m"};
+constexpr std::array<std::string_view, 6> kLeaderKeys = {"path",        "start_m",   "velocity_mps",
+                                                         "waypoints_m", "speed_mps", "loop"};
+constexpr std::array<std::string_view, 3> kChannelKeys = {"delay", "loss", "link"};
+constexpr std::array<std::string_view, 4> kDelayKeys = {"model", "base_s", "amplitude_s",
+                                                        "omega_rad_s"};
+constexpr std::array<std::string_view, 2> kLossKeys = {"model", "probability"};
+constexpr std::array<std::string_view, 4> kLinkKeys = {"from", "to", "delay", "loss"};
+constexpr std::array<std::string_view, 8> kDisturbanceKeys = {
+    "model",    "speed_mps", "min_speed_mps", "max_speed_mps",
+    "mu_per_s", "noise_mps", "direction_rad", "relative_to_leader"};
+constexpr std::array<std::string_view, 2> kVehicleKeys = {"tau_max", "integrator_step_s"};
+constexpr std::array<std::string_view, 2> kMetricsKeys = {"position_tol_m", "velocity_tol_mps"};
+constexpr std::array<std::string_view, 5> kFollowerKeys = {"id", "position_m", "pitch_rad",
+                                                           "heading_rad", "nu"};
+
+/// Where each key lives, to point a key written in the wrong table to the right one.
+struct TableSchema {
+  std::string_view label;
+  KeySet keys;
+};
+constexpr std::array<TableSchema, 11> kTables = {{
+    {"[run]", kRunKeys},
+    {"[swarm]", kSwarmKeys},
+    {"[control]", kControlKeys},
+    {"[leader]", kLeaderKeys},
+    {"[channel.delay]", kDelayKeys},
+    {"[channel.loss]", kLossKeys},
+    {"[[channel.link]]", kLinkKeys},
+    {"[disturbance]", kDisturbanceKeys},
+    {"[vehicle]", kVehicleKeys},
+    {"[metrics]", kMetricsKeys},
+    {"[[follower]]", kFollowerKeys},
+}};
+
+/// One choice of a selector key (path = "...", model = "..."): its name, its value and
+/// the other keys of the table it uses. The first variant of a list is the default.
+template <typename Kind>
+struct Variant {
+  std::string_view name;
+  Kind kind;
+  KeySet keys;
+};
+
+constexpr std::array<std::string_view, 2> kLinePathKeys = {"start_m", "velocity_mps"};
+constexpr std::array<std::string_view, 3> kWaypointPathKeys = {"waypoints_m", "speed_mps", "loop"};
+constexpr std::array<Variant<PathKind>, 3> kLeaderPaths = {{
+    {"paper_helix", PathKind::kPaperHelix, {}},
+    {"line", PathKind::kLine, kLinePathKeys},
+    {"waypoints", PathKind::kWaypoints, kWaypointPathKeys},
+}};
+
+constexpr std::array<std::string_view, 1> kConstantDelayKeys = {"base_s"};
+constexpr std::array<std::string_view, 3> kSinusoidDelayKeys = {"base_s", "amplitude_s",
+                                                                "omega_rad_s"};
+constexpr std::array<std::string_view, 2> kUniformDelayKeys = {"base_s", "amplitude_s"};
+constexpr std::array<Variant<DelayKind>, 4> kDelayModels = {{
+    {"none", DelayKind::kNone, {}},
+    {"constant", DelayKind::kConstant, kConstantDelayKeys},
+    {"sinusoid", DelayKind::kSinusoid, kSinusoidDelayKeys},
+    {"uniform", DelayKind::kUniform, kUniformDelayKeys},
+}};
+
+constexpr std::array<std::string_view, 1> kBernoulliLossKeys = {"probability"};
+constexpr std::array<Variant<LossKind>, 2> kLossModels = {{
+    {"none", LossKind::kNone, {}},
+    {"bernoulli", LossKind::kBernoulli, kBernoulliLossKeys},
+}};
+
+constexpr std::array<std::string_view, 6> kOceanCurrentKeys = {
+    "speed_mps", "min_speed_mps", "max_speed_mps", "mu_per_s", "noise_mps", "direction_rad"};
+constexpr std::array<std::string_view, 1> kPaperDisturbanceKeys = {"relative_to_leader"};
+constexpr std::array<Variant<DisturbanceKind>, 3> kDisturbanceModels = {{
+    {"none", DisturbanceKind::kNone, {}},
+    {"paper_example2", DisturbanceKind::kPaperExample2, kPaperDisturbanceKeys},
+    {"ocean_current", DisturbanceKind::kOceanCurrent, kOceanCurrentKeys},
+}};
+
+// ---------------------------------------------------------------------------------------
+// Number ranges.
+
+/// An interval a number must lie in, and the rule in words for the message.
+struct Bound {
+  double lo;
+  bool lo_open;
+  double hi;
+  bool hi_open;
+  std::string_view what;
+
+  bool Contains(double v) const {
+    return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+  }
+};
+
+constexpr Bound kFinite{-kInf, true, kInf, true, "must be a finite number"};
+constexpr Bound kPositive{0.0, true, kInf, true, "must be a positive number"};
+constexpr Bound kNonNegative{0.0, false, kInf, true, "must be a number >= 0"};
+constexpr Bound kPositiveSeconds{0.0, true, kMaxSeconds, false,
+                                 "must be a positive number of seconds, at most 1e9"};
+constexpr Bound kSeconds{0.0, false, kMaxSeconds, false, "must be a number of seconds in [0, 1e9]"};
+constexpr Bound kProbability{0.0, false, 1.0, true, "must be in [0, 1)"};
+constexpr Bound kControlRate{0.0, true, kMaxControlRateHz, false,
+                             "must be a positive number <= 10000"};
+constexpr Bound kPitch{-kMaxPitchRad, true, kMaxPitchRad, true,
+                       "must satisfy |pitch_rad| < 0.5236 (30 deg)"};
+
+/// An interval an integer must lie in, and the rule in words.
+struct IntBound {
+  std::int64_t lo;
+  std::int64_t hi;
+  std::string what;
+};
+
+// ---------------------------------------------------------------------------------------
+// Text helpers.
+
+/// Shortest decimal text that reads back as exactly `v`.
+std::string FormatNumber(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  // Start with enough digits for the integer part, so that %g never switches to an
+  // exponent for ordinary numbers (1000, not 1e+03).
+  int first = 1;
+  if (std::abs(v) >= 1.0 && std::abs(v) < 1e17) {
+    first = static_cast<int>(std::floor(std::log10(std::abs(v)))) + 1;
+  }
+  char buffer[32];
+  for (int precision = first; precision <= 17; ++precision) {
+    std::snprintf(buffer, sizeof(buffer), "%.*g", precision, v);
+    if (std::strtod(buffer, nullptr) == v) break;
+  }
+  return buffer;
+}
+
+std::string FixedPoint(double v, int decimals) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.*f", decimals, v);
+  return buffer;
+}
+
+void AppendQuoted(std::string_view s, std::string* out) {
+  *out += '"';
+  for (const char c : s) {
+    if (c == '"' || c == '\\') {
+      *out += '\\';
+      *out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\u%04x", static_cast<unsigned>(c));
+      *out += escaped;
+    } else {
+      *out += c;
+    }
+  }
+  *out += '"';
+}
+
+/// Appends `node` as TOML-like text; stops early once the text is too long to show.
+void AppendValue(const toml::node& node, std::string* out) {
+  if (out->size() > kMaxShownChars) return;
+  if (const auto* v = node.as_string()) {
+    AppendQuoted(v->get(), out);
+  } else if (const auto* v = node.as_integer()) {
+    *out += std::to_string(v->get());
+  } else if (const auto* v = node.as_floating_point()) {
+    std::string text = FormatNumber(v->get());
+    // A TOML float stays visibly a float: "got 2.0", not "got 2".
+    if (text.find_first_of(".eEni") == std::string::npos) text += ".0";
+    *out += text;
+  } else if (const auto* v = node.as_boolean()) {
+    *out += v->get() ? "true" : "false";
+  } else if (const auto* array = node.as_array()) {
+    *out += '[';
+    for (std::size_t i = 0; i < array->size() && out->size() <= kMaxShownChars; ++i) {
+      if (i > 0) *out += ", ";
+      AppendValue(*array->get(i), out);
+    }
+    *out += ']';
+  } else if (const auto* table = node.as_table()) {
+    *out += '{';
+    bool first = true;
+    for (auto&& [key, value] : *table) {
+      *out += first ? " " : ", ";
+      first = false;
+      *out += key.str();
+      *out += " = ";
+      AppendValue(value, out);
+    }
+    *out += " }";
+  } else {
+    std::ostringstream text;
+    if (const auto* v = node.as_date()) text << v->get();
+    if (const auto* v = node.as_time()) text << v->get();
+    if (const auto* v = node.as_date_time()) text << v->get();
+    *out += text.str();
+  }
+}
+
+/// The value as shown after "got" in a message.
+std::string Show(const toml::node& node) {
+  std::string out;
+  AppendValue(node, &out);
+  if (out.size() > kMaxShownChars) out = out.substr(0, kMaxShownChars - 3) + "...";
+  return out;
+}
+
+std::string Quoted(std::string_view s) {
+  std::string out;
+  AppendQuoted(s, &out);
+  return out;
+}
+
+std::string Index(const std::string& key, std::size_t i) {
+  return key + "[" + std::to_string(i) + "]";
+}
+
+std::string JoinInts(const std::vector<int>& values) {
+  std::string out;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (i > 0) out += ", ";
+    out += std::to_string(values[i]);
+  }
+  return out;
+}
+
+/// Optimal string alignment distance (Levenshtein plus adjacent transpositions).
+int EditDistance(std::string_view a, std::string_view b) {
+  const std::size_t n = a.size();
+  const std::size_t m = b.size();
+  std::vector<std::vector<int>> d(n + 1, std::vector<int>(m + 1, 0));
+  for (std::size_t i = 0; i <= n; ++i) d[i][0] = static_cast<int>(i);
+  for (std::size_t j = 0; j <= m; ++j) d[0][j] = static_cast<int>(j);
+  for (std::size_t i = 1; i <= n; ++i) {
+    for (std::size_t j = 1; j <= m; ++j) {
+      const int cost = a[i - 1] == b[j - 1] ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) {
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      }
+    }
+  }
+  return d[n][m];
+}
+
+/// The candidate closest to `word` within kMaxSuggestionDistance, if any.
+template <typename Names>
+std::optional<std::string_view> Closest(std::string_view word, const Names& candidates) {
+  std::optional<std::string_view> best;
+  int best_distance = kMaxSuggestionDistance + 1;
+  for (const std::string_view candidate : candidates) {
+    const int distance = EditDistance(word, candidate);
+    if (distance < best_distance) {
+      best = candidate;
+      best_distance = distance;
+    }
+  }
+  return best;
+}
+
+int LineOf(const toml::source_region& source) {
+  return std::max(1, static_cast<int>(source.begin.line));
+}
+int LineOf(const toml::node& node) { return LineOf(node.source()); }
+
+/// The entries of a table in the order they were written.
+std::vector<std::pair<const toml::key*, const toml::node*>> InFileOrder(const toml::table& t) {
+  std::vector<std::pair<const toml::key*, const toml::node*>> entries;
+  for (auto&& [key, value] : t) entries.emplace_back(&key, &value);
+  std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {
+    const auto& sa = a.first->source().begin;
+    const auto& sb = b.first->source().begin;
+    return sa.line != sb.line ? sa.line < sb.line : sa.column < sb.column;
+  });
+  return entries;
+}
+
+// ---------------------------------------------------------------------------------------
+// Reading typed values with located messages.
+
+/// A table being read and what messages need to name it.
+struct Table {
+  const toml::table* node = nullptr;  // nullptr: the table is absent from the file
+  std::string key;                    // dotted key, "" for the root
+  std::string label;                  // "[run]", "[[follower]]", "channel.link[0].delay"
+  int line = 1;                       // its header; 1 when absent
+
+  const toml::node* Get(std::string_view k) const { return node ? node->get(k) : nullptr; }
+  std::string KeyOf(std::string_view k) const {
+    return key.empty() ? std::string(k) : key + "." + std::string(k);
+  }
+};
+
+/// Converts TOML nodes to checked values; every failure throws a located ScenarioError.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  /// "<file>:<line>: <key>: <what> (got <got>); <fix>"
+  [[noreturn]] void Fail(int line, const std::string& key, std::string_view what,
+                         const std::optional<std::string>& got, std::string_view fix) const {
+    std::string message = file_ + ":" + std::to_string(line) + ": ";
+    if (!key.empty()) message += key + ": ";
+    message += what;
+    if (got) message += " (got " + *got + ")";
+    if (!fix.empty()) message += "; " + std::string(fix);
+    throw ScenarioError(message);
+  }
+
+  /// Fails on the line of `node`, quoting its value.
+  [[noreturn]] void FailAt(const toml::node& node, const std::string& key, std::string_view what,
+                           std::string_view fix) const {
+    Fail(LineOf(node), key, what, Show(node), fix);
+  }
+
+  const toml::node& Require(const Table& t, std::string_view key, std::string_view hint) const {
+    if (const toml::node* node = t.Get(key)) return *node;
+    Fail(t.line, t.KeyOf(key), "missing required key", std::nullopt,
+         "add " + std::string(key) + " to " + t.label + " (" + std::string(hint) + ")");
+  }
+
+  /// The sub-table `key` of `parent`; an absent table reads as empty.
+  Table Child(const Table& parent, std::string_view key, std::string_view hint) const {
+    Table child;
+    child.key = parent.KeyOf(key);
+    // Tables below an array element are named by their path ("channel.link[0].delay").
+    child.label = child.key.find('[') == std::string::npos ? "[" + child.key + "]" : child.key;
+    if (const toml::node* node = parent.Get(key)) {
+      child.node = node->as_table();
+      if (child.node == nullptr) FailAt(*node, child.key, "must be a table", hint);
+      child.line = LineOf(*node);
+    }
+    return child;
+  }
+
+  /// The entries of the array of tables `key` of `parent` ([[key]] in the file).
+  std::vector<Table> ArrayOfTables(const Table& parent, std::string_view key) const {
+    std::vector<Table> tables;
+    const toml::node* node = parent.Get(key);
+    if (node == nullptr) return tables;
+    const std::string dotted = parent.KeyOf(key);
+    const toml::array* array = node->as_array();
+    if (array == nullptr || (!array->empty() && !array->is_array_of_tables())) {
+      FailAt(*node, dotted, "must be an array of tables",
+             "write each entry as its own [[" + dotted + "]] table");
+    }
+    for (std::size_t i = 0; i < array->size(); ++i) {
+      const toml::node& element = *array->get(i);
+      tables.push_back(
+          {element.as_table(), Index(dotted, i), "[[" + dotted + "]]", LineOf(element)});
+    }
+    return tables;
+  }
+
+  /// Rejects keys of `t` outside `allowed`, suggesting the closest valid key.
+  void CheckKeys(const Table& t, KeySet allowed) const {
+    if (t.node == nullptr) return;
+    for (const auto& [key, value] : InFileOrder(*t.node)) {
+      const std::string_view name = key->str();
+      if (allowed.Contains(name)) continue;
+      const bool is_table = value->is_table() && !value->as_table()->is_inline();
+      const std::string dotted = t.KeyOf(name);
+      const std::string where = t.key.empty() ? "at the top level" : "in " + t.label;
+      const std::string what = is_table ? "unknown table [" + dotted + "]"
+                                        : "unknown key '" + std::string(name) + "' " + where;
+      Fail(LineOf(key->source()), dotted, what, std::nullopt,
+           UnknownKeyFix(t, name, is_table, allowed));
+    }
+  }
+
+  /// Reads the selector `selector` (e.g. model = "sinusoid") and rejects keys of `t` that
+  /// belong to another variant. `what` names the selector in messages ("delay model").
+  template <typename Kind, std::size_t N>
+  Kind ReadVariant(const Table& t, std::string_view selector,
+                   const std::array<Variant<Kind>, N>& variants, std::string_view what) const {
+    std::vector<std::string_view> names;
+    std::string choices = "use one of";
+    for (const auto& variant : variants) {
+      names.push_back(variant.name);
+      choices += (names.size() > 1 ? ", " : " ") + Quoted(variant.name);
+    }
+    const Variant<Kind>* chosen = &variants[0];
+    if (const toml::node* node = t.Get(selector)) {
+      const std::string key = t.KeyOf(selector);
+      const std::string name = ToString(*node, key, choices);
+      const auto it = std::find_if(variants.begin(), variants.end(),
+                                   [&](const auto& variant) { return variant.name == name; });
+      if (it == variants.end()) {
+        std::string fix = choices;
+        if (const auto close = Closest(name, names)) {
+          fix += "; did you mean " + Quoted(*close) + "?";
+        }
+        FailAt(*node, key, "unknown " + std::string(what), fix);
+      }
+      chosen = &*it;
+    }
+    if (t.node == nullptr) return chosen->kind;
+    for (const auto& [key, value] : InFileOrder(*t.node)) {
+      const std::string_view name = key->str();
+      if (name == selector || chosen->keys.Contains(name)) continue;
+      const auto user = std::find_if(variants.begin(), variants.end(), [&](const auto& variant) {
+        return variant.keys.Contains(name);
+      });
+      if (user == variants.end()) continue;  // not a variant key: CheckKeys' business
+      FailAt(*value, t.KeyOf(name), "not used by " + std::string(what) + " " + Quoted(chosen->name),
+             "remove it, or set " + std::string(selector) + " = " + Quoted(user->name));
+    }
+    return chosen->kind;
+  }
+
+  double ToNumber(const toml::node& node, const std::string& key, const Bound& bound,
+                  std::string_view hint) const {
+    double value = 0.0;
+    if (const auto* integer = node.as_integer()) {
+      value = static_cast<double>(integer->get());
+    } else if (const auto* floating = node.as_floating_point()) {
+      value = floating->get();
+    } else {
+      FailAt(node, key, "must be a number", hint);
+    }
+    if (!std::isfinite(value)) FailAt(node, key, "must be a finite number", hint);
+    if (!bound.Contains(value)) FailAt(node, key, bound.what, hint);
+    return value;
+  }
+
+  std::int64_t ToInteger(const toml::node& node, const std::string& key, const IntBound& bound,
+                         std::string_view hint) const {
+    const auto* integer = node.as_integer();
+    if (integer == nullptr) FailAt(node, key, "must be an integer", hint);
+    const std::int64_t value = integer->get();
+    if (value < bound.lo || value > bound.hi) FailAt(node, key, bound.what, hint);
+    return value;
+  }
+
+  std::string ToString(const toml::node& node, const std::string& key,
+                       std::string_view hint) const {
+    const auto* string = node.as_string();
+    if (string == nullptr) FailAt(node, key, "must be a string", hint);
+    return string->get();
+  }
+
+  bool ToBool(const toml::node& node, const std::string& key, std::string_view hint) const {
+    const auto* boolean = node.as_boolean();
+    if (boolean == nullptr) FailAt(node, key, "must be true or false", hint);
+    return boolean->get();
+  }
+
+  const toml::array& ToArray(const toml::node& node, const std::string& key, std::string_view what,
+                             std::string_view hint) const {
+    const toml::array* array = node.as_array();
+    if (array == nullptr) FailAt(node, key, what, hint);
+    return *array;
+  }
+
+  /// An array of exactly N numbers, each within `bound`.
+  template <int N>
+  Eigen::Matrix<double, N, 1> ToVector(const toml::node& node, const std::string& key,
+                                       const Bound& bound, std::string_view hint) const {
+    const toml::array* array = node.as_array();
+    if (array == nullptr || array->size() != static_cast<std::size_t>(N)) {
+      FailAt(node, key, "must be an array of " + std::to_string(N) + " numbers", hint);
+    }
+    Eigen::Matrix<double, N, 1> v;
+    for (int k = 0; k < N; ++k) v(k) = ToNumber(*array->get(k), Index(key, k), bound, hint);
+    return v;
+  }
+
+  // Optional keys: leave *out untouched when absent; return whether the key was given.
+  bool ReadNumber(const Table& t, std::string_view key, const Bound& bound, std::string_view hint,
+                  double* out) const {
+    const toml::node* node = t.Get(key);
+    if (node != nullptr) *out = ToNumber(*node, t.KeyOf(key), bound, hint);
+    return node != nullptr;
+  }
+
+  template <int N>
+  bool ReadVector(const Table& t, std::string_view key, const Bound& bound, std::string_view hint,
+                  Eigen::Matrix<double, N, 1>* out) const {
+    const toml::node* node = t.Get(key);
+    if (node != nullptr) *out = ToVector<N>(*node, t.KeyOf(key), bound, hint);
+    return node != nullptr;
+  }
+
+  bool ReadBool(const Table& t, std::string_view key, std::string_view hint, bool* out) const {
+    const toml::node* node = t.Get(key);
+    if (node != nullptr) *out = ToBool(*node, t.KeyOf(key), hint);
+    return node != nullptr;
+  }
+
+  // Required keys.
+  double RequireNumber(const Table& t, std::string_view key, const Bound& bound,
+                       std::string_view hint) const {
+    return ToNumber(Require(t, key, hint), t.KeyOf(key), bound, hint);
+  }
+
+  std::int64_t RequireInteger(const Table& t, std::string_view key, const IntBound& bound,
+                              std::string_view hint) const {
+    return ToInteger(Require(t, key, hint), t.KeyOf(key), bound, hint);
+  }
+
+ private:
+  std::string UnknownKeyFix(const Table& t, std::string_view name, bool is_table,
+                            KeySet allowed) const {
+    // A valid key written in the wrong table: say where it belongs.
+    std::string homes;
+    for (const TableSchema& schema : kTables) {
+      if (!is_table && schema.label != t.label && schema.keys.Contains(name)) {
+        homes += (homes.empty() ? "" : ", ") + std::string(schema.label);
+      }
+    }
+    if (!homes.empty()) return "'" + std::string(name) + "' belongs in " + homes;
+    if (const auto close = Closest(name, allowed)) {
+      return is_table ? "did you mean [" + t.KeyOf(*close) + "]?"
+                      : "did you mean '" + std::string(*close) + "'?";
+    }
+    std::string valid;
+    for (const std::string_view key : allowed) {
+      valid += (valid.empty() ? "" : ", ") + std::string(key);
+    }
+    return t.key.empty() ? "valid tables: " + valid : "valid keys in " + t.label + ": " + valid;
+  }
+
+  std::string file_;
+};
+
+// ---------------------------------------------------------------------------------------
+// Sections.
+
+void ReadRun(const Reader& r, const Table& t, Scenario* s) {
+  r.CheckKeys(t, kRunKeys);
+  if (const toml::node* node = t.Get("name")) {
+    const std::string hint = "name is a label for logs and reports, e.g. name = \"helix_4\"";
+    s->name = r.ToString(*node, t.KeyOf("name"), hint);
+    if (s->name.empty()) r.FailAt(*node, t.KeyOf("name"), "must not be empty", hint);
+  }
+  r.ReadNumber(t, "duration_s", kPositiveSeconds,
+               "the run lasts duration_s seconds, e.g. duration_s = 600", &s->duration_s);
+  if (const toml::node* node = t.Get("control_rate_hz")) {
+    const std::string key = t.KeyOf("control_rate_hz");
+    const std::string_view hint = "the control loop runs at control_rate_hz, e.g. 50";
+    s->control_rate_hz = r.ToNumber(*node, key, kControlRate, hint);
+    // Time in the core counts whole microseconds, so the period must round to a whole
+    // number of them within 1e-6 relative. The bound is inclusive, with a little slack so
+    // that rates right on it (3 Hz -> 333333 us, 1e6 mod 3 = 1) do not depend on rounding.
+    const double period_us = 1e6 / s->control_rate_hz;
+    if (std::abs(period_us - std::round(period_us)) > 1e-6 * period_us * (1.0 + 1e-9)) {
+      r.Fail(LineOf(*node), key,
+             "the control period 1e6/rate must be a whole number of microseconds",
+             Show(*node) + ", a period of " + FixedPoint(period_us, 3) + " us",
+             "choose a rate such as 10, 20, 25, 50, 64, 100, 125, 200 or 1000");
+    }
+  }
+  if (const toml::node* node = t.Get("seed")) {
+    s->seed = static_cast<std::uint64_t>(
+        r.ToInteger(*node, t.KeyOf("seed"),
+                    {0, std::numeric_limits<std::int64_t>::max(), "must be an integer >= 0"},
+                    "seed makes random delays, losses and currents reproducible"));
+  }
+}
+
+void ReadSwarm(const Reader& r, const Table& t, Scenario* s) {
+  r.CheckKeys(t, kSwarmKeys);
+  const int n = static_cast<int>(
+      r.RequireInteger(t, "followers", {1, kMaxFollowers, "must be an integer in 1..1000"},
+                       "followers is the number of follower vehicles, a whole number >= 1"));
+  s->followers = n;
+  const IntBound id{1, n, "follower ids must be in 1.." + std::to_string(n)};
+
+  const toml::node* edges_node = t.Get("edges");
+  if (edges_node != nullptr) {
+    const std::string key = t.KeyOf("edges");
+    const std::string_view hint =
+        "an edge [i, j] means follower i receives from follower j, e.g. edges = [[2, 1]]";
+    const toml::array& edges =
+        r.ToArray(*edges_node, key, "must be an array of [i, j] pairs", hint);
+    std::set<std::pair<int, int>> seen;
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      const toml::node& pair_node = *edges.get(e);
+      const std::string pair_key = Index(key, e);
+      const toml::array* pair = pair_node.as_array();
+      if (pair == nullptr || pair->size() != 2) {
+        r.FailAt(pair_node, pair_key, "must be a pair [i, j] of follower ids", hint);
+      }
+      const int i = static_cast<int>(r.ToInteger(*pair->get(0), Index(pair_key, 0), id, hint));
+      const int j = static_cast<int>(r.ToInteger(*pair->get(1), Index(pair_key, 1), id, hint));
+      if (i == j) r.FailAt(pair_node, pair_key, "a follower cannot receive from itself", hint);
+      if (!seen.emplace(i, j).second) {
+        r.FailAt(pair_node, pair_key, "duplicate edge", "list each edge once");
+      }
+      s->edges.emplace_back(i, j);
+    }
+  }
+
+  {
+    const std::string key = t.KeyOf("leader_links");
+    const std::string_view hint =
+        "leader_links lists the followers that receive the leader, e.g. leader_links = [1]";
+    const toml::node& node = r.Require(t, "leader_links", hint);
+    const toml::array& links = r.ToArray(node, key, "must be an array of follower ids", hint);
+    if (links.empty()) r.FailAt(node, key, "must list at least one follower", hint);
+    for (std::size_t k = 0; k < links.size(); ++k) {
+      const int i = static_cast<int>(r.ToInteger(*links.get(k), Index(key, k), id, hint));
+      if (std::find(s->leader_links.begin(), s->leader_links.end(), i) != s->leader_links.end()) {
+        r.FailAt(*links.get(k), Index(key, k), "duplicate follower id", "list each follower once");
+      }
+      s->leader_links.push_back(i);
+    }
+  }
+
+  r.ReadNumber(t, "neighbour_timeout_s", kPositiveSeconds,
+               "a neighbour whose newest message is older than this drops out of the control law",
+               &s->neighbour_timeout_s);
+
+  const std::vector<int> unreachable =
+      Topology::Build(n, s->edges, s->leader_links).UnreachableFollowers();
+  if (!unreachable.empty()) {
+    r.Fail(edges_node != nullptr ? LineOf(*edges_node) : t.line, t.KeyOf("edges"),
+           (unreachable.size() == 1 ? "follower " : "followers ") + JoinInts(unreachable) +
+               " cannot be reached from the leader (Assumption 1)",
+           std::nullopt,
+           "add leader_links or edges so every follower has a directed path from the leader");
+  }
+}
+
+void ReadControl(const Reader& r, const Table& t, Scenario* s) {
+  r.CheckKeys(t, kControlKeys);
+  const std::string_view gain_hint = "consensus gains k1, k2 must be > 0";
+  s->k1 = r.RequireNumber(t, "k1", kPositive, gain_hint);
+  s->k2 = r.RequireNumber(t, "k2", kPositive, gain_hint);
+
+  const std::size_t n = static_cast<std::size_t>(s->followers);
+  s->offsets_m.assign(n, Vec3::Zero());
+  if (const toml::node* node = t.Get("offsets_m")) {
+    const std::string key = t.KeyOf("offsets_m");
+    const std::string hint =
+        "give one offset [x, y, z] in metres (NED, relative to the leader) "
+        "for each of the " +
+        std::to_string(n) + " followers";
+    const std::string what = "must have exactly " + std::to_string(n) +
+                             (n == 1 ? " entry" : " entries") + ", one [x, y, z] per follower";
+    const toml::array& offsets = r.ToArray(*node, key, what, hint);
+    if (offsets.size() != n) r.FailAt(*node, key, what, hint);
+    for (std::size_t i = 0; i < n; ++i) {
+      s->offsets_m[i] = r.ToVector<3>(*offsets.get(i), Index(key, i), kFinite, hint);
+    }
+  }
+}
+
+void ReadWaypoints(const Reader& r, const Table& t, LeaderConfig* leader) {
+  const std::string key = t.KeyOf("waypoints_m");
+  const std::string_view hint =
+      "waypoints_m is a list of points [x, y, z] in metres (NED), e.g. [[0, 0, 5], [50, 0, 5]]";
+  const toml::node& node = r.Require(t, "waypoints_m", hint);
+  const toml::array& points =
+      r.ToArray(node, key, "must be an array of at least 2 points [x, y, z]", hint);
+  if (points.size() < 2) r.FailAt(node, key, "must have at least 2 points", hint);
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Vec3 p = r.ToVector<3>(*points.get(k), Index(key, k), kFinite, hint);
+    if (!leader->waypoints_m.empty() && p == leader->waypoints_m.back()) {
+      r.FailAt(*points.get(k), Index(key, k), "repeats the previous waypoint",
+               "consecutive waypoints must differ");
+    }
+    leader->waypoints_m.push_back(p);
+  }
+  r.ReadNumber(t, "speed_mps", kPositive, "the leader's along-path speed in m/s",
+               &leader->speed_mps);
+  r.ReadBool(t, "loop", "loop = true returns to the first waypoint and repeats", &leader->loop);
+  if (leader->loop && leader->waypoints_m.back() == leader->waypoints_m.front()) {
+    r.FailAt(*points.get(points.size() - 1), Index(key, points.size() - 1),
+             "repeats the first waypoint while loop = true",
+             "a looped path closes by itself: remove the last waypoint");
+  }
+}
+
+void ReadLeader(const Reader& r, const Table& t, LeaderConfig* leader) {
+  r.CheckKeys(t, kLeaderKeys);
+  leader->path = r.ReadVariant(t, "path", kLeaderPaths, "leader path");
+  switch (leader->path) {
+    case PathKind::kPaperHelix:
+      break;
+    case PathKind::kLine:
+      r.ReadVector<3>(t, "start_m", kFinite, "the leader's position [x, y, z] at t = 0, metres",
+                      &leader->start_m);
+      r.ReadVector<3>(t, "velocity_mps", kFinite,
+                      "the leader's constant velocity [vx, vy, vz] in m/s (NED)",
+                      &leader->velocity_mps);
+      break;
+    case PathKind::kWaypoints:
+      ReadWaypoints(r, t, leader);
+      break;
+  }
+}
+
+DelayConfig ReadDelay(const Reader& r, const Table& t) {
+  r.CheckKeys(t, kDelayKeys);
+  DelayConfig delay;
+  delay.kind = r.ReadVariant(t, "model", kDelayModels, "delay model");
+  if (delay.kind == DelayKind::kNone) return delay;
+  delay.base_s = r.RequireNumber(t, "base_s", kSeconds, "base_s is the mean delay in seconds");
+  if (delay.kind == DelayKind::kConstant) return delay;
+
+  delay.amplitude_s = r.RequireNumber(t, "amplitude_s", kSeconds,
+                                      "amplitude_s is the delay's variation around base_s");
+  if (delay.amplitude_s > delay.base_s) {
+    r.FailAt(*t.Get("amplitude_s"), t.KeyOf("amplitude_s"),
+             "must not exceed base_s = " + FormatNumber(delay.base_s),
+             "the delay base_s +- amplitude_s must stay >= 0: lower amplitude_s or raise base_s");
+  }
+  if (delay.kind != DelayKind::kSinusoid) return delay;
+
+  delay.omega_rad_s = r.RequireNumber(t, "omega_rad_s", kNonNegative,
+                                      "omega_rad_s is the angular frequency of the delay");
+  const double rate = delay.amplitude_s * delay.omega_rad_s;
+  if (rate >= 1.0) {
+    r.Fail(LineOf(*t.Get("omega_rad_s")), t.KeyOf("omega_rad_s"),
+           "amplitude_s * omega_rad_s must be < 1 (Assumption 3: d tau/dt < 1)",
+           FormatNumber(delay.amplitude_s) + " * " + FormatNumber(delay.omega_rad_s) + " = " +
+               FormatNumber(rate),
+           "otherwise messages would overtake each other: lower amplitude_s or omega_rad_s");
+  }
+  return delay;
+}
+
+LossConfig ReadLoss(const Reader& r, const Table& t) {
+  r.CheckKeys(t, kLossKeys);
+  LossConfig loss;
+  loss.kind = r.ReadVariant(t, "model", kLossModels, "loss model");
+  if (loss.kind == LossKind::kBernoulli) {
+    loss.probability = r.RequireNumber(
+        t, "probability", kProbability,
+        "probability is the chance that a message is dropped; 1 would drop every message");
+  }
+  return loss;
+}
+
+void ReadLinks(const Reader& r, const Table& channel, Scenario* s) {
+  const int n = s->followers;
+  std::set<std::pair<int, int>> seen;
+  for (const Table& t : r.ArrayOfTables(channel, "link")) {
+    r.CheckKeys(t, kLinkKeys);
+    LinkOverride link;
+    link.from = static_cast<int>(r.RequireInteger(
+        t, "from", {0, n, "must be 0 (the leader) or a follower id in 1.." + std::to_string(n)},
+        "from is the sender: 0 for the leader or a follower id"));
+    link.to = static_cast<int>(
+        r.RequireInteger(t, "to", {1, n, "must be a follower id in 1.." + std::to_string(n)},
+                         "to is the receiving follower's id"));
+    const std::string from_text =
+        link.from == 0 ? "the leader" : "follower " + std::to_string(link.from);
+    const std::string link_text =
+        "the link from " + from_text + " to follower " + std::to_string(link.to);
+    const std::string got =
+        "from = " + std::to_string(link.from) + ", to = " + std::to_string(link.to);
+    const int line = LineOf(*t.Get("from"));
+    const bool exists =
+        link.from == 0
+            ? std::count(s->leader_links.begin(), s->leader_links.end(), link.to) > 0
+            : std::count(s->edges.begin(), s->edges.end(), std::make_pair(link.to, link.from)) > 0;
+    if (!exists) {
+      const std::string fix = link.from == 0
+                                  ? "add " + std::to_string(link.to) + " to swarm.leader_links"
+                                  : "add [" + std::to_string(link.to) + ", " +
+                                        std::to_string(link.from) + "] to swarm.edges";
+      r.Fail(line, t.key, link_text + " is not a link of the topology", got,
+             "overrides apply to existing links only: " + fix + ", or fix from/to");
+    }
+    if (!seen.emplace(link.from, link.to).second) {
+      r.Fail(line, t.key, "duplicate override of " + link_text, got,
+             "merge the two [[channel.link]] tables into one");
+    }
+    if (t.Get("delay") != nullptr) {
+      link.delay =
+          ReadDelay(r, r.Child(t, "delay", "write delay = { model = \"constant\", base_s = 0.1 }"));
+    }
+    if (t.Get("loss") != nullptr) {
+      link.loss = ReadLoss(
+          r, r.Child(t, "loss", "write loss = { model = \"bernoulli\", probability = 0.1 }"));
+    }
+    s->links.push_back(link);
+  }
+}
+
+void ReadChannel(const Reader& r, const Table& t, Scenario* s) {
+  r.CheckKeys(t, kChannelKeys);
+  s->delay = ReadDelay(r, r.Child(t, "delay", "write [channel.delay] with model = ..."));
+  s->loss = ReadLoss(r, r.Child(t, "loss", "write [channel.loss] with model = ..."));
+  ReadLinks(r, t, s);
+}
+
+/// The line of the first of `keys` present in `t`, else the table's line.
+int LineOfAny(const Table& t, std::initializer_list<std::string_view> keys) {
+  for (const std::string_view key : keys) {
+    if (const toml::node* node = t.Get(key)) return LineOf(*node);
+  }
+  return t.line;
+}
+
+void ReadDisturbance(const Reader& r, const Table& t, DisturbanceConfig* disturbance) {
+  r.CheckKeys(t, kDisturbanceKeys);
+  disturbance->kind = r.ReadVariant(t, "model", kDisturbanceModels, "disturbance model");
+  if (disturbance->kind == DisturbanceKind::kPaperExample2) {
+    r.ReadBool(t, "relative_to_leader",
+               "true: followers feel F(x_i) - F(x_0) as in the paper's error system (13); "
+               "false: the absolute F(x_i)",
+               &disturbance->relative_to_leader);
+  }
+  if (disturbance->kind != DisturbanceKind::kOceanCurrent) return;
+  OceanCurrentConfig& c = disturbance->current;
+  const std::string_view speed_hint =
+      "current speeds are in m/s, min_speed_mps <= speed_mps <= max_speed_mps";
+  r.ReadNumber(t, "speed_mps", kNonNegative, speed_hint, &c.speed_mps);
+  r.ReadNumber(t, "min_speed_mps", kNonNegative, speed_hint, &c.min_speed_mps);
+  r.ReadNumber(t, "max_speed_mps", kNonNegative, speed_hint, &c.max_speed_mps);
+  r.ReadNumber(t, "mu_per_s", kPositive, "1/mu_per_s is the Gauss-Markov time constant",
+               &c.mu_per_s);
+  r.ReadNumber(t, "noise_mps", kNonNegative,
+               "noise_mps is the standard deviation of the white noise", &c.noise_mps);
+  r.ReadNumber(t, "direction_rad", kFinite, "direction_rad is the current's direction (NED)",
+               &c.direction_rad);
+  if (c.min_speed_mps > c.max_speed_mps) {
+    r.Fail(LineOfAny(t, {"min_speed_mps", "max_speed_mps"}), t.KeyOf("min_speed_mps"),
+           "must not exceed max_speed_mps",
+           "min_speed_mps = " + FormatNumber(c.min_speed_mps) +
+               ", max_speed_mps = " + FormatNumber(c.max_speed_mps),
+           speed_hint);
+  }
+  if (c.speed_mps < c.min_speed_mps || c.speed_mps > c.max_speed_mps) {
+    r.Fail(LineOfAny(t, {"speed_mps", "min_speed_mps", "max_speed_mps"}), t.KeyOf("speed_mps"),
+           "must lie in [min_speed_mps, max_speed_mps]",
+           FormatNumber(c.speed_mps) + " outside [" + FormatNumber(c.min_speed_mps) + ", " +
+               FormatNumber(c.max_speed_mps) + "]",
+           speed_hint);
+  }
+}
+
+void ReadVehicle(const Reader& r, const Table& t, Scenario* s) {
+  r.CheckKeys(t, kVehicleKeys);
+  r.ReadVector<5>(t, "tau_max", kPositive,
+                  "give positive limits [X, Y, Z, M, N] in N, N, N, N m, N m", &s->vehicle.tau_max);
+  const double period_s = ToSeconds(s->period_us());
+  if (const toml::node* node = t.Get("integrator_step_s")) {
+    const std::string key = t.KeyOf("integrator_step_s");
+    const std::string hint = "the RK4 step must fit in one control period (" +
+                             FormatNumber(period_s) + " s at " + FormatNumber(s->control_rate_hz) +
+                             " Hz)";
+    s->vehicle.integrator_step_s = r.ToNumber(*node, key, kPositive, hint);
+    if (s->vehicle.integrator_step_s > period_s * (1.0 + 1e-9)) {
+      r.FailAt(*node, key, "must not exceed the control period", hint);
+    }
+  } else {
+    // The default step never exceeds the control period at high rates.
+    s->vehicle.integrator_step_s = std::min(s->vehicle.integrator_step_s, period_s);
+  }
+}
+
+void ReadMetrics(const Reader& r, const Table& t, MetricsConfig* metrics) {
+  r.CheckKeys(t, kMetricsKeys);
+  r.ReadNumber(t, "position_tol_m", kPositive, "formation position tolerance in metres",
+               &metrics->position_tol_m);
+  r.ReadNumber(t, "velocity_tol_mps", kPositive, "formation velocity tolerance in m/s",
+               &metrics->velocity_tol_mps);
+}
+
+void ReadFollowers(const Reader& r, const Table& root, Scenario* s) {
+  const int n = s->followers;
+  s->initial.assign(static_cast<std::size_t>(n), FollowerInit{});
+  for (const Table& t : r.ArrayOfTables(root, "follower")) {
+    r.CheckKeys(t, kFollowerKeys);
+    const int id = static_cast<int>(
+        r.RequireInteger(t, "id", {1, n, "must be a follower id in 1.." + std::to_string(n)},
+                         "id says which follower this initial state is for"));
+    FollowerInit& init = s->initial[static_cast<std::size_t>(id - 1)];
+    if (init.given) {
+      r.FailAt(*t.Get("id"), t.KeyOf("id"), "duplicate follower id",
+               "give each follower at most one [[follower]] table");
+    }
+    init.given = true;
+    Vec3 position = Vec3::Zero();
+    r.ReadVector<3>(t, "position_m", kFinite, "initial position [x, y, z] in metres (NED)",
+                    &position);
+    init.eta.head<3>() = position;
+    r.ReadNumber(t, "pitch_rad", kPitch, "the REMUS 100 pitch limit is 30 deg (0.5236 rad)",
+                 &init.eta(3));
+    r.ReadNumber(t, "heading_rad", kFinite, "initial heading in radians", &init.eta(4));
+    r.ReadVector<5>(t, "nu", kFinite, "initial body velocities [u, v, w, q, r] in m/s and rad/s",
+                    &init.nu);
+  }
+}
+
+void ReadScenario(const Reader& r, const toml::table& root, Scenario* s) {
+  const Table top{&root, "", "the top level", 1};
+  r.CheckKeys(top, kTopKeys);
+  const auto child = [&](std::string_view key) {
+    return r.Child(top, key, "write [" + std::string(key) + "] as a table header");
+  };
+  ReadRun(r, child("run"), s);
+  ReadSwarm(r, child("swarm"), s);
+  ReadControl(r, child("control"), s);
+  ReadLeader(r, child("leader"), &s->leader);
+  ReadChannel(r, child("channel"), s);
+  ReadDisturbance(r, child("disturbance"), &s->disturbance);
+  ReadVehicle(r, child("vehicle"), s);
+  ReadMetrics(r, child("metrics"), &s->metrics);
+  ReadFollowers(r, top, s);
+}
+
+}  // namespace
+
+Scenario LoadScenario(const std::string& path) {
+  const auto fail = [&path](int error) {
+    throw ScenarioError(path + ": cannot read scenario file (" +
+                        std::error_code(error, std::generic_category()).message() + ")");
+  };
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"),
+                                                       &std::fclose);
+  if (file == nullptr) fail(errno);
+  std::string text;
+  char buffer[1 << 16];
+  std::size_t count = 0;
+  while ((count = std::fread(buffer, 1, sizeof(buffer), file.get())) > 0) {
+    text.append(buffer, count);
+  }
+  if (std::ferror(file.get())) fail(errno);  // e.g. EISDIR for a directory
+  return ParseScenario(text, path);
+}
+
+Scenario ParseScenario(const std::string& text, const std::string& path) {
+  const std::string file = path.empty() ? "<scenario>" : path;
+  toml::table root;
+  try {
+    root = toml::parse(std::string_view(text), std::string_view(file));
+  } catch (const toml::parse_error& e) {
+    const toml::source_position& where = e.source().begin;
+    throw ScenarioError(file + ":" + std::to_string(std::max(1, static_cast<int>(where.line))) +
+                        ": TOML syntax error: " + std::string(e.description()) + " (column " +
+                        std::to_string(where.column) + ")");
+  }
+  Scenario s;
+  s.source_path = path;
+  s.source_text = text;
+  s.name = std::filesystem::path(path).stem().string();
+  if (s.name.empty()) s.name = "scenario";
+  ReadScenario(Reader(file), root, &s);
+  return s;
+}
+
+}  // namespace shoal

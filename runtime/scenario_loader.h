@@ -1,0 +1,24 @@
+// Loads and validates a scenario TOML file completely before anything runs.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+#include "core/scenario.h"
+
+namespace shoal {
+
+/// A scenario problem. what() is the complete user-facing message:
+///   "<file>:<line>: <key>: <what is wrong>; <how to fix it>"
+class ScenarioError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Reads `path` and returns the validated scenario; throws ScenarioError.
+Scenario LoadScenario(const std::string& path);
+
+/// Parses scenario text; `path` is used in messages, for source_path and for the default name.
+Scenario ParseScenario(const std::string& text, const std::string& path);
+
+}  // namespace shoal

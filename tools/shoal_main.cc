@@ -1,0 +1,29 @@
+// shoal: the command-line tool. main() only parses flags and dispatches.
+#include <CLI/CLI.hpp>
+
+#include "tools/sim_command.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"shoal: SIL harness for leader-following UUV formation control"};
+  app.require_subcommand(1);
+
+  shoal::SimOptions sim;
+  CLI::App* sim_cmd = app.add_subcommand(
+      "sim", "Run a scenario's whole swarm in one process, as fast as the CPU allows");
+  sim_cmd->add_option("scenario", sim.scenario, "Scenario file (TOML, see docs/scenario.md)")
+      ->required();
+  sim_cmd->add_option("--out", sim.out, "Write an LCM log (lcm-logplayer format) to this path");
+  sim_cmd->add_option("--duration", sim.duration_s,
+                      "Simulated seconds (default: the scenario's run.duration_s)");
+  sim_cmd->add_flag("--json", sim.json, "Print one JSON object instead of the summary");
+  sim_cmd->add_flag("--quiet", sim.quiet, "No progress line");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+  if (sim_cmd->parsed()) return shoal::RunSim(sim);
+  return 2;
+}

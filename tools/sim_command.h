@@ -1,0 +1,19 @@
+#pragma once
+
+#include <string>
+
+namespace shoal {
+
+struct SimOptions {
+  std::string scenario;
+  std::string out;          // LCM log path; "" = no log
+  double duration_s = -1;   // < 0: the scenario's
+  bool json = false;
+  bool quiet = false;       // no progress line
+};
+
+/// `shoal sim`: exit status 0 converged, 1 ran but did not converge / diverged,
+/// 2 bad input, 130 interrupted.
+int RunSim(const SimOptions& opt);
+
+}  // namespace shoal
