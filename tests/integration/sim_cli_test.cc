@@ -1,0 +1,204 @@
+// `shoal sim` as a user runs it: bad input, summaries, JSON, logs, determinism, Ctrl-C.
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <dirent.h>
+#include <map>
+#include <thread>
+
+#include <shoal/channel_event_t.hpp>
+#include <shoal/run_status_t.hpp>
+#include <shoal/vehicle_state_t.hpp>
+
+#include "tests/integration/test_util.h"
+
+namespace shoal {
+namespace {
+
+using shoal::testing::ReadFile;
+using shoal::testing::RunShoal;
+using shoal::testing::SourcePath;
+using shoal::testing::TmpPath;
+
+std::vector<std::string> BadScenarioFiles() {
+  std::vector<std::string> files;
+  const std::string dir = SourcePath("tests/data/bad_scenarios");
+  if (DIR* d = opendir(dir.c_str())) {
+    while (dirent* e = readdir(d)) {
+      const std::string n = e->d_name;
+      if (n.size() > 5 && n.substr(n.size() - 5) == ".toml") files.push_back(dir + "/" + n);
+    }
+    closedir(d);
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// Every malformed scenario is rejected by the real CLI before anything runs: exit 2, the
+// expected message (first line of the file: "# expect: ...") naming file and line, no log.
+TEST(SimCli, EveryBadScenarioExitsTwoWithItsMessage) {
+  const auto files = BadScenarioFiles();
+  ASSERT_GE(files.size(), 15u);
+  const std::string log = TmpPath("bad.lcmlog");
+  for (const std::string& f : files) {
+    std::remove(log.c_str());
+    const std::string text = ReadFile(f);
+    const std::string tag = "# expect: ";
+    ASSERT_EQ(text.rfind(tag, 0), 0u) << f << " has no '# expect:' first line";
+    const std::string expect = text.substr(tag.size(), text.find('\n') - tag.size());
+    const auto r = RunShoal("sim '" + f + "' --out " + log, "bad");
+    EXPECT_EQ(r.status, 2) << f << "\n" << r.err;
+    EXPECT_NE(r.err.find(expect), std::string::npos) << f << "\nexpected: " << expect
+                                                      << "\ngot: " << r.err;
+    const std::string base = f.substr(f.rfind('/') + 1);
+    EXPECT_NE(r.err.find(base + ":"), std::string::npos) << r.err;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+    EXPECT_NE(access(log.c_str(), F_OK), 0) << "a log was created for " << f;
+  }
+}
+
+TEST(SimCli, UsageErrorsExitTwo) {
+  EXPECT_EQ(RunShoal("sim", "u1").status, 2);  // no scenario
+  const auto missing = RunShoal("sim /nonexistent/x.toml", "u2");
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_NE(missing.err.find("cannot read scenario file"), std::string::npos) << missing.err;
+  const auto dur = RunShoal("sim " + SourcePath("scenarios/paper_example1.toml") +
+                                " --duration -5", "u3");
+  EXPECT_EQ(dur.status, 2);
+  EXPECT_NE(dur.err.find("--duration"), std::string::npos) << dur.err;
+  EXPECT_EQ(RunShoal("sim " + SourcePath("scenarios/paper_example1.toml") + " --bogus", "u4")
+                .status, 2);
+  const auto out = RunShoal("sim " + SourcePath("scenarios/paper_example1.toml") +
+                                " --duration 1 --out /nonexistent-dir/x.lcmlog", "u5");
+  EXPECT_EQ(out.status, 2);
+  EXPECT_NE(out.err.find("cannot open log"), std::string::npos) << out.err;
+  EXPECT_EQ(RunShoal("frobnicate", "u6").status, 2);
+}
+
+TEST(SimCli, HelpOnEveryCommand) {
+  for (const std::string& args : {std::string("--help"), std::string("sim --help")}) {
+    const auto r = RunShoal(args, "help");
+    EXPECT_EQ(r.status, 0) << args;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << r.out;
+  }
+}
+
+TEST(SimCli, JsonHasTheDocumentedKeys) {
+  const auto r = RunShoal("sim " + SourcePath("scenarios/paper_example1.toml") + " --json",
+                          "json");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* key : {"converged", "convergence_time_s", "final_position_error_m",
+                          "final_velocity_error_mps", "final_attitude_error_rad", "sim_time_s",
+                          "wall_time_s", "realtime_factor"}) {
+    EXPECT_NE(r.out.find(std::string("\"") + key + "\":"), std::string::npos) << key;
+  }
+  EXPECT_NE(r.out.find("\"converged\":true"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.front(), '{');
+  EXPECT_EQ(r.out.substr(r.out.size() - 2), "}\n");
+}
+
+// Same scenario and seed, two runs: byte-identical logs.
+TEST(SimCli, SameScenarioSameSeedGivesIdenticalLogs) {
+  const std::string a = TmpPath("det_a.lcmlog"), b = TmpPath("det_b.lcmlog");
+  const std::string sc = SourcePath("scenarios/paper_example2.toml");
+  ASSERT_EQ(RunShoal("sim " + sc + " --duration 100 --out " + a, "det_a").status, 0);
+  ASSERT_EQ(RunShoal("sim " + sc + " --duration 100 --out " + b, "det_b").status, 0);
+  const std::string la = ReadFile(a), lb = ReadFile(b);
+  EXPECT_GT(la.size(), 100000u);
+  EXPECT_TRUE(la == lb) << "logs differ";
+}
+
+// The log is a standard LCM log with the SIL channels and types.
+TEST(SimCli, LogHasTheSilChannelsAndConsistentChannelTruth) {
+  const std::string path = TmpPath("content.lcmlog");
+  const auto r = RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +
+                              " --duration 10 --out " + path, "content");
+  ASSERT_EQ(r.status, 1) << r.err;  // 10 s is too short to converge: exit 1
+  lcm::LogFile log(path, "r");
+  ASSERT_TRUE(log.good());
+  std::map<std::string, int> count;
+  std::map<std::pair<int, int>, std::int64_t> delivered_at;  // (receiver, msg utime) -> tick
+  int statuses = 0;
+  std::string first_toml, last_state;
+  while (const lcm::LogEvent* ev = log.readNextEvent()) {
+    ++count[ev->channel];
+    if (ev->channel == "SHOAL_CHANNEL") {
+      channel_event_t e;
+      ASSERT_GE(e.decode(ev->data, 0, ev->datalen), 0);
+      ASSERT_EQ(e.status, 0);
+      // tau = 0.1 + 0.05 cos(t): delivery at the first tick at or after send + tau.
+      const double tau = 0.1 + 0.05 * std::cos(e.send_utime * 1e-6);
+      EXPECT_NEAR(e.delay_s, tau, 1e-12);
+      EXPECT_GE(e.deliver_utime, e.send_utime + std::llround(tau * 1e6));
+      EXPECT_LT(e.deliver_utime, e.send_utime + std::llround(tau * 1e6) + 20000);
+      EXPECT_EQ(e.deliver_utime % 20000, 0);
+    } else if (ev->channel == "SHOAL_STATUS") {
+      run_status_t s;
+      ASSERT_GE(s.decode(ev->data, 0, ev->datalen), 0);
+      if (statuses++ == 0) first_toml = s.scenario_toml;
+      last_state = s.state;
+    } else if (ev->channel.rfind("SHOAL_RX_", 0) == 0) {
+      vehicle_state_t m;
+      ASSERT_GE(m.decode(ev->data, 0, ev->datalen), 0);
+      EXPECT_GE(ev->timestamp - m.utime, 100000 - 50000);  // at least tau_min after sending
+    }
+  }
+  EXPECT_EQ(first_toml, ReadFile(SourcePath("scenarios/paper_example2.toml")));
+  EXPECT_EQ(last_state, "finished");
+  const int ticks = 10 * 50 + 1;
+  EXPECT_EQ(count["SHOAL_CLOCK"], ticks);
+  for (int id = 0; id <= 5; ++id) EXPECT_EQ(count["SHOAL_STATE_" + std::to_string(id)], ticks);
+  for (int id = 1; id <= 5; ++id) {
+    EXPECT_GT(count["SHOAL_RX_" + std::to_string(id)], 0);
+    EXPECT_EQ(count["SHOAL_HEALTH_" + std::to_string(id)], 11);  // 1 Hz: t = 0..10
+  }
+  EXPECT_EQ(count["SHOAL_CHANNEL"], 10 * ticks);  // 10 directed links
+}
+
+// Ctrl-C: the run stops, the log is closed and readable, the summary is printed, exit 130.
+TEST(SimCli, SigintStopsCleanlyWithAReadableLog) {
+  const std::string path = TmpPath("sigint.lcmlog");
+  const std::string out = TmpPath("sigint.out");
+  const std::string cmd = shoal::testing::ShoalBinary() + " sim " +
+                          SourcePath("scenarios/paper_example2.toml") +
+                          " --duration 1000000 --out " + path + " >" + out + " 2>&1";
+  pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    execl("/bin/sh", "sh", "-c", ("exec " + cmd).c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  const auto t0 = std::chrono::steady_clock::now();
+  kill(pid, SIGINT);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  const double stop_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_LT(stop_s, 2.0);
+  EXPECT_NE(ReadFile(out).find("interrupted"), std::string::npos) << ReadFile(out);
+  lcm::LogFile log(path, "r");
+  ASSERT_TRUE(log.good());
+  std::string last_state;
+  int events = 0;
+  while (const lcm::LogEvent* ev = log.readNextEvent()) {
+    ++events;
+    if (ev->channel == "SHOAL_STATUS") {
+      run_status_t s;
+      ASSERT_GE(s.decode(ev->data, 0, ev->datalen), 0);
+      last_state = s.state;
+    }
+  }
+  EXPECT_GT(events, 1000);
+  EXPECT_EQ(last_state, "interrupted");
+}
+
+}  // namespace
+}  // namespace shoal
