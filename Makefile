@@ -10,7 +10,7 @@ CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 # Debian packages the build, the tests and the demo need.
 DEB_PACKAGES := cmake g++ make pkg-config \
   liblcm-dev liblcm-bin libglib2.0-dev \
-  libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev
+  libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev
 
 .PHONY: demo test deps build configure clean
 

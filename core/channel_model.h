@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <queue>
 #include <utility>
 #include <vector>
@@ -107,27 +106,44 @@ inline Micros DeliveryTime(Micros send_utime, double delay_s, Micros period_us) 
 /// The channel: applies each link's delay and loss and keeps pending messages in a
 /// time-ordered queue. Payload is whatever the user forwards (a decoded state in
 /// shoal sim, the raw bytes in the emulator process).
+/// With a control period (tick-aligned delivery) the queue is a timing wheel: one bucket
+/// per due tick, kept in submission order, so a delivery costs O(1) (a binary heap's
+/// unpredictable branches were the largest single cost of shoal sim). In real time
+/// (period 0) it is a binary heap on (due time, submission order).
 template <typename Payload>
 class Channel {
  public:
   Channel(std::vector<Link> links, Micros period_us, std::size_t max_pending = 1 << 20)
       : links_(std::move(links)), period_us_(period_us), max_pending_(max_pending) {
-    for (std::size_t k = 0; k < links_.size(); ++k) by_sender_[links_[k].from].push_back(k);
+    double max_delay_s = 0.0;
+    for (std::size_t k = 0; k < links_.size(); ++k) {
+      const int from = links_[k].from;
+      if (from >= static_cast<int>(by_sender_.size())) by_sender_.resize(from + 1);
+      by_sender_[from].push_back(k);
+      max_delay_s = std::max(max_delay_s, MaxDelaySeconds(links_[k].delay));
+    }
+    if (period_us_ > 0) {
+      // Pending deliveries span at most max delay + 2 ticks ahead of the delivered tick.
+      const auto horizon =
+          static_cast<std::size_t>(std::ceil(max_delay_s * 1e6 / period_us_)) + 2;
+      std::size_t w = 8;
+      while (w <= horizon) w *= 2;
+      wheel_.resize(w);
+    }
   }
 
   /// A message from `sender` sent at `send_utime`: decides for every outgoing link,
   /// appends one decision per link to `decisions` and queues the deliveries.
   void Submit(int sender, std::int32_t seq, Micros send_utime, const Payload& payload,
               std::vector<ChannelDecision>* decisions) {
-    auto it = by_sender_.find(sender);
-    if (it == by_sender_.end()) return;
+    if (sender < 0 || sender >= static_cast<int>(by_sender_.size()) ||
+        by_sender_[sender].empty()) {
+      return;
+    }
     const double t_s = ToSeconds(send_utime);
     // The payload is stored once and shared by its deliveries (reference counted).
     const int slot = Store(payload);
-    bool have_last = false;
-    DelayConfig last_cfg;
-    double last_delay = 0.0;
-    for (std::size_t k : it->second) {
+    for (std::size_t k : by_sender_[sender]) {
       Link& l = links_[k];
       ChannelDecision d;
       d.sender = sender;
@@ -137,22 +153,25 @@ class Channel {
       // Both draws happen for every message so that a link's stream does not depend on
       // the other model's outcome.
       const bool lost = Dropped(l.loss, &l.rng);
-      // Links usually share one deterministic model: evaluate tau(t) once per message.
-      if (l.delay.kind != DelayKind::kUniform && have_last && SameDelay(l.delay, last_cfg)) {
-        d.delay_s = last_delay;
+      // Links usually share one deterministic model and senders one send time: evaluate
+      // tau(t) once per (model, t), not once per message and link.
+      if (l.delay.kind != DelayKind::kUniform && have_last_ && last_t_ == send_utime &&
+          SameDelay(l.delay, last_cfg_)) {
+        d.delay_s = last_delay_;
       } else {
         d.delay_s = DelaySeconds(l.delay, t_s, &l.rng);
-        last_cfg = l.delay;
-        last_delay = d.delay_s;
-        have_last = l.delay.kind != DelayKind::kUniform;
+        last_cfg_ = l.delay;
+        last_delay_ = d.delay_s;
+        last_t_ = send_utime;
+        have_last_ = l.delay.kind != DelayKind::kUniform;
       }
       if (lost) {
         d.status = ChannelDecision::kDroppedLoss;
-      } else if (queue_.size() >= max_pending_) {
+      } else if (pending_ >= max_pending_) {
         d.status = ChannelDecision::kDroppedQueue;
       } else {
         d.deliver_utime = DeliveryTime(send_utime, d.delay_s, period_us_);
-        queue_.push(Pending{d.deliver_utime, order_++, l.to, slot});
+        Push(Pending{d.deliver_utime, order_++, l.to, slot});
         ++refs_[slot];
       }
       decisions->push_back(d);
@@ -161,19 +180,35 @@ class Channel {
   }
 
   /// Time of the earliest pending delivery, or -1 if none.
-  Micros NextDue() const { return queue_.empty() ? -1 : queue_.top().due; }
-  std::size_t pending() const { return queue_.size(); }
+  Micros NextDue() const {
+    if (pending_ == 0) return -1;
+    if (period_us_ <= 0) return heap_.top().due;
+    for (std::int64_t t = next_tick_;; ++t) {
+      const auto& b = wheel_[static_cast<std::size_t>(t) & (wheel_.size() - 1)];
+      if (!b.empty()) return b.front().due;
+    }
+  }
+  std::size_t pending() const { return pending_; }
 
   /// Delivers, in (due time, submission order), every message due at or before `now`:
   /// fn(receiver, payload).
   template <typename F>
   void DeliverDue(Micros now, F&& fn) {
-    while (!queue_.empty() && queue_.top().due <= now) {
-      const Pending p = queue_.top();
-      queue_.pop();
-      fn(p.receiver, static_cast<const Payload&>(pool_[p.slot]));
-      if (--refs_[p.slot] == 0) free_.push_back(p.slot);
+    if (period_us_ <= 0) {
+      while (!heap_.empty() && heap_.top().due <= now) {
+        const Pending p = heap_.top();
+        heap_.pop();
+        Deliver(p, fn);
+      }
+      return;
     }
+    const std::int64_t now_tick = now / period_us_;
+    for (; next_tick_ <= now_tick && pending_ > 0; ++next_tick_) {
+      auto& b = wheel_[static_cast<std::size_t>(next_tick_) & (wheel_.size() - 1)];
+      for (const Pending& p : b) Deliver(p, fn);
+      b.clear();
+    }
+    next_tick_ = std::max(next_tick_, now_tick + 1);
   }
 
   const std::vector<Link>& links() const { return links_; }
@@ -188,6 +223,37 @@ class Channel {
       return due != o.due ? due > o.due : order > o.order;
     }
   };
+
+  template <typename F>
+  void Deliver(const Pending& p, F& fn) {
+    --pending_;
+    fn(p.receiver, static_cast<const Payload&>(pool_[p.slot]));
+    if (--refs_[p.slot] == 0) free_.push_back(p.slot);
+  }
+
+  void Push(const Pending& p) {
+    ++pending_;
+    if (period_us_ <= 0) {
+      heap_.push(p);
+      return;
+    }
+    const std::int64_t tick = p.due / period_us_;
+    // Never reached with delays within the links' models; kept so that the wheel can
+    // never silently mix two ticks in one bucket.
+    while (tick - next_tick_ >= static_cast<std::int64_t>(wheel_.size())) Grow();
+    wheel_[static_cast<std::size_t>(tick) & (wheel_.size() - 1)].push_back(p);
+  }
+
+  // Doubles the wheel; each bucket holds exactly one pending tick, moved whole.
+  void Grow() {
+    std::vector<std::vector<Pending>> bigger(wheel_.size() * 2);
+    for (auto& b : wheel_) {
+      if (b.empty()) continue;
+      const std::int64_t tick = b.front().due / period_us_;
+      bigger[static_cast<std::size_t>(tick) & (bigger.size() - 1)] = std::move(b);
+    }
+    wheel_ = std::move(bigger);
+  }
 
   int Store(const Payload& payload) {
     if (free_.empty()) {
@@ -205,11 +271,18 @@ class Channel {
   std::vector<int> refs_;
   std::vector<int> free_;
   std::vector<Link> links_;
-  std::map<int, std::vector<std::size_t>> by_sender_;
+  std::vector<std::vector<std::size_t>> by_sender_;  // sender id -> its links
   Micros period_us_;
   std::size_t max_pending_;
   std::uint64_t order_ = 0;
-  std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> queue_;
+  std::size_t pending_ = 0;
+  std::int64_t next_tick_ = 0;
+  bool have_last_ = false;  // cache of the last deterministic tau(t)
+  Micros last_t_ = 0;
+  DelayConfig last_cfg_;
+  double last_delay_ = 0.0;  // wheel: first tick not yet delivered
+  std::vector<std::vector<Pending>> wheel_;
+  std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> heap_;
 };
 
 }  // namespace shoal

@@ -13,6 +13,8 @@ constexpr double kPi = 3.14159265358979323846;
 /// Wraps an angle to (-pi, pi].
 inline double WrapAngle(double a) {
   if (a > -kPi && a <= kPi) return a;
+  if (a > kPi && a <= 3.0 * kPi) return a - 2.0 * kPi;  // one turn off: no fmod
+  if (a > -3.0 * kPi && a <= -kPi) return a + 2.0 * kPi;
   a = std::fmod(a + kPi, 2.0 * kPi);
   if (a <= 0.0) a += 2.0 * kPi;
   return a - kPi;
@@ -83,7 +85,7 @@ inline bool SaturatedFeedbackLinearise(const FossenModel& model, const AttitudeT
                                        const Vec5& nu, const Vec5& a, const Vec5& tau_max,
                                        Vec5* tau, Vec5* wanted = nullptr) {
   const Vec5 nd = FossenModel::JInv(c) * (a - FossenModel::JDotNu(c, nu));
-  Vec5 n = model.C(nu) * nu + model.DampingForce(nu);
+  Vec5 n = model.CoriolisForce(nu) + model.DampingForce(nu);
   n(3) += model.params().W * model.params().z_g * c.st;  // g(eta)
   const Mat5& M = model.M();
   const Vec5 demand = M * nd + n;

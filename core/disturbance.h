@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/leader_path.h"
 #include "core/rng.h"
 #include "core/scenario.h"
 
@@ -20,6 +21,32 @@ inline Vec5 PaperExample2F(const Vec5& x, const Vec5& v) {
   f(4) = 0.02 * std::sin(x(4)) - 0.5 * std::tanh(v(4));
   return f;
 }
+
+/// What the simulated world knows besides each vehicle's own state: the leader's path,
+/// for the paper's uncertain factor relative to the leader. One instance may be shared by
+/// the followers of a process; it caches its last answer (followers ask for the same time).
+class Environment {
+ public:
+  explicit Environment(const LeaderConfig& c) : path_(c) {}
+  const LeaderPath& leader_path() const { return path_; }
+
+  /// f(x_0(t), v_0(t)) of paper Example 2 on the leader's path at time t.
+  const Vec5& LeaderPaperF(double t_s) const {
+    if (!valid_ || t_s != t_) {
+      const LeaderSample l = path_.At(t_s);
+      f0_ = PaperExample2F(l.eta, l.eta_dot);
+      t_ = t_s;
+      valid_ = true;
+    }
+    return f0_;
+  }
+
+ private:
+  LeaderPath path_;
+  mutable bool valid_ = false;
+  mutable double t_ = 0.0;
+  mutable Vec5 f0_ = Vec5::Zero();
+};
 
 /// First-order Gauss-Markov current speed (Fossen 2011, sec. 8.3):
 /// V_dot + mu V = w, w white with standard deviation noise_mps, V clamped to [min, max];

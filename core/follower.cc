@@ -4,12 +4,11 @@
 #include <cmath>
 
 #include "core/channel_model.h"
-#include "core/leader_path.h"
 
 namespace shoal {
 
 Follower::Follower(const Scenario& s, const Topology& topo, int id,
-                   std::shared_ptr<const LeaderPath> leader_path)
+                   std::shared_ptr<const Environment> env)
     : id_(id),
       k1_(s.k1),
       k2_(s.k2),
@@ -22,8 +21,7 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
       disturbance_(s.disturbance.kind),
       disturbance_delay_(s.delay),
       disturbance_relative_(s.disturbance.relative_to_leader),
-      leader_path_(leader_path ? std::move(leader_path)
-                               : std::make_shared<const LeaderPath>(s.leader)),
+      env_(env ? std::move(env) : std::make_shared<const Environment>(s.leader)),
       current_(s.disturbance.current, Rng(s.seed, 0xC0FFEEULL, static_cast<std::uint64_t>(id))),
       slot_of_(topo.n() + 1, -1) {
   // Initial state: as given, or at the leader's start + offset, at rest.
@@ -32,7 +30,7 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
     x_.eta = init.eta;
     x_.nu = init.nu;
   } else {
-    x_.eta = leader_path_->At(0.0).eta + offset_;
+    x_.eta = env_->leader_path().At(0.0).eta + offset_;
     x_.nu.setZero();
   }
   x_.eta(4) = WrapAngle(x_.eta(4));
@@ -143,8 +141,7 @@ const StateMsg& Follower::Tick(Micros now) {
     if (!history_.At(now - delay_us, &past)) past = history_.Oldest();
     Vec5 f = PaperExample2F(past.eta, past.eta_dot);
     if (disturbance_relative_) {
-      const LeaderSample& l = leader_path_->AtCached(std::max(0.0, ToSeconds(now - delay_us)));
-      f -= PaperExample2F(l.eta, l.eta_dot);
+      f -= env_->LeaderPaperF(std::max(0.0, ToSeconds(now - delay_us)));
     }
     tau_dist = model_.M() * (FossenModel::JInv(trig) * f);
   } else if (disturbance_ == DisturbanceKind::kOceanCurrent) {
@@ -161,7 +158,7 @@ const StateMsg& Follower::Tick(Micros now) {
   out_.flags = (saturated ? StateMsg::kFlagSaturated : 0) |
                (any_stale ? StateMsg::kFlagStaleNeighbour : 0);
 
-  Integrate(model_, tau + tau_dist, current, period_s, substeps_, &x_);
+  Integrate(model_, tau + tau_dist, current, period_s, substeps_, &x_, &trig);
   x_.eta(4) = WrapAngle(x_.eta(4));
   ++counters_.ticks;
   if (!x_.eta.allFinite() || !x_.nu.allFinite() || std::abs(x_.eta(3)) > 80.0 * kPi / 180.0) {

@@ -10,7 +10,6 @@
 #include "core/fossen.h"
 #include "core/disturbance.h"
 #include "core/history.h"
-#include "core/leader_path.h"
 #include "core/scenario.h"
 #include "core/state_msg.h"
 #include "core/topology.h"
@@ -33,10 +32,9 @@ enum class RxResult { kAccepted, kUnknownSender, kNonFinite, kOld };
 class Follower {
  public:
   /// Follower `id` (1..n) of a validated scenario.
-  /// `leader_path` may be shared between the followers of one process (it caches its last
-  /// query); null builds a private one.
+  /// `env` may be shared between the followers of one process; null builds a private one.
   Follower(const Scenario& s, const Topology& topo, int id,
-           std::shared_ptr<const LeaderPath> leader_path = nullptr);
+           std::shared_ptr<const Environment> env = nullptr);
 
   int id() const { return id_; }
 
@@ -76,7 +74,7 @@ class Follower {
   DisturbanceKind disturbance_;
   DelayConfig disturbance_delay_;
   bool disturbance_relative_;
-  std::shared_ptr<const LeaderPath> leader_path_;  // environment's knowledge of the leader
+  std::shared_ptr<const Environment> env_;
   OceanCurrent current_;
   FossenModel model_;
 

@@ -32,10 +32,15 @@ void Rk4Step(const FossenModel& model, const Vec5& tau, const Vec3& current_ned,
 }
 
 void Integrate(const FossenModel& model, const Vec5& tau, const Vec3& current_ned,
-               double period_s, int substeps, PlantState* x) {
+               double period_s, int substeps, PlantState* x,
+               const AttitudeTrig<double>* trig) {
   const double dt = period_s / substeps;
   for (int s = 0; s < substeps; ++s) {
-    Rk4Step(model, tau, current_ned, dt, AttitudeTrig<double>(x->eta), x);
+    if (s == 0 && trig != nullptr) {
+      Rk4Step(model, tau, current_ned, dt, *trig, x);
+    } else {
+      Rk4Step(model, tau, current_ned, dt, AttitudeTrig<double>(x->eta), x);
+    }
   }
 }
 

@@ -125,6 +125,35 @@ class FossenModel {
     return C;
   }
 
+  /// C(nu) nu, written out (C has 8 non-zero entries).
+  template <typename T>
+  Vec5T<T> CoriolisForce(const Vec5T<T>& nu) const {
+    const T u = nu(0), v = nu(1), w = nu(2), q = nu(3), r = nu(4);
+    const T a = T(m33_) * w + T(mb34_) * q;
+    const T b = T(m22_) * v + T(mb25_) * r;
+    const T c = T(m11_) * u;
+    Vec5T<T> f;
+    f(0) = a * q - b * r;
+    f(1) = c * r;
+    f(2) = -c * q;
+    f(3) = -a * u + c * w;
+    f(4) = b * u - c * v;
+    return f;
+  }
+
+  /// M^{-1} x using M's block structure: (u), (v, r), (w, q).
+  template <typename T>
+  Vec5T<T> SolveM(const Vec5T<T>& x) const {
+    const Mat5& Mi = M_inv_;
+    Vec5T<T> y;
+    y(0) = T(Mi(0, 0)) * x(0);
+    y(1) = T(Mi(1, 1)) * x(1) + T(Mi(1, 4)) * x(4);
+    y(4) = T(Mi(4, 1)) * x(1) + T(Mi(4, 4)) * x(4);
+    y(2) = T(Mi(2, 2)) * x(2) + T(Mi(2, 3)) * x(3);
+    y(3) = T(Mi(3, 2)) * x(2) + T(Mi(3, 3)) * x(3);
+    return y;
+  }
+
   /// D(nu) nu with linear and quadratic damping: -diag(X_u + X_u|u| |u|, ...) nu.
   template <typename T>
   Vec5T<T> DampingForce(const Vec5T<T>& nu) const {
@@ -225,9 +254,9 @@ class FossenModel {
   Vec5T<T> NuDot(const AttitudeTrig<T>& c, const Vec5T<T>& nu, const Vec5T<T>& tau,
                  const Vec5T<T>& nu_c) const {
     const Vec5T<T> nu_r = nu - nu_c;
-    Vec5T<T> rhs = tau - C(nu_r) * nu_r - DampingForce(nu_r);
+    Vec5T<T> rhs = tau - CoriolisForce(nu_r) - DampingForce(nu_r);
     rhs(3) -= T(wzg_) * c.st;  // g(eta)
-    return M_inv_.template cast<T>() * rhs;
+    return SolveM(rhs);
   }
   template <typename T>
   Vec5T<T> NuDot(const Vec5T<T>& eta, const Vec5T<T>& nu, const Vec5T<T>& tau,
@@ -269,8 +298,10 @@ inline Vec5 BodyCurrent(const Vec5& eta, const Vec3& v_c_ned) {
 void Rk4Step(const FossenModel& model, const Vec5& tau, const Vec3& current_ned, double dt,
              const AttitudeTrig<double>& trig, PlantState* x);
 
-/// Integrates over `period_s` in `substeps` equal RK4 steps.
+/// Integrates over `period_s` in `substeps` equal RK4 steps. `trig`, if given, must be
+/// AttitudeTrig(x->eta) (the caller usually has it already).
 void Integrate(const FossenModel& model, const Vec5& tau, const Vec3& current_ned,
-               double period_s, int substeps, PlantState* x);
+               double period_s, int substeps, PlantState* x,
+               const AttitudeTrig<double>* trig = nullptr);
 
 }  // namespace shoal

@@ -8,11 +8,11 @@ bool StateHistory::Push(const HistorySample& s) {
   if (size_ > 0 && s.utime <= Newest().utime) return false;
   const int cap = capacity();
   if (size_ < cap) {
-    buf_[(head_ + size_) % cap] = s;
+    buf_[(head_ + size_) & mask_] = s;
     ++size_;
   } else {
     buf_[head_] = s;
-    head_ = (head_ + 1) % cap;
+    head_ = (head_ + 1) & mask_;
   }
   return true;
 }

@@ -18,7 +18,13 @@ struct HistorySample {
 /// never allocate (safe inside a real-time tick).
 class StateHistory {
  public:
-  explicit StateHistory(int capacity = 1) : buf_(capacity > 0 ? capacity : 1) {}
+  /// Holds at least `capacity` samples (rounded up to a power of two).
+  explicit StateHistory(int capacity = 1) {
+    int c = 1;
+    while (c < capacity) c *= 2;
+    buf_.resize(c);
+    mask_ = c - 1;
+  }
 
   int capacity() const { return static_cast<int>(buf_.size()); }
   int size() const { return size_; }
@@ -37,9 +43,10 @@ class StateHistory {
 
  private:
   // i-th oldest sample, 0 <= i < size_.
-  const HistorySample& Get(int i) const { return buf_[(head_ + i) % buf_.size()]; }
+  const HistorySample& Get(int i) const { return buf_[(head_ + i) & mask_]; }
 
   std::vector<HistorySample> buf_;
+  int mask_ = 0;
   int head_ = 0;  // index of the oldest sample
   int size_ = 0;
 };

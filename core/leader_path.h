@@ -17,16 +17,6 @@ class LeaderPath {
  public:
   explicit LeaderPath(const LeaderConfig& c);
   LeaderSample At(double t_s) const;
-  /// At(t_s) through a one-entry cache, for callers that ask for the same time repeatedly
-  /// (every follower's environment model asks for the leader at the same delayed time).
-  const LeaderSample& AtCached(double t_s) const {
-    if (!cache_valid_ || cache_t_ != t_s) {
-      cache_ = At(t_s);
-      cache_t_ = t_s;
-      cache_valid_ = true;
-    }
-    return cache_;
-  }
 
  private:
   // Position, velocity, acceleration of the path point (NED).
@@ -35,9 +25,6 @@ class LeaderPath {
   LeaderConfig c_;
   std::vector<double> seg_start_s_;  // waypoints: time at which each segment starts
   double total_s_ = 0.0;
-  mutable bool cache_valid_ = false;
-  mutable double cache_t_ = 0.0;
-  mutable LeaderSample cache_;
 };
 
 }  // namespace shoal

@@ -12,9 +12,9 @@ Swarm::Swarm(const Scenario& s, double duration_s)
       leader_(s),
       channel_(BuildLinks(s, topo_), period_us_),
       metrics_(s.offsets_m, s.metrics) {
-  auto path = std::make_shared<const LeaderPath>(s.leader);
+  auto env = std::make_shared<const Environment>(s.leader);
   for (int i = 1; i <= s.followers; ++i) {
-    followers_.push_back(std::make_unique<Follower>(s, topo_, i, path));
+    followers_.push_back(std::make_unique<Follower>(s, topo_, i, env));
   }
   published_.resize(followers_.size());
   decisions_.reserve(topo_.Links().size());
