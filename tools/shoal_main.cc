@@ -1,6 +1,7 @@
 // shoal: the command-line tool. main() only parses flags and dispatches.
 #include <CLI/CLI.hpp>
 
+#include "tools/compare_command.h"
 #include "tools/sim_command.h"
 
 int main(int argc, char** argv) {
@@ -18,6 +19,13 @@ int main(int argc, char** argv) {
   sim_cmd->add_flag("--json", sim.json, "Print one JSON object instead of the summary");
   sim_cmd->add_flag("--quiet", sim.quiet, "No progress line");
 
+  shoal::CompareOptions cmp;
+  CLI::App* cmp_cmd = app.add_subcommand(
+      "compare", "Compare the vehicle states of two logs at matching vehicle and time");
+  cmp_cmd->add_option("a", cmp.a, "First LCM log")->required();
+  cmp_cmd->add_option("b", cmp.b, "Second LCM log")->required();
+  cmp_cmd->add_flag("--json", cmp.json, "Print one JSON object");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -25,5 +33,6 @@ int main(int argc, char** argv) {
     return rc == 0 ? 0 : 2;
   }
   if (sim_cmd->parsed()) return shoal::RunSim(sim);
+  if (cmp_cmd->parsed()) return shoal::RunCompare(cmp);
   return 2;
 }

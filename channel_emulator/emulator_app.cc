@@ -1,0 +1,344 @@
+#include "channel_emulator/emulator_app.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "runtime/channels.h"
+#include "runtime/messages.h"
+#include "runtime/scenario_loader.h"
+
+namespace shoal {
+
+namespace {
+constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process is gone
+}
+
+EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
+                         Bus* bus, std::vector<Bus*> vehicle_buses)
+    : s_(s),
+      mode_(mode),
+      t0_ns_(t0_ns),
+      period_us_(s.period_us()),
+      final_tick_(static_cast<std::int64_t>(
+          std::floor((duration_s >= 0 ? duration_s : s.duration_s) * 1e6 / period_us_ + 1e-9))),
+      bus_(bus),
+      vbus_(std::move(vehicle_buses)),
+      channel_(BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links)),
+               mode == Mode::kLockstep ? s.period_us() : 0),
+      n_(s.followers),
+      last_seq_(s.followers + 1, 0),
+      have_seq_(s.followers + 1, false),
+      got_tick_(s.followers + 1, false),
+      tick_state_(s.followers + 1),
+      tick_seq_(s.followers + 1, 0),
+      alive_(s.followers + 1, true),
+      ready_(s.followers + 1, false) {
+  for (int id = 0; id <= n_; ++id) rx_channels_.push_back(channels::Rx(id));
+}
+
+void EmulatorApp::Init() {
+  bus_->Subscribe("SHOAL_STATE_[0-9]+", [this](const std::string& ch, const void* d, int n) {
+    OnState(ch, d, n);
+  });
+  bus_->Subscribe(channels::Status(),
+                  [this](const std::string&, const void* d, int n) { OnStatus(d, n); });
+}
+
+void EmulatorApp::OnStatus(const void* data, int size) {
+  run_status_t st;
+  if (!Decode(data, size, &st)) return;
+  if (st.state == "ready" && st.vehicle_id >= 0 && st.vehicle_id <= n_) {
+    ready_[st.vehicle_id] = true;
+  }
+}
+
+void EmulatorApp::OnState(const std::string& channel, const void* data, int size) {
+  vehicle_state_t m{};
+  int id = -1;
+  try {
+    id = std::stoi(channel.substr(std::string("SHOAL_STATE_").size()));
+  } catch (...) {
+    id = -1;
+  }
+  if (id < 0 || id > n_ || !Decode(data, size, &m) || m.vehicle_id != id ||
+      !FromLcm(m).AllFinite()) {
+    ++counters_.states_invalid;
+    return;
+  }
+  if (have_seq_[id] && m.seq <= last_seq_[id]) {  // replayed, duplicate, out of order
+    ++counters_.states_old;
+    return;
+  }
+  if (mode_ == Mode::kLockstep) {
+    if (tick_ < 0 || m.utime != tick_ * period_us_ || got_tick_[id]) {
+      ++counters_.states_old;
+      return;
+    }
+    got_tick_[id] = true;
+    tick_state_[id].assign(static_cast<const unsigned char*>(data),
+                           static_cast<const unsigned char*>(data) + size);
+    tick_seq_[id] = m.seq;
+  } else {
+    // Real time: a state must be about now (forged or replayed times are refused).
+    const Micros now = (MonotonicNs() - t0_ns_) / 1000;
+    if (m.utime > now + 100000 || m.utime < now - 1000000) {
+      ++counters_.states_old;
+      return;
+    }
+    Submit(id, Bytes(static_cast<const unsigned char*>(data),
+                     static_cast<const unsigned char*>(data) + size),
+           m.seq, m.utime);
+  }
+  have_seq_[id] = true;
+  last_seq_[id] = m.seq;
+  ++counters_.states_accepted;
+}
+
+void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime) {
+  decisions_.clear();
+  channel_.Submit(id, seq, utime, raw, &decisions_);
+  for (const ChannelDecision& d : decisions_) {
+    if (d.status == ChannelDecision::kDelivered) {
+      ++counters_.delivered;
+    } else {
+      ++counters_.dropped;
+    }
+    channel_event_t e = ToLcm(d, event_seq_++);
+    bus_->Publish(channels::ChannelEvents(), e);
+  }
+}
+
+void EmulatorApp::Deliver(Micros now) {
+  channel_.DeliverDue(now, [&](int receiver, const Bytes& raw) {
+    if (mode_ == Mode::kRealtime) {
+      // Everything released here was due at or before now; the error is the lateness.
+      release_error_.Add(0.0);
+    }
+    vbus_[receiver]->PublishRaw(rx_channels_[receiver], raw.data(), static_cast<int>(raw.size()));
+  });
+}
+
+void EmulatorApp::PublishClock(std::int64_t tick) {
+  clock_tick_t c;
+  c.utime = tick * period_us_;
+  c.vehicle_id = kEmulatorId;
+  c.seq = clock_seq_++;
+  c.tick = tick;
+  c.period_us = period_us_;
+  c.final_tick = tick == final_tick_ ? 1 : 0;
+  // On every vehicle bus (after that vehicle's deliveries, so it sees them first) and on
+  // the shared bus for the logger.
+  bool on_shared = false;
+  for (Bus* b : vbus_) {
+    if (b == bus_) {
+      if (on_shared) continue;
+      on_shared = true;
+    }
+    b->Publish(channels::Clock(), c);
+  }
+  if (!on_shared) bus_->Publish(channels::Clock(), c);
+}
+
+void EmulatorApp::PublishHealth(Micros utime) {
+  health_t h;
+  h.utime = utime;
+  h.vehicle_id = kEmulatorId;
+  h.seq = health_seq_++;
+  h.ticks = tick_ + 1;
+  h.lateness_p50_s = release_error_.Quantile(0.5);
+  h.lateness_p99_s = release_error_.Quantile(0.99);
+  h.lateness_max_s = release_error_.max();
+  h.overruns = 0;
+  h.msgs_received = counters_.states_accepted;
+  h.msgs_dropped_invalid = counters_.states_invalid;
+  h.msgs_dropped_old = counters_.states_old;
+  h.neighbour_timeouts = 0;
+  int alive = 0;
+  for (bool a : alive_) alive += a;
+  h.active_neighbours = alive;
+  h.saturated_ticks = 0;
+  h.saturation_fraction = 0.0;
+  bus_->Publish(channels::Health(kEmulatorId), h);
+}
+
+void EmulatorApp::PublishStatus(const std::string& state, const std::string& message) {
+  run_status_t st;
+  st.utime = std::max<std::int64_t>(tick_, 0) * period_us_;
+  st.vehicle_id = kEmulatorId;
+  st.seq = status_seq_++;
+  st.state = state;
+  st.scenario_name = s_.name;
+  st.scenario_toml = "";
+  st.seed = static_cast<std::int64_t>(s_.seed);
+  st.followers = n_;
+  st.message = message;
+  bus_->Publish(channels::Status(), st);
+}
+
+int EmulatorApp::Run() { return mode_ == Mode::kLockstep ? RunLockstep() : RunRealtime(); }
+
+int EmulatorApp::RunLockstep() {
+  // Wait until every process has announced itself.
+  const std::int64_t start = MonotonicNs();
+  for (;;) {
+    bool all = true;
+    for (bool r : ready_) all = all && r;
+    if (all) break;
+    if (StopRequested()) return 1;
+    if (MonotonicNs() - start > 60000000000LL) {
+      std::ostringstream missing;
+      for (int id = 0; id <= n_; ++id) {
+        if (!ready_[id]) missing << " " << id;
+      }
+      std::cerr << "shoal_channel_emulator: no ready status from vehicle(s)" << missing.str()
+                << " within 60 s\n";
+      PublishStatus("failed", "not ready:" + missing.str());
+      return 3;
+    }
+    bus_->Handle(20);
+  }
+  PublishStatus("running", "");
+
+  bool lost_any = false;
+  for (std::int64_t k = 0; k <= final_tick_; ++k) {
+    if (StopRequested()) {
+      PublishStatus("interrupted", "");
+      return 1;
+    }
+    tick_ = k;
+    const Micros now = k * period_us_;
+    for (int id = 0; id <= n_; ++id) got_tick_[id] = false;
+    Deliver(now);
+    PublishClock(k);
+    // Wait for the state of every live process for this tick.
+    const std::int64_t asked = MonotonicNs();
+    for (;;) {
+      bool all = true;
+      for (int id = 0; id <= n_; ++id) all = all && (!alive_[id] || got_tick_[id]);
+      if (all) break;
+      if (StopRequested()) {
+        PublishStatus("interrupted", "");
+        return 1;
+      }
+      if (MonotonicNs() - asked > kAnswerTimeoutNs) {
+        for (int id = 0; id <= n_; ++id) {
+          if (alive_[id] && !got_tick_[id]) {
+            alive_[id] = false;
+            lost_any = true;
+            std::ostringstream msg;
+            msg << "vehicle " << id << " stopped answering at t = " << ToSeconds(now) << " s";
+            std::cerr << "shoal_channel_emulator: " << msg.str() << "\n";
+            PublishStatus("vehicle_lost", msg.str());
+          }
+        }
+        break;
+      }
+      bus_->Handle(10);
+    }
+    // States enter the channel in id order (leader first), as in shoal sim.
+    for (int id = 0; id <= n_; ++id) {
+      if (got_tick_[id]) Submit(id, tick_state_[id], tick_seq_[id], now);
+    }
+    if (now % 1000000 < period_us_ || k == final_tick_) PublishHealth(now);
+  }
+  PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
+  return lost_any ? 4 : 0;
+}
+
+int EmulatorApp::RunRealtime() {
+  PublishStatus("running", "");
+  double max_delay = MaxDelaySeconds(s_.delay);
+  for (const LinkOverride& o : s_.links) {
+    if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
+  }
+  const std::int64_t end_ns =
+      t0_ns_ + (final_tick_ * period_us_ + static_cast<Micros>(max_delay * 1e6) + 100000) * 1000;
+  std::int64_t next_health_ns = t0_ns_;
+  while (!StopRequested()) {
+    const std::int64_t now_ns = MonotonicNs();
+    if (now_ns >= end_ns) break;
+    // Release everything due, measuring how late each release is.
+    const Micros now_us = (now_ns - t0_ns_) / 1000;
+    const Micros due = channel_.NextDue();
+    if (due >= 0 && due <= now_us) {
+      const std::int64_t due_ns = t0_ns_ + due * 1000;
+      channel_.DeliverDue(due, [&](int receiver, const Bytes& raw) {
+        vbus_[receiver]->PublishRaw(rx_channels_[receiver], raw.data(),
+                                    static_cast<int>(raw.size()));
+        release_error_.Add(static_cast<double>(MonotonicNs() - due_ns) * 1e-9);
+      });
+      continue;
+    }
+    if (now_ns >= next_health_ns) {
+      tick_ = (now_ns - t0_ns_) / (period_us_ * 1000);
+      PublishHealth(now_us);
+      next_health_ns += 1000000000LL;
+    }
+    // Wait for input until shortly before the next release, then sleep to it exactly.
+    std::int64_t wake_ns = std::min(end_ns, next_health_ns);
+    if (due >= 0) wake_ns = std::min(wake_ns, t0_ns_ + due * 1000);
+    const std::int64_t wait_ns = wake_ns - MonotonicNs();
+    if (wait_ns > 2000000) {
+      bus_->Handle(static_cast<int>(std::min<std::int64_t>((wait_ns - 1000000) / 1000000, 20)));
+    } else if (wait_ns > 0) {
+      bus_->Handle(0);
+      if (channel_.NextDue() == due) SleepUntilNs(wake_ns);
+    }
+  }
+  PublishHealth((MonotonicNs() - t0_ns_) / 1000);
+  PublishStatus(StopRequested() ? "interrupted" : "finished", "");
+  return StopRequested() ? 1 : 0;
+}
+
+int EmulatorMain(int argc, char** argv) {
+  CLI::App app{"Shoal channel emulator: the only path between vehicles (delay, loss, clock)"};
+  ProcessOptions opt;
+  std::vector<std::string> vehicle_urls;
+  AddProcessOptions(&app, &opt);
+  app.add_option("--vehicle-urls", vehicle_urls,
+                 "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
+      ->delimiter(',');
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  InstallProcessSignals();
+  Scenario s;
+  try {
+    s = LoadScenario(opt.scenario);
+  } catch (const ScenarioError& e) {
+    std::cerr << "shoal_channel_emulator: " << e.what() << "\n";
+    return 2;
+  }
+  if (!vehicle_urls.empty() && static_cast<int>(vehicle_urls.size()) != s.followers + 1) {
+    std::cerr << "shoal_channel_emulator: --vehicle-urls needs " << s.followers + 1
+              << " URLs (leader and followers), got " << vehicle_urls.size() << "\n";
+    return 2;
+  }
+  try {
+    LcmBus bus(opt.lcm_url);
+    std::vector<std::unique_ptr<LcmBus>> own;
+    std::vector<Bus*> vbus;
+    for (int id = 0; id <= s.followers; ++id) {
+      if (vehicle_urls.empty() || vehicle_urls[id] == opt.lcm_url) {
+        vbus.push_back(&bus);
+      } else {
+        own.push_back(std::make_unique<LcmBus>(vehicle_urls[id]));
+        vbus.push_back(own.back().get());
+      }
+    }
+    EmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus);
+    app_.Init();
+    return app_.Run();
+  } catch (const std::exception& e) {
+    std::cerr << "shoal_channel_emulator: " << e.what() << "\n";
+    return 2;
+  }
+}
+
+}  // namespace shoal

@@ -1,0 +1,79 @@
+// The channel emulator process: the only path between vehicles. For every directed link
+// it applies the scenario's delay and loss models (core Channel) and delivers each
+// message, unchanged, on SHOAL_RX_<receiver>; every decision is published on
+// SHOAL_CHANNEL. In lockstep it is also the clock master.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/channel_model.h"
+#include "core/scenario.h"
+#include "runtime/clock.h"
+#include "runtime/lcm_bus.h"
+#include "runtime/process.h"
+
+namespace shoal {
+
+struct EmulatorCounters {
+  std::int64_t states_accepted = 0;
+  std::int64_t states_invalid = 0;  // undecodable, wrong id for the channel, NaN/Inf
+  std::int64_t states_old = 0;      // duplicate / replayed / out-of-order seq, wrong tick
+  std::int64_t delivered = 0;
+  std::int64_t dropped = 0;
+};
+
+class EmulatorApp {
+ public:
+  /// `vehicle_buses[id]` is where vehicle id receives (its SHOAL_RX and, in lockstep, the
+  /// clock); entries may all be `bus`.
+  EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s, Bus* bus,
+              std::vector<Bus*> vehicle_buses);
+  void Init();
+  /// 0: ran to the end with every process; 4: ran to the end, some process stopped
+  /// answering (named on stderr and in SHOAL_STATUS); 1: interrupted; 3: start-up failed.
+  int Run();
+  const EmulatorCounters& counters() const { return counters_; }
+
+ private:
+  using Bytes = std::vector<unsigned char>;
+  void OnState(const std::string& channel, const void* data, int size);
+  void OnStatus(const void* data, int size);
+  void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
+  void Deliver(Micros now);
+  void PublishClock(std::int64_t tick);
+  void PublishHealth(Micros utime);
+  void PublishStatus(const std::string& state, const std::string& message);
+  int RunLockstep();
+  int RunRealtime();
+
+  const Scenario& s_;
+  Mode mode_;
+  std::int64_t t0_ns_;
+  Micros period_us_;
+  std::int64_t final_tick_;
+  Bus* bus_;
+  std::vector<Bus*> vbus_;
+  Channel<Bytes> channel_;
+  std::vector<ChannelDecision> decisions_;
+  std::vector<std::string> rx_channels_;
+  int n_;  // followers
+
+  // Per sender: newest accepted seq, and (lockstep) the state received for this tick.
+  std::vector<std::int32_t> last_seq_;
+  std::vector<bool> have_seq_;
+  std::vector<bool> got_tick_;
+  std::vector<Bytes> tick_state_;
+  std::vector<std::int32_t> tick_seq_;
+  std::vector<bool> alive_;
+  std::vector<bool> ready_;
+  std::int64_t tick_ = -1;  // lockstep: current tick
+  std::int32_t event_seq_ = 0, clock_seq_ = 0, health_seq_ = 0, status_seq_ = 0;
+  EmulatorCounters counters_;
+  LatenessStats release_error_;  // realtime: release time - due time
+};
+
+int EmulatorMain(int argc, char** argv);
+
+}  // namespace shoal

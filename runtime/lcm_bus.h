@@ -1,0 +1,74 @@
+// The small transport interface the processes program against (STYLE.md: Drake's
+// DrakeLcmInterface), with the LCM implementation. Handlers get raw bytes: decoding,
+// validation and counting happen in the caller, so that a malformed message is dropped
+// and counted instead of being printed and lost inside LCM's auto-decoding.
+#pragma once
+
+#include <lcm/lcm-cpp.hpp>
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace shoal {
+
+class Bus {
+ public:
+  using Handler = std::function<void(const std::string& channel, const void* data, int size)>;
+  virtual ~Bus() = default;
+  /// Publishes raw bytes; returns false on failure.
+  virtual bool PublishRaw(const std::string& channel, const void* data, int size) = 0;
+  /// `channel` is a regular expression (implicitly ^...$), as in LCM.
+  virtual void Subscribe(const std::string& channel, Handler handler) = 0;
+  /// Dispatches pending messages, waiting at most timeout_ms for the first.
+  /// Returns the number of messages handled (0 on timeout), or -1 on error.
+  virtual int Handle(int timeout_ms) = 0;
+
+  template <typename Msg>
+  bool Publish(const std::string& channel, const Msg& msg) {
+    const int size = msg.getEncodedSize();
+    if (static_cast<int>(buf_.size()) < size) buf_.resize(size);
+    if (msg.encode(buf_.data(), 0, size) != size) return false;
+    return PublishRaw(channel, buf_.data(), size);
+  }
+
+ private:
+  std::vector<unsigned char> buf_;
+};
+
+/// LCM over any provider URL (udpm://... for processes, memq:// for in-process tests).
+class LcmBus : public Bus {
+ public:
+  /// Throws std::runtime_error if LCM cannot be initialised for `url`.
+  explicit LcmBus(const std::string& url);
+  bool PublishRaw(const std::string& channel, const void* data, int size) override;
+  void Subscribe(const std::string& channel, Handler handler) override;
+  int Handle(int timeout_ms) override;
+  int fileno() { return lcm_.getFileno(); }
+  const std::string& url() const { return url_; }
+
+ private:
+  struct Sub {
+    Handler handler;
+    void On(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+      handler(channel, rb->data, static_cast<int>(rb->data_size));
+    }
+  };
+  std::string url_;
+  lcm::LCM lcm_;
+  std::vector<std::unique_ptr<Sub>> subs_;
+};
+
+/// Decodes an LCM message; false (never an exception) on a truncated message, a wrong
+/// fingerprint or garbage.
+template <typename Msg>
+bool Decode(const void* data, int size, Msg* out) {
+  if (data == nullptr || size < 8) return false;
+  return out->decode(data, 0, size) == size;
+}
+
+/// The LCM URL of a private run: multicast group, own port, ttl=0 (never leaves the host).
+std::string PrivateLcmUrl(int port, const std::string& group = "239.255.76.67");
+
+}  // namespace shoal

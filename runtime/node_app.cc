@@ -1,0 +1,186 @@
+#include "runtime/node_app.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <iostream>
+
+#include "runtime/channels.h"
+#include "runtime/messages.h"
+#include "runtime/scenario_loader.h"
+
+namespace shoal {
+
+NodeApp::NodeApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, double duration_s,
+                 Bus* bus, Bus* rx_bus)
+    : s_(s),
+      id_(id),
+      mode_(mode),
+      t0_ns_(t0_ns),
+      period_us_(s.period_us()),
+      final_tick_(static_cast<std::int64_t>(
+          std::floor((duration_s >= 0 ? duration_s : s.duration_s) * 1e6 / period_us_ + 1e-9))),
+      bus_(bus),
+      rx_bus_(rx_bus),
+      state_channel_(channels::State(id)),
+      health_channel_(channels::Health(id)) {
+  if (id == 0) {
+    leader_ = std::make_unique<Leader>(s);
+  } else {
+    const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
+    follower_ = std::make_unique<Follower>(s, topo, id);
+  }
+}
+
+void NodeApp::Init() {
+  if (follower_) {
+    rx_bus_->Subscribe(channels::Rx(id_),
+                       [this](const std::string&, const void* d, int n) { OnRx(d, n); });
+  }
+  if (mode_ == Mode::kLockstep) {
+    rx_bus_->Subscribe(channels::Clock(),
+                       [this](const std::string&, const void* d, int n) { OnClock(d, n); });
+  }
+}
+
+void NodeApp::OnRx(const void* data, int size) {
+  vehicle_state_t m{};
+  if (!Decode(data, size, &m)) {
+    ++counters_.bad_rx;
+    return;
+  }
+  follower_->Receive(FromLcm(m));  // validates and counts (NaN/Inf, unknown, old)
+}
+
+void NodeApp::OnClock(const void* data, int size) {
+  clock_tick_t c;
+  if (!Decode(data, size, &c) || c.vehicle_id != kEmulatorId || c.tick != next_tick_ ||
+      c.period_us != period_us_ || c.utime != c.tick * period_us_) {
+    ++counters_.bad_clock;
+    return;
+  }
+  Step(c.tick);
+  if (c.final_tick || c.tick >= final_tick_) done_ = true;
+}
+
+void NodeApp::Step(std::int64_t tick) {
+  const Micros now = tick * period_us_;
+  const StateMsg& m = follower_ ? follower_->Tick(now) : leader_->Tick(now);
+  bus_->Publish(state_channel_, ToLcm(m));
+  next_tick_ = tick + 1;
+  if (now % 1000000 < period_us_ || tick == final_tick_) PublishHealth(now);
+}
+
+void NodeApp::PublishHealth(Micros utime) {
+  health_t h;
+  if (follower_) {
+    h = ToLcmHealth(utime, *follower_, health_seq_++);
+    h.msgs_dropped_invalid += counters_.bad_rx;
+  } else {
+    h = health_t();
+    h.utime = utime;
+    h.vehicle_id = 0;
+    h.seq = health_seq_++;
+    h.ticks = next_tick_;
+  }
+  h.lateness_p50_s = lateness_.Quantile(0.5);
+  h.lateness_p99_s = lateness_.Quantile(0.99);
+  h.lateness_max_s = lateness_.max();
+  h.overruns = counters_.overruns;
+  bus_->Publish(health_channel_, h);
+}
+
+void NodeApp::PublishStatus(const std::string& state, const std::string& message) {
+  run_status_t st;
+  st.utime = next_tick_ * period_us_;
+  st.vehicle_id = id_;
+  st.seq = status_seq_++;
+  st.state = state;
+  st.scenario_name = s_.name;
+  st.scenario_toml = "";
+  st.seed = static_cast<std::int64_t>(s_.seed);
+  st.followers = s_.followers;
+  st.message = message;
+  bus_->Publish(channels::Status(), st);
+}
+
+int NodeApp::Run() { return mode_ == Mode::kLockstep ? RunLockstep() : RunRealtime(); }
+
+int NodeApp::RunLockstep() {
+  // Announce readiness until the clock master starts the run.
+  std::int64_t last_ready = 0;
+  const std::int64_t start = MonotonicNs();
+  while (!done_ && !StopRequested()) {
+    if (next_tick_ == 0) {
+      const std::int64_t now = MonotonicNs();
+      if (now - last_ready > 100000000LL) {
+        PublishStatus("ready", "");
+        last_ready = now;
+      }
+      if (now - start > 60000000000LL) {
+        std::cerr << "vehicle " << id_ << ": no clock tick within 60 s; exiting\n";
+        return 3;
+      }
+    }
+    if (rx_bus_->Handle(50) < 0) return 1;
+  }
+  if (done_) PublishStatus("finished", "");
+  return done_ ? 0 : 1;
+}
+
+int NodeApp::RunRealtime() {
+  const std::int64_t period_ns = period_us_ * 1000;
+  for (std::int64_t k = 0; k <= final_tick_ && !StopRequested(); ++k) {
+    const std::int64_t deadline = t0_ns_ + k * period_ns;
+    SleepUntilNs(deadline);
+    if (StopRequested()) break;
+    lateness_.Add(static_cast<double>(MonotonicNs() - deadline) * 1e-9);
+    rx_bus_->Handle(0);  // everything delivered so far
+    Step(k);
+    if (MonotonicNs() > deadline + period_ns) ++counters_.overruns;
+  }
+  const bool finished = next_tick_ > final_tick_;
+  PublishStatus(finished ? "finished" : "interrupted", "");
+  return finished ? 0 : 1;
+}
+
+int NodeMain(int argc, char** argv, bool leader) {
+  const std::string name = leader ? "shoal_leader" : "shoal_vehicle";
+  CLI::App app{leader ? "Shoal leader process: publishes the scenario's leader path"
+                      : "Shoal vehicle process: one follower UUV running protocol (10)"};
+  ProcessOptions opt;
+  int id = 0;
+  AddProcessOptions(&app, &opt);
+  if (!leader) app.add_option("--id", id, "Follower id (1..n)")->required();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  InstallProcessSignals();
+  Scenario s;
+  try {
+    s = LoadScenario(opt.scenario);
+  } catch (const ScenarioError& e) {
+    std::cerr << name << ": " << e.what() << "\n";
+    return 2;
+  }
+  if (!leader && (id < 1 || id > s.followers)) {
+    std::cerr << name << ": --id must be in 1.." << s.followers << " (got " << id << ")\n";
+    return 2;
+  }
+  try {
+    LcmBus bus(opt.lcm_url);
+    std::unique_ptr<LcmBus> rx;
+    if (!opt.rx_url.empty() && opt.rx_url != opt.lcm_url) rx = std::make_unique<LcmBus>(opt.rx_url);
+    NodeApp node(s, id, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus,
+                 rx ? static_cast<Bus*>(rx.get()) : &bus);
+    node.Init();
+    return node.Run();
+  } catch (const std::exception& e) {
+    std::cerr << name << ": " << e.what() << "\n";
+    return 2;
+  }
+}
+
+}  // namespace shoal

@@ -1,0 +1,38 @@
+#include "runtime/process.h"
+
+#include <signal.h>
+#include <sys/prctl.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+
+namespace shoal {
+namespace {
+volatile sig_atomic_t g_stop = 0;
+extern "C" void OnStopSignal(int) { g_stop = 1; }
+}  // namespace
+
+void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
+  app->add_option("--scenario", opt->scenario, "Scenario file (TOML)")->required();
+  app->add_option("--lcm-url", opt->lcm_url, "LCM URL of the run's bus")->required();
+  app->add_option("--rx-url", opt->rx_url,
+                  "LCM URL on which this process receives (default: --lcm-url)");
+  app->add_option("--mode", opt->mode, "lockstep or realtime")
+      ->check(CLI::IsMember({"lockstep", "realtime"}));
+  app->add_option("--t0-ns", opt->t0_ns, "realtime: CLOCK_MONOTONIC ns of tick 0");
+  app->add_option("--duration", opt->duration_s, "Simulated seconds (default: the scenario's)");
+}
+
+void InstallProcessSignals() {
+  struct sigaction sa = {};
+  sa.sa_handler = OnStopSignal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (getppid() == 1) g_stop = 1;  // the parent died before prctl took effect
+}
+
+bool StopRequested() { return g_stop != 0; }
+
+}  // namespace shoal

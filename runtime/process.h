@@ -1,0 +1,34 @@
+// What every Shoal process shares: its command line, signal handling, and dying with
+// its parent (so that no process outlives `shoal run`, even after kill -9 of it).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace shoal {
+
+enum class Mode { kLockstep, kRealtime };
+
+struct ProcessOptions {
+  std::string scenario;
+  std::string lcm_url;       // the run's shared bus
+  std::string rx_url;        // where this process receives (lockstep clock, SHOAL_RX_<id>); "" = lcm_url
+  std::string mode = "lockstep";
+  std::int64_t t0_ns = 0;    // realtime: CLOCK_MONOTONIC time of tick 0
+  double duration_s = -1.0;  // < 0: the scenario's
+  Mode parsed_mode() const { return mode == "realtime" ? Mode::kRealtime : Mode::kLockstep; }
+};
+
+/// Adds the common options to a CLI11 app.
+void AddProcessOptions(CLI::App* app, ProcessOptions* opt);
+
+/// Installs SIGINT/SIGTERM handlers that set StopRequested(), and asks the kernel to send
+/// SIGTERM when the parent dies.
+void InstallProcessSignals();
+bool StopRequested();
+
+}  // namespace shoal

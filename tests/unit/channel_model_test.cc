@@ -1,0 +1,602 @@
+// Property tests of core/channel_model: delivery-time arithmetic on the tick grid, the
+// delay and loss models, and Channel<int>: links from a scenario with per-link
+// overrides, one decision per outgoing link, delivery order, loss statistics, seeded
+// determinism and per-link independence of the random streams.
+#include "core/channel_model.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "core/rng.h"
+
+namespace shoal {
+namespace {
+
+constexpr Micros kPeriod = 20000;  // 50 Hz
+
+DelayConfig Constant(double s) {
+  DelayConfig c;
+  c.kind = DelayKind::kConstant;
+  c.base_s = s;
+  return c;
+}
+DelayConfig Uniform(double base, double amp) {
+  DelayConfig c;
+  c.kind = DelayKind::kUniform;
+  c.base_s = base;
+  c.amplitude_s = amp;
+  return c;
+}
+DelayConfig Sinusoid(double base, double amp, double omega) {
+  DelayConfig c;
+  c.kind = DelayKind::kSinusoid;
+  c.base_s = base;
+  c.amplitude_s = amp;
+  c.omega_rad_s = omega;
+  return c;
+}
+LossConfig Bernoulli(double p) {
+  LossConfig c;
+  c.kind = LossKind::kBernoulli;
+  c.probability = p;
+  return c;
+}
+
+/// The paper's swarm (Fig. 1): 5 followers, leader links 1, 3, 5.
+Scenario PaperScenario(std::uint64_t seed) {
+  Scenario s;
+  s.seed = seed;
+  s.followers = 5;
+  s.edges = {{1, 3}, {2, 1}, {2, 5}, {3, 1}, {4, 5}, {5, 2}, {5, 4}};
+  s.leader_links = {1, 3, 5};
+  return s;
+}
+
+Topology TopologyOf(const Scenario& s) {
+  return Topology::Build(s.followers, s.edges, s.leader_links);
+}
+
+const Link* FindLink(const std::vector<Link>& links, int from, int to) {
+  for (const Link& l : links) {
+    if (l.from == from && l.to == to) return &l;
+  }
+  return nullptr;
+}
+
+/// The comparable content of a decision.
+using DecisionKey = std::tuple<int, int, std::int32_t, Micros, double, Micros, int>;
+DecisionKey Key(const ChannelDecision& d) {
+  return {d.sender, d.receiver, d.msg_seq, d.send_utime, d.delay_s, d.deliver_utime,
+          static_cast<int>(d.status)};
+}
+
+// ---------------------------------------------------------------------------------------
+// DeliveryTime
+
+TEST(ChannelDeliveryTimeTest, TickGrid) {
+  const Micros tick5 = 5 * kPeriod;
+  // Zero delay: usable from the next tick, never the send tick itself.
+  EXPECT_EQ(DeliveryTime(tick5, 0.0, kPeriod), 6 * kPeriod);
+  EXPECT_EQ(DeliveryTime(tick5 + 1, 0.0, kPeriod), 6 * kPeriod);
+  EXPECT_EQ(DeliveryTime(6 * kPeriod - 1, 0.0, kPeriod), 6 * kPeriod);
+  // A delay that lands exactly on a tick is delivered at that tick.
+  EXPECT_EQ(DeliveryTime(tick5, 0.1, kPeriod), 10 * kPeriod);
+  EXPECT_EQ(DeliveryTime(tick5, 0.02, kPeriod), 6 * kPeriod);
+  // One microsecond later goes to the following tick.
+  EXPECT_EQ(DeliveryTime(tick5, 0.100001, kPeriod), 11 * kPeriod);
+  EXPECT_EQ(DeliveryTime(tick5, 0.0999999, kPeriod), 10 * kPeriod);
+  // Delay shorter than a period but sent mid-period.
+  EXPECT_EQ(DeliveryTime(tick5 + 15000, 0.004, kPeriod), 6 * kPeriod);
+  EXPECT_EQ(DeliveryTime(tick5 + 15000, 0.006, kPeriod), 7 * kPeriod);
+  // Real time (period 0): send + delay exactly.
+  EXPECT_EQ(DeliveryTime(123457, 0.034567, 0), 123457 + 34567);
+  EXPECT_EQ(DeliveryTime(123457, 0.0, 0), 123457);
+  EXPECT_EQ(DeliveryTime(1700000000000000, 2.5, 0), 1700000000000000 + 2500000);
+}
+
+TEST(ChannelDeliveryTimeTest, FirstTickAtOrAfterDueAndAfterSendTick) {
+  Rng rng(17);
+  for (int k = 0; k < 100000; ++k) {
+    const Micros send = static_cast<Micros>(rng.Uniform() * 1e10);
+    // Whole-microsecond delays, so send + delay is exact.
+    const Micros delay_us = static_cast<Micros>(rng.Uniform() * 300000);
+    const double delay_s = static_cast<double>(delay_us) / 1e6;
+    const Micros due = send + delay_us;
+    const Micros got = DeliveryTime(send, delay_s, kPeriod);
+    ASSERT_EQ(got % kPeriod, 0) << send << " " << delay_s;
+    ASSERT_GE(got, due);
+    ASSERT_GT(got / kPeriod, send / kPeriod);
+    // Smallest such tick.
+    const Micros prev = got - kPeriod;
+    ASSERT_TRUE(prev < due || prev / kPeriod <= send / kPeriod) << send << " " << delay_s;
+    ASSERT_EQ(DeliveryTime(send, delay_s, 0), due);
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Delay and loss models
+
+TEST(ChannelDelaySecondsTest, DeterministicModels) {
+  DelayConfig none;
+  EXPECT_EQ(DelaySeconds(none, 12.3, nullptr), 0.0);
+  EXPECT_EQ(DelaySeconds(Constant(0.3), 0.0, nullptr), 0.3);
+  EXPECT_EQ(DelaySeconds(Constant(0.3), 1e5, nullptr), 0.3);
+  // Paper Example 2: tau(t) = 0.1 + 0.05 cos t.
+  const DelayConfig s = Sinusoid(0.1, 0.05, 1.0);
+  EXPECT_NEAR(DelaySeconds(s, 0.0, nullptr), 0.15, 1e-15);
+  EXPECT_NEAR(DelaySeconds(s, 3.14159265358979323846 / 2, nullptr), 0.1, 1e-15);
+  EXPECT_NEAR(DelaySeconds(s, 3.14159265358979323846, nullptr), 0.05, 1e-15);
+  EXPECT_NEAR(DelaySeconds(s, 1.0, nullptr), 0.127015115293407, 1e-15);  // 0.1 + 0.05 cos 1
+  EXPECT_NEAR(DelaySeconds(s, 2.0, nullptr), 0.07919265817264289, 1e-15);  // 0.1 + 0.05 cos 2
+  EXPECT_NEAR(DelaySeconds(s, 10.0, nullptr), 0.05804642354617738, 1e-15); // 0.1 + 0.05 cos 10
+  // Upper bounds h.
+  EXPECT_EQ(MaxDelaySeconds(none), 0.0);
+  EXPECT_EQ(MaxDelaySeconds(Constant(0.3)), 0.3);
+  EXPECT_NEAR(MaxDelaySeconds(s), 0.15, 1e-15);
+  EXPECT_NEAR(MaxDelaySeconds(Uniform(0.2, 0.05)), 0.25, 1e-15);
+  EXPECT_EQ(NominalDelaySeconds(Uniform(0.2, 0.05), 3.0), 0.2);
+  EXPECT_NEAR(NominalDelaySeconds(s, 2.0), DelaySeconds(s, 2.0, nullptr), 0.0);
+}
+
+TEST(ChannelDelaySecondsTest, UniformWithinBandWithMeanAtBase) {
+  const DelayConfig c = Uniform(0.2, 0.05);
+  Rng rng(3);
+  double sum = 0.0, lo = 1e9, hi = -1e9;
+  const int n = 100000;
+  for (int k = 0; k < n; ++k) {
+    const double d = DelaySeconds(c, 0.01 * k, &rng);
+    ASSERT_GE(d, 0.15);
+    ASSERT_LE(d, 0.25);
+    sum += d;
+    lo = std::min(lo, d);
+    hi = std::max(hi, d);
+  }
+  // Standard error of the mean is 0.05 / sqrt(3 n) = 9e-5.
+  EXPECT_NEAR(sum / n, 0.2, 5e-4);
+  // The whole band is used.
+  EXPECT_LT(lo, 0.1501);
+  EXPECT_GT(hi, 0.2499);
+}
+
+TEST(ChannelDelaySecondsTest, NeverNegative) {
+  Rng rng(4);
+  const DelayConfig sin_big = Sinusoid(0.05, 0.1, 2.0);  // would dip to -0.05
+  const DelayConfig uni_big = Uniform(0.01, 0.05);
+  const DelayConfig negative = Constant(-0.2);
+  int clamped = 0;
+  for (int k = 0; k < 10000; ++k) {
+    const double t = 0.013 * k;
+    const double a = DelaySeconds(sin_big, t, &rng);
+    const double b = DelaySeconds(uni_big, t, &rng);
+    ASSERT_GE(a, 0.0);
+    ASSERT_GE(b, 0.0);
+    if (a == 0.0) ++clamped;
+    if (a > 0.0) {
+      ASSERT_NEAR(a, 0.05 + 0.1 * std::cos(2.0 * t), 1e-15);
+    }
+  }
+  EXPECT_GT(clamped, 1000);  // the clamping really happened
+  EXPECT_EQ(DelaySeconds(negative, 0.0, &rng), 0.0);
+}
+
+TEST(ChannelDroppedTest, NoneNeverDropsAndProbabilityOneAlwaysDrops) {
+  Rng rng(5);
+  LossConfig none;
+  for (int k = 0; k < 1000; ++k) {
+    ASSERT_FALSE(Dropped(none, &rng));
+    ASSERT_TRUE(Dropped(Bernoulli(1.0), &rng));
+    ASSERT_FALSE(Dropped(Bernoulli(0.0), &rng));
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// BuildLinks
+
+TEST(ChannelBuildLinksTest, DefaultsAndOverridesOnTheRightLinkOnly) {
+  Scenario s = PaperScenario(7);
+  s.delay = Constant(0.1);
+  s.loss = Bernoulli(0.05);
+  LinkOverride slow;
+  slow.from = 2;
+  slow.to = 5;
+  slow.delay = Sinusoid(0.2, 0.1, 0.5);
+  LinkOverride lossy;
+  lossy.from = 0;
+  lossy.to = 3;
+  lossy.loss = Bernoulli(0.5);
+  LinkOverride reverse_of_slow;  // (5, 2) exists too; must not be confused with (2, 5)
+  reverse_of_slow.from = 5;
+  reverse_of_slow.to = 2;
+  reverse_of_slow.delay = Constant(0.7);
+  s.links = {slow, lossy, reverse_of_slow};
+
+  const Topology topo = TopologyOf(s);
+  const std::vector<Link> links = BuildLinks(s, topo);
+  ASSERT_EQ(links.size(), 10u);
+  const auto expected_pairs = topo.Links();
+  for (std::size_t k = 0; k < links.size(); ++k) {
+    EXPECT_EQ(links[k].from, expected_pairs[k].first) << k;
+    EXPECT_EQ(links[k].to, expected_pairs[k].second) << k;
+  }
+  for (const Link& l : links) {
+    SCOPED_TRACE(::testing::Message() << "link " << l.from << "->" << l.to);
+    if (l.from == 2 && l.to == 5) {
+      EXPECT_TRUE(SameDelay(l.delay, *slow.delay));
+    } else if (l.from == 5 && l.to == 2) {
+      EXPECT_TRUE(SameDelay(l.delay, Constant(0.7)));
+    } else {
+      EXPECT_TRUE(SameDelay(l.delay, s.delay));
+    }
+    // A delay-only override keeps the default loss and vice versa.
+    EXPECT_EQ(l.loss.kind, LossKind::kBernoulli);
+    EXPECT_EQ(l.loss.probability, (l.from == 0 && l.to == 3) ? 0.5 : 0.05);
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Channel<int>
+
+TEST(ChannelTest, OneDecisionPerOutgoingLink) {
+  Scenario s = PaperScenario(11);
+  s.delay = Uniform(0.1, 0.05);
+  s.loss = Bernoulli(0.3);
+  const Topology topo = TopologyOf(s);
+  Channel<int> ch(BuildLinks(s, topo), kPeriod);
+  std::map<int, std::vector<int>> outgoing;  // sender -> receivers
+  for (const auto& [from, to] : topo.Links()) outgoing[from].push_back(to);
+  std::vector<ChannelDecision> decisions;
+  std::int32_t seq = 0;
+  for (int round = 0; round < 50; ++round) {
+    for (int sender = 0; sender <= 6; ++sender) {  // 6 is not in the swarm
+      decisions.clear();
+      const Micros t = round * kPeriod;
+      ch.Submit(sender, seq, t, sender * 1000 + round, &decisions);
+      const std::vector<int>& to = outgoing[sender];
+      ASSERT_EQ(decisions.size(), to.size()) << "sender " << sender;
+      for (std::size_t k = 0; k < to.size(); ++k) {
+        EXPECT_EQ(decisions[k].sender, sender);
+        EXPECT_EQ(decisions[k].receiver, to[k]);
+        EXPECT_EQ(decisions[k].msg_seq, seq);
+        EXPECT_EQ(decisions[k].send_utime, t);
+        if (decisions[k].status == ChannelDecision::kDelivered) {
+          EXPECT_EQ(decisions[k].deliver_utime, DeliveryTime(t, decisions[k].delay_s, kPeriod));
+        }
+      }
+      ++seq;
+    }
+  }
+  // The paper's senders: leader -> {1, 3, 5}; 1 -> {2, 3}; 2 -> {5}; 3 -> {1}; 4 -> {5};
+  // 5 -> {2, 4}.
+  EXPECT_EQ(outgoing[0], (std::vector<int>{1, 3, 5}));
+  EXPECT_EQ(outgoing[1].size() + outgoing[2].size() + outgoing[3].size() + outgoing[4].size() +
+                outgoing[5].size(),
+            7u);
+}
+
+/// Submits 600 messages (all senders in turn, 10 ms apart per round) without delivering,
+/// then delivers in 7 ms steps: the order must be (due time, submission order) and
+/// nothing may arrive early or a step late.
+void CheckDeliveryOrder(Micros period) {
+  // Uniform delays give many distinct due times; two constant-delay links into follower 1
+  // give ties that only submission order can break.
+  Scenario s = PaperScenario(21);
+  s.delay = Uniform(0.05, 0.04);
+  LinkOverride c1;
+  c1.from = 0;
+  c1.to = 1;
+  c1.delay = Constant(0.03);
+  LinkOverride c2;
+  c2.from = 3;
+  c2.to = 1;
+  c2.delay = Constant(0.03);
+  s.links = {c1, c2};
+  Channel<int> ch(BuildLinks(s, TopologyOf(s)), period);
+
+  struct Expect {
+    Micros due;
+    int receiver;
+    int payload;
+  };
+  std::vector<Expect> expected;  // in submission order
+  std::vector<ChannelDecision> decisions;
+  int payload = 0;
+  for (int k = 0; k < 600; ++k) {
+    const int sender = k % 6;
+    decisions.clear();
+    ++payload;
+    const Micros t = 10000 * (k / 6);
+    ch.Submit(sender, k, t, payload, &decisions);
+    for (const ChannelDecision& d : decisions) {
+      ASSERT_EQ(d.status, ChannelDecision::kDelivered);
+      ASSERT_EQ(d.deliver_utime, DeliveryTime(t, d.delay_s, period));
+      expected.push_back({d.deliver_utime, d.receiver, payload});
+    }
+  }
+  ASSERT_EQ(ch.pending(), expected.size());
+  std::stable_sort(expected.begin(), expected.end(),
+                   [](const Expect& a, const Expect& b) { return a.due < b.due; });
+  EXPECT_EQ(ch.NextDue(), expected.front().due);
+  // Ties actually occur (so the order among equal due times is tested).
+  int ties = 0;
+  for (std::size_t k = 1; k < expected.size(); ++k) ties += expected[k].due == expected[k - 1].due;
+  ASSERT_GT(ties, 50);
+
+  std::vector<Expect> got;
+  for (Micros now = 0; now <= 2000000; now += 7000) {
+    ch.DeliverDue(now, [&](int receiver, const int& p) { got.push_back({now, receiver, p}); });
+    ASSERT_EQ(ch.pending(), expected.size() - got.size());
+    if (got.size() < expected.size()) {
+      ASSERT_EQ(ch.NextDue(), expected[got.size()].due) << "now " << now;
+    }
+  }
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    ASSERT_EQ(got[k].receiver, expected[k].receiver) << k;
+    ASSERT_EQ(got[k].payload, expected[k].payload) << k;
+    ASSERT_GE(got[k].due, expected[k].due) << k;        // not early
+    ASSERT_LT(got[k].due - 7000, expected[k].due) << k;  // and not a step late
+  }
+  EXPECT_EQ(ch.pending(), 0u);
+  EXPECT_EQ(ch.NextDue(), -1);
+}
+
+TEST(ChannelTest, DeliversInDueTimeThenSubmissionOrderInRealTime) { CheckDeliveryOrder(0); }
+
+TEST(ChannelTest, DeliversInDueTimeThenSubmissionOrderOnTheTickGrid) {
+  CheckDeliveryOrder(kPeriod);
+}
+
+TEST(ChannelTest, LockstepDeliversEveryMessageAtItsDeliveryTick) {
+  // The way shoal sim drives the channel: at each tick deliver what is due, then submit
+  // what was published at that tick. Every delivery happens exactly at the tick its
+  // decision announced, in submission order within the tick.
+  Scenario s = PaperScenario(33);
+  s.delay = Sinusoid(0.1, 0.05, 1.0);
+  s.loss = Bernoulli(0.1);
+  LinkOverride slow;
+  slow.from = 2;
+  slow.to = 5;
+  slow.delay = Uniform(0.4, 0.1);
+  s.links = {slow};
+  Channel<int> ch(BuildLinks(s, TopologyOf(s)), kPeriod);
+  std::map<int, std::pair<Micros, int>> due_of;  // payload -> (deliver_utime, receiver)
+  std::vector<ChannelDecision> decisions;
+  int payload = 0, delivered = 0;
+  std::int64_t last_order = -1;
+  std::map<int, std::int64_t> order_of;  // payload*8 + receiver -> submission index
+  std::int64_t index = 0;
+  for (int tick = 0; tick < 3000; ++tick) {
+    const Micros now = tick * kPeriod;
+    Micros last_due = -1;
+    ch.DeliverDue(now, [&](int receiver, const int& p) {
+      const int key = p * 8 + receiver;
+      ASSERT_EQ(due_of.count(key), 1u) << "unknown delivery";
+      EXPECT_EQ(due_of[key].first, now);
+      EXPECT_EQ(due_of[key].second, receiver);
+      // Within the tick, submission order.
+      if (last_due == now) {
+        EXPECT_GT(order_of[key], last_order);
+      }
+      last_due = now;
+      last_order = order_of[key];
+      due_of.erase(key);
+      ++delivered;
+    });
+    for (int sender = 0; sender <= 5; ++sender) {
+      decisions.clear();
+      ++payload;
+      ch.Submit(sender, payload, now, payload, &decisions);
+      for (const ChannelDecision& d : decisions) {
+        if (d.status != ChannelDecision::kDelivered) continue;
+        due_of[payload * 8 + d.receiver] = {d.deliver_utime, d.receiver};
+        order_of[payload * 8 + d.receiver] = index++;
+      }
+    }
+  }
+  // Everything not yet due is still pending, and everything due was delivered.
+  for (const auto& [key, v] : due_of) EXPECT_GT(v.first, 2999 * kPeriod) << key;
+  EXPECT_EQ(ch.pending(), due_of.size());
+  EXPECT_GT(delivered, 3000 * 10 * 8 / 10);  // 10 links, 10% loss
+}
+
+TEST(ChannelTest, BernoulliLossRate) {
+  Scenario s;
+  s.seed = 123;
+  s.followers = 1;
+  s.leader_links = {1};
+  s.delay = Constant(0.1);
+  s.loss = Bernoulli(0.2);
+  Channel<int> ch(BuildLinks(s, TopologyOf(s)), kPeriod);
+  std::vector<ChannelDecision> decisions;
+  int dropped = 0;
+  const int n = 100000;
+  std::size_t delivered = 0;
+  for (int k = 0; k < n; ++k) {
+    decisions.clear();
+    const Micros t = static_cast<Micros>(k) * kPeriod;
+    ch.Submit(0, k, t, k, &decisions);
+    ASSERT_EQ(decisions.size(), 1u);
+    if (decisions[0].status == ChannelDecision::kDroppedLoss) {
+      ++dropped;
+      EXPECT_EQ(decisions[0].deliver_utime, 0);
+    }
+    ch.DeliverDue(t, [&](int, const int&) { ++delivered; });
+  }
+  // Standard deviation of the rate is sqrt(0.16 / n) = 0.0013.
+  EXPECT_NEAR(static_cast<double>(dropped) / n, 0.2, 0.01);
+  EXPECT_EQ(delivered + ch.pending() + dropped, static_cast<std::size_t>(n));
+}
+
+/// Decisions for a fixed traffic pattern on the paper's swarm with random delay and loss.
+std::vector<DecisionKey> RunTraffic(std::uint64_t seed, const std::vector<int>& senders,
+                                    int rounds) {
+  Scenario s = PaperScenario(seed);
+  s.delay = Uniform(0.1, 0.05);
+  s.loss = Bernoulli(0.2);
+  Channel<int> ch(BuildLinks(s, TopologyOf(s)), kPeriod);
+  std::vector<ChannelDecision> decisions;
+  std::int32_t seq = 0;
+  for (int r = 0; r < rounds; ++r) {
+    for (int sender : senders) ch.Submit(sender, seq++, r * kPeriod, r, &decisions);
+    ch.DeliverDue(r * kPeriod, [](int, const int&) {});
+  }
+  std::vector<DecisionKey> keys;
+  for (const ChannelDecision& d : decisions) keys.push_back(Key(d));
+  return keys;
+}
+
+TEST(ChannelTest, SameSeedSameDecisionsOtherSeedOtherDecisions) {
+  const std::vector<int> all = {0, 1, 2, 3, 4, 5};
+  const auto a = RunTraffic(42, all, 500);
+  const auto b = RunTraffic(42, all, 500);
+  const auto c = RunTraffic(43, all, 500);
+  ASSERT_EQ(a.size(), 500u * 10u);
+  EXPECT_EQ(a, b);
+  ASSERT_EQ(c.size(), a.size());
+  int differ = 0;
+  for (std::size_t k = 0; k < a.size(); ++k) differ += a[k] != c[k];
+  // Nearly every decision differs (the delay is continuous).
+  EXPECT_GT(differ, static_cast<int>(a.size()) * 9 / 10);
+}
+
+TEST(ChannelTest, LinkDecisionsDoNotDependOnOtherTraffic) {
+  // Only the leader talks in one run; everyone talks in the other. The leader's links
+  // make the same decisions in both, and so do the follower links that carry traffic.
+  const auto leader_only = RunTraffic(5, {0}, 400);
+  const auto everyone = RunTraffic(5, {5, 3, 0, 1, 4, 2}, 400);
+  const auto followers_only = RunTraffic(5, {1, 2, 3, 4, 5}, 400);
+  auto on_link = [](const std::vector<DecisionKey>& keys, int from, int to) {
+    std::vector<std::tuple<double, Micros, int>> out;
+    for (const DecisionKey& k : keys) {
+      if (std::get<0>(k) == from && std::get<1>(k) == to)
+        out.emplace_back(std::get<4>(k), std::get<5>(k), std::get<6>(k));
+    }
+    return out;
+  };
+  for (const auto& [from, to] : TopologyOf(PaperScenario(5)).Links()) {
+    SCOPED_TRACE(::testing::Message() << "link " << from << "->" << to);
+    const auto& alone = from == 0 ? leader_only : followers_only;
+    const auto x = on_link(alone, from, to);
+    const auto y = on_link(everyone, from, to);
+    ASSERT_EQ(x.size(), 400u);
+    EXPECT_EQ(x, y);
+  }
+  // Different links draw different streams.
+  EXPECT_NE(on_link(leader_only, 0, 1), on_link(leader_only, 0, 3));
+}
+
+TEST(ChannelTest, LinkStreamDependsOnlyOnSeedAndEndpoints) {
+  // Adding an edge elsewhere in the topology (and so another link before some links in
+  // the list) leaves the decisions of every existing link unchanged.
+  Scenario s = PaperScenario(9);
+  s.delay = Uniform(0.1, 0.05);
+  s.loss = Bernoulli(0.3);
+  Scenario s2 = s;
+  s2.edges.push_back({1, 2});  // 1 now also hears 2: link (2, 1), listed first in receiver order
+  s2.edges.push_back({3, 4});
+  const std::vector<Link> l1 = BuildLinks(s, TopologyOf(s));
+  const std::vector<Link> l2 = BuildLinks(s2, TopologyOf(s2));
+  ASSERT_EQ(l2.size(), l1.size() + 2);
+  for (const Link& a : l1) {
+    const Link* b = FindLink(l2, a.from, a.to);
+    ASSERT_NE(b, nullptr);
+    Rng ra = a.rng, rb = b->rng;
+    for (int k = 0; k < 100; ++k) ASSERT_EQ(ra.Next(), rb.Next()) << a.from << "->" << a.to;
+  }
+  // The streams of distinct links are distinct.
+  for (std::size_t i = 0; i < l2.size(); ++i) {
+    for (std::size_t j = i + 1; j < l2.size(); ++j) {
+      Rng ri = l2[i].rng, rj = l2[j].rng;
+      EXPECT_NE(ri.Next(), rj.Next());
+    }
+  }
+}
+
+TEST(ChannelTest, NextDueAndPending) {
+  Scenario s = PaperScenario(1);
+  s.delay = Constant(0.05);
+  LinkOverride fast;
+  fast.from = 0;
+  fast.to = 5;
+  fast.delay = DelayConfig();  // none
+  LinkOverride slow;
+  slow.from = 0;
+  slow.to = 1;
+  slow.delay = Constant(0.1);
+  s.links = {fast, slow};
+  Channel<int> ch(BuildLinks(s, TopologyOf(s)), kPeriod);
+  EXPECT_EQ(ch.NextDue(), -1);
+  EXPECT_EQ(ch.pending(), 0u);
+
+  std::vector<ChannelDecision> decisions;
+  const Micros t0 = 5 * kPeriod;
+  ch.Submit(0, 1, t0, 77, &decisions);  // -> 1 at tick 10, -> 3 at tick 8, -> 5 at tick 6
+  ASSERT_EQ(decisions.size(), 3u);
+  EXPECT_EQ(decisions[0].deliver_utime, 10 * kPeriod);
+  EXPECT_EQ(decisions[1].deliver_utime, 8 * kPeriod);
+  EXPECT_EQ(decisions[2].deliver_utime, 6 * kPeriod);
+  EXPECT_EQ(ch.pending(), 3u);
+  EXPECT_EQ(ch.NextDue(), 6 * kPeriod);
+
+  std::vector<std::pair<int, int>> got;
+  auto collect = [&](int r, const int& p) { got.emplace_back(r, p); };
+  ch.DeliverDue(6 * kPeriod - 1, collect);
+  EXPECT_TRUE(got.empty());
+  EXPECT_EQ(ch.pending(), 3u);
+  ch.DeliverDue(6 * kPeriod, collect);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0], std::make_pair(5, 77));
+  EXPECT_EQ(ch.NextDue(), 8 * kPeriod);
+  EXPECT_EQ(ch.pending(), 2u);
+
+  // A later message overtakes nothing: 3 -> 1 (0.05 s) sent at tick 6 is due at tick 9.
+  decisions.clear();
+  ch.Submit(3, 2, 6 * kPeriod, 88, &decisions);
+  ASSERT_EQ(decisions.size(), 1u);
+  EXPECT_EQ(decisions[0].deliver_utime, 9 * kPeriod);
+  EXPECT_EQ(ch.pending(), 3u);
+  EXPECT_EQ(ch.NextDue(), 8 * kPeriod);
+
+  ch.DeliverDue(100 * kPeriod, collect);
+  EXPECT_EQ(got, (std::vector<std::pair<int, int>>{{5, 77}, {3, 77}, {1, 88}, {1, 77}}));
+  EXPECT_EQ(ch.pending(), 0u);
+  EXPECT_EQ(ch.NextDue(), -1);
+}
+
+TEST(ChannelTest, FullQueueDropsAndPayloadSlotsAreReused) {
+  Scenario s = PaperScenario(2);
+  s.delay = Constant(0.02);
+  Channel<int> ch(BuildLinks(s, TopologyOf(s)), kPeriod, /*max_pending=*/2);
+  std::vector<ChannelDecision> decisions;
+  ch.Submit(0, 1, 0, 10, &decisions);
+  ASSERT_EQ(decisions.size(), 3u);
+  EXPECT_EQ(decisions[0].status, ChannelDecision::kDelivered);
+  EXPECT_EQ(decisions[1].status, ChannelDecision::kDelivered);
+  EXPECT_EQ(decisions[2].status, ChannelDecision::kDroppedQueue);
+  EXPECT_EQ(ch.pending(), 2u);
+
+  // Many rounds of submit/deliver with distinct payloads: every delivery carries its own
+  // payload although storage slots are recycled.
+  std::vector<std::pair<int, int>> got;
+  for (int r = 1; r <= 50; ++r) {
+    ch.DeliverDue(r * kPeriod, [&](int rcv, const int& p) { got.emplace_back(rcv, p); });
+    ASSERT_EQ(ch.pending(), 0u);
+    decisions.clear();
+    ch.Submit(3, r, r * kPeriod, 1000 + r, &decisions);  // 3 -> 1
+    ASSERT_EQ(decisions.size(), 1u);
+  }
+  ch.DeliverDue(1000 * kPeriod, [&](int rcv, const int& p) { got.emplace_back(rcv, p); });
+  ASSERT_EQ(got.size(), 52u);
+  EXPECT_EQ(got[0], std::make_pair(1, 10));
+  EXPECT_EQ(got[1], std::make_pair(3, 10));
+  for (int r = 1; r <= 50; ++r) EXPECT_EQ(got[1 + r], std::make_pair(1, 1000 + r)) << r;
+}
+
+}  // namespace
+}  // namespace shoal
