@@ -332,6 +332,10 @@ int EmulatorMain(int argc, char** argv) {
         vbus.push_back(own.back().get());
       }
     }
+    if (opt.parsed_mode() == Mode::kRealtime) {
+      // Above the vehicles: releases are the delays the run is about.
+      std::cerr << "shoal_channel_emulator: " << EnableRealtimeScheduling(50) << "\n";
+    }
     EmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus);
     app_.Init();
     return app_.Run();

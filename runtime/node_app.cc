@@ -173,6 +173,9 @@ int NodeMain(int argc, char** argv, bool leader) {
     LcmBus bus(opt.lcm_url);
     std::unique_ptr<LcmBus> rx;
     if (!opt.rx_url.empty() && opt.rx_url != opt.lcm_url) rx = std::make_unique<LcmBus>(opt.rx_url);
+    if (opt.parsed_mode() == Mode::kRealtime) {
+      std::cerr << name << ": " << EnableRealtimeScheduling(40) << "\n";
+    }
     NodeApp node(s, id, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus,
                  rx ? static_cast<Bus*>(rx.get()) : &bus);
     node.Init();

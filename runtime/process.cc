@@ -1,6 +1,10 @@
 #include "runtime/process.h"
 
+#include <sched.h>
 #include <signal.h>
+
+#include <cstdlib>
+#include <cstring>
 #include <sys/prctl.h>
 #include <unistd.h>
 
@@ -34,5 +38,18 @@ void InstallProcessSignals() {
 }
 
 bool StopRequested() { return g_stop != 0; }
+
+std::string EnableRealtimeScheduling(int priority) {
+  prctl(PR_SET_TIMERSLACK, 1UL);
+  // SCHED_FIFO is opt-in until it is measured to help on a quiet machine (see README).
+  if (std::getenv("SHOAL_SCHED_FIFO") == nullptr) return "SCHED_OTHER, timer slack 1 ns";
+  sched_param sp = {};
+  sp.sched_priority = priority;
+  if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
+    return "SCHED_FIFO priority " + std::to_string(priority) + ", timer slack 1 ns";
+  }
+  return std::string("SCHED_OTHER (SCHED_FIFO refused: ") + std::strerror(errno) +
+         "), timer slack 1 ns";
+}
 
 }  // namespace shoal

@@ -31,4 +31,8 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt);
 void InstallProcessSignals();
 bool StopRequested();
 
+/// Real-time mode: timer slack 1 ns and, when permitted (root), SCHED_FIFO at `priority`.
+/// Returns a note describing what was applied (for the process's log).
+std::string EnableRealtimeScheduling(int priority);
+
 }  // namespace shoal

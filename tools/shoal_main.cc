@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include "tools/compare_command.h"
+#include "tools/run_command.h"
 #include "tools/sim_command.h"
 
 int main(int argc, char** argv) {
@@ -19,6 +20,22 @@ int main(int argc, char** argv) {
   sim_cmd->add_flag("--json", sim.json, "Print one JSON object instead of the summary");
   sim_cmd->add_flag("--quiet", sim.quiet, "No progress line");
 
+  shoal::RunOptions run;
+  CLI::App* run_cmd = app.add_subcommand(
+      "run", "Launch the scenario as a SIL run: one process per vehicle, leader, channel "
+             "emulator and lcm-logger, supervised");
+  run_cmd->add_option("scenario", run.scenario, "Scenario file (TOML)")->required();
+  run_cmd->add_option("--mode", run.mode, "lockstep (deterministic, as fast as possible) or "
+                                          "realtime (wall-clock loops)")
+      ->check(CLI::IsMember({"lockstep", "realtime"}));
+  run_cmd->add_option("--duration", run.duration_s, "Simulated seconds (default: the scenario's)");
+  run_cmd->add_option("--out", run.out, "LCM log path (default: <scenario name>.lcmlog)");
+  run_cmd->add_option("--lcm-url", run.lcm_url, "Use this LCM URL instead of a private one");
+  run_cmd->add_flag("--per-vehicle-urls", run.per_vehicle_urls,
+                    "Deliver to each vehicle on its own multicast group");
+  run_cmd->add_flag("--json", run.json, "Print one JSON object instead of the summary");
+  run_cmd->add_flag("--quiet", run.quiet, "No progress line");
+
   shoal::CompareOptions cmp;
   CLI::App* cmp_cmd = app.add_subcommand(
       "compare", "Compare the vehicle states of two logs at matching vehicle and time");
@@ -34,5 +51,6 @@ int main(int argc, char** argv) {
   }
   if (sim_cmd->parsed()) return shoal::RunSim(sim);
   if (cmp_cmd->parsed()) return shoal::RunCompare(cmp);
+  if (run_cmd->parsed()) return shoal::RunRun(run);
   return 2;
 }

@@ -1,0 +1,497 @@
+#include "tools/run_command.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <random>
+#include <sstream>
+#include <thread>
+#include <vector>
+
+#include "core/metrics.h"
+#include "runtime/channels.h"
+#include "runtime/clock.h"
+#include "runtime/lcm_bus.h"
+#include "runtime/messages.h"
+#include "runtime/scenario_loader.h"
+#include "tools/json.h"
+
+namespace shoal {
+namespace {
+
+volatile sig_atomic_t g_interrupted = 0;
+extern "C" void OnRunSignal(int) { g_interrupted = 1; }
+
+struct Child {
+  std::string name;  // "vehicle 3", "leader", "channel emulator", "lcm-logger"
+  int id = -100;     // vehicle id, kEmulatorId, or -100 for the logger
+  pid_t pid = -1;
+  bool running = false;
+  int status = 0;  // raw waitpid status once exited
+};
+
+std::string ExeDir() {
+  char buf[4096];
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  if (n <= 0) return ".";
+  buf[n] = 0;
+  std::string p(buf);
+  return p.substr(0, p.rfind('/'));
+}
+
+/// Finds a sibling executable of the build tree (tools/../vehicle/shoal_vehicle) or of an
+/// installation (same directory).
+std::string FindExe(const std::string& subdir, const std::string& name) {
+  const std::string dir = ExeDir();
+  for (const std::string& c : {dir + "/../" + subdir + "/" + name, dir + "/" + name}) {
+    if (access(c.c_str(), X_OK) == 0) return c;
+  }
+  return "";
+}
+
+std::string Describe(int status) {
+  if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) {
+    return std::string("killed by signal ") + std::to_string(WTERMSIG(status)) + " (" +
+           strsignal(WTERMSIG(status)) + ")";
+  }
+  return "stopped";
+}
+
+pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::string& log_path) {
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid != 0) return pid;
+  // Child: its own process group (a terminal Ctrl-C reaches only shoal run, which shuts
+  // the run down in order), dies with shoal run, output to a per-process file.
+  setpgid(0, 0);
+  prctl(PR_SET_PDEATHSIG, SIGKILL);
+  if (getppid() != parent) _exit(127);
+  if (nice_inc != 0) setpriority(PRIO_PROCESS, 0, nice_inc);
+  const int fd = open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd >= 0) {
+    dup2(fd, 1);
+    dup2(fd, 2);
+    close(fd);
+  }
+  const int devnull = open("/dev/null", O_RDONLY);
+  if (devnull >= 0) dup2(devnull, 0);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  execv(args[0], args.data());
+  std::fprintf(stderr, "cannot exec %s: %s\n", args[0], std::strerror(errno));
+  _exit(127);
+}
+
+/// Makes sure multicast on the private group stays on loopback.
+bool EnsureLoopbackMulticast(std::string* err) {
+  FILE* p = popen("ip route get 239.255.76.67 2>/dev/null", "r");
+  std::string out;
+  if (p) {
+    char buf[512];
+    while (fgets(buf, sizeof(buf), p)) out += buf;
+    pclose(p);
+  }
+  if (out.find(" dev lo") != std::string::npos) return true;
+  const char* fix = "ip link set lo multicast on && ip route add 239.255.0.0/16 dev lo";
+  if (geteuid() == 0) {
+    if (std::system((std::string(fix) + " 2>/dev/null").c_str()) == 0) return true;
+    *err = std::string("could not route multicast to loopback; run: ") + fix;
+    return false;
+  }
+  *err = std::string("multicast is not routed to the loopback interface, so a run could "
+                     "reach the network; as root run:\n  sudo sh -c '") + fix + "'";
+  return false;
+}
+
+/// What the summary needs, read back from the run's log (the single source of truth).
+struct LogSummary {
+  bool ok = false;
+  std::int64_t states = 0;
+  std::int64_t delivered = 0, dropped = 0;
+  std::map<int, health_t> last_health;  // per process id
+  std::vector<std::string> lost;        // SHOAL_STATUS vehicle_lost messages
+  double sim_time_s = 0.0;
+};
+
+LogSummary Summarise(const std::string& path, const Scenario& s, FormationMetrics* metrics) {
+  LogSummary r;
+  lcm::LogFile log(path, "r");
+  if (!log.good()) return r;
+  std::map<std::int64_t, std::vector<StateMsg>> by_time;  // utime -> states (index = id)
+  const int n = s.followers;
+  std::vector<StateMsg> leader_at;
+  std::vector<const StateMsg*> fptr(n);
+  auto flush_before = [&](std::int64_t t) {
+    while (!by_time.empty() && by_time.begin()->first < t) {
+      auto& v = by_time.begin()->second;
+      bool complete = true;
+      for (const StateMsg& m : v) complete = complete && m.vehicle_id >= 0;
+      if (complete) {
+        for (int i = 0; i < n; ++i) fptr[i] = &v[i + 1];
+        metrics->Add(v[0], fptr);
+        r.sim_time_s = ToSeconds(v[0].utime);
+      }
+      by_time.erase(by_time.begin());
+    }
+  };
+  while (const lcm::LogEvent* ev = log.readNextEvent()) {
+    const std::string& ch = ev->channel;
+    if (ch.rfind("SHOAL_STATE_", 0) == 0) {
+      vehicle_state_t m{};
+      if (!Decode(ev->data, ev->datalen, &m) || m.vehicle_id < 0 || m.vehicle_id > n) continue;
+      auto& v = by_time[m.utime];
+      if (v.empty()) {
+        v.resize(n + 1);
+        for (auto& x : v) x.vehicle_id = -1;
+      }
+      v[m.vehicle_id] = FromLcm(m);
+      ++r.states;
+      // Samples older than a few seconds will not be completed any more.
+      flush_before(m.utime - 5000000);
+    } else if (ch == channels::ChannelEvents()) {
+      channel_event_t e{};
+      if (!Decode(ev->data, ev->datalen, &e)) continue;
+      (e.status == 0 ? r.delivered : r.dropped) += 1;
+    } else if (ch.rfind("SHOAL_HEALTH_", 0) == 0) {
+      health_t h{};
+      if (Decode(ev->data, ev->datalen, &h)) r.last_health[h.vehicle_id] = h;
+    } else if (ch == channels::Status()) {
+      run_status_t st{};
+      if (Decode(ev->data, ev->datalen, &st) && st.state == "vehicle_lost") {
+        r.lost.push_back(st.message);
+      }
+    }
+  }
+  flush_before(INT64_MAX);
+  r.ok = true;
+  return r;
+}
+
+}  // namespace
+
+int RunRun(const RunOptions& opt) {
+  Scenario s;
+  try {
+    s = LoadScenario(opt.scenario);
+  } catch (const ScenarioError& e) {
+    std::cerr << "shoal run: " << e.what() << "\n";
+    return 2;
+  }
+  if (opt.mode != "lockstep" && opt.mode != "realtime") {
+    std::cerr << "shoal run: --mode must be lockstep or realtime (got " << opt.mode << ")\n";
+    return 2;
+  }
+  if (opt.duration_s == 0 || (opt.duration_s < 0 && opt.duration_s != -1)) {
+    std::cerr << "shoal run: --duration must be a positive number of seconds\n";
+    return 2;
+  }
+  const double duration = opt.duration_s > 0 ? opt.duration_s : s.duration_s;
+  const std::string out = opt.out.empty() ? s.name + ".lcmlog" : opt.out;
+  {  // The log must be writable before anything starts.
+    const int fd = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) {
+      std::cerr << "shoal run: " << out << ": cannot open log for writing ("
+                << std::strerror(errno) << ")\n";
+      return 2;
+    }
+    close(fd);
+    unlink(out.c_str());
+  }
+  const std::string vehicle_exe = FindExe("vehicle", "shoal_vehicle");
+  const std::string leader_exe = FindExe("leader", "shoal_leader");
+  const std::string emulator_exe = FindExe("channel_emulator", "shoal_channel_emulator");
+  if (vehicle_exe.empty() || leader_exe.empty() || emulator_exe.empty()) {
+    std::cerr << "shoal run: cannot find shoal_vehicle, shoal_leader or "
+                 "shoal_channel_emulator next to " << ExeDir() << "\n";
+    return 2;
+  }
+  if (std::system("command -v lcm-logger >/dev/null 2>&1") != 0) {
+    std::cerr << "shoal run: lcm-logger not found (Debian package liblcm-bin)\n";
+    return 2;
+  }
+  std::string url = opt.lcm_url;
+  int port = 0;
+  if (url.empty()) {
+    std::string err;
+    if (!EnsureLoopbackMulticast(&err)) {
+      std::cerr << "shoal run: " << err << "\n";
+      return 2;
+    }
+    std::random_device rd;
+    port = 20000 + static_cast<int>(rd() % 20000) * 2;
+    url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
+  }
+  std::vector<std::string> vurls;
+  if (opt.per_vehicle_urls) {
+    if (port == 0) {
+      std::cerr << "shoal run: --per-vehicle-urls needs the default private URL\n";
+      return 2;
+    }
+    for (int id = 0; id <= s.followers; ++id) {
+      vurls.push_back("udpm://239.255.76." + std::to_string(68 + id % 150) + ":" +
+                      std::to_string(port + 1) + "?ttl=0&recv_buf_size=4194304");
+    }
+  }
+
+  // Child output goes next to the log.
+  const std::string out_dir = out.find('/') == std::string::npos ? "." : out.substr(0, out.rfind('/'));
+  const std::string stem = out.substr(out.rfind('/') + 1);
+  auto child_log = [&](const std::string& tag) { return out_dir + "/." + stem + "." + tag + ".txt"; };
+
+  struct sigaction sa = {};
+  sa.sa_handler = OnRunSignal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGHUP, &sa, nullptr);
+  g_interrupted = 0;
+
+  std::vector<Child> kids;
+  auto start = [&](const std::string& name, int id, const std::vector<std::string>& argv,
+                   int nice_inc, const std::string& tag) {
+    Child c;
+    c.name = name;
+    c.id = id;
+    c.pid = Spawn(argv, nice_inc, child_log(tag));
+    c.running = c.pid > 0;
+    kids.push_back(c);
+  };
+  // Lockstep saturates the CPU: its processes run at a lower priority than the logger.
+  // Real time is paced by the clock and its processes ask for SCHED_FIFO themselves.
+  const int run_nice = opt.mode == "lockstep" ? 5 : 0;
+  // The logger first, at normal priority; the run's processes at a lower one, so that
+  // the logger never falls behind and drops packets when the run saturates the CPU.
+  start("lcm-logger", -100,
+        {"/usr/bin/lcm-logger", "--lcm-url=" + url, "-f", "-q", out}, 0, "logger");
+  for (int i = 0; i < 100 && access(out.c_str(), F_OK) != 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const std::int64_t t0_ns = MonotonicNs() + 1500000000LL;  // real time: start margin
+  std::vector<std::string> common = {"--scenario", opt.scenario, "--lcm-url", url, "--mode",
+                                     opt.mode, "--t0-ns", std::to_string(t0_ns), "--duration",
+                                     std::to_string(duration)};
+  auto with = [&](std::vector<std::string> a, const std::vector<std::string>& more) {
+    a.insert(a.end(), common.begin(), common.end());
+    a.insert(a.end(), more.begin(), more.end());
+    return a;
+  };
+  std::string vlist;
+  for (std::size_t i = 0; i < vurls.size(); ++i) vlist += (i ? "," : "") + vurls[i];
+  start("channel emulator", kEmulatorId,
+        with({emulator_exe}, vurls.empty() ? std::vector<std::string>{}
+                                           : std::vector<std::string>{"--vehicle-urls", vlist}),
+        run_nice, "emulator");
+  start("leader", 0,
+        with({leader_exe}, vurls.empty() ? std::vector<std::string>{}
+                                         : std::vector<std::string>{"--rx-url", vurls[0]}),
+        run_nice, "leader");
+  for (int id = 1; id <= s.followers; ++id) {
+    std::vector<std::string> more = {"--id", std::to_string(id)};
+    if (!vurls.empty()) {
+      more.push_back("--rx-url");
+      more.push_back(vurls[id]);
+    }
+    start("vehicle " + std::to_string(id), id, with({vehicle_exe}, more), run_nice,
+          "vehicle" + std::to_string(id));
+  }
+
+  // Supervise: progress from the live bus, process deaths from waitpid.
+  LcmBus live(url);
+  std::int64_t last_tick_utime = 0;
+  double worst_pos = 0.0;
+  std::map<int, Vec3> offsets;
+  std::vector<StateMsg> latest(s.followers + 1);
+  live.Subscribe("SHOAL_STATE_[0-9]+", [&](const std::string&, const void* d, int n) {
+    vehicle_state_t m{};
+    if (!Decode(d, n, &m) || m.vehicle_id < 0 || m.vehicle_id > s.followers) return;
+    latest[m.vehicle_id] = FromLcm(m);
+    last_tick_utime = std::max<std::int64_t>(last_tick_utime, m.utime);
+    if (m.vehicle_id > 0) {
+      worst_pos = ErrorsOf(latest[m.vehicle_id], s.offsets_m[m.vehicle_id - 1], latest[0]).position_m;
+    }
+  });
+  const bool show = !opt.quiet && !opt.json && isatty(2);
+  const auto wall0 = std::chrono::steady_clock::now();
+  auto last_show = wall0;
+  std::vector<std::string> problems;
+  bool emulator_done = false;
+  while (!emulator_done && !g_interrupted) {
+    live.Handle(50);
+    for (Child& c : kids) {
+      if (!c.running) continue;
+      if (waitpid(c.pid, &c.status, WNOHANG) == c.pid) {
+        c.running = false;
+        if (c.id == kEmulatorId) {
+          emulator_done = true;
+        } else if (!(WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) {
+          const std::string msg = c.name + " (pid " + std::to_string(c.pid) + ") " + Describe(c.status);
+          problems.push_back(msg);
+          if (!opt.json) std::fprintf(stderr, "%sshoal run: %s; the others keep running\n",
+                                      show ? "\n" : "", msg.c_str());
+        }
+      }
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (show && now - last_show > std::chrono::milliseconds(500)) {
+      last_show = now;
+      int alive = 0;
+      for (const Child& c : kids) alive += c.running && c.id != -100;
+      const double wall = std::chrono::duration<double>(now - wall0).count();
+      std::fprintf(stderr, "\r  t = %7.1f / %.0f s  (%.1fx real time)  position error %.2f m  processes alive %d/%d   ",
+                   ToSeconds(last_tick_utime), duration, ToSeconds(last_tick_utime) / wall,
+                   worst_pos, alive, s.followers + 2);
+    }
+  }
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  if (show) std::fprintf(stderr, "\r%110s\r", "");
+
+  // Shutdown: the run's processes first (SIGTERM, SIGKILL after 2 s), the logger last so
+  // that it records everything they published.
+  auto stop = [&](bool logger) {
+    for (Child& c : kids) {
+      if (c.running && (c.id == -100) == logger) kill(c.pid, logger ? SIGINT : SIGTERM);
+    }
+    const auto t = std::chrono::steady_clock::now();
+    for (;;) {
+      bool any = false;
+      for (Child& c : kids) {
+        if (!c.running || (c.id == -100) != logger) continue;
+        if (waitpid(c.pid, &c.status, WNOHANG) == c.pid) {
+          c.running = false;
+        } else {
+          any = true;
+        }
+      }
+      if (!any) break;
+      if (std::chrono::steady_clock::now() - t > std::chrono::seconds(2)) {
+        for (Child& c : kids) {
+          if (c.running && (c.id == -100) == logger) {
+            kill(c.pid, SIGKILL);
+            waitpid(c.pid, &c.status, 0);
+            c.running = false;
+            problems.push_back(c.name + " did not stop within 2 s and was killed");
+          }
+        }
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  };
+  if (!g_interrupted) {
+    // Normal end: give the vehicles a moment to finish their last tick on their own.
+    const auto t = std::chrono::steady_clock::now();
+    while (std::chrono::steady_clock::now() - t < std::chrono::seconds(2)) {
+      bool any = false;
+      for (Child& c : kids) {
+        if (c.running && c.id != -100) {
+          if (waitpid(c.pid, &c.status, WNOHANG) == c.pid) {
+            c.running = false;
+          } else {
+            any = true;
+          }
+        }
+      }
+      if (!any) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  stop(false);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // logger drains its socket
+  stop(true);
+  for (const Child& c : kids) {
+    if (c.id == -100 || g_interrupted) continue;
+    const bool ok = WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0;
+    const std::string msg = c.name + " (pid " + std::to_string(c.pid) + ") " + Describe(c.status);
+    if (!ok && std::find(problems.begin(), problems.end(), msg) == problems.end()) {
+      problems.push_back(msg);
+    }
+  }
+
+  FormationMetrics metrics(s.offsets_m, s.metrics);
+  const LogSummary sum = Summarise(out, s, &metrics);
+  if (!sum.ok) problems.push_back("the log " + out + " cannot be read");
+  double lateness_p99 = 0.0, delay_err_p99 = 0.0;
+  std::int64_t overruns = 0;
+  for (const auto& [id, h] : sum.last_health) {
+    if (id == kEmulatorId) {
+      delay_err_p99 = h.lateness_p99_s;
+    } else {
+      lateness_p99 = std::max(lateness_p99, h.lateness_p99_s);
+      overruns += h.overruns;
+    }
+  }
+  const bool converged = metrics.converged();
+  const bool all_ok = problems.empty() && !g_interrupted;
+
+  if (opt.json) {
+    JsonWriter ch, loop, j;
+    ch.Int("delivered", sum.delivered).Int("dropped", sum.dropped)
+        .Num("delay_error_p99_s", opt.mode == "realtime" ? delay_err_p99 : 0.0);
+    loop.Num("lateness_p99_s", lateness_p99).Int("overruns", overruns);
+    std::string probs = "[";
+    for (std::size_t i = 0; i < problems.size(); ++i) {
+      probs += (i ? "," : "") + JsonWriter::Quote(problems[i]);
+    }
+    j.Str("scenario", s.name)
+        .Str("mode", opt.mode)
+        .Bool("converged", converged)
+        .Num("convergence_time_s", converged ? metrics.convergence_time_s() : NAN)
+        .Num("final_position_error_m", metrics.final_worst().position_m)
+        .Num("final_velocity_error_mps", metrics.final_worst().velocity_mps)
+        .Num("final_attitude_error_rad", metrics.final_worst().attitude_rad)
+        .Num("sim_time_s", sum.sim_time_s)
+        .Num("wall_time_s", wall_s)
+        .Num("realtime_factor", wall_s > 0 ? sum.sim_time_s / wall_s : NAN)
+        .Raw("channel", ch.Done())
+        .Raw("loop", loop.Done())
+        .Bool("all_processes_ok", all_ok)
+        .Raw("problems", probs + "]")
+        .Bool("interrupted", g_interrupted != 0)
+        .Str("log", out)
+        .Str("lcm_url", url);
+    std::cout << j.Done() << "\n";
+  } else {
+    std::printf("shoal run: %s (%s, %d followers, %.0f Hz)\n", s.name.c_str(), opt.mode.c_str(),
+                s.followers, s.control_rate_hz);
+    std::printf("  simulated %.1f s in %.2f s wall (%.1fx real time)%s\n", sum.sim_time_s,
+                wall_s, wall_s > 0 ? sum.sim_time_s / wall_s : 0.0,
+                g_interrupted ? "  -- interrupted" : "");
+    if (converged) {
+      std::printf("  converged: yes, at %.2f s\n", metrics.convergence_time_s());
+    } else {
+      std::printf("  converged: NO\n");
+    }
+    std::printf("  final errors, worst follower: position %.4f m, velocity %.4f m/s, attitude %.4f rad\n",
+                metrics.final_worst().position_m, metrics.final_worst().velocity_mps,
+                metrics.final_worst().attitude_rad);
+    std::printf("  channel: %lld delivered, %lld dropped", static_cast<long long>(sum.delivered),
+                static_cast<long long>(sum.dropped));
+    if (opt.mode == "realtime") std::printf(", release error p99 %.3f ms", delay_err_p99 * 1e3);
+    std::printf("\n");
+    if (opt.mode == "realtime") {
+      std::printf("  loops: lateness p99 %.3f ms, %lld overruns\n", lateness_p99 * 1e3,
+                  static_cast<long long>(overruns));
+    }
+    for (const std::string& p : problems) std::printf("  PROBLEM: %s\n", p.c_str());
+    std::printf("  log: %s (URL %s)\n", out.c_str(), url.c_str());
+  }
+  if (g_interrupted) return 130;
+  return all_ok ? 0 : 1;
+}
+
+}  // namespace shoal

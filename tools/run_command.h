@@ -1,0 +1,23 @@
+#pragma once
+
+#include <string>
+
+namespace shoal {
+
+struct RunOptions {
+  std::string scenario;
+  std::string mode = "lockstep";
+  double duration_s = -1;
+  std::string out;          // log path; default <scenario name>.lcmlog
+  std::string lcm_url;      // default: a private udpm URL (random port, ttl=0)
+  bool per_vehicle_urls = false;
+  bool json = false;
+  bool quiet = false;
+};
+
+/// `shoal run`: launches lcm-logger, the channel emulator, the leader and every vehicle
+/// as separate processes, supervises them, and summarises the run from its log.
+/// Exit 0 only if every process ran to the end; 1 otherwise; 2 bad input; 130 on SIGINT.
+int RunRun(const RunOptions& opt);
+
+}  // namespace shoal
