@@ -1,8 +1,9 @@
-# shoal_test(NAME <name> SOURCES <src>... [LIBS <lib>...] [LABELS <label>...] [TIMEOUT <s>])
+# shoal_test(NAME <name> SOURCES <src>... [LIBS <lib>...] [LABELS <label>...] [TIMEOUT <s>]
+#            [SERIAL])   SERIAL: never run in parallel with other tests (multi-process tests)
 # One helper registers every GoogleTest executable (as Ceres' ceres_test does).
 include(GoogleTest)
 function(shoal_test)
-  cmake_parse_arguments(ARG "" "NAME;TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  cmake_parse_arguments(ARG "SERIAL" "NAME;TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SOURCES})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_LIBS} GTest::gtest GTest::gtest_main shoal_warnings)
   target_compile_definitions(${ARG_NAME} PRIVATE
@@ -11,7 +12,11 @@ function(shoal_test)
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 300)
   endif()
+  set(serial FALSE)
+  if(ARG_SERIAL)
+    set(serial TRUE)
+  endif()
   gtest_discover_tests(${ARG_NAME}
-    PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}"
+    PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}" RUN_SERIAL ${serial}
     DISCOVERY_TIMEOUT 60)
 endfunction()

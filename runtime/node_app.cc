@@ -75,7 +75,7 @@ void NodeApp::PublishHealth(Micros utime) {
   health_t h;
   if (follower_) {
     h = ToLcmHealth(utime, *follower_, health_seq_++);
-    h.msgs_dropped_invalid += counters_.bad_rx;
+    h.msgs_dropped_invalid += counters_.bad_rx + counters_.bad_clock;
   } else {
     h = health_t();
     h.utime = utime;

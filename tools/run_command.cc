@@ -225,12 +225,14 @@ int RunRun(const RunOptions& opt) {
   }
   std::string url = opt.lcm_url;
   int port = 0;
-  if (url.empty()) {
+  if (url.empty() || url.rfind("udpm://", 0) == 0) {
     std::string err;
     if (!EnsureLoopbackMulticast(&err)) {
       std::cerr << "shoal run: " << err << "\n";
       return 2;
     }
+  }
+  if (url.empty()) {
     std::random_device rd;
     port = 20000 + static_cast<int>(rd() % 20000) * 2;
     url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
@@ -275,8 +277,12 @@ int RunRun(const RunOptions& opt) {
   const int run_nice = opt.mode == "lockstep" ? 5 : 0;
   // The logger first, at normal priority; the run's processes at a lower one, so that
   // the logger never falls behind and drops packets when the run saturates the CPU.
+  // lcm-logger's subscription queue holds 30 messages and drops beyond that (LCM's
+  // default): a lockstep tick publishes about 30, so the logger must never wait for the
+  // CPU. As root it runs at nice -10; otherwise the run's processes run at nice +5.
   start("lcm-logger", -100,
-        {"/usr/bin/lcm-logger", "--lcm-url=" + url, "-f", "-q", out}, 0, "logger");
+        {"/usr/bin/lcm-logger", "--lcm-url=" + url, "-f", "-q", out}, geteuid() == 0 ? -10 : 0,
+        "logger");
   for (int i = 0; i < 100 && access(out.c_str(), F_OK) != 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }

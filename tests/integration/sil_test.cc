@@ -1,0 +1,274 @@
+// The multi-process SIL runtime as users start it: `shoal run` with real processes over
+// UDP multicast on loopback (each test on its own port, ttl=0) and the real lcm-logger.
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <thread>
+
+#include <shoal/health_t.hpp>
+#include <shoal/vehicle_state_t.hpp>
+
+#include "tests/integration/test_util.h"
+
+namespace shoal {
+namespace {
+
+using shoal::testing::ReadFile;
+using shoal::testing::RunShoal;
+using shoal::testing::SourcePath;
+using shoal::testing::TmpPath;
+
+const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
+
+std::string Url(int port) {
+  return "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0&recv_buf_size=4194304";
+}
+
+// Extracts a number after "key": in a flat or nested JSON text.
+double JsonNumber(const std::string& json, const std::string& key) {
+  const auto p = json.find("\"" + key + "\":");
+  if (p == std::string::npos) return std::numeric_limits<double>::quiet_NaN();
+  return std::atof(json.c_str() + p + key.size() + 3);
+}
+
+// pgrep -f over full command lines. The first character is bracketed so that the shell
+// running pgrep (whose command line contains the pattern) never matches itself.
+int CountProcessesWith(const std::string& pattern) {
+  const std::string cmd = "pgrep -f '[" + pattern.substr(0, 1) + "]" + pattern.substr(1) +
+                          "' | wc -l";
+  FILE* p = popen(cmd.c_str(), "r");
+  int n = 0;
+  if (p) {
+    if (std::fscanf(p, "%d", &n) != 1) n = -1;
+    pclose(p);
+  }
+  return n;
+}
+
+pid_t StartShoal(const std::string& args, const std::string& out_file) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const std::string cmd = "exec " + shoal::testing::ShoalBinary() + " " + args + " >" +
+                            out_file + " 2>&1 </dev/null";
+    execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  return pid;
+}
+
+int WaitExit(pid_t pid, double timeout_s, double* took_s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  int status = 0;
+  for (;;) {
+    if (waitpid(pid, &status, WNOHANG) == pid) break;
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::duration<double>(timeout_s)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  if (took_s) *took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+// A lockstep SIL run equals shoal sim of the same scenario, state by state.
+TEST(Sil, LockstepRunEqualsShoalSim) {
+  const std::string run_log = TmpPath("sil_eq_run.lcmlog"), sim_log = TmpPath("sil_eq_sim.lcmlog");
+  const auto run = RunShoal("run " + kExample2 + " --duration 20 --json --out " + run_log +
+                                " --lcm-url '" + Url(31101) + "'", "sil_eq_run");
+  ASSERT_EQ(run.status, 0) << run.out << run.err;  // every process ran to the end
+  EXPECT_NE(run.out.find("\"all_processes_ok\":true"), std::string::npos) << run.out;
+  ASSERT_EQ(RunShoal("sim " + kExample2 + " --duration 20 --out " + sim_log, "sil_eq_sim").status, 1);
+  const auto cmp = RunShoal("compare " + run_log + " " + sim_log + " --json", "sil_eq_cmp");
+  ASSERT_EQ(cmp.status, 0) << cmp.err;
+  EXPECT_LE(JsonNumber(cmp.out, "max_position_diff_m"), 1e-9) << cmp.out;
+  EXPECT_LE(JsonNumber(cmp.out, "max_velocity_diff_mps"), 1e-9) << cmp.out;
+  EXPECT_EQ(JsonNumber(cmp.out, "samples"), 6.0 * (20 * 50 + 1)) << cmp.out;  // every state logged
+  EXPECT_EQ(JsonNumber(run.out, "final_position_error_m"),
+            JsonNumber(RunShoal("sim " + kExample2 + " --duration 20 --json", "sil_eq_j").out,
+                       "final_position_error_m"));
+}
+
+TEST(Sil, TwoLockstepRunsGiveIdenticalStates) {
+  const std::string a = TmpPath("sil_twice_a.lcmlog"), b = TmpPath("sil_twice_b.lcmlog");
+  ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 10 --quiet --out " + a +
+                         " --lcm-url '" + Url(31111) + "'", "sil_twice_a").status, 0);
+  ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 10 --quiet --out " + b +
+                         " --lcm-url '" + Url(31113) + "' --per-vehicle-urls", "sil_twice_b").status, 2)
+      << "--per-vehicle-urls with an explicit URL must be refused";
+  ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 10 --quiet --per-vehicle-urls --out " + b,
+                     "sil_twice_b2").status, 0);
+  const auto cmp = RunShoal("compare " + a + " " + b + " --json", "sil_twice_cmp");
+  ASSERT_EQ(cmp.status, 0) << cmp.err;
+  EXPECT_EQ(JsonNumber(cmp.out, "max_position_diff_m"), 0.0) << cmp.out;
+  EXPECT_EQ(JsonNumber(cmp.out, "max_velocity_diff_mps"), 0.0) << cmp.out;
+  EXPECT_EQ(JsonNumber(cmp.out, "samples"), 6.0 * (10 * 50 + 1)) << cmp.out;
+}
+
+TEST(Sil, SigintStopsEverythingWithinTwoSecondsWithAReadableLog) {
+  const int port = 31121;
+  const std::string log = TmpPath("sil_sigint.lcmlog"), out = TmpPath("sil_sigint.out");
+  const pid_t pid = StartShoal("run " + kExample2 + " --duration 100000 --out " + log +
+                                   " --lcm-url '" + Url(port) + "'", out);
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  EXPECT_EQ(CountProcessesWith("shoal_.*:" + std::to_string(port)), 7);  // emulator, leader, 5
+  kill(pid, SIGINT);
+  double took = 0;
+  EXPECT_EQ(WaitExit(pid, 10, &took), 130) << ReadFile(out);
+  EXPECT_LT(took, 2.5) << "shutdown took " << took << " s";
+  EXPECT_EQ(CountProcessesWith(":" + std::to_string(port)), 0) << "processes left behind";
+  lcm::LogFile lf(log, "r");
+  ASSERT_TRUE(lf.good());
+  int states = 0;
+  while (const lcm::LogEvent* ev = lf.readNextEvent()) states += ev->channel == "SHOAL_STATE_1";
+  EXPECT_GT(states, 50);
+}
+
+TEST(Sil, KillingShoalRunLeavesNoOrphans) {
+  const int port = 31131;
+  const pid_t pid = StartShoal("run " + kExample2 + " --duration 100000 --out " +
+                                   TmpPath("sil_orphan.lcmlog") + " --lcm-url '" + Url(port) + "'",
+                               TmpPath("sil_orphan.out"));
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  ASSERT_GT(CountProcessesWith(":" + std::to_string(port)), 0);
+  kill(pid, SIGKILL);
+  WaitExit(pid, 5, nullptr);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  EXPECT_EQ(CountProcessesWith(":" + std::to_string(port)), 0);
+}
+
+TEST(Sil, KilledVehicleIsReportedByIdAndTheOthersFinish) {
+  const int port = 31141;
+  const std::string log = TmpPath("sil_kill.lcmlog"), out = TmpPath("sil_kill.out");
+  const pid_t pid = StartShoal("run " + kExample2 + " --duration 60 --out " + log +
+                                   " --lcm-url '" + Url(port) + "'", out);
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  ASSERT_EQ(std::system(("pkill -9 -f '[s]hoal_vehicle.*" + std::to_string(port) + ".*--id 3'").c_str()), 0);
+  EXPECT_EQ(WaitExit(pid, 60, nullptr), 1) << ReadFile(out);
+  const std::string text = ReadFile(out);
+  EXPECT_NE(text.find("vehicle 3"), std::string::npos) << text;
+  EXPECT_NE(text.find("signal 9"), std::string::npos) << text;
+  // The others ran to the end: vehicle 1 has its state of the last tick in the log, and
+  // vehicle 3's neighbours (1 hears 3) marked it stale.
+  lcm::LogFile lf(log, "r");
+  ASSERT_TRUE(lf.good());
+  std::int64_t last1 = -1, last3 = -1, timeouts1 = 0;
+  while (const lcm::LogEvent* ev = lf.readNextEvent()) {
+    if (ev->channel == "SHOAL_STATE_1" || ev->channel == "SHOAL_STATE_3") {
+      vehicle_state_t m{};
+      ASSERT_GE(m.decode(ev->data, 0, ev->datalen), 0);
+      (m.vehicle_id == 1 ? last1 : last3) = m.utime;
+    } else if (ev->channel == "SHOAL_HEALTH_1") {
+      health_t h{};
+      ASSERT_GE(h.decode(ev->data, 0, ev->datalen), 0);
+      timeouts1 = h.neighbour_timeouts;
+    }
+  }
+  EXPECT_EQ(last1, 60000000);
+  EXPECT_LT(last3, 60000000);
+  EXPECT_GE(timeouts1, 1);
+}
+
+// Bad input on every channel the processes listen to is dropped and counted, never a
+// crash and never in the control law: the run still equals shoal sim exactly.
+TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
+  const int port = 31151;
+  const std::string log = TmpPath("sil_bad.lcmlog"), out = TmpPath("sil_bad.out");
+  const pid_t pid = StartShoal("run " + kExample2 + " --duration 40 --out " + log +
+                                   " --lcm-url '" + Url(port) + "'", out);
+  lcm::LCM bus(Url(port));
+  ASSERT_TRUE(bus.good());
+  // Capture one real state of vehicle 1 to replay later.
+  std::atomic<bool> have{false};
+  std::vector<unsigned char> captured;
+  struct Cap {
+    std::vector<unsigned char>* buf;
+    std::atomic<bool>* have;
+    void On(const lcm::ReceiveBuffer* rb, const std::string&) {
+      if (!*have) {
+        buf->assign(static_cast<unsigned char*>(rb->data),
+                    static_cast<unsigned char*>(rb->data) + rb->data_size);
+        *have = true;
+      }
+    }
+  } cap{&captured, &have};
+  bus.subscribe("SHOAL_STATE_1", &Cap::On, &cap);
+  const auto t0 = std::chrono::steady_clock::now();
+  while (!have && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(10)) {
+    bus.handleTimeout(50);
+  }
+  ASSERT_TRUE(have);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+
+  vehicle_state_t good{};
+  ASSERT_GE(good.decode(captured.data(), 0, static_cast<int>(captured.size())), 0);
+  std::vector<unsigned char> buf(captured);
+  const unsigned char garbage[64] = {1, 2, 3, 4, 5, 6, 7, 8, 9};
+  health_t other{};  // a valid message of the wrong type (wrong fingerprint)
+  std::vector<unsigned char> other_buf(other.getEncodedSize());
+  other.encode(other_buf.data(), 0, static_cast<int>(other_buf.size()));
+  auto encode = [](const vehicle_state_t& m) {
+    std::vector<unsigned char> b(m.getEncodedSize());
+    m.encode(b.data(), 0, static_cast<int>(b.size()));
+    return b;
+  };
+  vehicle_state_t nan_msg = good;
+  nan_msg.eta[0] = std::numeric_limits<double>::quiet_NaN();
+  nan_msg.seq = 1000000;
+  vehicle_state_t inf_msg = good;
+  inf_msg.nu[2] = std::numeric_limits<double>::infinity();
+  inf_msg.seq = 1000001;
+  vehicle_state_t unknown = good;
+  unknown.vehicle_id = 9;
+  unknown.seq = 1000002;
+  const auto nan_b = encode(nan_msg), inf_b = encode(inf_msg), unk_b = encode(unknown);
+  int sent = 0;
+  for (int round = 0; round < 20; ++round) {
+    for (const char* ch : {"SHOAL_RX_2", "SHOAL_STATE_1", "SHOAL_CLOCK"}) {
+      bus.publish(ch, garbage, sizeof(garbage));                                  // garbage
+      bus.publish(ch, captured.data(), static_cast<unsigned>(captured.size() / 2));  // truncated
+      bus.publish(ch, other_buf.data(), static_cast<unsigned>(other_buf.size()));    // fingerprint
+      ++sent;
+    }
+    for (const char* ch : {"SHOAL_RX_2", "SHOAL_STATE_1"}) {
+      bus.publish(ch, nan_b.data(), static_cast<unsigned>(nan_b.size()));
+      bus.publish(ch, inf_b.data(), static_cast<unsigned>(inf_b.size()));
+      bus.publish(ch, unk_b.data(), static_cast<unsigned>(unk_b.size()));
+      bus.publish(ch, captured.data(), static_cast<unsigned>(captured.size()));  // replayed
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(WaitExit(pid, 120, nullptr), 0) << ReadFile(out);
+  const std::string sim_log = TmpPath("sil_bad_sim.lcmlog");
+  RunShoal("sim " + kExample2 + " --duration 40 --out " + sim_log, "sil_bad_sim");
+  const auto cmp = RunShoal("compare " + log + " " + sim_log + " --json", "sil_bad_cmp");
+  EXPECT_EQ(JsonNumber(cmp.out, "max_position_diff_m"), 0.0) << cmp.out;
+  EXPECT_EQ(JsonNumber(cmp.out, "samples"), 6.0 * (40 * 50 + 1)) << cmp.out;
+  // The counters saw them.
+  lcm::LogFile lf(log, "r");
+  ASSERT_TRUE(lf.good());
+  std::map<int, health_t> last;
+  while (const lcm::LogEvent* ev = lf.readNextEvent()) {
+    if (ev->channel.rfind("SHOAL_HEALTH_", 0) == 0) {
+      health_t h{};
+      ASSERT_GE(h.decode(ev->data, 0, ev->datalen), 0);
+      last[h.vehicle_id] = h;
+    }
+  }
+  EXPECT_GE(last[2].msgs_dropped_invalid, 20 * 3 + 20 * 3);  // RX_2 + clock junk
+  EXPECT_GE(last[2].msgs_dropped_old, 1);                     // the replay
+  EXPECT_GE(last[-1].msgs_dropped_invalid, 20 * 6);           // emulator: STATE_1 junk
+  EXPECT_GE(last[-1].msgs_dropped_old, 1);
+}
+
+}  // namespace
+}  // namespace shoal
