@@ -1,4 +1,4 @@
-# shoal_test(NAME <name> SOURCES <src>... [LIBS <lib>...] [LABELS <label>...] [TIMEOUT <s>]
+# shoal_test(NAME <name> SOURCES <src>... [LIBS <lib>...] [LABELS <label>] [TIMEOUT <s>]
 #            [SERIAL])   SERIAL: never run in parallel with other tests (multi-process tests)
 # One helper registers every GoogleTest executable (as Ceres' ceres_test does).
 include(GoogleTest)
@@ -16,7 +16,12 @@ function(shoal_test)
   if(ARG_SERIAL)
     set(serial TRUE)
   endif()
+  # One label per test: gtest_discover_tests cannot pass a list inside PROPERTIES.
+  set(labels unit)
+  if(ARG_LABELS)
+    list(GET ARG_LABELS 0 labels)
+  endif()
   gtest_discover_tests(${ARG_NAME}
-    PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}" RUN_SERIAL ${serial}
+    PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${labels}" RUN_SERIAL ${serial}
     DISCOVERY_TIMEOUT 60)
 endfunction()

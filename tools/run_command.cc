@@ -442,6 +442,11 @@ int RunRun(const RunOptions& opt) {
     }
   }
   const bool converged = metrics.converged();
+  // lcm-logger drops messages when it cannot keep up (LCM's 30-message subscription
+  // queue); say so instead of hiding it.
+  const std::int64_t expected_states =
+      (static_cast<std::int64_t>(std::floor(duration * 1e6 / s.period_us() + 1e-9)) + 1) *
+      (s.followers + 1);
   const bool all_ok = problems.empty() && !g_interrupted;
 
   if (opt.json) {
@@ -469,6 +474,8 @@ int RunRun(const RunOptions& opt) {
         .Raw("problems", probs + "]")
         .Bool("interrupted", g_interrupted != 0)
         .Str("log", out)
+        .Int("log_states", sum.states)
+        .Int("log_states_expected", expected_states)
         .Str("lcm_url", url);
     std::cout << j.Done() << "\n";
   } else {
@@ -494,7 +501,9 @@ int RunRun(const RunOptions& opt) {
                   static_cast<long long>(overruns));
     }
     for (const std::string& p : problems) std::printf("  PROBLEM: %s\n", p.c_str());
-    std::printf("  log: %s (URL %s)\n", out.c_str(), url.c_str());
+    std::printf("  log: %s (URL %s), %lld of %lld vehicle states recorded\n", out.c_str(),
+                url.c_str(), static_cast<long long>(sum.states),
+                static_cast<long long>(expected_states));
   }
   if (g_interrupted) return 130;
   return all_ok ? 0 : 1;

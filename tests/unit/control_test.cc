@@ -174,6 +174,28 @@ TEST(ControlFeedbackLinearisationTest, SaturatedWithHugeLimitsEqualsUnsaturated)
   }
 }
 
+TEST(ControlFeedbackLinearisationTest, SaturationFlagAtTheLimitOfEachChannel) {
+  // A limit a hair below the demand clips (and is reported); a hair above does not.
+  const FossenModel model;
+  Rng rng(12);
+  for (int k = 0; k < 200; ++k) {
+    const Vec5 eta = RandomEta(&rng, 0.5);
+    const Vec5 nu = RandomNu(&rng);
+    const Vec5 a = RandomVec(&rng, 1.0);
+    Vec5 wanted, tau;
+    SaturatedFeedbackLinearise(model, eta, nu, a, Vec5::Constant(1e12), &tau, &wanted);
+    for (int i = 0; i < 5; ++i) {
+      if (std::abs(wanted(i)) < 1e-3) continue;
+      Vec5 lim = Vec5::Constant(1e12);
+      lim(i) = std::abs(wanted(i)) * (1.0 - 1e-7);
+      ASSERT_TRUE(SaturatedFeedbackLinearise(model, eta, nu, a, lim, &tau)) << k << " " << i;
+      ASSERT_EQ(std::abs(tau(i)), lim(i)) << k << " " << i;
+      lim(i) = std::abs(wanted(i)) * (1.0 + 1e-7);
+      ASSERT_FALSE(SaturatedFeedbackLinearise(model, eta, nu, a, lim, &tau)) << k << " " << i;
+    }
+  }
+}
+
 TEST(ControlFeedbackLinearisationTest, ClippedHeaveKeepsPitchAuthority) {
   const FossenModel model;
   const Vec5 tau_max = (Vec5() << 100.0, 10.0, 10.0, 6.0, 6.0).finished();
