@@ -15,9 +15,12 @@ DEB_PACKAGES := cmake g++ make pkg-config \
 .PHONY: demo test deps build configure clean
 
 demo: build
-	@echo "== shoal sim scenarios/paper_example2.toml"
-	$(BUILD_DIR)/tools/shoal sim scenarios/paper_example2.toml --out $(BUILD_DIR)/paper_example2.lcmlog
-	@echo "== log written to $(BUILD_DIR)/paper_example2.lcmlog (replay: lcm-logplayer $(BUILD_DIR)/paper_example2.lcmlog)"
+	@echo "== shoal sim: the paper's Example 2 in one process"
+	$(BUILD_DIR)/tools/shoal sim scenarios/paper_example2.toml --out $(BUILD_DIR)/paper_example2_sim.lcmlog
+	@echo "== shoal run: the same as a lockstep SIL run (one process per vehicle, channel emulator, lcm-logger)"
+	$(BUILD_DIR)/tools/shoal run scenarios/paper_example2.toml --mode lockstep --out $(BUILD_DIR)/paper_example2_sil.lcmlog
+	$(BUILD_DIR)/tools/shoal compare $(BUILD_DIR)/paper_example2_sil.lcmlog $(BUILD_DIR)/paper_example2_sim.lcmlog
+	@echo "== SIL log: $(BUILD_DIR)/paper_example2_sil.lcmlog (replay: lcm-logplayer $(BUILD_DIR)/paper_example2_sil.lcmlog)"
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)

@@ -320,6 +320,11 @@ int EmulatorMain(int argc, char** argv) {
               << " URLs (leader and followers), got " << vehicle_urls.size() << "\n";
     return 2;
   }
+  // Before LCM starts its receive threads, so that they inherit the policy; above the
+  // vehicles: releases are the delays the run is about.
+  if (opt.parsed_mode() == Mode::kRealtime) {
+    std::cerr << "shoal_channel_emulator: " << EnableRealtimeScheduling(50) << "\n";
+  }
   try {
     LcmBus bus(opt.lcm_url);
     std::vector<std::unique_ptr<LcmBus>> own;
@@ -331,10 +336,6 @@ int EmulatorMain(int argc, char** argv) {
         own.push_back(std::make_unique<LcmBus>(vehicle_urls[id]));
         vbus.push_back(own.back().get());
       }
-    }
-    if (opt.parsed_mode() == Mode::kRealtime) {
-      // Above the vehicles: releases are the delays the run is about.
-      std::cerr << "shoal_channel_emulator: " << EnableRealtimeScheduling(50) << "\n";
     }
     EmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus);
     app_.Init();

@@ -169,13 +169,14 @@ int NodeMain(int argc, char** argv, bool leader) {
     std::cerr << name << ": --id must be in 1.." << s.followers << " (got " << id << ")\n";
     return 2;
   }
+  // Before LCM starts its receive thread, so that the thread inherits the policy.
+  if (opt.parsed_mode() == Mode::kRealtime) {
+    std::cerr << name << ": " << EnableRealtimeScheduling(40) << "\n";
+  }
   try {
     LcmBus bus(opt.lcm_url);
     std::unique_ptr<LcmBus> rx;
     if (!opt.rx_url.empty() && opt.rx_url != opt.lcm_url) rx = std::make_unique<LcmBus>(opt.rx_url);
-    if (opt.parsed_mode() == Mode::kRealtime) {
-      std::cerr << name << ": " << EnableRealtimeScheduling(40) << "\n";
-    }
     NodeApp node(s, id, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus,
                  rx ? static_cast<Bus*>(rx.get()) : &bus);
     node.Init();

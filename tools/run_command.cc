@@ -286,7 +286,7 @@ int RunRun(const RunOptions& opt) {
   for (int i = 0; i < 100 && access(out.c_str(), F_OK) != 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  const std::int64_t t0_ns = MonotonicNs() + 1500000000LL;  // real time: start margin
+  const std::int64_t t0_ns = MonotonicNs() + 4000000000LL;  // real time: start margin
   std::vector<std::string> common = {"--scenario", opt.scenario, "--lcm-url", url, "--mode",
                                      opt.mode, "--t0-ns", std::to_string(t0_ns), "--duration",
                                      std::to_string(duration)};
