@@ -89,7 +89,8 @@ struct Link {
 /// Each link's random stream depends only on (seed, from, to).
 std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo);
 
-/// When a message sent at send_utime with delay tau becomes usable.
+/// When a message sent at send_utime with delay tau becomes usable. Time is whole
+/// microseconds: tau is rounded to the nearest microsecond first.
 ///   period_us > 0 (lockstep and shoal sim): at the first tick at or after send + tau, and
 ///   never before the tick after the send tick (a state published at tick k is usable from
 ///   tick k+1 at the earliest).
@@ -141,6 +142,9 @@ class Channel {
       return;
     }
     const double t_s = ToSeconds(send_utime);
+    // An empty wheel can start at the send tick: a first message at a large time must not
+    // grow the wheel to cover every tick before it.
+    if (period_us_ > 0 && pending_ == 0) next_tick_ = std::max(next_tick_, send_utime / period_us_);
     // The payload is stored once and shared by its deliveries (reference counted).
     const int slot = Store(payload);
     for (std::size_t k : by_sender_[sender]) {
@@ -237,7 +241,10 @@ class Channel {
       heap_.push(p);
       return;
     }
-    const std::int64_t tick = p.due / period_us_;
+    std::int64_t tick = p.due / period_us_;
+    // A message already due (submitted after its delivery tick was delivered) goes out at
+    // the next DeliverDue().
+    tick = std::max(tick, next_tick_);
     // Never reached with delays within the links' models; kept so that the wheel can
     // never silently mix two ticks in one bucket.
     while (tick - next_tick_ >= static_cast<std::int64_t>(wheel_.size())) Grow();
@@ -247,9 +254,11 @@ class Channel {
   // Doubles the wheel; each bucket holds exactly one pending tick, moved whole.
   void Grow() {
     std::vector<std::vector<Pending>> bigger(wheel_.size() * 2);
-    for (auto& b : wheel_) {
+    for (std::int64_t t = next_tick_; t < next_tick_ + static_cast<std::int64_t>(wheel_.size());
+         ++t) {
+      auto& b = wheel_[static_cast<std::size_t>(t) & (wheel_.size() - 1)];
       if (b.empty()) continue;
-      const std::int64_t tick = b.front().due / period_us_;
+      const std::int64_t tick = t;
       bigger[static_cast<std::size_t>(tick) & (bigger.size() - 1)] = std::move(b);
     }
     wheel_ = std::move(bigger);

@@ -600,3 +600,48 @@ TEST(ChannelTest, FullQueueDropsAndPayloadSlotsAreReused) {
 
 }  // namespace
 }  // namespace shoal
+
+namespace shoal {
+namespace {
+
+// Regressions found in review of the timing wheel.
+Channel<int> OneLink(double delay_s) {
+  Link l;
+  l.from = 0;
+  l.to = 1;
+  l.delay.kind = DelayKind::kConstant;
+  l.delay.base_s = delay_s;
+  return Channel<int>({l}, 20000);
+}
+
+TEST(ChannelWheelRegression, AMessageAlreadyDueGoesOutAtTheNextDelivery) {
+  Channel<int> ch = OneLink(0.1);
+  std::vector<ChannelDecision> d;
+  int got = 0;
+  ch.DeliverDue(1000000, [&](int, const int&) { ++got; });
+  ch.Submit(0, 1, 800000, 7, &d);  // due at 900000, already past
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_EQ(d[0].deliver_utime, 900000);
+  ch.DeliverDue(1020000, [&](int r, const int& v) {
+    EXPECT_EQ(r, 1);
+    EXPECT_EQ(v, 7);
+    ++got;
+  });
+  EXPECT_EQ(got, 1);
+  EXPECT_EQ(ch.pending(), 0u);
+}
+
+TEST(ChannelWheelRegression, AFirstMessageAtALargeTimeDoesNotGrowTheWheel) {
+  Channel<int> ch = OneLink(0.1);
+  std::vector<ChannelDecision> d;
+  const Micros t = 1700000000000000;  // ~54 years in microseconds
+  ch.Submit(0, 1, t, 3, &d);
+  int got = 0;
+  ch.DeliverDue(t + 80000, [&](int, const int&) { ++got; });
+  EXPECT_EQ(got, 0);
+  ch.DeliverDue(t + 100000, [&](int, const int&) { ++got; });
+  EXPECT_EQ(got, 1);
+}
+
+}  // namespace
+}  // namespace shoal
