@@ -309,12 +309,7 @@ int EmulatorMain(int argc, char** argv) {
   }
   InstallProcessSignals();
   Scenario s;
-  try {
-    s = LoadScenario(opt.scenario);
-  } catch (const ScenarioError& e) {
-    std::cerr << "shoal_channel_emulator: " << e.what() << "\n";
-    return 2;
-  }
+  if (!LoadScenarioOrReport("shoal_channel_emulator", opt.scenario, &s)) return 2;
   if (!vehicle_urls.empty() && static_cast<int>(vehicle_urls.size()) != s.followers + 1) {
     std::cerr << "shoal_channel_emulator: --vehicle-urls needs " << s.followers + 1
               << " URLs (leader and followers), got " << vehicle_urls.size() << "\n";

@@ -159,12 +159,7 @@ int NodeMain(int argc, char** argv, bool leader) {
   }
   InstallProcessSignals();
   Scenario s;
-  try {
-    s = LoadScenario(opt.scenario);
-  } catch (const ScenarioError& e) {
-    std::cerr << name << ": " << e.what() << "\n";
-    return 2;
-  }
+  if (!LoadScenarioOrReport(name, opt.scenario, &s)) return 2;
   if (!leader && (id < 1 || id > s.followers)) {
     std::cerr << name << ": --id must be in 1.." << s.followers << " (got " << id << ")\n";
     return 2;

@@ -5,6 +5,8 @@
 // that was given and how to fix it. Unknown keys are errors at every level.
 #include "runtime/scenario_loader.h"
 
+#include <iostream>
+
 #include <toml++/toml.h>
 
 #include <algorithm>
@@ -1012,6 +1014,16 @@ Scenario ParseScenario(const std::string& text, const std::string& path) {
   if (s.name.empty()) s.name = "scenario";
   ReadScenario(Reader(file), root, &s);
   return s;
+}
+
+bool LoadScenarioOrReport(const std::string& who, const std::string& path, Scenario* out) {
+  try {
+    *out = LoadScenario(path);
+    return true;
+  } catch (const ScenarioError& e) {
+    std::cerr << who << ": " << e.what() << "\n";
+    return false;
+  }
 }
 
 }  // namespace shoal

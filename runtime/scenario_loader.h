@@ -18,6 +18,10 @@ class ScenarioError : public std::runtime_error {
 /// Reads `path` and returns the validated scenario; throws ScenarioError.
 Scenario LoadScenario(const std::string& path);
 
+/// LoadScenario for a command's start-up: on error prints "<who>: <message>" to stderr and
+/// returns false (the caller exits with status 2).
+bool LoadScenarioOrReport(const std::string& who, const std::string& path, Scenario* out);
+
 /// Parses scenario text; `path` is used in messages, for source_path and for the default name.
 Scenario ParseScenario(const std::string& text, const std::string& path);
 

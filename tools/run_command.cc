@@ -185,12 +185,7 @@ LogSummary Summarise(const std::string& path, const Scenario& s, FormationMetric
 
 int RunRun(const RunOptions& opt) {
   Scenario s;
-  try {
-    s = LoadScenario(opt.scenario);
-  } catch (const ScenarioError& e) {
-    std::cerr << "shoal run: " << e.what() << "\n";
-    return 2;
-  }
+  if (!LoadScenarioOrReport("shoal run", opt.scenario, &s)) return 2;
   if (opt.mode != "lockstep" && opt.mode != "realtime") {
     std::cerr << "shoal run: --mode must be lockstep or realtime (got " << opt.mode << ")\n";
     return 2;

@@ -129,12 +129,7 @@ run_status_t Status(const Scenario& s, Micros utime, std::int32_t seq, const std
 
 int RunSim(const SimOptions& opt) {
   Scenario s;
-  try {
-    s = LoadScenario(opt.scenario);
-  } catch (const ScenarioError& e) {
-    std::cerr << "shoal sim: " << e.what() << "\n";
-    return 2;
-  }
+  if (!LoadScenarioOrReport("shoal sim", opt.scenario, &s)) return 2;
   if (opt.duration_s == 0 || (opt.duration_s < 0 && opt.duration_s != -1)) {
     std::cerr << "shoal sim: --duration must be a positive number of seconds (got "
               << opt.duration_s << ")\n";
