@@ -80,8 +80,34 @@ TEST(SimCli, UsageErrorsExitTwo) {
   EXPECT_EQ(RunShoal("frobnicate", "u6").status, 2);
 }
 
+// shoal run and shoal compare refuse bad input before starting anything.
+TEST(RunCli, BadInputExitsTwoBeforeAnythingStarts) {
+  const std::string bad = SourcePath("tests/data/bad_scenarios/negative_control_rate.toml");
+  const auto r1 = RunShoal("run '" + bad + "'", "run_bad1");
+  EXPECT_EQ(r1.status, 2);
+  EXPECT_NE(r1.err.find("control_rate_hz"), std::string::npos) << r1.err;
+  const std::string ex1 = SourcePath("scenarios/paper_example1.toml");
+  EXPECT_EQ(RunShoal("run " + ex1 + " --mode fast", "run_bad2").status, 2);
+  EXPECT_EQ(RunShoal("run " + ex1 + " --duration -3", "run_bad3").status, 2);
+  const auto r4 = RunShoal("run " + ex1 + " --out /nonexistent-dir/x.lcmlog", "run_bad4");
+  EXPECT_EQ(r4.status, 2);
+  EXPECT_NE(r4.err.find("cannot open log"), std::string::npos) << r4.err;
+  // compare: missing, empty and non-LCM files.
+  const std::string empty = TmpPath("empty.lcmlog"), text = TmpPath("text.lcmlog");
+  std::fclose(std::fopen(empty.c_str(), "w"));
+  FILE* f = std::fopen(text.c_str(), "w");
+  std::fputs("this is not an LCM log\n", f);
+  std::fclose(f);
+  EXPECT_EQ(RunShoal("compare /nonexistent.lcmlog " + empty, "cmp_bad1").status, 2);
+  const auto c2 = RunShoal("compare " + empty + " " + empty, "cmp_bad2");
+  EXPECT_EQ(c2.status, 2);
+  EXPECT_NE(c2.err.find("empty or not an LCM log"), std::string::npos) << c2.err;
+  EXPECT_EQ(RunShoal("compare " + text + " " + text, "cmp_bad3").status, 2);
+}
+
 TEST(SimCli, HelpOnEveryCommand) {
-  for (const std::string& args : {std::string("--help"), std::string("sim --help")}) {
+  for (const std::string& args : {std::string("--help"), std::string("sim --help"),
+                                  std::string("run --help"), std::string("compare --help")}) {
     const auto r = RunShoal(args, "help");
     EXPECT_EQ(r.status, 0) << args;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << r.out;
