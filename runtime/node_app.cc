@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 
 #include "runtime/channels.h"
@@ -140,6 +141,10 @@ int NodeApp::RunRealtime() {
     if (MonotonicNs() > deadline + period_ns) ++counters_.overruns;
   }
   const bool finished = next_tick_ > final_tick_;
+  std::fprintf(stderr, "vehicle %d: %lld ticks, lateness p50 %.3f ms p99 %.3f ms max %.3f ms, "
+               "%lld overruns\n", id_, static_cast<long long>(next_tick_),
+               lateness_.Quantile(0.5) * 1e3, lateness_.Quantile(0.99) * 1e3,
+               lateness_.max() * 1e3, static_cast<long long>(counters_.overruns));
   PublishStatus(finished ? "finished" : "interrupted", "");
   return finished ? 0 : 1;
 }
