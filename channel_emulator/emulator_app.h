@@ -4,7 +4,6 @@
 // SHOAL_CHANNEL. In lockstep it is also the clock master.
 #pragma once
 
-#include <map>
 #include <string>
 #include <vector>
 

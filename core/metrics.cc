@@ -32,13 +32,11 @@ void FormationMetrics::Add(const StateMsg& leader, const std::vector<const State
       violating = true;
     }
   }
-  if (samples_ == 0) first_t_ = t;
   max_position_ = std::max(max_position_, worst.position_m);
   final_worst_ = worst;
   if (violating) {
-    ever_violated_ = true;
     pending_start_ = true;
-  } else if (pending_start_ || samples_ == 0) {
+  } else if (pending_start_) {
     conv_start_t_ = t;
     pending_start_ = false;
   }
@@ -49,7 +47,7 @@ void FormationMetrics::Add(const StateMsg& leader, const std::vector<const State
 
 double FormationMetrics::convergence_time_s() const {
   if (!converged()) return -1.0;
-  return ever_violated_ ? conv_start_t_ : first_t_;
+  return conv_start_t_;
 }
 
 }  // namespace shoal

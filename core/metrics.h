@@ -47,8 +47,6 @@ class FormationMetrics {
   MetricsConfig tol_;
   std::int64_t samples_ = 0;
   bool last_violating_ = false;
-  bool ever_violated_ = false;
-  double first_t_ = 0.0;
   double last_t_ = 0.0;
   double conv_start_t_ = 0.0;  // time of the first sample after the last violation
   bool pending_start_ = true;

@@ -133,7 +133,6 @@ LogSummary Summarise(const std::string& path, const Scenario& s, FormationMetric
   if (!log.good()) return r;
   std::map<std::int64_t, std::vector<StateMsg>> by_time;  // utime -> states (index = id)
   const int n = s.followers;
-  std::vector<StateMsg> leader_at;
   std::vector<const StateMsg*> fptr(n);
   auto flush_before = [&](std::int64_t t) {
     while (!by_time.empty() && by_time.begin()->first < t) {
@@ -314,7 +313,6 @@ int RunRun(const RunOptions& opt) {
   LcmBus live(url);
   std::int64_t last_tick_utime = 0;
   double worst_pos = 0.0;
-  std::map<int, Vec3> offsets;
   std::vector<StateMsg> latest(s.followers + 1);
   live.Subscribe("SHOAL_STATE_[0-9]+", [&](const std::string&, const void* d, int n) {
     vehicle_state_t m{};
