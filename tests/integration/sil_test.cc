@@ -123,8 +123,15 @@ TEST(Sil, SigintStopsEverythingWithinTwoSecondsWithAReadableLog) {
   const std::string log = TmpPath("sil_sigint.lcmlog"), out = TmpPath("sil_sigint.out");
   const pid_t pid = StartShoal("run " + kExample2 + " --duration 100000 --out " + log +
                                    " --lcm-url '" + Url(port) + "'", out);
-  std::this_thread::sleep_for(std::chrono::seconds(3));
-  EXPECT_EQ(CountProcessesWith("shoal_.*:" + std::to_string(port)), 7);  // emulator, leader, 5
+  // Wait until all 7 run processes are up (emulator, leader, 5 vehicles), then let the
+  // run progress for a second.
+  const auto up0 = std::chrono::steady_clock::now();
+  while (CountProcessesWith("shoal_.*:" + std::to_string(port)) < 7 &&
+         std::chrono::steady_clock::now() - up0 < std::chrono::seconds(15)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_EQ(CountProcessesWith("shoal_.*:" + std::to_string(port)), 7);
+  std::this_thread::sleep_for(std::chrono::seconds(1));
   kill(pid, SIGINT);
   double took = 0;
   EXPECT_EQ(WaitExit(pid, 10, &took), 130) << ReadFile(out);
@@ -132,9 +139,17 @@ TEST(Sil, SigintStopsEverythingWithinTwoSecondsWithAReadableLog) {
   EXPECT_EQ(CountProcessesWith(":" + std::to_string(port)), 0) << "processes left behind";
   lcm::LogFile lf(log, "r");
   ASSERT_TRUE(lf.good());
-  int states = 0;
-  while (const lcm::LogEvent* ev = lf.readNextEvent()) states += ev->channel == "SHOAL_STATE_1";
-  EXPECT_GT(states, 50);
+  int states = 0, events = 0;
+  while (const lcm::LogEvent* ev = lf.readNextEvent()) {
+    ++events;
+    if (ev->channel == "SHOAL_STATE_1") {
+      vehicle_state_t m{};
+      EXPECT_EQ(m.decode(ev->data, 0, ev->datalen), ev->datalen);
+      ++states;
+    }
+  }
+  EXPECT_GT(states, 0);  // the run had started; every recorded state decodes
+  EXPECT_GT(events, states);
 }
 
 TEST(Sil, KillingShoalRunLeavesNoOrphans) {
@@ -153,9 +168,15 @@ TEST(Sil, KillingShoalRunLeavesNoOrphans) {
 TEST(Sil, KilledVehicleIsReportedByIdAndTheOthersFinish) {
   const int port = 31141;
   const std::string log = TmpPath("sil_kill.lcmlog"), out = TmpPath("sil_kill.out");
-  const pid_t pid = StartShoal("run " + kExample2 + " --duration 60 --out " + log +
+  const pid_t pid = StartShoal("run " + kExample2 + " --duration 120 --out " + log +
                                    " --lcm-url '" + Url(port) + "'", out);
-  std::this_thread::sleep_for(std::chrono::seconds(2));
+  const std::string victim = "shoal_vehicle.*" + std::to_string(port) + ".*--id 3";
+  const auto up0 = std::chrono::steady_clock::now();
+  while (CountProcessesWith(victim) < 1 &&
+         std::chrono::steady_clock::now() - up0 < std::chrono::seconds(15)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
   ASSERT_EQ(std::system(("pkill -9 -f '[s]hoal_vehicle.*" + std::to_string(port) + ".*--id 3'").c_str()), 0);
   EXPECT_EQ(WaitExit(pid, 60, nullptr), 1) << ReadFile(out);
   const std::string text = ReadFile(out);
@@ -177,8 +198,8 @@ TEST(Sil, KilledVehicleIsReportedByIdAndTheOthersFinish) {
       timeouts1 = h.neighbour_timeouts;
     }
   }
-  EXPECT_EQ(last1, 60000000);
-  EXPECT_LT(last3, 60000000);
+  EXPECT_EQ(last1, 120000000);
+  EXPECT_LT(last3, 120000000);
   EXPECT_GE(timeouts1, 1);
 }
 
