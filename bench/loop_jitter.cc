@@ -12,7 +12,7 @@ int main(int argc, char** argv) {
   const double seconds = argc > 2 ? std::atof(argv[2]) : 30.0;
   const std::int64_t period = static_cast<std::int64_t>(1e9 / rate);
   const std::int64_t n = static_cast<std::int64_t>(seconds * rate);
-  shoal::LatenessStats stats(static_cast<std::size_t>(n));
+  shoal::LatenessStats stats;
   std::int64_t missed = 0;
   const std::int64_t t0 = shoal::MonotonicNs() + period;
   for (std::int64_t k = 0; k < n; ++k) {

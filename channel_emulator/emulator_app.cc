@@ -112,12 +112,8 @@ void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utim
   }
 }
 
-void EmulatorApp::Deliver(Micros now) {
+void EmulatorApp::DeliverLockstep(Micros now) {
   channel_.DeliverDue(now, [&](int receiver, const Bytes& raw) {
-    if (mode_ == Mode::kRealtime) {
-      // Everything released here was due at or before now; the error is the lateness.
-      release_error_.Add(0.0);
-    }
     vbus_[receiver]->PublishRaw(rx_channels_[receiver], raw.data(), static_cast<int>(raw.size()));
   });
 }
@@ -212,7 +208,7 @@ int EmulatorApp::RunLockstep() {
     tick_ = k;
     const Micros now = k * period_us_;
     for (int id = 0; id <= n_; ++id) got_tick_[id] = false;
-    Deliver(now);
+    DeliverLockstep(now);
     PublishClock(k);
     // Wait for the state of every live process for this tick.
     const std::int64_t asked = MonotonicNs();
@@ -302,14 +298,9 @@ int EmulatorMain(int argc, char** argv) {
   app.add_option("--vehicle-urls", vehicle_urls,
                  "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
       ->delimiter(',');
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  InstallProcessSignals();
   Scenario s;
-  if (!LoadScenarioOrReport("shoal_channel_emulator", opt.scenario, &s)) return 2;
+  const int started = StartProcess(&app, argc, argv, "shoal_channel_emulator", opt, &s);
+  if (started >= 0) return started;
   if (!vehicle_urls.empty() && static_cast<int>(vehicle_urls.size()) != s.followers + 1) {
     std::cerr << "shoal_channel_emulator: --vehicle-urls needs " << s.followers + 1
               << " URLs (leader and followers), got " << vehicle_urls.size() << "\n";

@@ -40,7 +40,7 @@ class EmulatorApp {
   void OnState(const std::string& channel, const void* data, int size);
   void OnStatus(const void* data, int size);
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
-  void Deliver(Micros now);
+  void DeliverLockstep(Micros now);
   void PublishClock(std::int64_t tick);
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);

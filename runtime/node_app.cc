@@ -157,14 +157,9 @@ int NodeMain(int argc, char** argv, bool leader) {
   int id = 0;
   AddProcessOptions(&app, &opt);
   if (!leader) app.add_option("--id", id, "Follower id (1..n)")->required();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  InstallProcessSignals();
   Scenario s;
-  if (!LoadScenarioOrReport(name, opt.scenario, &s)) return 2;
+  const int started = StartProcess(&app, argc, argv, name, opt, &s);
+  if (started >= 0) return started;
   if (!leader && (id < 1 || id > s.followers)) {
     std::cerr << name << ": --id must be in 1.." << s.followers << " (got " << id << ")\n";
     return 2;

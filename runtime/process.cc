@@ -10,6 +10,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "runtime/scenario_loader.h"
+
 namespace shoal {
 namespace {
 volatile sig_atomic_t g_stop = 0;
@@ -25,6 +27,17 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
       ->check(CLI::IsMember({"lockstep", "realtime"}));
   app->add_option("--t0-ns", opt->t0_ns, "realtime: CLOCK_MONOTONIC ns of tick 0");
   app->add_option("--duration", opt->duration_s, "Simulated seconds (default: the scenario's)");
+}
+
+int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
+                 const ProcessOptions& opt, Scenario* scenario) {
+  try {
+    app->parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app->exit(e) == 0 ? 0 : 2;
+  }
+  InstallProcessSignals();
+  return LoadScenarioOrReport(name, opt.scenario, scenario) ? -1 : 2;
 }
 
 void InstallProcessSignals() {

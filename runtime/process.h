@@ -26,6 +26,14 @@ struct ProcessOptions {
 /// Adds the common options to a CLI11 app.
 void AddProcessOptions(CLI::App* app, ProcessOptions* opt);
 
+struct Scenario;
+
+/// The start of every process's main(): parses the command line, installs the signal
+/// handlers and loads the scenario. Returns -1 to go on, else the exit code (0 after
+/// --help, 2 for bad arguments or a bad scenario, reported on stderr as "<name>: ...").
+int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
+                 const ProcessOptions& opt, Scenario* scenario);
+
 /// Installs SIGINT/SIGTERM handlers that set StopRequested(), and asks the kernel to send
 /// SIGTERM when the parent dies.
 void InstallProcessSignals();

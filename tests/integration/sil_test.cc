@@ -24,6 +24,8 @@ namespace {
 using shoal::testing::ReadFile;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
+using shoal::testing::StartShoal;
+using shoal::testing::WaitExit;
 using shoal::testing::TmpPath;
 
 const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
@@ -51,33 +53,6 @@ int CountProcessesWith(const std::string& pattern) {
     pclose(p);
   }
   return n;
-}
-
-pid_t StartShoal(const std::string& args, const std::string& out_file) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    const std::string cmd = "exec " + shoal::testing::ShoalBinary() + " " + args + " >" +
-                            out_file + " 2>&1 </dev/null";
-    execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  return pid;
-}
-
-int WaitExit(pid_t pid, double timeout_s, double* took_s) {
-  const auto t0 = std::chrono::steady_clock::now();
-  int status = 0;
-  for (;;) {
-    if (waitpid(pid, &status, WNOHANG) == pid) break;
-    if (std::chrono::steady_clock::now() - t0 > std::chrono::duration<double>(timeout_s)) {
-      kill(pid, SIGKILL);
-      waitpid(pid, &status, 0);
-      return -1;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  if (took_s) *took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
 // A lockstep SIL run equals shoal sim of the same scenario, state by state.

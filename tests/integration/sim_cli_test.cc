@@ -190,24 +190,14 @@ TEST(SimCli, LogHasTheSilChannelsAndConsistentChannelTruth) {
 TEST(SimCli, SigintStopsCleanlyWithAReadableLog) {
   const std::string path = TmpPath("sigint.lcmlog");
   const std::string out = TmpPath("sigint.out");
-  const std::string cmd = shoal::testing::ShoalBinary() + " sim " +
-                          SourcePath("scenarios/paper_example2.toml") +
-                          " --duration 1000000 --out " + path + " >" + out + " 2>&1";
-  pid_t pid = fork();
+  const pid_t pid = shoal::testing::StartShoal(
+      "sim " + SourcePath("scenarios/paper_example2.toml") + " --duration 1000000 --out " + path,
+      out);
   ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    execl("/bin/sh", "sh", "-c", ("exec " + cmd).c_str(), static_cast<char*>(nullptr));
-    _exit(127);
-  }
   std::this_thread::sleep_for(std::chrono::milliseconds(700));
-  const auto t0 = std::chrono::steady_clock::now();
   kill(pid, SIGINT);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  const double stop_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 130);
+  double stop_s = 0;
+  EXPECT_EQ(shoal::testing::WaitExit(pid, 10, &stop_s), 130);
   EXPECT_LT(stop_s, 2.0);
   EXPECT_NE(ReadFile(out).find("interrupted"), std::string::npos) << ReadFile(out);
   lcm::LogFile log(path, "r");

@@ -2,6 +2,11 @@
 #pragma once
 
 #include <sys/wait.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <thread>
 
 #include <cstdio>
 #include <cstdlib>
@@ -51,6 +56,37 @@ inline std::string TmpPath(const std::string& name) {
   const std::string dir = std::string(SHOAL_BINARY_DIR) + "/test_tmp";
   std::system(("mkdir -p " + dir).c_str());
   return dir + "/" + name;
+}
+
+/// Starts `shoal ARGS` in the background, output to out_file; returns its pid.
+inline pid_t StartShoal(const std::string& args, const std::string& out_file) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const std::string cmd = "exec " + shoal::testing::ShoalBinary() + " " + args + " >" +
+                            out_file + " 2>&1 </dev/null";
+    execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  return pid;
+}
+
+/// Waits up to timeout_s for pid; returns its exit status, or 256 + signal if a signal
+/// killed it (never confused with an exit status), -1 on timeout
+/// (then it is killed). took_s, if given, receives the time it took.
+inline int WaitExit(pid_t pid, double timeout_s, double* took_s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  int status = 0;
+  for (;;) {
+    if (waitpid(pid, &status, WNOHANG) == pid) break;
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::duration<double>(timeout_s)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  if (took_s) *took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 256 + WTERMSIG(status);
 }
 
 }  // namespace shoal::testing
