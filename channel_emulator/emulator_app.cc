@@ -18,7 +18,8 @@ constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process 
 }
 
 EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
-                         Bus* bus, std::vector<Bus*> vehicle_buses)
+                         Bus* bus, std::vector<Bus*> vehicle_buses,
+                         std::int64_t max_lookahead_ticks)
     : s_(s),
       mode_(mode),
       t0_ns_(t0_ns),
@@ -32,11 +33,16 @@ EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, doubl
       n_(s.followers),
       last_seq_(s.followers + 1, 0),
       have_seq_(s.followers + 1, false),
-      got_tick_(s.followers + 1, false),
-      tick_state_(s.followers + 1),
-      tick_seq_(s.followers + 1, 0),
       alive_(s.followers + 1, true),
       ready_(s.followers + 1, false) {
+  if (mode == Mode::kLockstep) {
+    lookahead_ = std::max<std::int64_t>(
+        1, std::min(channel_.MinLagTicks(), std::max<std::int64_t>(1, max_lookahead_ticks)));
+  }
+  const auto slots = static_cast<std::size_t>(lookahead_ * (n_ + 1));
+  got_tick_.assign(slots, false);
+  tick_state_.resize(slots);
+  tick_seq_.assign(slots, 0);
   for (int id = 0; id <= n_; ++id) rx_channels_.push_back(channels::Rx(id));
 }
 
@@ -74,14 +80,20 @@ void EmulatorApp::OnState(const std::string& channel, const void* data, int size
     return;
   }
   if (mode_ == Mode::kLockstep) {
-    if (tick_ < 0 || m.utime != tick_ * period_us_ || got_tick_[id]) {
+    // Only a state for a tick of the current window, once per sender and tick.
+    const std::int64_t tick = m.utime / period_us_;
+    std::size_t slot = 0;
+    const bool in_window = m.utime >= 0 && m.utime % period_us_ == 0 && tick >= win_first_ &&
+                           tick <= win_last_;
+    if (in_window) slot = static_cast<std::size_t>((tick - win_first_) * (n_ + 1) + id);
+    if (!in_window || got_tick_[slot]) {
       ++counters_.states_old;
       return;
     }
-    got_tick_[id] = true;
-    tick_state_[id].assign(static_cast<const unsigned char*>(data),
-                           static_cast<const unsigned char*>(data) + size);
-    tick_seq_[id] = m.seq;
+    got_tick_[slot] = true;
+    tick_state_[slot].assign(static_cast<const unsigned char*>(data),
+                             static_cast<const unsigned char*>(data) + size);
+    tick_seq_[slot] = m.seq;
   } else {
     // Real time: a state must be about now (forged or replayed times are refused).
     const Micros now = (MonotonicNs() - t0_ns_) / 1000;
@@ -199,22 +211,35 @@ int EmulatorApp::RunLockstep() {
   }
   PublishStatus("running", "");
 
+  // Conservative lookahead (as in conservative parallel discrete-event simulation): a
+  // state sent at tick s is delivered at tick s + lookahead_ at the earliest, so every
+  // delivery due in the window [k, k + lookahead_) comes from states already submitted.
+  // The master releases the whole window -- for each tick its deliveries, then its clock
+  // tick, in that order on each vehicle's bus -- and waits once for all the window's states.
+  // Each vehicle still handles deliveries and ticks one by one in order, so every process
+  // computes exactly what it computes with one round trip per tick (and what shoal sim does).
   bool lost_any = false;
-  for (std::int64_t k = 0; k <= final_tick_; ++k) {
+  for (std::int64_t k = 0; k <= final_tick_; k += lookahead_) {
     if (StopRequested()) {
       PublishStatus("interrupted", "");
       return 1;
     }
-    tick_ = k;
-    const Micros now = k * period_us_;
-    for (int id = 0; id <= n_; ++id) got_tick_[id] = false;
-    DeliverLockstep(now);
-    PublishClock(k);
-    // Wait for the state of every live process for this tick.
+    win_first_ = k;
+    win_last_ = std::min(k + lookahead_ - 1, final_tick_);
+    std::fill(got_tick_.begin(), got_tick_.end(), false);
+    for (std::int64_t j = win_first_; j <= win_last_; ++j) {
+      tick_ = j;
+      DeliverLockstep(j * period_us_);
+      PublishClock(j);
+    }
+    // Wait for the state of every live process for every tick of the window.
     const std::int64_t asked = MonotonicNs();
+    const std::size_t used = static_cast<std::size_t>((win_last_ - win_first_ + 1) * (n_ + 1));
     for (;;) {
       bool all = true;
-      for (int id = 0; id <= n_; ++id) all = all && (!alive_[id] || got_tick_[id]);
+      for (std::size_t slot = 0; slot < used && all; ++slot) {
+        all = !alive_[slot % (n_ + 1)] || got_tick_[slot];
+      }
       if (all) break;
       if (StopRequested()) {
         PublishStatus("interrupted", "");
@@ -222,24 +247,36 @@ int EmulatorApp::RunLockstep() {
       }
       if (MonotonicNs() - asked > kAnswerTimeoutNs) {
         for (int id = 0; id <= n_; ++id) {
-          if (alive_[id] && !got_tick_[id]) {
-            alive_[id] = false;
-            lost_any = true;
-            std::ostringstream msg;
-            msg << "vehicle " << id << " stopped answering at t = " << ToSeconds(now) << " s";
-            std::cerr << "shoal_channel_emulator: " << msg.str() << "\n";
-            PublishStatus("vehicle_lost", msg.str());
+          if (!alive_[id]) continue;
+          std::int64_t missing = -1;  // first tick of the window without its state
+          for (std::int64_t j = win_first_; j <= win_last_ && missing < 0; ++j) {
+            if (!got_tick_[static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id)]) {
+              missing = j;
+            }
           }
+          if (missing < 0) continue;
+          alive_[id] = false;
+          lost_any = true;
+          std::ostringstream msg;
+          msg << "vehicle " << id << " stopped answering at t = "
+              << ToSeconds(missing * period_us_) << " s";
+          std::cerr << "shoal_channel_emulator: " << msg.str() << "\n";
+          PublishStatus("vehicle_lost", msg.str());
         }
         break;
       }
       bus_->Handle(10);
     }
-    // States enter the channel in id order (leader first), as in shoal sim.
-    for (int id = 0; id <= n_; ++id) {
-      if (got_tick_[id]) Submit(id, tick_state_[id], tick_seq_[id], now);
+    // States enter the channel tick by tick, in id order (leader first), as in shoal sim.
+    for (std::int64_t j = win_first_; j <= win_last_; ++j) {
+      const Micros now = j * period_us_;
+      for (int id = 0; id <= n_; ++id) {
+        const auto slot = static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id);
+        if (got_tick_[slot]) Submit(id, tick_state_[slot], tick_seq_[slot], now);
+      }
+      tick_ = j;
+      if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
     }
-    if (now % 1000000 < period_us_ || k == final_tick_) PublishHealth(now);
   }
   PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
   return lost_any ? 4 : 0;
@@ -294,7 +331,13 @@ int EmulatorMain(int argc, char** argv) {
   CLI::App app{"Shoal channel emulator: the only path between vehicles (delay, loss, clock)"};
   ProcessOptions opt;
   std::vector<std::string> vehicle_urls;
+  std::int64_t max_lookahead = 50;
   AddProcessOptions(&app, &opt);
+  app.add_option("--max-lookahead", max_lookahead,
+                 "lockstep: most ticks released per round trip; the channel's smallest "
+                 "delivery lag bounds it (1 = wait for every state after every tick)")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   app.add_option("--vehicle-urls", vehicle_urls,
                  "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
       ->delimiter(',');
@@ -323,7 +366,12 @@ int EmulatorMain(int argc, char** argv) {
         vbus.push_back(own.back().get());
       }
     }
-    EmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus);
+    EmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus,
+                     max_lookahead);
+    if (opt.parsed_mode() == Mode::kLockstep) {
+      std::cerr << "shoal_channel_emulator: lockstep, " << app_.lookahead_ticks()
+                << " tick(s) per round trip\n";
+    }
     app_.Init();
     return app_.Run();
   } catch (const std::exception& e) {

@@ -27,13 +27,17 @@ class EmulatorApp {
  public:
   /// `vehicle_buses[id]` is where vehicle id receives (its SHOAL_RX and, in lockstep, the
   /// clock); entries may all be `bus`.
+  /// `max_lookahead_ticks` (lockstep): how many ticks the clock master may release before
+  /// it waits for the states; the channel's minimum delivery lag bounds it (see Run).
   EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s, Bus* bus,
-              std::vector<Bus*> vehicle_buses);
+              std::vector<Bus*> vehicle_buses, std::int64_t max_lookahead_ticks = 50);
   void Init();
   /// 0: ran to the end with every process; 4: ran to the end, some process stopped
   /// answering (named on stderr and in SHOAL_STATUS); 1: interrupted; 3: start-up failed.
   int Run();
   const EmulatorCounters& counters() const { return counters_; }
+  /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
+  std::int64_t lookahead_ticks() const { return lookahead_; }
 
  private:
   using Bytes = std::vector<unsigned char>;
@@ -59,9 +63,12 @@ class EmulatorApp {
   std::vector<std::string> rx_channels_;
   int n_;  // followers
 
-  // Per sender: newest accepted seq, and (lockstep) the state received for this tick.
+  // Per sender: newest accepted seq, and (lockstep) the states received for the ticks of
+  // the current window [win_first_, win_last_], at slot (tick - win_first_) * (n + 1) + id.
   std::vector<std::int32_t> last_seq_;
   std::vector<bool> have_seq_;
+  std::int64_t lookahead_ = 1;
+  std::int64_t win_first_ = 0, win_last_ = -1;
   std::vector<bool> got_tick_;
   std::vector<Bytes> tick_state_;
   std::vector<std::int32_t> tick_seq_;

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <queue>
 #include <utility>
 #include <vector>
@@ -64,6 +66,27 @@ inline double MaxDelaySeconds(const DelayConfig& c) {
   }
 }
 
+/// Lower bound of tau(t) for a delay model (never negative: DelaySeconds clips at 0).
+inline double MinDelaySeconds(const DelayConfig& c) {
+  switch (c.kind) {
+    case DelayKind::kNone:
+      return 0.0;
+    case DelayKind::kConstant:
+      return std::max(c.base_s, 0.0);
+    default:
+      return std::max(c.base_s - std::fabs(c.amplitude_s), 0.0);
+  }
+}
+
+/// The fewest control ticks between a message's send tick and its delivery tick that a
+/// delay of at least `min_delay_s` can give under DeliveryTime's rule (at least 1). One
+/// microsecond of slack covers the rounding of tau to whole microseconds.
+inline std::int64_t MinDeliveryLagTicks(double min_delay_s, Micros period_us) {
+  const auto d = static_cast<Micros>(std::floor(min_delay_s * 1e6)) - 1;
+  if (period_us <= 0 || d <= 0) return 1;
+  return std::max<std::int64_t>(1, (d + period_us - 1) / period_us);
+}
+
 /// One channel decision (becomes a channel_event_t).
 struct ChannelDecision {
   int sender = 0;
@@ -116,6 +139,11 @@ class Channel {
  public:
   Channel(std::vector<Link> links, Micros period_us, std::size_t max_pending = 1 << 20)
       : links_(std::move(links)), period_us_(period_us), max_pending_(max_pending) {
+    for (const Link& l : links_) {
+      min_lag_ticks_ = std::min(min_lag_ticks_, MinDeliveryLagTicks(MinDelaySeconds(l.delay),
+                                                                    period_us_));
+    }
+    if (links_.empty()) min_lag_ticks_ = 1;
     double max_delay_s = 0.0;
     for (std::size_t k = 0; k < links_.size(); ++k) {
       const int from = links_[k].from;
@@ -182,6 +210,11 @@ class Channel {
     }
     if (refs_[slot] == 0) free_.push_back(slot);
   }
+
+  /// Lookahead (period > 0): no message is ever delivered fewer than this many ticks after
+  /// its send tick, on any link. Deliveries due in the next lookahead ticks are therefore
+  /// already decided; a lockstep clock master may release that many ticks at once.
+  std::int64_t MinLagTicks() const { return min_lag_ticks_; }
 
   /// Time of the earliest pending delivery, or -1 if none.
   Micros NextDue() const {
@@ -280,6 +313,7 @@ class Channel {
   std::vector<int> refs_;
   std::vector<int> free_;
   std::vector<Link> links_;
+  std::int64_t min_lag_ticks_ = std::numeric_limits<std::int64_t>::max();
   std::vector<std::vector<std::size_t>> by_sender_;  // sender id -> its links
   Micros period_us_;
   std::size_t max_pending_;

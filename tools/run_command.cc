@@ -24,6 +24,7 @@
 #include "runtime/channels.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/log_tail.h"
 #include "runtime/messages.h"
 #include "runtime/scenario_loader.h"
 #include "tools/json.h"
@@ -231,8 +232,14 @@ int RunRun(const RunOptions& opt) {
     port = 20000 + static_cast<int>(rd() % 20000) * 2;
     url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
   }
+  // Each vehicle receives on its own group unless asked otherwise: on one shared group
+  // every vehicle's socket would receive -- and wake up for -- every message of the run.
   std::vector<std::string> vurls;
-  if (opt.per_vehicle_urls) {
+  if (opt.per_vehicle_urls && opt.shared_url) {
+    std::cerr << "shoal run: --per-vehicle-urls and --shared-url exclude each other\n";
+    return 2;
+  }
+  if (opt.per_vehicle_urls || (port != 0 && !opt.shared_url)) {
     if (port == 0) {
       std::cerr << "shoal run: --per-vehicle-urls needs the default private URL\n";
       return 2;
@@ -291,10 +298,13 @@ int RunRun(const RunOptions& opt) {
   };
   std::string vlist;
   for (std::size_t i = 0; i < vurls.size(); ++i) vlist += (i ? "," : "") + vurls[i];
-  start("channel emulator", kEmulatorId,
-        with({emulator_exe}, vurls.empty() ? std::vector<std::string>{}
-                                           : std::vector<std::string>{"--vehicle-urls", vlist}),
-        run_nice, "emulator");
+  std::vector<std::string> emulator_more = {"--max-lookahead", std::to_string(opt.max_lookahead)};
+  if (!vurls.empty()) {
+    emulator_more.push_back("--vehicle-urls");
+    emulator_more.push_back(vlist);
+  }
+  start("channel emulator", kEmulatorId, with({emulator_exe}, emulator_more), run_nice,
+        "emulator");
   start("leader", 0,
         with({leader_exe}, vurls.empty() ? std::vector<std::string>{}
                                          : std::vector<std::string>{"--rx-url", vurls[0]}),
@@ -309,12 +319,15 @@ int RunRun(const RunOptions& opt) {
           "vehicle" + std::to_string(id));
   }
 
-  // Supervise: progress from the live bus, process deaths from waitpid.
-  LcmBus live(url);
+  // Supervise: progress from the log as lcm-logger writes it (not from the bus: a
+  // listener on the run's group would receive, and wake up for, every message of the run),
+  // process deaths from waitpid.
+  LogTail tail(out);
   std::int64_t last_tick_utime = 0;
   double worst_pos = 0.0;
   std::vector<StateMsg> latest(s.followers + 1);
-  live.Subscribe("SHOAL_STATE_[0-9]+", [&](const std::string&, const void* d, int n) {
+  const LogTail::Handler on_event = [&](const std::string& ch, const void* d, int n) {
+    if (ch.rfind("SHOAL_STATE_", 0) != 0) return;
     vehicle_state_t m{};
     if (!Decode(d, n, &m) || m.vehicle_id < 0 || m.vehicle_id > s.followers) return;
     latest[m.vehicle_id] = FromLcm(m);
@@ -322,14 +335,14 @@ int RunRun(const RunOptions& opt) {
     if (m.vehicle_id > 0) {
       worst_pos = ErrorsOf(latest[m.vehicle_id], s.offsets_m[m.vehicle_id - 1], latest[0]).position_m;
     }
-  });
+  };
   const bool show = !opt.quiet && !opt.json && isatty(2);
   const auto wall0 = std::chrono::steady_clock::now();
   auto last_show = wall0;
   std::vector<std::string> problems;
   bool emulator_done = false;
   while (!emulator_done && !g_interrupted) {
-    live.Handle(50);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
     for (Child& c : kids) {
       if (!c.running) continue;
       if (waitpid(c.pid, &c.status, WNOHANG) == c.pid) {
@@ -347,6 +360,7 @@ int RunRun(const RunOptions& opt) {
     const auto now = std::chrono::steady_clock::now();
     if (show && now - last_show > std::chrono::milliseconds(500)) {
       last_show = now;
+      tail.Poll(on_event);
       int alive = 0;
       for (const Child& c : kids) alive += c.running && c.id != -100;
       const double wall = std::chrono::duration<double>(now - wall0).count();

@@ -10,7 +10,9 @@ struct RunOptions {
   double duration_s = -1;
   std::string out;          // log path; default <scenario name>.lcmlog
   std::string lcm_url;      // default: a private udpm URL (random port, ttl=0)
-  bool per_vehicle_urls = false;
+  bool per_vehicle_urls = false;  // explicit; the default with the private URL anyway
+  bool shared_url = false;        // everything on one group (vehicles hear all traffic)
+  long long max_lookahead = 50;  // lockstep: most ticks the clock master releases at once
   bool json = false;
   bool quiet = false;
 };

@@ -32,7 +32,16 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--out", run.out, "LCM log path (default: <scenario name>.lcmlog)");
   run_cmd->add_option("--lcm-url", run.lcm_url, "Use this LCM URL instead of a private one");
   run_cmd->add_flag("--per-vehicle-urls", run.per_vehicle_urls,
-                    "Deliver to each vehicle on its own multicast group");
+                    "Deliver to each vehicle on its own multicast group (the default with "
+                    "the private URL; refused with --lcm-url)");
+  run_cmd->add_flag("--shared-url", run.shared_url,
+                    "Put every process on the run's one multicast group (every vehicle then "
+                    "receives all traffic; the log then also holds SHOAL_RX_<id>)");
+  run_cmd->add_option("--max-lookahead", run.max_lookahead,
+                      "lockstep: most ticks released per round trip (the smallest delivery "
+                      "lag of the channel bounds it; 1 = a round trip every tick)")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   run_cmd->add_flag("--json", run.json, "Print one JSON object instead of the summary");
   run_cmd->add_flag("--quiet", run.quiet, "No progress line");
 
