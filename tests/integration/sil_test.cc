@@ -95,6 +95,34 @@ TEST(Sil, TwoLockstepRunsGiveIdenticalStates) {
   EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * (10 * 50 + 1)) << cmp.out;
 }
 
+// Real time: fixed-rate loops on the wall clock and the emulator releasing each message at
+// send time + tau. The trajectories follow the lockstep run's to within what a few
+// milliseconds of timing error can make of them; accuracy figures are measured by
+// bench/sil_speed.sh, not here (this may run on a loaded machine).
+TEST(Sil, RealtimeRunFollowsTheLockstepRun) {
+  const std::string rt_log = TmpPath("sil_rt.lcmlog"), ls_log = TmpPath("sil_rt_ls.lcmlog");
+  const auto rt = RunShoal("run " + kExample2 + " --mode realtime --duration 8 --json --out " +
+                               rt_log, "sil_rt");
+  ASSERT_EQ(rt.status, 0) << rt.out << rt.err;
+  EXPECT_NE(rt.out.find("\"mode\":\"realtime\""), std::string::npos) << rt.out;
+  EXPECT_NE(rt.out.find("\"all_processes_ok\":true"), std::string::npos) << rt.out;
+  // 10 links x 401 ticks, no loss model: every state is delivered on every link.
+  EXPECT_GE(JsonNumber(rt.out, "delivered"), 0.95 * 10 * 401) << rt.out;
+  EXPECT_EQ(JsonNumber(rt.out, "dropped"), 0.0) << rt.out;
+  EXPECT_LT(JsonNumber(rt.out, "delay_error_p99_s"), 0.02) << rt.out;
+  EXPECT_GE(JsonNumber(rt.out, "lateness_p99_s"), 0.0) << rt.out;  // measured, not 0 by definition
+  EXPECT_GE(JsonNumber(rt.out, "overruns"), 0.0) << rt.out;
+  // Real time advances with the wall clock: 8 s of run take at least 8 s.
+  EXPECT_GE(JsonNumber(rt.out, "wall_time_s"), 8.0) << rt.out;
+  ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 8 --quiet --out " + ls_log, "sil_rt_ls").status, 0);
+  const auto cmp = RunShoal("compare " + rt_log + " " + ls_log + " --json", "sil_rt_cmp");
+  ASSERT_EQ(cmp.status, 0) << cmp.err;
+  EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * 401) << cmp.out;
+  EXPECT_LE(JsonNumber(cmp.out, "max_position_diff_m"), 0.1) << cmp.out;  // seen: 2.4e-3
+  EXPECT_GT(JsonNumber(cmp.out, "max_position_diff_m"), 0.0)
+      << "a real-time run cannot be bit-identical to lockstep; the modes were not both run";
+}
+
 TEST(Sil, SigintStopsEverythingWithinTwoSecondsWithAReadableLog) {
   const int port = 31121;
   const std::string log = TmpPath("sil_sigint.lcmlog"), out = TmpPath("sil_sigint.out");
