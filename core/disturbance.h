@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/channel_model.h"
 #include "core/leader_path.h"
 #include "core/rng.h"
 #include "core/scenario.h"
@@ -24,28 +25,52 @@ inline Vec5 PaperExample2F(const Vec5& x, const Vec5& v) {
 
 /// What the simulated world knows besides each vehicle's own state: the leader's path,
 /// for the paper's uncertain factor relative to the leader. One instance may be shared by
-/// the followers of a process; it caches its last answer (followers ask for the same time).
+/// the followers of a process, also across threads: reads never write. The owner may
+/// Warm() it with the time every follower is about to ask for (all followers ask for the
+/// same time in a tick), before the followers step.
 class Environment {
  public:
-  explicit Environment(const LeaderConfig& c) : path_(c) {}
+  /// `disturbance_delay`: the delay model at whose tau(t) the uncertain factor's
+  /// arguments are taken (the scenario's default link delay).
+  Environment(const LeaderConfig& c, const DelayConfig& disturbance_delay)
+      : path_(c), delay_(disturbance_delay) {}
   const LeaderPath& leader_path() const { return path_; }
 
-  /// f(x_0(t), v_0(t)) of paper Example 2 on the leader's path at time t.
-  const Vec5& LeaderPaperF(double t_s) const {
-    if (!valid_ || t_s != t_) {
-      const LeaderSample l = path_.At(t_s);
-      f0_ = PaperExample2F(l.eta, l.eta_dot);
-      t_ = t_s;
-      valid_ = true;
-    }
-    return f0_;
+  /// The uncertain factor's delay at tick time `now`, in whole microseconds (its
+  /// deterministic part: NominalDelaySeconds), and f(x_0, v_0) of paper Example 2 on the
+  /// leader's path at max(0, now - delay).
+  struct DelayedLeader {
+    Micros delay_us = 0;
+    Vec5 f0 = Vec5::Zero();
+  };
+  DelayedLeader At(Micros now) const {
+    if (valid_ && now == now_) return cached_;
+    return Compute(now);
+  }
+
+  /// Caches At(now). Not to be called while followers step.
+  void Warm(Micros now) {
+    if (valid_ && now == now_) return;
+    cached_ = Compute(now);
+    now_ = now;
+    valid_ = true;
   }
 
  private:
+  DelayedLeader Compute(Micros now) const {
+    DelayedLeader d;
+    d.delay_us = static_cast<Micros>(
+        std::llround(NominalDelaySeconds(delay_, ToSeconds(now)) * 1e6));
+    const LeaderSample l = path_.At(std::max(0.0, ToSeconds(now - d.delay_us)));
+    d.f0 = PaperExample2F(l.eta, l.eta_dot);
+    return d;
+  }
+
   LeaderPath path_;
-  mutable bool valid_ = false;
-  mutable double t_ = 0.0;
-  mutable Vec5 f0_ = Vec5::Zero();
+  DelayConfig delay_;
+  bool valid_ = false;
+  Micros now_ = 0;
+  DelayedLeader cached_;
 };
 
 /// First-order Gauss-Markov current speed (Fossen 2011, sec. 8.3):

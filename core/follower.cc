@@ -19,9 +19,8 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
                                                          s.vehicle.integrator_step_s)))),
       tau_max_(s.vehicle.tau_max),
       disturbance_(s.disturbance.kind),
-      disturbance_delay_(s.delay),
       disturbance_relative_(s.disturbance.relative_to_leader),
-      env_(env ? std::move(env) : std::make_shared<const Environment>(s.leader)),
+      env_(env ? std::move(env) : std::make_shared<const Environment>(s.leader, s.delay)),
       current_(s.disturbance.current, Rng(s.seed, 0xC0FFEEULL, static_cast<std::uint64_t>(id))),
       slot_of_(topo.n() + 1, -1) {
   // Initial state: as given, or at the leader's start + offset, at rest.
@@ -135,13 +134,13 @@ const StateMsg& Follower::Tick(Micros now) {
   const double period_s = ToSeconds(period_us_);
   if (disturbance_ == DisturbanceKind::kPaperExample2) {
     // f(eta(t - tau(t)), eta_dot(t - tau(t))) in eta'': as a force, M J^{-1} f.
-    const Micros delay_us = static_cast<Micros>(
-        std::llround(NominalDelaySeconds(disturbance_delay_, ToSeconds(now)) * 1e6));
+    const Environment::DelayedLeader dl = env_->At(now);
+    const Micros delay_us = dl.delay_us;
     HistorySample past;
     if (!history_.At(now - delay_us, &past)) past = history_.Oldest();
     Vec5 f = PaperExample2F(past.eta, past.eta_dot);
     if (disturbance_relative_) {
-      f -= env_->LeaderPaperF(std::max(0.0, ToSeconds(now - delay_us)));
+      f -= dl.f0;
     }
     tau_dist = model_.M() * (FossenModel::JInv(trig) * f);
   } else if (disturbance_ == DisturbanceKind::kOceanCurrent) {

@@ -72,7 +72,6 @@ class Follower {
   int substeps_;
   Vec5 tau_max_;
   DisturbanceKind disturbance_;
-  DelayConfig disturbance_delay_;
   bool disturbance_relative_;
   std::shared_ptr<const Environment> env_;
   OceanCurrent current_;

@@ -11,10 +11,11 @@ Swarm::Swarm(const Scenario& s, double duration_s)
           std::floor((duration_s >= 0 ? duration_s : s.duration_s) * 1e6 / period_us_ + 1e-9))),
       leader_(s),
       channel_(BuildLinks(s, topo_), period_us_),
-      metrics_(s.offsets_m, s.metrics) {
-  auto env = std::make_shared<const Environment>(s.leader);
+      metrics_(s.offsets_m, s.metrics),
+      env_(std::make_shared<Environment>(s.leader, s.delay)),
+      warm_env_(s.disturbance.kind == DisturbanceKind::kPaperExample2) {
   for (int i = 1; i <= s.followers; ++i) {
-    followers_.push_back(std::make_unique<Follower>(s, topo_, i, env));
+    followers_.push_back(std::make_unique<Follower>(s, topo_, i, env_));
   }
   published_.resize(followers_.size());
   decisions_.reserve(topo_.Links().size());
@@ -31,6 +32,7 @@ bool Swarm::Step(SwarmObserver* obs) {
     followers_[receiver - 1]->Receive(m);
   });
 
+  if (warm_env_) env_->Warm(now);
   const StateMsg& lm = leader_.Tick(now);
   for (std::size_t i = 0; i < followers_.size(); ++i) {
     published_[i] = &followers_[i]->Tick(now);

@@ -65,6 +65,10 @@ class Swarm {
   int diverged_id_ = 0;
   std::int64_t delivered_ = 0;
   std::int64_t dropped_ = 0;
+
+  // Shared by the followers; warmed once per tick (they all ask for the same time).
+  std::shared_ptr<Environment> env_;
+  bool warm_env_ = false;
 };
 
 }  // namespace shoal

@@ -122,6 +122,49 @@ TEST(ChannelDeliveryTimeTest, FirstTickAtOrAfterDueAndAfterSendTick) {
 // ---------------------------------------------------------------------------------------
 // Delay and loss models
 
+// The lockstep clock master's lookahead: no delivery ever comes sooner than
+// MinDeliveryLagTicks after its send tick, and the bound is tight for constant delays.
+TEST(ChannelLookaheadTest, MinimumLagBoundsEveryDeliveryAndIsTight) {
+  const Micros period = 20000;
+  EXPECT_EQ(MinDeliveryLagTicks(0.0, period), 1);
+  EXPECT_EQ(MinDeliveryLagTicks(0.019, period), 1);
+  EXPECT_EQ(MinDeliveryLagTicks(0.02, period), 1);   // exactly one period: next tick
+  EXPECT_EQ(MinDeliveryLagTicks(0.0201, period), 2);
+  EXPECT_EQ(MinDeliveryLagTicks(0.05, period), 3);   // paper Example 2: 0.1 - 0.05
+  DelayConfig sine{DelayKind::kSinusoid, 0.1, 0.05, 1.0};
+  DelayConfig uni{DelayKind::kUniform, 0.08, 0.03, 0.0};
+  EXPECT_DOUBLE_EQ(MinDelaySeconds(sine), 0.05);
+  EXPECT_DOUBLE_EQ(MinDelaySeconds(uni), 0.05);
+  EXPECT_DOUBLE_EQ(MinDelaySeconds(DelayConfig{DelayKind::kUniform, 0.01, 0.03, 0.0}), 0.0);
+  Rng rng(7, 1, 2);
+  for (const DelayConfig& c : {sine, uni, DelayConfig{DelayKind::kConstant, 0.06, 0, 0},
+                               DelayConfig{DelayKind::kConstant, 0.0601, 0, 0}}) {
+    const std::int64_t lag = MinDeliveryLagTicks(MinDelaySeconds(c), period);
+    std::int64_t smallest = 1 << 30;
+    for (std::int64_t k = 0; k < 20000; ++k) {
+      const Micros send = k * period;
+      const Micros at = DeliveryTime(send, DelaySeconds(c, ToSeconds(send), &rng), period);
+      smallest = std::min(smallest, at / period - k);
+    }
+    EXPECT_GE(smallest, lag) << "model kind " << static_cast<int>(c.kind);
+    if (c.kind == DelayKind::kConstant) {
+      EXPECT_EQ(smallest, lag) << c.base_s;
+    }
+  }
+  // A channel's lookahead is its tightest link (a per-link override of 10 ms -> 1 tick).
+  Scenario s = PaperScenario(1);
+  s.delay = sine;
+  EXPECT_EQ(Channel<int>(BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links)),
+                         period).MinLagTicks(), 3);
+  LinkOverride o;
+  o.from = 0;
+  o.to = 1;
+  o.delay = DelayConfig{DelayKind::kConstant, 0.01, 0, 0};
+  s.links.push_back(o);
+  EXPECT_EQ(Channel<int>(BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links)),
+                         period).MinLagTicks(), 1);
+}
+
 TEST(ChannelDelaySecondsTest, DeterministicModels) {
   DelayConfig none;
   EXPECT_EQ(DelaySeconds(none, 12.3, nullptr), 0.0);
