@@ -11,15 +11,29 @@
 
 namespace shoal {
 
+/// tanh to within 4e-15 relative (tests/unit: against std::tanh), about twice as fast as
+/// glibc's (which goes through expm1): odd Taylor series to x^11 below 1/16, where
+/// 1 - 2/(e^{2|x|} + 1) would cancel, the exp form above, +-1 beyond 19.
+inline double FastTanh(double x) {
+  const double ax = std::fabs(x);
+  if (ax < 0.0625) {
+    const double x2 = x * x;
+    return x * (1.0 + x2 * (-1.0 / 3.0 + x2 * (2.0 / 15.0 + x2 * (-17.0 / 315.0 +
+                x2 * (62.0 / 2835.0 + x2 * (-1382.0 / 155925.0))))));
+  }
+  if (!(ax <= 19.0)) return std::isnan(x) ? x : std::copysign(1.0, x);
+  return std::copysign(1.0 - 2.0 / (std::exp(2.0 * ax) + 1.0), x);
+}
+
 /// Paper Example 2's uncertain factor F~(x, v) (an acceleration in eta''), evaluated by the
 /// caller at the delayed arguments x = eta(t - tau(t)), v = eta_dot(t - tau(t)).
 inline Vec5 PaperExample2F(const Vec5& x, const Vec5& v) {
   Vec5 f;
-  f(0) = 0.4 * std::tanh(v(0));
-  f(1) = 0.01 * std::sin(x(1)) - 0.45 * std::tanh(v(1));
+  f(0) = 0.4 * FastTanh(v(0));
+  f(1) = 0.01 * std::sin(x(1)) - 0.45 * FastTanh(v(1));
   f(2) = -0.01 * std::cos(x(2));
-  f(3) = 0.48 * std::tanh(v(3));
-  f(4) = 0.02 * std::sin(x(4)) - 0.5 * std::tanh(v(4));
+  f(3) = 0.48 * FastTanh(v(3));
+  f(4) = 0.02 * std::sin(x(4)) - 0.5 * FastTanh(v(4));
   return f;
 }
 
