@@ -177,10 +177,12 @@ void EmulatorApp::PublishStatus(const std::string& state, const std::string& mes
   run_status_t st;
   st.utime = std::max<std::int64_t>(tick_, 0) * period_us_;
   st.vehicle_id = kEmulatorId;
+  // The first status carries the scenario's text, so that the run's log reproduces it
+  // (as shoal sim's does); shoal analyze and shoal render read it from there.
+  st.scenario_toml = status_seq_ == 0 ? s_.source_text : "";
   st.seq = status_seq_++;
   st.state = state;
   st.scenario_name = s_.name;
-  st.scenario_toml = "";
   st.seed = static_cast<std::int64_t>(s_.seed);
   st.followers = n_;
   st.message = message;
