@@ -98,19 +98,32 @@ bool LmiProblem::IsValid(std::string* why) const {
 
 std::string CsdpReturnCodeMeaning(int code) {
   switch (code) {
-    case -1: return "problem rejected before calling CSDP";
-    case 0: return "solved to full accuracy";
-    case 1: return "LMI objective unbounded below (CSDP primal infeasible, certificate found)";
-    case 2: return "LMI constraints infeasible (CSDP dual infeasible, certificate found)";
-    case 3: return "solved to reduced accuracy (partial success)";
-    case 4: return "failure: maximum iterations reached";
-    case 5: return "failure: stuck at the edge of primal feasibility";
-    case 6: return "failure: stuck at the edge of dual feasibility";
-    case 7: return "failure: lack of progress";
-    case 8: return "failure: X, Z or O was singular";
-    case 9: return "failure: NaN or Inf detected";
-    case 10: return "failure: stopped by a signal";
-    default: return "unknown CSDP return code " + std::to_string(code);
+    case -1:
+      return "problem rejected before calling CSDP";
+    case 0:
+      return "solved to full accuracy";
+    case 1:
+      return "LMI objective unbounded below (CSDP primal infeasible, certificate found)";
+    case 2:
+      return "LMI constraints infeasible (CSDP dual infeasible, certificate found)";
+    case 3:
+      return "solved to reduced accuracy (partial success)";
+    case 4:
+      return "failure: maximum iterations reached";
+    case 5:
+      return "failure: stuck at the edge of primal feasibility";
+    case 6:
+      return "failure: stuck at the edge of dual feasibility";
+    case 7:
+      return "failure: lack of progress";
+    case 8:
+      return "failure: X, Z or O was singular";
+    case 9:
+      return "failure: NaN or Inf detected";
+    case 10:
+      return "failure: stopped by a signal";
+    default:
+      return "unknown CSDP return code " + std::to_string(code);
   }
 }
 
@@ -261,9 +274,9 @@ CsdpSolution SolveWithCsdp(const LmiProblem& problem, const CsdpOptions& options
         merged.push_back(x);
       }
     }
-    merged.erase(std::remove_if(merged.begin(), merged.end(),
-                                [](const auto& x) { return x.value == 0.0; }),
-                 merged.end());
+    merged.erase(
+        std::remove_if(merged.begin(), merged.end(), [](const auto& x) { return x.value == 0.0; }),
+        merged.end());
     if (merged.empty()) {
       out.return_code = -1;
       out.message = "malformed LMI: variable " + std::to_string(v) +
@@ -362,19 +375,18 @@ CsdpSolution SolveWithCsdp(const LmiProblem& problem, const CsdpOptions& options
   params.fastmode = 0;
 
   double pobj = 0.0, dobj = 0.0;
-  const int ret = sdp(ws.n, k, ws.C, ws.a, 0.0, ws.constraints, ws.byblocks, ws.fill, ws.X,
-                      ws.y, ws.Z, ws.cholxinv, ws.cholzinv, &pobj, &dobj, ws.work1, ws.work2,
-                      ws.work3, workvec[0], workvec[1], workvec[2], workvec[3], workvec[4],
-                      workvec[5], workvec[6], workvec[7], diagO, ws.bestx, besty, ws.bestz,
-                      ws.Zi, O, rhs, ws.dZ, ws.dX, dy, dy1, Fp, printlevel, params);
+  const int ret =
+      sdp(ws.n, k, ws.C, ws.a, 0.0, ws.constraints, ws.byblocks, ws.fill, ws.X, ws.y, ws.Z,
+          ws.cholxinv, ws.cholzinv, &pobj, &dobj, ws.work1, ws.work2, ws.work3, workvec[0],
+          workvec[1], workvec[2], workvec[3], workvec[4], workvec[5], workvec[6], workvec[7], diagO,
+          ws.bestx, besty, ws.bestz, ws.Zi, O, rhs, ws.dZ, ws.dX, dy, dy1, Fp, printlevel, params);
   out.return_code = ret;
   out.message = CsdpReturnCodeMeaning(ret);
   out.y.resize(k);
   for (int v = 0; v < k; ++v) out.y(v) = ws.y[v + 1];
   out.objective = dobj;
   out.csdp_primal_objective = pobj;
-  out.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }
 

@@ -9,10 +9,9 @@
 // (it never reads param.csdp from the working directory and prints nothing).
 #pragma once
 
+#include <Eigen/Dense>
 #include <string>
 #include <vector>
-
-#include <Eigen/Dense>
 
 namespace shoal::design {
 
@@ -57,7 +56,7 @@ class LmiProblem {
  private:
   std::vector<Block> blocks_;
   std::vector<double> cost_;
-  std::vector<std::vector<Entry>> coeff_;   // per variable, unmerged (merged at solve time)
+  std::vector<std::vector<Entry>> coeff_;  // per variable, unmerged (merged at solve time)
   std::vector<Eigen::MatrixXd> constant_;  // per block, full symmetric
 };
 
@@ -73,11 +72,11 @@ struct CsdpOptions {
 /// not passed to CSDP because it is malformed (see `message`).
 struct CsdpSolution {
   int return_code = -1;
-  std::string message;        // CsdpReturnCodeMeaning(), or why the problem was rejected
-  Eigen::VectorXd y;          // the LMI variables (empty if not solved)
-  double objective = 0.0;     // cᵀy at the returned point (CSDP's dual objective)
+  std::string message;                 // CsdpReturnCodeMeaning(), or why the problem was rejected
+  Eigen::VectorXd y;                   // the LMI variables (empty if not solved)
+  double objective = 0.0;              // cᵀy at the returned point (CSDP's dual objective)
   double csdp_primal_objective = 0.0;  // CSDP's primal objective (the lower bound)
-  double seconds = 0.0;       // wall time inside CSDP, set-up included
+  double seconds = 0.0;                // wall time inside CSDP, set-up included
   /// True for codes 0 and 3: y is an (approximate) optimum worth checking.
   bool solved() const { return return_code == 0 || return_code == 3; }
 };

@@ -59,7 +59,7 @@ struct MatrixVariable {
   enum Kind { kSymmetric, kFull, kDiagonal };
   Kind kind = kSymmetric;
   int rows = 0;
-  int first = 0;  // index of its first scalar variable
+  int first = 0;                             // index of its first scalar variable
   std::vector<std::pair<int, int>> entries;  // (i, j) of each scalar, i <= j if symmetric
 
   static MatrixVariable Make(Kind kind, int rows, LmiProblem* p) {
@@ -69,8 +69,8 @@ struct MatrixVariable {
     v.first = p->num_variables();
     for (int j = 0; j < rows; ++j) {
       for (int i = 0; i < rows; ++i) {
-        const bool take = kind == kFull || (kind == kSymmetric && i <= j) ||
-                          (kind == kDiagonal && i == j);
+        const bool take =
+            kind == kFull || (kind == kSymmetric && i <= j) || (kind == kDiagonal && i == j);
         if (take) {
           v.entries.emplace_back(i, j);
           p->AddVariable(0.0);
@@ -136,9 +136,9 @@ bool Theorem3Input::IsValid(std::string* why) const {
 
 Theorem3Multipliers PaperMultipliers(int n) {
   const int m = 2 * n;
-  return {MatrixXd::Zero(m, m),         0.1 * MatrixXd::Identity(m, m),
-          MatrixXd::Identity(m, m),     0.3 * MatrixXd::Identity(m, m),
-          MatrixXd::Zero(m, m),         0.6 * MatrixXd::Identity(n, n)};
+  return {MatrixXd::Zero(m, m),     0.1 * MatrixXd::Identity(m, m),
+          MatrixXd::Identity(m, m), 0.3 * MatrixXd::Identity(m, m),
+          MatrixXd::Zero(m, m),     0.6 * MatrixXd::Identity(n, n)};
 }
 
 MatrixXd AssembleXi(const Theorem3Input& in, const Theorem3Multipliers& mu) {
@@ -181,8 +181,15 @@ MatrixXd AssembleXi(const Theorem3Input& in, const Theorem3Multipliers& mu) {
 
 Theorem3Check CheckMultipliers(const Theorem3Input& in, const Theorem3Multipliers& mu) {
   Theorem3Check c;
+  c.margin = -kInf;
   const int n = static_cast<int>(in.H.rows());
   const int m = 2 * n;
+  auto square = [](const MatrixXd& x, int size) { return x.rows() == size && x.cols() == size; };
+  if (n == 0 || !square(in.H, n) || !square(mu.Q, m) || !square(mu.Psi, m) || !square(mu.Z, m) ||
+      !square(mu.X, m) || !square(mu.Y, m) || !square(mu.Phi, n)) {
+    c.xi_max_eigenvalue = kInf;
+    return c;  // wrong shapes: no certificate
+  }
   MatrixXd xyz(2 * m, 2 * m);
   xyz << mu.X, mu.Y, mu.Y.transpose(), mu.Z;
   c.xi_max_eigenvalue = MaxEig(AssembleXi(in, mu));
@@ -195,12 +202,10 @@ Theorem3Check CheckMultipliers(const Theorem3Input& in, const Theorem3Multiplier
   off.diagonal().setZero();
   c.phi_off_diagonal = off.size() ? off.cwiseAbs().maxCoeff() : 0.0;
   c.scale = mu.Q.trace() + mu.Psi.trace() + mu.X.trace() + mu.Z.trace() + mu.Phi.trace();
-  const double worst = std::min({-c.xi_max_eigenvalue, c.q_min_eigenvalue,
-                                 c.psi_min_eigenvalue, c.phi_min_eigenvalue,
-                                 c.xyz_min_eigenvalue});
-  c.margin = (std::isfinite(worst) && c.scale > 0.0 && std::isfinite(c.scale))
-                 ? worst / c.scale
-                 : -kInf;
+  const double worst = std::min({-c.xi_max_eigenvalue, c.q_min_eigenvalue, c.psi_min_eigenvalue,
+                                 c.phi_min_eigenvalue, c.xyz_min_eigenvalue});
+  c.margin =
+      (std::isfinite(worst) && c.scale > 0.0 && std::isfinite(c.scale)) ? worst / c.scale : -kInf;
   // The corrected Q1 bound is valid for a diagonal Φ only.
   if (in.form == Theorem3Form::kCorrected && c.phi_off_diagonal != 0.0) c.margin = -kInf;
   return c;
@@ -211,6 +216,7 @@ Theorem3Result CheckTheorem3(const Theorem3Input& in, const Theorem3Options& opt
   Theorem3Result r;
   r.input = in;
   r.strict_margin = options.strict_margin;
+  r.check.margin = -kInf;
   std::string why;
   if (!in.IsValid(&why)) {
     r.message = "invalid input: " + why;
@@ -309,7 +315,7 @@ Theorem3Result CheckTheorem3(const Theorem3Input& in, const Theorem3Options& opt
   r.csdp_status = s.message;
   if (s.y.size() == p.num_variables()) {
     r.certificate = {Q.Value(s.y), Psi.Value(s.y), Z.Value(s.y),
-                     X.Value(s.y), Y.Value(s.y), Phi.Value(s.y)};
+                     X.Value(s.y), Y.Value(s.y),   Phi.Value(s.y)};
     r.solver_margin = s.y(t);
     r.check = CheckMultipliers(in, r.certificate);
   } else {
@@ -323,13 +329,13 @@ Theorem3Result CheckTheorem3(const Theorem3Input& in, const Theorem3Options& opt
     msg << "not certified: CSDP returned " << s.return_code << " (" << s.message << ")";
   } else if (!(r.check.margin >= options.strict_margin)) {
     std::snprintf(num, sizeof(num), "%.3g", r.check.margin);
-    msg << "infeasible: the best multipliers found satisfy the LMI with margin " << num
-        << " < " << options.strict_margin << " (normalised)";
+    msg << "infeasible: the best multipliers found satisfy the LMI with margin " << num << " < "
+        << options.strict_margin << " (normalised)";
   } else {
     r.feasible = true;
     std::snprintf(num, sizeof(num), "%.3g", r.check.margin);
-    msg << "feasible: lambda_max(Xi) = " << r.check.xi_max_eigenvalue
-        << ", normalised margin " << num;
+    msg << "feasible: lambda_max(Xi) = " << r.check.xi_max_eigenvalue << ", normalised margin "
+        << num;
     if (!corrected) msg << " (as-printed form: not a proof)";
   }
   r.message = msg.str();
@@ -367,8 +373,9 @@ MaxDelayResult MaxDelayTheorem3(Theorem3Input in, double tol_s, const Theorem3Op
     r.feasible_at_zero = false;
     r.max_delay_s = 0.0;
     r.infeasible_from_s = 0.0;
-    r.message = "infeasible at h = 0: Theorem 3 certifies no delay for these gains and "
-                "Lipschitz data";
+    r.message =
+        "infeasible at h = 0: Theorem 3 certifies no delay for these gains and "
+        "Lipschitz data";
     r.seconds = Seconds(start);
     return r;
   }
@@ -407,8 +414,7 @@ MaxDelayResult MaxDelayTheorem3(Theorem3Input in, double tol_s, const Theorem3Op
 }
 
 PaperMultipliersResult PaperMultipliersMaxEigenvalue(const Theorem3Input& in,
-                                                     const Theorem3Options& options,
-                                                     double q_min) {
+                                                     const Theorem3Options& options, double q_min) {
   const auto start = std::chrono::steady_clock::now();
   PaperMultipliersResult r;
   r.q_min = q_min;
@@ -461,8 +467,8 @@ PaperMultipliersResult PaperMultipliersMaxEigenvalue(const Theorem3Input& in,
   if (!r.solved) {
     msg << "CSDP returned " << s.return_code << " (" << s.message << ")";
   } else {
-    msg << "min over Q of lambda_max(Xi) with the paper's X, Y, Z, Psi, Phi: "
-        << r.max_eigenvalue << (r.max_eigenvalue < 0.0 ? " (certifies)" : " (no certificate)");
+    msg << "min over Q of lambda_max(Xi) with the paper's X, Y, Z, Psi, Phi: " << r.max_eigenvalue
+        << (r.max_eigenvalue < 0.0 ? " (certifies)" : " (no certificate)");
   }
   r.message = msg.str();
   r.seconds = Seconds(start);

@@ -18,9 +18,8 @@
 // Q1 bound holds only for a diagonal Φ, and a full Φ can never do better; see the docs).
 #pragma once
 
-#include <string>
-
 #include <Eigen/Dense>
+#include <string>
 
 #include "design/csdp_lmi.h"
 
@@ -59,6 +58,7 @@ struct Theorem3Multipliers {
 Theorem3Multipliers PaperMultipliers(int n);
 
 /// Ξ of (27) for the given multipliers (in the input's form); symmetric, 5n × 5n.
+/// Precondition: H is n × n, Q, Ψ, Z, X, Y are 2n × 2n, Φ is n × n.
 Eigen::MatrixXd AssembleXi(const Theorem3Input& in, const Theorem3Multipliers& m);
 
 /// Eigenvalue check of a candidate certificate, recomputed in double precision.
@@ -75,6 +75,7 @@ struct Theorem3Check {
   /// means the matrices are no certificate.
   double margin = 0.0;
 };
+/// Wrong shapes give margin −inf.
 Theorem3Check CheckMultipliers(const Theorem3Input& in, const Theorem3Multipliers& m);
 
 struct Theorem3Options {
@@ -123,13 +124,13 @@ struct MaxDelayResult {
   double max_delay_s = 0.0;
   /// Smallest h found infeasible (upper end of the final bracket); +inf if hit_cap.
   double infeasible_from_s = 0.0;
-  bool hit_cap = false;     // feasible at h_cap: the search stopped there
+  bool hit_cap = false;  // feasible at h_cap: the search stopped there
   double h_cap_s = 0.0;
   int solves = 0;           // CSDP calls
   int solver_failures = 0;  // of those, CSDP return codes other than 0 and 3 (counted
                             // as infeasible: the search stays conservative)
   double seconds = 0.0;
-  Theorem3Result at_max;    // the certificate at max_delay_s
+  Theorem3Result at_max;  // the certificate at max_delay_s
 };
 
 /// Largest h for which CheckTheorem3 is feasible (input.h_s is ignored).
@@ -146,13 +147,13 @@ struct PaperMultipliersResult {
   std::string message;
   int csdp_return_code = -1;
   std::string csdp_status;
-  bool solved = false;           // CSDP returned 0 or 3
-  double solver_value = 0.0;     // t* of the SDP
+  bool solved = false;        // CSDP returned 0 or 3
+  double solver_value = 0.0;  // t* of the SDP
   /// λmax(Ξ) recomputed with Eigen at the returned Q and the paper's X, Y, Z, Ψ, Φ: the
   /// number to report. Negative would mean the paper's choice certifies h, κ.
   double max_eigenvalue = 0.0;
   Eigen::MatrixXd Q;
-  double q_min = 0.0;            // the lower bound imposed on Q (Q ⪰ q_min I)
+  double q_min = 0.0;  // the lower bound imposed on Q (Q ⪰ q_min I)
   double seconds = 0.0;
 };
 

@@ -89,8 +89,7 @@ TEST(CsdpLmiTest, MalformedProblemsAreRejectedBeforeCsdp) {
     p.AddCoefficient(0, b, Eigen::MatrixXd::Identity(2, 2));
     const CsdpSolution s = SolveWithCsdp(p);
     EXPECT_EQ(s.return_code, -1);
-    EXPECT_NE(s.message.find("variable " + std::to_string(unused)), std::string::npos)
-        << s.message;
+    EXPECT_NE(s.message.find("variable " + std::to_string(unused)), std::string::npos) << s.message;
   }
   {
     LmiProblem p;

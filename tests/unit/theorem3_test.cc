@@ -83,8 +83,7 @@ MatrixXd IndependentXi(const Theorem3Input& in, const Theorem3Multipliers& m) {
   B.bottomRightCorner(n, n) = -in.k2 * in.H;
   E2.bottomRows(n).setIdentity();
   const MatrixXd Gamma = A * S0 + B * S1 + E2 * S2;
-  const MatrixXd GammaV1 =
-      in.form == Theorem3Form::kCorrected ? Gamma : MatrixXd(A * S0 + B * S1);
+  const MatrixXd GammaV1 = in.form == Theorem3Form::kCorrected ? Gamma : MatrixXd(A * S0 + B * S1);
   MatrixXd Q1 = MatrixXd::Zero(2 * n, 2 * n);
   Q1.topLeftCorner(n, n) = 2 * in.lambda_G2 * m.Phi;
   Q1.bottomRightCorner(n, n) = 2 * in.lambda_J2 * m.Phi;
@@ -131,7 +130,8 @@ double ExactDelayMargin(const MatrixXd& H, double k1, double k2) {
     EXPECT_LT(((-b + disc) / 2.0).real(), 0.0);
     EXPECT_LT(((-b - disc) / 2.0).real(), 0.0);
     const double l2 = std::norm(lam);
-    const double w2 = 0.5 * (l2 * k2 * k2 + std::sqrt(l2 * l2 * k2 * k2 * k2 * k2 + 4 * l2 * k1 * k1));
+    const double w2 =
+        0.5 * (l2 * k2 * k2 + std::sqrt(l2 * l2 * k2 * k2 * k2 * k2 + 4 * l2 * k1 * k1));
     const double w = std::sqrt(w2);
     for (double omega : {w, -w}) {
       const double phase = std::arg(lam * std::complex<double>(k1, k2 * omega));
@@ -227,8 +227,8 @@ TEST(Theorem3Test, MaxDelayNeverExceedsTheExactDelayMargin) {
     const char* name;
     MatrixXd H;
   };
-  for (const Case& c : {Case{"paper", PaperH()}, Case{"cycle", CycleH()},
-                        Case{"chain", ChainH()}}) {
+  for (const Case& c :
+       {Case{"paper", PaperH()}, Case{"cycle", CycleH()}, Case{"chain", ChainH()}}) {
     const double exact = ExactDelayMargin(c.H, kScenarioK1, kScenarioK2);
     for (double kappa : {0.0, 0.05}) {
       const MaxDelayResult d = MaxDelayTheorem3(DelayOnly(c.H, 0.0, kappa));
@@ -238,8 +238,8 @@ TEST(Theorem3Test, MaxDelayNeverExceedsTheExactDelayMargin) {
       EXPECT_EQ(d.solver_failures, 0);
       EXPECT_GT(d.max_delay_s, 0.0) << c.name;
       EXPECT_LT(d.max_delay_s, exact) << c.name << " kappa " << kappa;
-      std::printf("[   info   ] %s kappa=%g: max_delay_s=%.4f exact margin=%.4f s\n", c.name,
-                  kappa, d.max_delay_s, exact);
+      std::printf("[   info   ] %s kappa=%g: max_delay_s=%.4f exact margin=%.4f s\n", c.name, kappa,
+                  d.max_delay_s, exact);
       EXPECT_LE(d.infeasible_from_s - d.max_delay_s, 1e-3 + 1e-12);
       // The certificate kept is the one at max_delay_s and passes the independent check.
       EXPECT_EQ(d.at_max.input.h_s, d.max_delay_s);
@@ -301,8 +301,8 @@ TEST(Theorem3Test, PaperMultipliersValueMatchesDirectEvaluation) {
     MatrixXd B = MatrixXd::Zero(10, 10);
     B.bottomLeftCorner(5, 5) = -in.k1 * in.H;
     B.bottomRightCorner(5, 5) = -in.k2 * in.H;
-    const double xi22 = MaxEig(-(1 - in.kappa) * 0.1 * MatrixXd::Identity(10, 10) +
-                               in.h_s * B.transpose() * B);
+    const double xi22 =
+        MaxEig(-(1 - in.kappa) * 0.1 * MatrixXd::Identity(10, 10) + in.h_s * B.transpose() * B);
     EXPECT_GE(p.max_eigenvalue, xi22 - 1e-9);
     EXPECT_GT(p.max_eigenvalue, 0.0) << "the paper's choice does not certify h = 0.15";
     // No nearby positive definite Q does better.
@@ -365,6 +365,15 @@ TEST(Theorem3Test, InvalidInputIsReportedWithoutCallingCsdp) {
     EXPECT_FALSE(p.input_valid);
     EXPECT_FALSE(p.solved);
   }
+}
+
+TEST(Theorem3Test, WrongShapedMultipliersAreNoCertificate) {
+  Theorem3Multipliers m = PaperMultipliers(5);
+  m.Q = MatrixXd::Identity(10, 10);
+  EXPECT_TRUE(std::isfinite(CheckMultipliers(PaperExample2(0.001), m).margin));
+  m.Y = MatrixXd::Zero(9, 10);
+  EXPECT_EQ(CheckMultipliers(PaperExample2(0.001), m).margin,
+            -std::numeric_limits<double>::infinity());
 }
 
 TEST(Theorem3Test, SolverFailureIsReportedNotCertified) {
