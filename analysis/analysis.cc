@@ -402,7 +402,15 @@ RunAnalysis AnalyseRun(const RunData& run) {
                     static_cast<int>(run.scenario.offsets_m.size()) == run.followers;
   AnalyseRunLevel(run, &a);
   AnalyseFollowers(run, &a);
-  if (a.has_formation) AnalyseFormation(run, &a);
+  if (a.has_formation) {
+    AnalyseFormation(run, &a);
+  } else {  // no formation metrics: the latest state time instead
+    Micros t = 0;
+    for (const VehicleTrack& v : run.vehicles) {
+      if (!v.samples.empty()) t = std::max(t, v.samples.back().utime);
+    }
+    a.summary.sim_time_s = ToSeconds(t);
+  }
   AnalyseChannel(run, &a);
   AnalyseHealth(run, &a);
   return a;

@@ -24,6 +24,21 @@ std::int32_t I32(const std::uint8_t* p) { return static_cast<std::int32_t>(U32(p
 
 std::string Num(std::int64_t v) { return std::to_string(v); }
 
+/// A sync word with sane lengths and a printable channel (as far as `avail` bytes go).
+bool PlausibleHeader(const std::uint8_t* h, std::size_t avail) {
+  if (avail < static_cast<std::size_t>(LcmLogReader::kHeaderBytes) || U32(h) != LcmLogReader::kSync) {
+    return false;
+  }
+  const std::int32_t cl = I32(h + 20), dl = I32(h + 24);
+  if (cl < 1 || cl > LcmLogReader::kMaxChannel || dl < 0 || dl > LcmLogReader::kMaxData) return false;
+  const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(cl), avail - LcmLogReader::kHeaderBytes);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint8_t c = h[LcmLogReader::kHeaderBytes + k];
+    if (c < 0x20 || c > 0x7E) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 LcmLogReader::~LcmLogReader() {
@@ -128,10 +143,19 @@ LcmLogReader::Check LcmLogReader::CheckEventAt() {
   for (std::int32_t k = 0; k < cl; ++k) {
     if (c[k] < 0x20 || c[k] > 0x7E) return Check::kBadHeader;
   }
-  // The next event must start right after this one (or the file ends): a damaged length
-  // would otherwise swallow good events or hand out garbage as data.
-  if (Ensure(total + 4)) {
-    if (std::memcmp(buf_.data() + pos_ + total, kSyncBytes, 4) != 0) return Check::kNotFollowed;
+  // The next event should start right after this one (or the file ends). If it does not,
+  // either this event's lengths are damaged (then it swallows the start of a real event:
+  // reject it) or the next event is damaged (then this one is fine).
+  if (Ensure(total + 4) &&
+      std::memcmp(buf_.data() + pos_ + total, kSyncBytes, 4) != 0) {
+    const std::uint8_t* b = buf_.data() + pos_;
+    const std::size_t avail = Available();
+    for (std::size_t k = 1; k < total; ++k) {
+      const void* hit = memmem(b + k, total - k, kSyncBytes, 4);
+      if (hit == nullptr) break;
+      k = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - b);
+      if (PlausibleHeader(b + k, avail - k)) return Check::kNotFollowed;
+    }
   }
   return Check::kValid;
 }
