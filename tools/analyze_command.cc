@@ -7,6 +7,7 @@
 #include <cstring>
 
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
@@ -305,9 +306,11 @@ void PrintText(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis&
     for (std::size_t i = 0; i < a.followers.size(); ++i) {
       const FollowerAnalysis& f = a.followers[i];
       const FormationErrors e = i < a.final_errors.size() ? a.final_errors[i] : f.final_errors;
-      std::printf("  %-9d %12.4f %14.4f %14.4f %12.2f %9.1f%% %9lld\n", f.id, e.position_m,
-                  e.velocity_mps, e.attitude_rad, f.converged ? f.convergence_time_s : kNaN,
-                  100.0 * f.saturation_fraction, static_cast<long long>(f.stale_events));
+      char conv[32] = "no";
+      if (f.converged) std::snprintf(conv, sizeof(conv), "%.2f", f.convergence_time_s);
+      std::printf("  %-9d %12.4f %14.4f %14.4f %12s %9.1f%% %9lld\n", f.id, e.position_m,
+                  e.velocity_mps, e.attitude_rad, conv, 100.0 * f.saturation_fraction,
+                  static_cast<long long>(f.stale_events));
     }
   }
   const ChannelAnalysis& c = a.channel;
@@ -358,11 +361,11 @@ int RunAnalyze(const AnalyzeOptions& opt) {
               << "\n";
     return 2;
   }
-  if (!opt.live && (opt.duration_s != -1 || !opt.lcm_url.empty())) {
+  if (!opt.live && (!std::isnan(opt.duration_s) || !opt.lcm_url.empty())) {
     std::cerr << who << "--duration and --lcm-url go with --live\n";
     return 2;
   }
-  if (opt.live && opt.duration_s != -1 && !(opt.duration_s > 0)) {
+  if (opt.live && !std::isnan(opt.duration_s) && !(opt.duration_s > 0 && std::isfinite(opt.duration_s))) {
     std::cerr << who << "--duration must be a positive number of seconds (got " << opt.duration_s
               << ")\n";
     return 2;

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <limits>
 #include <string>
 
 namespace shoal {
@@ -11,7 +12,8 @@ struct AnalyzeOptions {
   bool json = false;
   bool live = false;      // attach to an LCM bus instead of reading a log
   std::string lcm_url;    // --live: "" = LCM's default URL
-  double duration_s = -1; // --live: stop after this many wall-clock seconds (< 0: no limit)
+  /// --live: stop after this many wall-clock seconds (NaN: not given, no limit).
+  double duration_s = std::numeric_limits<double>::quiet_NaN();
   bool quiet = false;     // no progress line (--live)
 };
 
