@@ -75,7 +75,8 @@ bool ReadLive(const AnalyzeOptions& opt, const LoadOptions& lo, RunData* run, st
   Clock::time_point end_at = Clock::time_point::max();
   while (!g_stop) {
     if (bus->Handle(50) < 0) {
-      *error = "LCM receive error on " + run->source;
+      if (g_stop || errno == EINTR) continue;  // Ctrl-C interrupts the wait: not an error
+      *error = "LCM receive error on " + run->source + " (" + std::strerror(errno) + ")";
       break;
     }
     const auto now = Clock::now();
