@@ -9,7 +9,7 @@ CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
 # Debian packages the build, the tests and the demo need.
 DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps \
-  liblcm-dev liblcm-bin libglib2.0-dev \
+  liblcm-dev liblcm-bin libglib2.0-dev time \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev
 
 .PHONY: demo test deps build configure clean
