@@ -103,7 +103,9 @@ bool LcmLogReader::Ensure(std::size_t n) {
     end_ -= pos_;
     pos_ = 0;
   }
-  const std::size_t want = std::max(n, kChunk);
+  // A small file needs no more than its own size (and no 8 MB buffer to clear).
+  const std::size_t want =
+      std::max(n, std::min(kChunk, static_cast<std::size_t>(file_size_ - buf_offset_) + 16));
   if (buf_.size() < want) buf_.resize(want);
   while (end_ < buf_.size() && !eof_) {
     const ssize_t r = read(fd_, buf_.data() + end_, buf_.size() - end_);
