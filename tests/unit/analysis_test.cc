@@ -15,6 +15,7 @@
 #include "analysis/log_reader.h"
 #include "analysis/run_data.h"
 #include "runtime/channels.h"
+#include "runtime/lcm_bus.h"
 #include "runtime/log_writer.h"
 #include "runtime/messages.h"
 
@@ -696,6 +697,19 @@ TEST(LogDamage, RandomByteFlips) {
     }
   }
   EXPECT_GT(loaded, 250);  // a few flips damage a few events, not the whole log
+}
+
+// A string length of 0 or less makes LCM's generated decoder throw std::length_error;
+// runtime's Decode() (used in the processes' LCM handlers) must refuse it instead.
+TEST(LogDamage, DamagedStringLengthIsRefusedNotThrown) {
+  run_status_t st = Status(0, 1, "ready", "");
+  std::vector<std::uint8_t> b(st.getEncodedSize());
+  ASSERT_EQ(st.encode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
+  for (std::int32_t len : {0, -1, -100000}) {
+    for (int k = 0; k < 4; ++k) b[24 + k] = static_cast<std::uint8_t>(static_cast<std::uint32_t>(len) >> (24 - 8 * k));
+    run_status_t out;
+    EXPECT_FALSE(Decode(b.data(), static_cast<int>(b.size()), &out)) << len;
+  }
 }
 
 // ---- Reader details --------------------------------------------------------------------
