@@ -140,6 +140,16 @@ LcmLogReader::Check LcmLogReader::CheckEventAt() {
   const std::int32_t cl = I32(h + 20), dl = I32(h + 24);
   if (cl < 1 || cl > kMaxChannel || dl < 0 || dl > kMaxData) return Check::kBadHeader;
   const std::size_t total = kHeaderBytes + static_cast<std::size_t>(cl) + static_cast<std::size_t>(dl);
+  // Longer than the rest of the file: cut short (checked first, so that a damaged length
+  // never makes the buffer grow to it).
+  if (static_cast<std::int64_t>(total) > file_size_ - FileOffset()) {
+    struct stat st {};
+    if (fstat(fd_, &st) != 0 || static_cast<std::int64_t>(total) > st.st_size - FileOffset()) {
+      return Check::kCutShort;
+    }
+    file_size_ = st.st_size;  // the file grew (a recorder still writing it): read on
+    eof_ = stopped_early_;
+  }
   if (!Ensure(total)) return Check::kCutShort;
   const std::uint8_t* c = buf_.data() + pos_ + kHeaderBytes;
   for (std::int32_t k = 0; k < cl; ++k) {

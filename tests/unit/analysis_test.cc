@@ -613,6 +613,14 @@ TEST(LogDamage, WrongDataLengthLosesOnlyThatEvent) {
   ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
   EXPECT_EQ(run.events, static_cast<std::int64_t>(spans.size()) - 1);
   EXPECT_TRUE(run.damaged);
+  // A length far beyond the end of the file (200 MB) is damage too, not a truncation.
+  bytes = full;
+  bytes[hit.offset + 24] = 0x0C;
+  WriteBytes(path, bytes);
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
+  EXPECT_EQ(run.events, static_cast<std::int64_t>(spans.size()) - 1);
+  ASSERT_FALSE(run.warnings.empty());
+  EXPECT_NE(run.warnings[0].find("resynchronised"), std::string::npos) << run.warnings[0];
 }
 
 TEST(LogDamage, DamagedStartIsSkippedNotFatal) {
