@@ -8,7 +8,7 @@ JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
 # Debian packages the build, the tests and the demo need.
-DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps \
+DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
   liblcm-dev liblcm-bin libglib2.0-dev \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev \
   libsdp-dev

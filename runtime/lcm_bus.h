@@ -65,7 +65,13 @@ class LcmBus : public Bus {
 template <typename Msg>
 bool Decode(const void* data, int size, Msg* out) {
   if (data == nullptr || size < 8) return false;
-  return out->decode(data, 0, size) == size;
+  // LCM's generated string decoder throws std::length_error on a string length <= 0
+  // (a damaged or forged message): inside an LCM handler that would terminate the process.
+  try {
+    return out->decode(data, 0, size) == size;
+  } catch (...) {
+    return false;
+  }
 }
 
 /// The LCM URL of a private run: multicast group, own port, ttl=0 (never leaves the host).

@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "analysis/analysis.h"
 #include "core/metrics.h"
 #include "runtime/channels.h"
 #include "runtime/clock.h"
@@ -116,69 +117,6 @@ bool EnsureLoopbackMulticast(std::string* err) {
   *err = std::string("multicast is not routed to the loopback interface, so a run could "
                      "reach the network; as root run:\n  sudo sh -c '") + fix + "'";
   return false;
-}
-
-/// What the summary needs, read back from the run's log (the single source of truth).
-struct LogSummary {
-  bool ok = false;
-  std::int64_t states = 0;
-  std::int64_t delivered = 0, dropped = 0;
-  std::map<int, health_t> last_health;  // per process id
-  std::vector<std::string> lost;        // SHOAL_STATUS vehicle_lost messages
-  double sim_time_s = 0.0;
-};
-
-LogSummary Summarise(const std::string& path, const Scenario& s, FormationMetrics* metrics) {
-  LogSummary r;
-  lcm::LogFile log(path, "r");
-  if (!log.good()) return r;
-  std::map<std::int64_t, std::vector<StateMsg>> by_time;  // utime -> states (index = id)
-  const int n = s.followers;
-  std::vector<const StateMsg*> fptr(n);
-  auto flush_before = [&](std::int64_t t) {
-    while (!by_time.empty() && by_time.begin()->first < t) {
-      auto& v = by_time.begin()->second;
-      bool complete = true;
-      for (const StateMsg& m : v) complete = complete && m.vehicle_id >= 0;
-      if (complete) {
-        for (int i = 0; i < n; ++i) fptr[i] = &v[i + 1];
-        metrics->Add(v[0], fptr);
-        r.sim_time_s = ToSeconds(v[0].utime);
-      }
-      by_time.erase(by_time.begin());
-    }
-  };
-  while (const lcm::LogEvent* ev = log.readNextEvent()) {
-    const std::string& ch = ev->channel;
-    if (ch.rfind("SHOAL_STATE_", 0) == 0) {
-      vehicle_state_t m{};
-      if (!Decode(ev->data, ev->datalen, &m) || m.vehicle_id < 0 || m.vehicle_id > n) continue;
-      auto& v = by_time[m.utime];
-      if (v.empty()) {
-        v.resize(n + 1);
-        for (auto& x : v) x.vehicle_id = -1;
-      }
-      v[m.vehicle_id] = FromLcm(m);
-      ++r.states;
-      // Samples older than a few seconds will not be completed any more.
-      flush_before(m.utime - 5000000);
-    } else if (ch == channels::ChannelEvents()) {
-      channel_event_t e{};
-      if (!Decode(ev->data, ev->datalen, &e)) continue;
-      (e.status == 0 ? r.delivered : r.dropped) += 1;
-    } else if (ch.rfind("SHOAL_HEALTH_", 0) == 0) {
-      health_t h{};
-      if (Decode(ev->data, ev->datalen, &h)) r.last_health[h.vehicle_id] = h;
-    } else if (ch == channels::Status()) {
-      run_status_t st{};
-      if (Decode(ev->data, ev->datalen, &st) && st.state == "vehicle_lost") {
-        r.lost.push_back(st.message);
-      }
-    }
-  }
-  flush_before(INT64_MAX);
-  r.ok = true;
-  return r;
 }
 
 }  // namespace
@@ -435,20 +373,13 @@ int RunRun(const RunOptions& opt) {
     }
   }
 
-  FormationMetrics metrics(s.offsets_m, s.metrics);
-  const LogSummary sum = Summarise(out, s, &metrics);
-  if (!sum.ok) problems.push_back("the log " + out + " cannot be read");
-  double lateness_p99 = 0.0, delay_err_p99 = 0.0;
-  std::int64_t overruns = 0;
-  for (const auto& [id, h] : sum.last_health) {
-    if (id == kEmulatorId) {
-      delay_err_p99 = h.lateness_p99_s;
-    } else {
-      lateness_p99 = std::max(lateness_p99, h.lateness_p99_s);
-      overruns += h.overruns;
-    }
-  }
-  const bool converged = metrics.converged();
+  // The summary is read back from the run's log (the single source of truth), with the
+  // same code as shoal analyze (analysis/).
+  RunSummary sum;
+  if (!SummariseRunLog(out, s, &sum)) problems.push_back("the log " + out + " cannot be read");
+  const double lateness_p99 = sum.lateness_p99_s, delay_err_p99 = sum.release_error_p99_s;
+  const std::int64_t overruns = sum.overruns;
+  const bool converged = sum.converged;
   // lcm-logger drops messages when it cannot keep up (LCM's 30-message subscription
   // queue); say so instead of hiding it.
   const std::int64_t expected_states =
@@ -468,10 +399,10 @@ int RunRun(const RunOptions& opt) {
     j.Str("scenario", s.name)
         .Str("mode", opt.mode)
         .Bool("converged", converged)
-        .Num("convergence_time_s", converged ? metrics.convergence_time_s() : NAN)
-        .Num("final_position_error_m", metrics.final_worst().position_m)
-        .Num("final_velocity_error_mps", metrics.final_worst().velocity_mps)
-        .Num("final_attitude_error_rad", metrics.final_worst().attitude_rad)
+        .Num("convergence_time_s", converged ? sum.convergence_time_s : NAN)
+        .Num("final_position_error_m", sum.final_worst.position_m)
+        .Num("final_velocity_error_mps", sum.final_worst.velocity_mps)
+        .Num("final_attitude_error_rad", sum.final_worst.attitude_rad)
         .Num("sim_time_s", sum.sim_time_s)
         .Num("wall_time_s", wall_s)
         .Num("realtime_factor", wall_s > 0 ? sum.sim_time_s / wall_s : NAN)
@@ -492,13 +423,13 @@ int RunRun(const RunOptions& opt) {
                 wall_s, wall_s > 0 ? sum.sim_time_s / wall_s : 0.0,
                 g_interrupted ? "  -- interrupted" : "");
     if (converged) {
-      std::printf("  converged: yes, at %.2f s\n", metrics.convergence_time_s());
+      std::printf("  converged: yes, at %.2f s\n", sum.convergence_time_s);
     } else {
       std::printf("  converged: NO\n");
     }
     std::printf("  final errors, worst follower: position %.4f m, velocity %.4f m/s, attitude %.4f rad\n",
-                metrics.final_worst().position_m, metrics.final_worst().velocity_mps,
-                metrics.final_worst().attitude_rad);
+                sum.final_worst.position_m, sum.final_worst.velocity_mps,
+                sum.final_worst.attitude_rad);
     std::printf("  channel: %lld delivered, %lld dropped", static_cast<long long>(sum.delivered),
                 static_cast<long long>(sum.dropped));
     if (opt.mode == "realtime") std::printf(", release error p99 %.3f ms", delay_err_p99 * 1e3);

@@ -1,6 +1,7 @@
 // shoal: the command-line tool. main() only parses flags and dispatches.
 #include <CLI/CLI.hpp>
 
+#include "tools/analyze_command.h"
 #include "tools/compare_command.h"
 #include "tools/run_command.h"
 #include "tools/sim_command.h"
@@ -52,6 +53,23 @@ int main(int argc, char** argv) {
   cmp_cmd->add_option("b", cmp.b, "Second LCM log")->required();
   cmp_cmd->add_flag("--json", cmp.json, "Print one JSON object");
 
+  shoal::AnalyzeOptions ana;
+  CLI::App* ana_cmd = app.add_subcommand(
+      "analyze", "Metrics of a run from its LCM log (or live from a bus): formation errors, "
+                 "channel ground truth, process health; JSON and CSV (docs/analyze.md)");
+  ana_cmd->add_option("log", ana.log, "LCM log of shoal sim --out, shoal run, or lcm-logger");
+  ana_cmd->add_flag("--json", ana.json, "Print one JSON object instead of the summary");
+  ana_cmd->add_option("--csv", ana.csv_dir,
+                      "Write tidy CSV time series into this directory (created if missing)");
+  ana_cmd->add_option("--scenario", ana.scenario,
+                      "Scenario file to use instead of the log's (shoal run logs carry none)");
+  ana_cmd->add_flag("--live", ana.live,
+                    "Listen on an LCM URL (a running swarm or lcm-logplayer) instead of a log; "
+                    "ends on Ctrl-C, when the run finishes, or after --duration");
+  ana_cmd->add_option("--lcm-url", ana.lcm_url, "With --live: LCM URL (default: LCM's default)");
+  ana_cmd->add_option("--duration", ana.duration_s, "With --live: stop after S wall-clock seconds");
+  ana_cmd->add_flag("--quiet", ana.quiet, "No progress line (--live)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -61,5 +79,6 @@ int main(int argc, char** argv) {
   if (sim_cmd->parsed()) return shoal::RunSim(sim);
   if (cmp_cmd->parsed()) return shoal::RunCompare(cmp);
   if (run_cmd->parsed()) return shoal::RunRun(run);
+  if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
   return 2;
 }

@@ -1,0 +1,431 @@
+#include "analysis/analysis.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <map>
+#include <utility>
+
+#include "analysis/memory.h"
+#include "core/channel_model.h"
+#include "core/topology.h"
+
+namespace shoal {
+namespace {
+
+constexpr double kPitchLimitRad = 80.0 * 3.14159265358979323846 / 180.0;  // as shoal sim
+constexpr std::int8_t kDelivered = 0, kLoss = 1, kQueue = 2, kInvalid = 3;
+
+FormationErrors NaNErrors() { return FormationErrors{kNaN, kNaN, kNaN}; }
+
+/// Samples of vehicle `id`; empty if the run has none (RunData built by hand).
+const std::vector<StateMsg>& Samples(const RunData& run, int id) {
+  static const std::vector<StateMsg> kNone;
+  if (id < 0 || id >= static_cast<int>(run.vehicles.size())) return kNone;
+  return run.vehicles[static_cast<std::size_t>(id)].samples;
+}
+
+void AnalyseFollowers(const RunData& run, RunAnalysis* a) {
+  const int n = run.followers;
+  const std::vector<StateMsg>& lead = Samples(run, 0);
+  a->followers.resize(n);
+  for (int i = 1; i <= n; ++i) {
+    FollowerAnalysis& f = a->followers[i - 1];
+    f.id = i;
+    const std::vector<StateMsg>& s = Samples(run, i);
+    f.samples = static_cast<std::int64_t>(s.size());
+    bool prev_stale = false;
+    for (const StateMsg& m : s) {
+      f.saturated_ticks += (m.flags & StateMsg::kFlagSaturated) != 0;
+      const bool stale = (m.flags & StateMsg::kFlagStaleNeighbour) != 0;
+      f.stale_ticks += stale;
+      f.stale_events += stale && !prev_stale;
+      prev_stale = stale;
+    }
+    if (!s.empty()) f.saturation_fraction = static_cast<double>(f.saturated_ticks) / s.size();
+    if (!a->has_formation) continue;
+    ReserveHuge(&f.errors, s.size());
+    f.errors.assign(s.size(), NaNErrors());
+    FormationMetrics one({run.scenario.offsets_m[i - 1]}, run.scenario.metrics);
+    std::vector<const StateMsg*> ptr(1);
+    std::size_t l = 0;
+    for (std::size_t k = 0; k < s.size(); ++k) {
+      while (l < lead.size() && lead[l].utime < s[k].utime) ++l;
+      if (l == lead.size()) break;
+      if (lead[l].utime != s[k].utime) continue;
+      f.errors[k] = ErrorsOf(s[k], run.scenario.offsets_m[i - 1], lead[l]);
+      ptr[0] = &s[k];
+      one.Add(lead[l], ptr);
+    }
+    f.compared = one.samples();
+    if (f.compared > 0) {
+      f.converged = one.converged();
+      f.convergence_time_s = f.converged ? one.convergence_time_s() : kNaN;
+      f.final_errors = one.final_errors()[0];
+      f.max_position_error_m = one.max_position_error_m();
+    } else {
+      f.final_errors = NaNErrors();
+    }
+  }
+}
+
+/// The swarm-level metrics of shoal sim / shoal run: only times at which the leader and
+/// every follower have a state.
+void AnalyseFormation(const RunData& run, RunAnalysis* a) {
+  const int n = run.followers;
+  const std::vector<StateMsg>& lead = Samples(run, 0);
+  FormationMetrics m(run.scenario.offsets_m, run.scenario.metrics);
+  std::vector<std::size_t> idx(n + 1, 0);
+  std::vector<const StateMsg*> ptr(n);
+  for (const StateMsg& l : lead) {
+    bool complete = true;
+    for (int i = 1; i <= n; ++i) {
+      const std::vector<StateMsg>& s = Samples(run, i);
+      std::size_t& k = idx[i];
+      while (k < s.size() && s[k].utime < l.utime) ++k;
+      if (k == s.size() || s[k].utime != l.utime) {
+        complete = false;
+        continue;
+      }
+      ptr[i - 1] = &s[k];
+    }
+    if (!complete) continue;
+    m.Add(l, ptr);
+    a->summary.sim_time_s = ToSeconds(l.utime);
+  }
+  a->complete_samples = m.samples();
+  a->summary.converged = m.converged();
+  a->summary.convergence_time_s = m.convergence_time_s();
+  a->summary.final_worst = m.final_worst();
+  a->summary.max_position_error_m = m.max_position_error_m();
+  if (m.samples() > 0) a->final_errors = m.final_errors();
+}
+
+void AnalyseChannel(const RunData& run, RunAnalysis* a) {
+  ChannelAnalysis& c = a->channel;
+  const std::vector<ChannelEventRecord>& ev = run.channel_events;
+  // The scenario's links and their delay models.
+  std::map<std::pair<int, int>, DelayConfig> model;
+  double timeout_s = kNaN;
+  if (run.has_scenario) {
+    const Scenario& s = run.scenario;
+    for (const Link& l : BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links))) {
+      model[{l.from, l.to}] = l.delay;
+    }
+    timeout_s = s.neighbour_timeout_s;
+  }
+  std::map<std::pair<int, int>, std::size_t> link_index;
+  for (const auto& [key, cfg] : model) {
+    link_index.emplace(key, c.links.size());
+    LinkAnalysis l;
+    l.from = key.first;
+    l.to = key.second;
+    l.in_scenario = true;
+    c.links.push_back(l);
+  }
+  auto link_of = [&](int from, int to) -> std::size_t {
+    auto it = link_index.find({from, to});
+    if (it != link_index.end()) return it->second;
+    LinkAnalysis l;
+    l.from = from;
+    l.to = to;
+    c.links.push_back(l);
+    link_index.emplace(std::make_pair(from, to), c.links.size() - 1);
+    return c.links.size() - 1;
+  };
+
+  ReserveHuge(&c.configured_delay_s, ev.size());
+  c.configured_delay_s.resize(ev.size());
+  std::vector<std::uint32_t> link_of_event(ev.size());
+  const DelayConfig* last_cfg = nullptr;
+  int last_from = -1, last_to = -1;
+  for (std::size_t k = 0; k < ev.size(); ++k) {
+    const ChannelEventRecord& e = ev[k];
+    if (e.sender != last_from || e.receiver != last_to) {
+      last_from = e.sender;
+      last_to = e.receiver;
+      auto it = model.find({e.sender, e.receiver});
+      last_cfg = it == model.end() ? nullptr : &it->second;
+    }
+    double cfg = e.delay_s;
+    if (last_cfg == nullptr) {
+      ++c.unknown_links;
+    } else if (last_cfg->kind != DelayKind::kUniform) {
+      cfg = DelaySeconds(*last_cfg, ToSeconds(e.send_utime), nullptr);
+      if (!(std::abs(cfg - e.delay_s) <= 1e-9)) ++c.model_mismatches;
+    }
+    c.configured_delay_s[k] = cfg;
+    const std::size_t li = link_of(e.sender, e.receiver);
+    link_of_event[k] = static_cast<std::uint32_t>(li);
+    LinkAnalysis& l = c.links[li];
+    ++l.sent;
+    switch (e.status) {
+      case kDelivered: ++l.delivered; break;
+      case kLoss: ++l.dropped_loss; break;
+      case kQueue: ++l.dropped_queue; break;
+      default: ++l.dropped_invalid; break;
+    }
+  }
+
+  // Realised delay and its error, per link and overall. One scratch vector per quantity,
+  // filled link by link (events are grouped by link with a counting sort of indices).
+  std::vector<std::size_t> start(c.links.size() + 1, 0);
+  for (std::uint32_t li : link_of_event) ++start[li + 1];
+  for (std::size_t li = 0; li < c.links.size(); ++li) start[li + 1] += start[li];
+  std::vector<std::uint32_t> order(ev.size());
+  {
+    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t k = 0; k < ev.size(); ++k) order[fill[link_of_event[k]]++] = static_cast<std::uint32_t>(k);
+  }
+  std::vector<std::uint32_t>().swap(link_of_event);
+  // One buffer, reused for each quantity: filled link by link, so each link's values are a
+  // contiguous range (its quantiles) and the whole buffer gives the overall ones.
+  std::vector<double> buf;
+  std::vector<std::size_t> seg(c.links.size() + 1, 0);
+  const auto quantiles = [&](Quantiles LinkAnalysis::*field, Quantiles* overall) {
+    for (std::size_t li = 0; li < c.links.size(); ++li) {
+      c.links[li].*field = QuantilesOf(buf.data() + seg[li], buf.data() + seg[li + 1]);
+    }
+    *overall = QuantilesOf(buf.data(), buf.data() + buf.size());
+  };
+  for (int pass = 0; pass < 2; ++pass) {  // 0: realised delay, 1: its error
+    buf.clear();
+    ReserveHuge(&buf, ev.size());
+    for (std::size_t li = 0; li < c.links.size(); ++li) {
+      seg[li] = buf.size();
+      for (std::size_t p = start[li]; p < start[li + 1]; ++p) {
+        const std::size_t k = order[p];
+        const ChannelEventRecord& e = ev[k];
+        if (e.status != kDelivered) continue;
+        const double real = ToSeconds(e.deliver_utime - e.send_utime);
+        buf.push_back(pass == 0 ? real : real - c.configured_delay_s[k]);
+      }
+    }
+    seg[c.links.size()] = buf.size();
+    if (pass == 0) {
+      quantiles(&LinkAnalysis::realised_delay_s, &c.realised_delay_s);
+    } else {
+      quantiles(&LinkAnalysis::delay_error_s, &c.delay_error_s);
+    }
+  }
+
+  // Age at use: at each of the receiver's ticks (its state samples), the newest message
+  // delivered so far (largest send time: the follower keeps only newer messages) and its
+  // age; a message older than the neighbour timeout is not used (a stale tick).
+  buf.clear();
+  std::vector<std::pair<Micros, Micros>> deliveries;  // (deliver, send) of one link
+  for (std::size_t li = 0; li < c.links.size(); ++li) {
+    LinkAnalysis& l = c.links[li];
+    seg[li] = buf.size();
+    if (l.to < 1) continue;
+    deliveries.clear();
+    for (std::size_t p = start[li]; p < start[li + 1]; ++p) {
+      const ChannelEventRecord& e = ev[order[p]];
+      if (e.status == kDelivered) deliveries.emplace_back(e.deliver_utime, e.send_utime);
+    }
+    if (!std::is_sorted(deliveries.begin(), deliveries.end())) {
+      std::sort(deliveries.begin(), deliveries.end());
+    }
+    const std::vector<StateMsg>& rx = Samples(run, l.to);
+    std::size_t d = 0;
+    Micros newest = -1;
+    bool have = false;
+    for (const StateMsg& m : rx) {
+      while (d < deliveries.size() && deliveries[d].first <= m.utime) {
+        if (!have || deliveries[d].second > newest) newest = deliveries[d].second;
+        have = true;
+        ++d;
+      }
+      if (!have) {
+        ++l.ticks_before_first;
+        continue;
+      }
+      const double age = ToSeconds(m.utime - newest);
+      if (std::isfinite(timeout_s) && age > timeout_s) {
+        ++l.ticks_stale;
+        continue;
+      }
+      buf.push_back(age);
+    }
+  }
+  seg[c.links.size()] = buf.size();
+  quantiles(&LinkAnalysis::age_at_use_s, &c.age_at_use_s);
+
+  for (const LinkAnalysis& l : c.links) {
+    c.sent += l.sent;
+    c.delivered += l.delivered;
+    c.dropped_loss += l.dropped_loss;
+    c.dropped_queue += l.dropped_queue;
+    c.dropped_invalid += l.dropped_invalid;
+  }
+  c.dropped = c.dropped_loss + c.dropped_queue + c.dropped_invalid;
+  a->summary.delivered = c.delivered;
+  a->summary.dropped = c.dropped;
+}
+
+void AnalyseHealth(const RunData& run, RunAnalysis* a) {
+  std::map<int, ProcessAnalysis> by_id;
+  for (const HealthRecord& h : run.health) {
+    ProcessAnalysis& p = by_id[h.process_id];
+    p.id = h.process_id;
+    ++p.reports;
+    p.last = h;  // the last in log order, as shoal run's summary
+  }
+  for (const auto& [id, p] : by_id) {
+    a->processes.push_back(p);
+    if (id == -1) {
+      a->channel.release_error_p99_s = p.last.lateness_p99_s;
+    } else {
+      a->summary.lateness_p99_s = std::max(a->summary.lateness_p99_s, p.last.lateness_p99_s);
+      a->summary.overruns += p.last.overruns;
+    }
+  }
+  a->summary.release_error_p99_s = a->channel.release_error_p99_s;
+}
+
+void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
+  bool emulator = false;
+  for (const HealthRecord& h : run.health) emulator = emulator || h.process_id == -1;
+  for (const StatusRecord& st : run.statuses) {
+    emulator = emulator || st.vehicle_id == -1;
+    if (st.state == "interrupted") a->interrupted = true;
+    if (st.state == "failed" || st.state == "vehicle_lost") {
+      const std::string who = st.vehicle_id == -1   ? "channel emulator"
+                              : st.vehicle_id == -2 ? "shoal sim / launcher"
+                                                    : "vehicle " + std::to_string(st.vehicle_id);
+      a->problems.push_back(who + ": " + st.state + (st.message.empty() ? "" : ": " + st.message));
+    }
+  }
+  if (!run.clock.empty()) {
+    a->mode = emulator ? "lockstep" : "sim";
+  } else {
+    a->mode = emulator ? "realtime" : "unknown";
+  }
+
+  // Control period: the scenario's, else the clock's, else the leader's sample spacing.
+  if (run.has_scenario) {
+    a->period_us = run.scenario.period_us();
+  } else if (!run.clock.empty() && run.clock.front().period_us > 0) {
+    a->period_us = run.clock.front().period_us;
+  } else {
+    const auto& s = Samples(run, 0);
+    std::vector<Micros> dt;
+    for (std::size_t k = 1; k < s.size() && k < 1000; ++k) dt.push_back(s[k].utime - s[k - 1].utime);
+    if (!dt.empty()) {
+      std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
+      a->period_us = dt[dt.size() / 2];
+    }
+  }
+
+  Micros last_utime = -1;
+  std::int64_t max_samples = 0;
+  for (const VehicleTrack& v : run.vehicles) {
+    if (!v.samples.empty()) last_utime = std::max(last_utime, v.samples.back().utime);
+    max_samples = std::max<std::int64_t>(max_samples, v.samples.size());
+  }
+  for (const ClockRecord& c : run.clock) last_utime = std::max(last_utime, c.utime);
+  a->ticks = run.clock.empty() ? max_samples : static_cast<std::int64_t>(run.clock.size());
+  if (a->period_us > 0 && last_utime >= 0) {
+    a->states_expected = (last_utime / a->period_us + 1) * (run.followers + 1);
+  }
+  // lcm-logger stamps events with the wall clock (us since 1970); shoal sim with
+  // simulated time. Only the former gives a recording span.
+  if (run.first_timestamp > 1000000000000000LL) {
+    a->wall_time_s = ToSeconds(run.last_timestamp - run.first_timestamp);
+  }
+
+  // Divergence as shoal sim defines it: non-finite state or |pitch| > 80 deg.
+  Micros first = -1;
+  for (int i = 1; i <= run.followers && i < static_cast<int>(run.vehicles.size()); ++i) {
+    const VehicleTrack& v = run.vehicles[i];
+    Micros t = -1;
+    for (const StateMsg& m : v.samples) {
+      if (!m.AllFinite() || std::abs(m.eta(3)) > kPitchLimitRad) {
+        t = m.utime;
+        break;
+      }
+    }
+    if (v.first_nonfinite_utime >= 0 && (t < 0 || v.first_nonfinite_utime < t)) {
+      t = v.first_nonfinite_utime;
+    }
+    if (t >= 0 && (first < 0 || t < first)) {
+      first = t;
+      a->diverged_follower = i;
+    }
+  }
+
+  const auto& lead = Samples(run, 0);
+  if (!lead.empty()) {
+    double len = 0.0;
+    for (std::size_t k = 1; k < lead.size(); ++k) {
+      len += (lead[k].eta.head<3>() - lead[k - 1].eta.head<3>()).norm();
+    }
+    a->leader_path_length_m = len;
+    a->leader_start_m = lead.front().eta.head<3>();
+    a->leader_end_m = lead.back().eta.head<3>();
+  }
+}
+
+}  // namespace
+
+Quantiles QuantilesOf(double* begin, double* end) {
+  Quantiles q;
+  const std::ptrdiff_t n = end - begin;
+  q.count = n;
+  if (n <= 0) return q;
+  auto rank = [&](double p) {
+    return begin + static_cast<std::ptrdiff_t>(p * static_cast<double>(n - 1) + 0.5);
+  };
+  double sum = 0.0;
+  q.min = q.max = *begin;
+  for (const double* x = begin; x != end; ++x) {
+    sum += *x;
+    q.min = std::min(q.min, *x);
+    q.max = std::max(q.max, *x);
+  }
+  q.mean = sum / static_cast<double>(n);
+  double* r50 = rank(0.5);
+  std::nth_element(begin, r50, end);
+  q.p50 = *r50;
+  double* r99 = rank(0.99);
+  std::nth_element(r50, r99, end);
+  q.p99 = *r99;
+  return q;
+}
+
+Quantiles QuantilesOf(std::vector<double>* v) { return QuantilesOf(v->data(), v->data() + v->size()); }
+
+RunAnalysis AnalyseRun(const RunData& run) {
+  RunAnalysis a;
+  a.summary.states = run.state_messages();
+  a.has_formation = run.has_scenario && !Samples(run, 0).empty() &&
+                    static_cast<int>(run.scenario.offsets_m.size()) == run.followers;
+  AnalyseRunLevel(run, &a);
+  AnalyseFollowers(run, &a);
+  if (a.has_formation) {
+    AnalyseFormation(run, &a);
+  } else {  // no formation metrics: the latest state time instead
+    Micros t = 0;
+    for (const VehicleTrack& v : run.vehicles) {
+      if (!v.samples.empty()) t = std::max(t, v.samples.back().utime);
+    }
+    a.summary.sim_time_s = ToSeconds(t);
+  }
+  AnalyseChannel(run, &a);
+  AnalyseHealth(run, &a);
+  return a;
+}
+
+bool SummariseRunLog(const std::string& path, const Scenario& s, RunSummary* out) {
+  *out = RunSummary();
+  if (access(path.c_str(), R_OK) != 0) return false;
+  RunData run;
+  LoadOptions opt;
+  opt.scenario = &s;
+  std::string error;
+  if (!LoadRunLog(path, opt, &run, &error)) return true;  // no Shoal data: all zero
+  *out = AnalyseRun(run).summary;
+  return true;
+}
+
+}  // namespace shoal

@@ -1,0 +1,129 @@
+// Metrics of a run from its RunData: formation (core/metrics, the definitions of
+// shoal sim), channel ground truth, process health. Definitions: docs/analyze.md.
+//
+// For the renderer, per vehicle: RunData::vehicles[id].samples (t = utime, eta, nu, ...)
+// and, for followers, FollowerAnalysis::errors aligned with those samples; per channel
+// decision: RunData::channel_events (send time, sender, receiver, status, drawn delay)
+// and ChannelAnalysis::configured_delay_s aligned with them (realised delay =
+// deliver_utime - send_utime for delivered events).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "analysis/run_data.h"
+#include "core/metrics.h"
+
+namespace shoal {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// Order statistics of a sample (nearest rank: the value at rank round(q (count - 1)) of
+/// the sorted sample). NaN when empty.
+struct Quantiles {
+  std::int64_t count = 0;
+  double min = kNaN, p50 = kNaN, p99 = kNaN, max = kNaN, mean = kNaN;
+};
+/// Reorders *v.
+Quantiles QuantilesOf(std::vector<double>* v);
+Quantiles QuantilesOf(double* begin, double* end);
+
+struct FollowerAnalysis {
+  int id = 0;
+  /// Aligned with RunData::vehicles[id].samples; NaN where the leader has no sample at
+  /// the same utime.
+  std::vector<FormationErrors> errors;
+  std::int64_t compared = 0;  // samples with a leader sample at the same utime
+  bool converged = false;
+  double convergence_time_s = kNaN;  // this follower alone (same rule as the swarm's)
+  FormationErrors final_errors;      // at its last compared sample
+  double max_position_error_m = kNaN;
+  // From the state flags (independent of the health reports).
+  std::int64_t samples = 0;
+  std::int64_t saturated_ticks = 0;
+  std::int64_t stale_ticks = 0;   // samples with FLAG_STALE_NEIGHBOUR
+  std::int64_t stale_events = 0;  // times the flag went from clear to set
+  double saturation_fraction = kNaN;
+};
+
+struct LinkAnalysis {
+  int from = 0, to = 0;
+  bool in_scenario = false;  // the scenario's topology has this link
+  std::int64_t sent = 0, delivered = 0, dropped_loss = 0, dropped_queue = 0, dropped_invalid = 0;
+  Quantiles realised_delay_s;      // deliver - send, delivered only
+  Quantiles delay_error_s;         // realised - configured tau(send time)
+  Quantiles age_at_use_s;          // receiver tick time - send time of the newest message held
+  std::int64_t ticks_stale = 0;    // receiver ticks whose newest message was older than the timeout
+  std::int64_t ticks_before_first = 0;  // receiver ticks before the first delivery
+};
+
+struct ChannelAnalysis {
+  std::int64_t sent = 0, delivered = 0, dropped = 0;
+  std::int64_t dropped_loss = 0, dropped_queue = 0, dropped_invalid = 0;
+  Quantiles realised_delay_s, delay_error_s, age_at_use_s;
+  /// Events whose drawn delay differs (> 1 ns) from the scenario's deterministic tau(t):
+  /// the emulator ran another delay model than the scenario says.
+  std::int64_t model_mismatches = 0;
+  std::int64_t unknown_links = 0;  // events on links the scenario's topology does not have
+  /// Real time: the emulator's release error p99 (release time - due time) from its last
+  /// health report, as shoal run reports it; 0 in lockstep and shoal sim (no emulator
+  /// health or exact tick releases).
+  double release_error_p99_s = 0.0;
+  /// Configured tau(send time) of each event, aligned with RunData::channel_events: the
+  /// scenario's delay model of that link for none/constant/sinusoid; the drawn delay_s for
+  /// uniform jitter (the scenario only gives its distribution) or without a scenario.
+  std::vector<double> configured_delay_s;
+  std::vector<LinkAnalysis> links;  // sorted by (from, to)
+};
+
+struct ProcessAnalysis {
+  int id = 0;  // vehicle id, -1 channel emulator
+  std::int64_t reports = 0;
+  HealthRecord last;  // the last report in the log (figures since the process started)
+};
+
+/// The summary shoal run prints from its log; shoal analyze prints it too (same keys).
+struct RunSummary {
+  bool converged = false;
+  double convergence_time_s = -1.0;  // -1 if not converged
+  FormationErrors final_worst;       // worst follower at the last complete sample
+  double max_position_error_m = 0.0;
+  double sim_time_s = 0.0;           // leader time of the last complete sample
+  std::int64_t states = 0;           // valid vehicle states in the log
+  std::int64_t delivered = 0, dropped = 0;
+  double lateness_p99_s = 0.0;       // worst process (vehicles and leader), last health report
+  std::int64_t overruns = 0;         // sum over processes, last health reports
+  double release_error_p99_s = 0.0;  // the emulator's (real time)
+};
+
+struct RunAnalysis {
+  std::string mode;  // "sim", "lockstep", "realtime" or "unknown", inferred from the log
+  Micros period_us = 0;
+  bool has_formation = false;  // scenario (offsets) and leader states available
+  RunSummary summary;
+  std::int64_t complete_samples = 0;  // times with the leader and every follower
+  std::vector<FormationErrors> final_errors;  // per follower at the last complete sample
+  std::vector<FollowerAnalysis> followers;    // index i - 1 for follower i
+  int diverged_follower = 0;  // first follower with a non-finite state or |pitch| > 80 deg
+  ChannelAnalysis channel;
+  std::vector<ProcessAnalysis> processes;  // sorted by id
+  std::int64_t ticks = 0;                  // clock ticks in the log (else leader samples)
+  std::int64_t states_expected = 0;        // (last tick + 1) * (n + 1)
+  double wall_time_s = kNaN;  // recording span if the log's timestamps are wall clock
+  bool interrupted = false;   // a run-level status said "interrupted"
+  std::vector<std::string> problems;  // failed / vehicle_lost statuses
+  // The leader's path.
+  double leader_path_length_m = kNaN;
+  Vec3 leader_start_m = Vec3::Constant(kNaN), leader_end_m = Vec3::Constant(kNaN);
+};
+
+RunAnalysis AnalyseRun(const RunData& run);
+
+/// shoal run's summary of its own log, with the given scenario. False only if the log
+/// cannot be opened; a log without Shoal data gives an all-zero summary.
+bool SummariseRunLog(const std::string& path, const Scenario& s, RunSummary* out);
+
+}  // namespace shoal

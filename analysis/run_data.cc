@@ -1,0 +1,365 @@
+#include "analysis/run_data.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include <shoal/channel_event_t.hpp>
+#include <shoal/clock_tick_t.hpp>
+#include <shoal/health_t.hpp>
+#include <shoal/run_status_t.hpp>
+#include <shoal/vehicle_state_t.hpp>
+
+#include "analysis/log_reader.h"
+#include "analysis/memory.h"
+#include "runtime/scenario_loader.h"
+
+namespace shoal {
+namespace {
+
+// Big-endian readers for the hot message types (states and channel events): the generated
+// decoders are correct but allocate the channel event's reason string and throw on a
+// damaged string length (std::length_error for a length <= 0).
+std::uint64_t U64(const std::uint8_t* p) {
+  std::uint64_t v;
+  std::memcpy(&v, p, 8);
+  return __builtin_bswap64(v);
+}
+std::int64_t I64(const std::uint8_t* p) { return static_cast<std::int64_t>(U64(p)); }
+std::int32_t I32(const std::uint8_t* p) {
+  std::uint32_t v;
+  std::memcpy(&v, p, 4);
+  return static_cast<std::int32_t>(__builtin_bswap32(v));
+}
+double F64(const std::uint8_t* p) {
+  const std::uint64_t u = U64(p);
+  double d;
+  std::memcpy(&d, &u, 8);
+  return d;
+}
+void Load5(const std::uint8_t* p, Vec5* v) {
+  for (int k = 0; k < 5; ++k) (*v)(k) = F64(p + 8 * k);
+}
+
+constexpr int kStateBytes = 8 + 8 + 4 + 4 + 25 * 8 + 4;
+constexpr int kChannelFixedBytes = 8 + 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 1;
+
+bool DecodeState(const std::uint8_t* p, int size, StateMsg* m) {
+  static const std::int64_t hash = vehicle_state_t::getHash();
+  if (size != kStateBytes || I64(p) != hash) return false;
+  p += 8;
+  m->utime = I64(p);
+  m->vehicle_id = I32(p + 8);
+  m->seq = I32(p + 12);
+  p += 16;
+  Load5(p, &m->eta);
+  Load5(p + 40, &m->nu);
+  Load5(p + 80, &m->eta_dot);
+  Load5(p + 120, &m->accel_cmd);
+  Load5(p + 160, &m->tau);
+  m->flags = I32(p + 200);
+  return true;
+}
+
+bool DecodeChannelEvent(const std::uint8_t* p, int size, channel_event_t* e) {
+  static const std::int64_t hash = channel_event_t::getHash();
+  if (size < kChannelFixedBytes + 4 || I64(p) != hash) return false;
+  const std::int32_t len = I32(p + kChannelFixedBytes);  // reason, including its '\0'
+  if (len < 1 || len != size - kChannelFixedBytes - 4 || p[size - 1] != 0) return false;
+  p += 8;
+  e->utime = I64(p);
+  e->vehicle_id = I32(p + 8);
+  e->seq = I32(p + 12);
+  e->sender = I32(p + 16);
+  e->receiver = I32(p + 20);
+  e->msg_seq = I32(p + 24);
+  e->send_utime = I64(p + 28);
+  e->delay_s = F64(p + 36);
+  e->deliver_utime = I64(p + 44);
+  e->status = static_cast<std::int8_t>(p[52]);
+  return true;
+}
+
+/// The generated decoder, made safe: false instead of an exception, and the whole buffer
+/// must be consumed.
+template <typename Msg>
+bool SafeDecode(const std::uint8_t* data, int size, Msg* out) {
+  if (size < 8) return false;
+  try {
+    return out->decode(data, 0, size) == size;
+  } catch (...) {
+    return false;
+  }
+}
+
+/// "123" or "-1" (whole string) -> id; false otherwise.
+bool ParseId(std::string_view s, int* id) {
+  if (s.empty() || s.size() > 7) return false;
+  std::size_t i = 0;
+  const bool neg = s[0] == '-';
+  if (neg) i = 1;
+  if (i == s.size()) return false;
+  int v = 0;
+  for (; i < s.size(); ++i) {
+    if (s[i] < '0' || s[i] > '9') return false;
+    v = v * 10 + (s[i] - '0');
+  }
+  *id = neg ? -v : v;
+  return true;
+}
+
+bool StartsWith(std::string_view s, std::string_view p) {
+  return s.size() >= p.size() && std::memcmp(s.data(), p.data(), p.size()) == 0;
+}
+
+}  // namespace
+
+RunDataBuilder::RunDataBuilder(RunData* out, const LoadOptions& opt) : d_(out), opt_(opt) {
+  if (opt_.scenario != nullptr) {
+    d_->scenario = *opt_.scenario;
+    d_->has_scenario = true;
+    d_->scenario_origin = "file";
+    d_->scenario_name = d_->scenario.name;
+  }
+}
+
+int RunDataBuilder::IdLimit() const {
+  if (d_->has_scenario) return d_->scenario.followers;
+  if (max_status_followers_ > 0) return max_status_followers_;
+  return opt_.max_vehicle_id;
+}
+
+VehicleTrack* RunDataBuilder::Track(int id) {
+  if (id >= static_cast<int>(d_->vehicles.size())) {
+    const std::size_t old = d_->vehicles.size();
+    d_->vehicles.resize(static_cast<std::size_t>(id) + 1);
+    for (std::size_t k = old; k < d_->vehicles.size(); ++k) d_->vehicles[k].id = static_cast<int>(k);
+  }
+  return &d_->vehicles[static_cast<std::size_t>(id)];
+}
+
+void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size,
+                         std::int64_t timestamp) {
+  ++d_->events;
+  if (!have_time_) {
+    d_->first_timestamp = timestamp;
+    have_time_ = true;
+  }
+  d_->last_timestamp = timestamp;
+  if (!StartsWith(ch, "SHOAL_")) {
+    ++d_->other_events;
+    return;
+  }
+  const std::string_view rest = ch.substr(6);
+  int id = 0;
+  if (StartsWith(rest, "STATE_") && ParseId(rest.substr(6), &id)) {
+    AddState(id, data, size);
+  } else if (StartsWith(rest, "RX_") && ParseId(rest.substr(3), &id)) {
+    if (id >= 0 && id <= IdLimit()) {
+      ++d_->rx_messages[id];
+    } else {
+      ++d_->rejected;
+    }
+  } else if (rest == "CHANNEL") {
+    channel_event_t e{};
+    if (!DecodeChannelEvent(data, size, &e)) {
+      ++d_->undecodable;
+      return;
+    }
+    const int lim = IdLimit();
+    if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim || e.status < 0 ||
+        e.status > channel_event_t::STATUS_DROPPED_INVALID) {
+      ++d_->rejected;
+      return;
+    }
+    ChannelEventRecord r;
+    r.send_utime = e.send_utime;
+    r.deliver_utime = e.deliver_utime;
+    r.delay_s = e.delay_s;
+    r.msg_seq = e.msg_seq;
+    r.sender = static_cast<std::int16_t>(e.sender);
+    r.receiver = static_cast<std::int16_t>(e.receiver);
+    r.status = e.status;
+    d_->channel_events.push_back(r);
+  } else if (StartsWith(rest, "HEALTH_") && ParseId(rest.substr(7), &id)) {
+    health_t h{};
+    if (!SafeDecode(data, size, &h)) {
+      ++d_->undecodable;
+      return;
+    }
+    if (h.vehicle_id != id || id < -1 || id > IdLimit()) {
+      ++d_->rejected;
+      return;
+    }
+    HealthRecord r;
+    r.utime = h.utime;
+    r.process_id = h.vehicle_id;
+    r.ticks = h.ticks;
+    r.lateness_p50_s = h.lateness_p50_s;
+    r.lateness_p99_s = h.lateness_p99_s;
+    r.lateness_max_s = h.lateness_max_s;
+    r.overruns = h.overruns;
+    r.msgs_received = h.msgs_received;
+    r.msgs_dropped_invalid = h.msgs_dropped_invalid;
+    r.msgs_dropped_old = h.msgs_dropped_old;
+    r.neighbour_timeouts = h.neighbour_timeouts;
+    r.active_neighbours = h.active_neighbours;
+    r.saturated_ticks = h.saturated_ticks;
+    r.saturation_fraction = h.saturation_fraction;
+    d_->health.push_back(r);
+  } else if (rest == "CLOCK") {
+    clock_tick_t c{};
+    if (!SafeDecode(data, size, &c)) {
+      ++d_->undecodable;
+      return;
+    }
+    d_->clock.push_back(ClockRecord{c.utime, c.tick, c.period_us, c.final_tick != 0});
+  } else if (rest == "STATUS") {
+    AddStatus(data, size);
+  } else {
+    ++d_->other_events;
+  }
+}
+
+void RunDataBuilder::AddState(int id, const std::uint8_t* data, int size) {
+  StateMsg m;
+  if (!DecodeState(data, size, &m)) {
+    ++d_->undecodable;
+    return;
+  }
+  if (m.vehicle_id != id || id < 0 || id > IdLimit()) {
+    ++d_->rejected;
+    return;
+  }
+  VehicleTrack* t = Track(id);
+  // Kept: a diverging vehicle's NaN state must count as a formation violation (and is a
+  // gap in a plot), not vanish.
+  if (!m.AllFinite() && t->nonfinite++ == 0) t->first_nonfinite_utime = m.utime;
+  ++t->received;
+  t->samples.push_back(m);
+}
+
+void RunDataBuilder::AddStatus(const std::uint8_t* data, int size) {
+  run_status_t st;
+  if (!SafeDecode(data, size, &st)) {
+    ++d_->undecodable;
+    return;
+  }
+  StatusRecord r;
+  r.utime = st.utime;
+  r.vehicle_id = st.vehicle_id;
+  r.state = st.state;
+  r.scenario_name = st.scenario_name;
+  r.seed = st.seed;
+  r.followers = st.followers;
+  r.message = st.message;
+  d_->statuses.push_back(std::move(r));
+  if (st.followers > 0 && st.followers <= opt_.max_vehicle_id) {
+    max_status_followers_ = std::max(max_status_followers_, st.followers);
+  }
+  if (d_->scenario_name.empty()) d_->scenario_name = st.scenario_name;
+  if (!st.scenario_toml.empty() && d_->scenario_text.empty()) {
+    d_->scenario_text = st.scenario_toml;
+    if (!d_->has_scenario) {
+      const std::string where = "scenario text in " + d_->source + " (SHOAL_STATUS)";
+      try {
+        d_->scenario = ParseScenario(st.scenario_toml, where);
+        if (!st.scenario_name.empty()) d_->scenario.name = st.scenario_name;
+        d_->has_scenario = true;
+        d_->scenario_origin = "log";
+        d_->scenario_name = d_->scenario.name;
+      } catch (const std::exception& e) {
+        d_->warnings.push_back(std::string("the scenario text in the log does not load (") +
+                               e.what() + "); formation errors need --scenario FILE");
+      }
+    }
+  }
+}
+
+void RunDataBuilder::ReserveByExtrapolation(double fraction) {
+  if (!(fraction > 0.0 && fraction <= 1.0)) return;
+  const auto room = [&](std::size_t now) {
+    return static_cast<std::size_t>(static_cast<double>(now) / fraction * 1.05) + 1024;
+  };
+  for (VehicleTrack& v : d_->vehicles) {
+    if (!v.samples.empty()) ReserveHuge(&v.samples, room(v.samples.size()));
+  }
+  if (!d_->channel_events.empty()) ReserveHuge(&d_->channel_events, room(d_->channel_events.size()));
+}
+
+void RunDataBuilder::Finish() {
+  // n: the scenario's, else the statuses', else the largest id seen.
+  int n = 0;
+  if (d_->has_scenario) {
+    n = d_->scenario.followers;
+  } else if (max_status_followers_ > 0) {
+    n = max_status_followers_;
+  } else {
+    for (const VehicleTrack& v : d_->vehicles) {
+      if (v.received > 0) n = std::max(n, v.id);
+    }
+  }
+  // States accepted before n was known that lie beyond it are inconsistent data.
+  for (std::size_t k = static_cast<std::size_t>(n) + 1; k < d_->vehicles.size(); ++k) {
+    d_->rejected += d_->vehicles[k].received;
+  }
+  if (d_->vehicles.size() > static_cast<std::size_t>(n) + 1) d_->vehicles.resize(n + 1);
+  Track(n);
+  d_->followers = n;
+  for (VehicleTrack& v : d_->vehicles) {
+    auto& s = v.samples;
+    const auto by_time = [](const StateMsg& a, const StateMsg& b) { return a.utime < b.utime; };
+    if (!std::is_sorted(s.begin(), s.end(), by_time)) std::stable_sort(s.begin(), s.end(), by_time);
+    // One sample per utime: the last one recorded wins (as in shoal run's summary).
+    std::size_t w = 0;
+    for (std::size_t r = 0; r < s.size(); ++r) {
+      if (w > 0 && s[w - 1].utime == s[r].utime) {
+        s[w - 1] = s[r];
+        ++v.repeated;
+      } else {
+        if (w != r) s[w] = s[r];
+        ++w;
+      }
+    }
+    s.resize(w);
+  }
+}
+
+bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out,
+                std::string* error) {
+  *out = RunData();
+  out->source = path;
+  LcmLogReader reader;
+  if (!reader.Open(path, error)) return false;
+  RunDataBuilder b(out, opt);
+  LogEventView ev;
+  // Big logs: once 2 % is read, reserve for the rest (logs are homogeneous in time).
+  const std::int64_t reserve_at = reader.file_size() > (64 << 20) ? reader.file_size() / 50 : -1;
+  bool reserved = false;
+  while (reader.Next(&ev)) {
+    b.Add(ev.channel, ev.data, ev.size, ev.timestamp);
+    if (!reserved && reserve_at > 0 && ev.offset >= reserve_at) {
+      b.ReserveByExtrapolation(static_cast<double>(ev.offset) / static_cast<double>(reader.file_size()));
+      reserved = true;
+    }
+  }
+  b.Finish();
+  out->warnings.insert(out->warnings.begin(), reader.warnings().begin(), reader.warnings().end());
+  out->damaged = reader.damaged_regions() > 0;
+  if (out->events == 0) {
+    *error = path + ": no complete LCM event in the file" +
+             (reader.warnings().empty() ? std::string() : " (" + reader.warnings().front() + ")");
+    return false;
+  }
+  const bool any_shoal = out->state_messages() > 0 || !out->channel_events.empty() ||
+                         !out->health.empty() || !out->clock.empty() || !out->statuses.empty();
+  if (!any_shoal) {
+    *error = path + ": an LCM log with " + std::to_string(out->events) +
+             " events but no Shoal message (no valid SHOAL_* channel); analyse a log written "
+             "by shoal sim --out, shoal run, or lcm-logger during a Shoal run";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace shoal

@@ -1,0 +1,156 @@
+// RunData: everything an analysis or a plot needs from a Shoal log (or a live bus), as
+// plain data. Built by LoadRunLog() from an LCM log file or by RunDataBuilder from any
+// source of (channel, bytes) events (shoal analyze --live feeds it from an LCM
+// subscription).
+//
+// What is kept, per channel (types in lcmtypes/, names in runtime/channels.h):
+//   SHOAL_STATUS      statuses (without the scenario text, which is kept once); the first
+//                     one carrying scenario text gives the scenario (parsed with
+//                     ParseScenario) unless LoadOptions::scenario is given
+//   SHOAL_STATE_<id>  every vehicle_state_t field, per vehicle, sorted by utime, one sample
+//                     per utime (a repeated utime keeps the last one recorded)
+//   SHOAL_CHANNEL     one compact record per channel decision (no reason string)
+//   SHOAL_HEALTH_<id> every health_t, in log order
+//   SHOAL_CLOCK       every tick
+//   SHOAL_RX_<id>     counted per receiver only (the same data as SHOAL_CHANNEL + states)
+// Messages that do not decode, carry the wrong fingerprint, name an id that does not
+// match their channel or is out of range are counted, never kept. States holding NaN/Inf
+// are kept (a diverging vehicle) and counted in VehicleTrack::nonfinite.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/scenario.h"
+#include "core/state_msg.h"
+
+namespace shoal {
+
+/// One SHOAL_CHANNEL decision. Realised delay = deliver_utime - send_utime (delivered only).
+struct ChannelEventRecord {
+  Micros send_utime = 0;     // [us] the message's utime (its send time)
+  Micros deliver_utime = 0;  // [us] when the emulator delivers it; 0 if dropped
+  double delay_s = 0.0;      // [s] delay the link's model drew for it (tau(t))
+  std::int32_t msg_seq = 0;  // seq of the vehicle_state_t concerned
+  std::int16_t sender = 0;
+  std::int16_t receiver = 0;
+  std::int8_t status = 0;    // channel_event_t::STATUS_*: 0 delivered, 1 loss, 2 queue, 3 invalid
+};
+
+/// One SHOAL_HEALTH_<id> report (health_t without the header's seq).
+struct HealthRecord {
+  Micros utime = 0;
+  int process_id = 0;  // vehicle id, or -1 for the channel emulator
+  std::int64_t ticks = 0;
+  double lateness_p50_s = 0.0, lateness_p99_s = 0.0, lateness_max_s = 0.0;
+  std::int64_t overruns = 0;
+  std::int64_t msgs_received = 0, msgs_dropped_invalid = 0, msgs_dropped_old = 0;
+  std::int64_t neighbour_timeouts = 0;
+  int active_neighbours = 0;
+  std::int64_t saturated_ticks = 0;
+  double saturation_fraction = 0.0;
+};
+
+struct ClockRecord {
+  Micros utime = 0;
+  std::int64_t tick = 0;
+  Micros period_us = 0;
+  bool final_tick = false;
+};
+
+struct StatusRecord {
+  Micros utime = 0;
+  int vehicle_id = 0;  // publisher: vehicle id, -1 emulator, -2 launcher / shoal sim
+  std::string state;   // "starting", "ready", "running", "finished", "failed", "interrupted", "vehicle_lost"
+  std::string scenario_name;
+  std::int64_t seed = 0;
+  int followers = 0;
+  std::string message;
+};
+
+/// The states of one vehicle (leader = 0), sorted by utime, unique utimes.
+struct VehicleTrack {
+  int id = 0;
+  std::vector<StateMsg> samples;
+  std::int64_t received = 0;    // valid states in the log, including repeats
+  std::int64_t repeated = 0;    // same utime as an earlier sample (the last one is kept)
+  std::int64_t nonfinite = 0;   // states with NaN/Inf (kept)
+  Micros first_nonfinite_utime = -1;
+};
+
+struct RunData {
+  std::string source;  // log path or LCM URL
+
+  // Scenario: from the log's first SHOAL_STATUS with scenario text, or given by the caller.
+  bool has_scenario = false;
+  std::string scenario_origin;  // "log", "file" or "" (none)
+  Scenario scenario;
+  std::string scenario_name;    // from the statuses even without scenario text
+  std::string scenario_text;    // as logged ("" if not in the log)
+  int followers = 0;            // n: scenario, else statuses, else the largest id seen
+
+  std::vector<VehicleTrack> vehicles;            // index = vehicle id (0 = leader)
+  std::vector<ChannelEventRecord> channel_events;  // in log order
+  std::vector<HealthRecord> health;              // in log order
+  std::vector<ClockRecord> clock;                // in log order
+  std::vector<StatusRecord> statuses;            // in log order
+  std::map<int, std::int64_t> rx_messages;       // SHOAL_RX_<id>: messages per receiver
+
+  // Bookkeeping.
+  std::int64_t events = 0;          // events read (all channels)
+  std::int64_t other_events = 0;    // events on non-Shoal channels (ignored)
+  std::int64_t undecodable = 0;     // Shoal channel, but the bytes do not decode
+  std::int64_t rejected = 0;        // decoded, but inconsistent (id mismatch / out of range)
+  Micros first_timestamp = 0, last_timestamp = 0;  // [us] event timestamps (recorder's clock)
+  std::vector<std::string> warnings;  // damage and problems, one user-facing sentence each
+  bool damaged = false;               // the log was truncated or corrupt
+
+  std::int64_t state_messages() const {
+    std::int64_t k = 0;
+    for (const VehicleTrack& v : vehicles) k += v.received;
+    return k;
+  }
+};
+
+struct LoadOptions {
+  /// Scenario to use instead of the one in the log (e.g. for shoal run logs, which do not
+  /// carry the scenario text). Null: the log's, if any.
+  const Scenario* scenario = nullptr;
+  /// Largest vehicle id accepted when the scenario does not say (protects against
+  /// absurd ids in damaged data).
+  int max_vehicle_id = 1023;
+};
+
+/// Decodes events into a RunData. Add() never throws and never keeps a pointer to `data`.
+class RunDataBuilder {
+ public:
+  RunDataBuilder(RunData* out, const LoadOptions& opt);
+  void Add(std::string_view channel, const std::uint8_t* data, int size, std::int64_t timestamp);
+  /// Sorts and de-duplicates the tracks, resolves n; call once after the last Add().
+  void Finish();
+  /// Reserves room for the whole source when `fraction` of it (0..1, by bytes) has been
+  /// added: the counts so far, extrapolated, plus 5 %. Avoids growing the large vectors
+  /// by copying (time, and a transient doubling of the peak memory). Optional.
+  void ReserveByExtrapolation(double fraction);
+
+ private:
+  void AddState(int channel_id, const std::uint8_t* data, int size);
+  void AddStatus(const std::uint8_t* data, int size);
+  int IdLimit() const;
+  VehicleTrack* Track(int id);
+
+  RunData* d_;
+  LoadOptions opt_;
+  bool have_time_ = false;
+  int max_status_followers_ = 0;
+};
+
+/// Reads an LCM log into *out. False (with *error, a user-facing message) if the file is
+/// unreadable, empty, not an LCM log, or holds no complete Shoal message; a damaged log
+/// is read up to / around the damage with out->warnings and out->damaged set.
+bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out, std::string* error);
+
+}  // namespace shoal

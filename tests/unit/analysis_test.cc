@@ -1,0 +1,823 @@
+// shoal_analysis on synthetic logs written with the real log writer: known answers for
+// the formation, channel and health metrics; damaged, truncated, empty and non-LCM files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "analysis/analysis.h"
+#include "analysis/csv.h"
+#include "analysis/log_reader.h"
+#include "analysis/run_data.h"
+#include "runtime/channels.h"
+#include "runtime/lcm_bus.h"
+#include "runtime/log_writer.h"
+#include "runtime/messages.h"
+
+namespace shoal {
+namespace {
+
+constexpr Micros kPeriod = 20000;  // 50 Hz
+constexpr double kPi = 3.14159265358979323846;
+
+std::string Tmp(const std::string& name) {
+  const std::string dir = std::string(SHOAL_BINARY_DIR) + "/test_tmp";
+  std::system(("mkdir -p " + dir).c_str());
+  return dir + "/analysis_" + name;
+}
+
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << bytes;
+}
+
+// Two followers: 1 hears the leader (constant 0.1 s), 2 hears 1 (constant 0.03 s, a link
+// override). Offsets d_1 = (6, 0, 0), d_2 = (0, 6, 0).
+const char* kScenario = R"([run]
+name = "known_answers"
+duration_s = 10
+control_rate_hz = 50
+
+[swarm]
+followers = 2
+leader_links = [1]
+edges = [[2, 1]]
+neighbour_timeout_s = 1.0
+
+[control]
+k1 = 1
+k2 = 1
+offsets_m = [[6, 0, 0], [0, 6, 0]]
+
+[channel.delay]
+model = "constant"
+base_s = 0.1
+
+[[channel.link]]
+from = 1
+to = 2
+delay = { model = "constant", base_s = 0.03 }
+)";
+
+run_status_t Status(Micros t, int id, const std::string& state, const std::string& toml,
+                    int followers = 2) {
+  run_status_t st;
+  st.utime = t;
+  st.vehicle_id = id;
+  st.seq = 0;
+  st.state = state;
+  st.scenario_name = "known_answers";
+  st.scenario_toml = toml;
+  st.seed = 1;
+  st.followers = followers;
+  st.message = "";
+  return st;
+}
+
+StateMsg State(int id, Micros t, const Vec5& eta, const Vec5& eta_dot, int flags = 0) {
+  StateMsg m;
+  m.vehicle_id = id;
+  m.seq = static_cast<std::int32_t>(t / kPeriod);
+  m.utime = t;
+  m.eta = eta;
+  m.eta_dot = eta_dot;
+  m.nu = eta_dot;
+  m.flags = flags;
+  return m;
+}
+
+channel_event_t Event(int from, int to, Micros send, double delay_s, Micros deliver,
+                      std::int8_t status, std::int32_t seq) {
+  ChannelDecision d;
+  d.sender = from;
+  d.receiver = to;
+  d.msg_seq = static_cast<std::int32_t>(send / kPeriod);
+  d.send_utime = send;
+  d.delay_s = delay_s;
+  d.deliver_utime = deliver;
+  d.status = static_cast<ChannelDecision::Status>(status);
+  return ToLcm(d, seq);
+}
+
+health_t Health(Micros t, int id, double p99, std::int64_t overruns) {
+  health_t h{};
+  h.utime = t;
+  h.vehicle_id = id;
+  h.ticks = t / kPeriod + 1;
+  h.lateness_p50_s = p99 / 2;
+  h.lateness_p99_s = p99;
+  h.lateness_max_s = 2 * p99;
+  h.overruns = overruns;
+  return h;
+}
+
+RunData Load(const std::string& path, std::string* err = nullptr) {
+  RunData run;
+  std::string e;
+  EXPECT_TRUE(LoadRunLog(path, LoadOptions(), &run, &e)) << e;
+  if (err) *err = e;
+  return run;
+}
+
+// The leader moves north at 1 m/s. Follower 1 is off its slot by (3, 4, 0) m with a 0.2 m/s
+// sway velocity error, 0.1 rad pitch error and a heading across +-pi (0.1 rad after
+// wrapping) until t = 4 s; from then on off by (0.06, 0.08, 0) m and 0.01 m/s.
+// Follower 2 sits exactly in its slot. The leader's state at t = 6 s is missing.
+std::string WriteFormationLog(int ticks) {
+  const std::string path = Tmp("formation.lcmlog");
+  LogWriter log(path);
+  log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
+  for (int k = 0; k < ticks; ++k) {
+    const Micros t = k * kPeriod;
+    const double ts = ToSeconds(t);
+    const bool early = t < 4000000;
+    const Vec5 eta0 = (Vec5() << ts, 0, 0, 0, -kPi + 0.05).finished();
+    const Vec5 v0 = (Vec5() << 1, 0, 0, 0, 0).finished();
+    const Vec3 e = early ? Vec3(3, 4, 0) : Vec3(0.06, 0.08, 0);
+    Vec5 eta1 = eta0;
+    eta1.head<3>() += Vec3(6, 0, 0) + e;
+    eta1(3) = 0.1;
+    eta1(4) = kPi - 0.05;
+    const Vec5 v1 = (Vec5() << 1, early ? 0.2 : 0.01, 0, 0, 0).finished();
+    Vec5 eta2 = eta0;
+    eta2.head<3>() += Vec3(0, 6, 0);
+    if (t != 6000000) log.Write(channels::State(0), t, ToLcm(State(0, t, eta0, v0, StateMsg::kFlagLeader)));
+    log.Write(channels::State(1), t, ToLcm(State(1, t, eta1, v1)));
+    log.Write(channels::State(2), t, ToLcm(State(2, t, eta2, v0)));
+  }
+  return path;
+}
+
+TEST(Analysis, FollowerAtKnownErrorGivesKnownErrorsAndConvergence) {
+  const int ticks = 500;  // 0 .. 9.98 s
+  const RunData run = Load(WriteFormationLog(ticks));
+  ASSERT_TRUE(run.has_scenario);
+  EXPECT_EQ(run.scenario_origin, "log");
+  EXPECT_EQ(run.scenario_name, "known_answers");
+  EXPECT_EQ(run.followers, 2);
+  ASSERT_EQ(run.vehicles.size(), 3u);
+  EXPECT_EQ(run.vehicles[0].samples.size(), static_cast<std::size_t>(ticks - 1));
+  const RunAnalysis a = AnalyseRun(run);
+  ASSERT_TRUE(a.has_formation);
+  EXPECT_EQ(a.mode, "unknown");  // neither clock ticks nor an emulator
+  // Swarm level: converged when follower 1 came within tolerance.
+  EXPECT_TRUE(a.summary.converged);
+  EXPECT_DOUBLE_EQ(a.summary.convergence_time_s, 4.0);
+  EXPECT_NEAR(a.summary.final_worst.position_m, 0.1, 1e-9);
+  EXPECT_NEAR(a.summary.final_worst.velocity_mps, 0.01, 1e-12);
+  EXPECT_NEAR(a.summary.final_worst.attitude_rad, std::sqrt(0.02), 1e-9);
+  EXPECT_NEAR(a.summary.max_position_error_m, 5.0, 1e-9);
+  EXPECT_EQ(a.complete_samples, ticks - 1);  // the leader's missing sample
+  EXPECT_DOUBLE_EQ(a.summary.sim_time_s, ToSeconds((ticks - 1) * kPeriod));
+  // Per follower, aligned with the samples.
+  ASSERT_EQ(a.followers.size(), 2u);
+  const FollowerAnalysis& f1 = a.followers[0];
+  ASSERT_EQ(f1.errors.size(), static_cast<std::size_t>(ticks));
+  EXPECT_NEAR(f1.errors[50].position_m, 5.0, 1e-9);
+  EXPECT_NEAR(f1.errors[50].velocity_mps, 0.2, 1e-12);
+  EXPECT_NEAR(f1.errors[50].attitude_rad, std::sqrt(0.02), 1e-9);  // heading wrapped
+  EXPECT_TRUE(std::isnan(f1.errors[300].position_m));              // t = 6 s: no leader
+  EXPECT_NEAR(f1.errors[301].position_m, 0.1, 1e-9);
+  EXPECT_EQ(f1.compared, ticks - 1);
+  EXPECT_DOUBLE_EQ(f1.convergence_time_s, 4.0);
+  EXPECT_DOUBLE_EQ(a.followers[1].convergence_time_s, 0.0);
+  EXPECT_NEAR(a.followers[1].final_errors.position_m, 0.0, 1e-12);
+  ASSERT_EQ(a.final_errors.size(), 2u);
+  EXPECT_NEAR(a.final_errors[0].position_m, 0.1, 1e-9);
+  // The leader's path: 1 m/s north for (ticks - 1) periods, minus nothing (the missing
+  // sample is on the straight line).
+  EXPECT_NEAR(a.leader_path_length_m, ToSeconds((ticks - 1) * kPeriod), 1e-9);
+}
+
+TEST(Analysis, NotConvergedWhenTheLastSampleViolates) {
+  const std::string path = Tmp("late_violation.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
+    for (int k = 0; k < 100; ++k) {
+      const Micros t = k * kPeriod;
+      const Vec5 z = Vec5::Zero();
+      Vec5 e1 = z, e2 = z;
+      e1.head<3>() = Vec3(6, 0, 0);
+      e2.head<3>() = Vec3(0, 6, k == 99 ? 7 : 0);  // 7 m off at the very end
+      log.Write(channels::State(0), t, ToLcm(State(0, t, z, z)));
+      log.Write(channels::State(1), t, ToLcm(State(1, t, e1, z)));
+      log.Write(channels::State(2), t, ToLcm(State(2, t, e2, z)));
+    }
+  }
+  const RunAnalysis a = AnalyseRun(Load(path));
+  EXPECT_FALSE(a.summary.converged);
+  EXPECT_EQ(a.summary.convergence_time_s, -1.0);
+  EXPECT_NEAR(a.summary.final_worst.position_m, 7.0, 1e-12);
+  EXPECT_TRUE(a.followers[0].converged);
+  EXPECT_FALSE(a.followers[1].converged);
+}
+
+// Leader -> 1: tau = 0.1 s, every 4th message lost, message 9 dropped by a full queue.
+// 1 -> 2: tau = 0.03 s, delivered at the next tick boundary, 0.04 s (tick quantisation).
+std::string WriteChannelLog(int ticks, bool with_states = true) {
+  const std::string path = Tmp("channel.lcmlog");
+  LogWriter log(path);
+  log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
+  std::int32_t seq = 0;
+  for (int k = 0; k < ticks; ++k) {
+    const Micros t = k * kPeriod;
+    clock_tick_t c{};
+    c.utime = t;
+    c.vehicle_id = kEmulatorId;
+    c.tick = k;
+    c.period_us = kPeriod;
+    log.Write(channels::Clock(), t, c);
+    if (with_states) {
+      for (int id = 0; id <= 2; ++id) {
+        log.Write(channels::State(id), t, ToLcm(State(id, t, Vec5::Zero(), Vec5::Zero())));
+      }
+    }
+    const std::int8_t s01 = k == 9 ? 2 : (k % 4 == 3 ? 1 : 0);
+    log.Write(channels::ChannelEvents(), t,
+              Event(0, 1, t, 0.1, s01 == 0 ? t + 100000 : 0, s01, seq++));
+    log.Write(channels::ChannelEvents(), t, Event(1, 2, t, 0.03, t + 40000, 0, seq++));
+  }
+  return path;
+}
+
+TEST(Analysis, ChannelWithKnownDelayAndDropPattern) {
+  const int ticks = 400;
+  const RunData run = Load(WriteChannelLog(ticks));
+  const RunAnalysis a = AnalyseRun(run);
+  const ChannelAnalysis& c = a.channel;
+  int lost = 0;
+  for (int k = 0; k < ticks; ++k) lost += k % 4 == 3;
+  EXPECT_EQ(c.sent, 2 * ticks);
+  EXPECT_EQ(c.dropped_loss, lost);
+  EXPECT_EQ(c.dropped_queue, 1);
+  EXPECT_EQ(c.dropped_invalid, 0);
+  EXPECT_EQ(c.dropped, lost + 1);
+  EXPECT_EQ(c.delivered, 2 * ticks - lost - 1);
+  EXPECT_EQ(a.summary.delivered, c.delivered);
+  EXPECT_EQ(a.summary.dropped, c.dropped);
+  EXPECT_EQ(c.model_mismatches, 0);
+  EXPECT_EQ(c.unknown_links, 0);
+  ASSERT_EQ(c.links.size(), 2u);
+  const LinkAnalysis& l01 = c.links[0];
+  const LinkAnalysis& l12 = c.links[1];
+  ASSERT_EQ(l01.from, 0);
+  ASSERT_EQ(l01.to, 1);
+  ASSERT_EQ(l12.from, 1);
+  ASSERT_EQ(l12.to, 2);
+  EXPECT_TRUE(l01.in_scenario && l12.in_scenario);
+  EXPECT_EQ(l01.delivered, ticks - lost - 1);
+  EXPECT_EQ(l12.delivered, ticks);
+  // Realised delay exactly tau on 0 -> 1; one tick boundary later than tau on 1 -> 2.
+  EXPECT_NEAR(l01.realised_delay_s.p50, 0.1, 1e-12);
+  EXPECT_NEAR(l01.delay_error_s.max, 0.0, 1e-12);
+  EXPECT_NEAR(l01.delay_error_s.min, 0.0, 1e-12);
+  EXPECT_NEAR(l12.realised_delay_s.max, 0.04, 1e-12);
+  EXPECT_NEAR(l12.delay_error_s.p50, 0.01, 1e-12);
+  EXPECT_NEAR(l12.delay_error_s.min, 0.01, 1e-12);
+  EXPECT_NEAR(c.delay_error_s.max, 0.01, 1e-12);
+  EXPECT_EQ(c.delay_error_s.count, c.delivered);
+  // Configured tau per event, aligned with the events.
+  ASSERT_EQ(c.configured_delay_s.size(), run.channel_events.size());
+  for (std::size_t k = 0; k < run.channel_events.size(); ++k) {
+    EXPECT_DOUBLE_EQ(c.configured_delay_s[k], run.channel_events[k].sender == 0 ? 0.1 : 0.03);
+  }
+  // Age at use on 0 -> 1: 0.1 s, or 0.12 s when the newest message was lost; the first
+  // delivery is usable at tick 5.
+  EXPECT_EQ(l01.ticks_before_first, 5);
+  EXPECT_EQ(l01.ticks_stale, 0);
+  EXPECT_EQ(l01.age_at_use_s.count, ticks - 5);
+  EXPECT_NEAR(l01.age_at_use_s.p50, 0.1, 1e-12);
+  EXPECT_NEAR(l01.age_at_use_s.p99, 0.12, 1e-12);
+  EXPECT_NEAR(l01.age_at_use_s.max, 0.12, 1e-12);
+  // Ticks at which the newest message is one period older than usual: one per lost
+  // message (its delivery tick), and one for the queue drop (k = 9, delivery tick 14).
+  int older = 0;
+  for (int j = 5; j < ticks; ++j) older += ((j - 5) % 4 == 3) || (j - 5 == 9);
+  EXPECT_NEAR(l01.age_at_use_s.mean, (0.1 * (ticks - 5 - older) + 0.12 * older) / (ticks - 5),
+              1e-12);
+  // 1 -> 2: always 0.04 s after the first delivery (tick 2).
+  EXPECT_EQ(l12.ticks_before_first, 2);
+  EXPECT_NEAR(l12.age_at_use_s.min, 0.04, 1e-12);
+  EXPECT_NEAR(l12.age_at_use_s.max, 0.04, 1e-12);
+  // With a clock and no emulator this is a shoal sim log.
+  EXPECT_EQ(a.mode, "sim");
+  EXPECT_EQ(a.ticks, ticks);
+}
+
+TEST(Analysis, AgeAtUseCountsStaleTicksBeyondTheTimeout) {
+  // Leader -> 1 delivers only messages sent before 1 s; the timeout is 1 s.
+  const std::string path = Tmp("stale.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
+    for (int k = 0; k < 200; ++k) {  // 0 .. 3.98 s
+      const Micros t = k * kPeriod;
+      for (int id = 0; id <= 2; ++id) {
+        log.Write(channels::State(id), t, ToLcm(State(id, t, Vec5::Zero(), Vec5::Zero())));
+      }
+      const bool ok = t < 1000000;
+      log.Write(channels::ChannelEvents(), t, Event(0, 1, t, 0.1, ok ? t + 100000 : 0, ok ? 0 : 1, k));
+    }
+  }
+  const RunAnalysis a = AnalyseRun(Load(path));
+  const LinkAnalysis& l = a.channel.links[0];
+  // The newest message was sent at 0.98 s; usable while now - 0.98 <= 1.0, i.e. up to 1.98 s.
+  EXPECT_EQ(l.ticks_before_first, 5);
+  EXPECT_EQ(l.age_at_use_s.count, 100 - 5);   // ticks 5 .. 99
+  EXPECT_EQ(l.ticks_stale, 200 - 100);        // ticks 100 .. 199
+  EXPECT_NEAR(l.age_at_use_s.max, 1.0, 1e-12);
+}
+
+TEST(Analysis, DrawnDelayOtherThanTheScenarioModelIsAMismatch) {
+  const std::string path = Tmp("mismatch.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
+    log.Write(channels::ChannelEvents(), 0, Event(0, 1, 0, 0.1, 100000, 0, 0));
+    log.Write(channels::ChannelEvents(), 20000, Event(0, 1, 20000, 0.25, 280000, 0, 1));
+    log.Write(channels::ChannelEvents(), 40000, Event(2, 1, 40000, 0.1, 140000, 0, 2));
+  }
+  const RunAnalysis a = AnalyseRun(Load(path));
+  EXPECT_EQ(a.channel.model_mismatches, 1);
+  EXPECT_EQ(a.channel.unknown_links, 1);  // 2 -> 1 is not in the topology
+  EXPECT_DOUBLE_EQ(a.channel.configured_delay_s[1], 0.1);
+  EXPECT_DOUBLE_EQ(a.channel.configured_delay_s[2], 0.1);  // unknown link: the drawn delay
+  EXPECT_NEAR(a.channel.delay_error_s.max, 0.16, 1e-12);   // 0.26 realised - 0.1
+}
+
+TEST(Analysis, SinusoidConfiguredDelayIsTauAtSendTime) {
+  std::string toml = kScenario;
+  const std::string from = "model = \"constant\"\nbase_s = 0.1\n";
+  toml.replace(toml.find(from), from.size(),
+               "model = \"sinusoid\"\nbase_s = 0.1\namplitude_s = 0.05\nomega_rad_s = 1.0\n");
+  const std::string path = Tmp("sinusoid.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", toml));
+    for (int k = 0; k < 300; ++k) {
+      const Micros t = k * kPeriod;
+      const double tau = 0.1 + 0.05 * std::cos(ToSeconds(t));
+      log.Write(channels::ChannelEvents(), t,
+                Event(0, 1, t, tau, DeliveryTime(t, tau, kPeriod), 0, k));
+    }
+  }
+  const RunData run = Load(path);
+  const RunAnalysis a = AnalyseRun(run);
+  EXPECT_EQ(a.channel.model_mismatches, 0);
+  for (std::size_t k = 0; k < run.channel_events.size(); ++k) {
+    EXPECT_DOUBLE_EQ(a.channel.configured_delay_s[k],
+                     0.1 + 0.05 * std::cos(ToSeconds(run.channel_events[k].send_utime)));
+  }
+  // Tick quantisation: delivered at the first tick at or after send + tau, so the error
+  // lies in [0, one period).
+  EXPECT_GE(a.channel.delay_error_s.min, -0.5e-6);
+  EXPECT_LT(a.channel.delay_error_s.max, ToSeconds(kPeriod));
+  EXPECT_GT(a.channel.delay_error_s.max, 0.0);
+}
+
+TEST(Analysis, HealthUsesTheLastReportPerProcessAndFlagsGiveStaleEvents) {
+  const std::string path = Tmp("health.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kEmulatorId, "running", ""));
+    for (int k = 0; k < 100; ++k) {
+      const Micros t = k * kPeriod;
+      int flags = 0;
+      if ((k >= 10 && k < 20) || (k >= 30 && k < 35)) flags |= StateMsg::kFlagStaleNeighbour;
+      if (k % 20 == 0) flags |= StateMsg::kFlagSaturated;
+      log.Write(channels::State(0), t, ToLcm(State(0, t, Vec5::Zero(), Vec5::Zero())));
+      log.Write(channels::State(1), t, ToLcm(State(1, t, Vec5::Zero(), Vec5::Zero(), flags)));
+      log.Write(channels::State(2), t, ToLcm(State(2, t, Vec5::Zero(), Vec5::Zero())));
+    }
+    // Earlier reports with larger figures must not count: the last report holds the
+    // figures since the start.
+    log.Write(channels::Health(1), 1000000, Health(1000000, 1, 0.9, 99));
+    log.Write(channels::Health(1), 2000000, Health(2000000, 1, 0.002, 3));
+    log.Write(channels::Health(2), 2000000, Health(2000000, 2, 0.005, 4));
+    log.Write(channels::Health(0), 2000000, Health(2000000, 0, 0.001, 0));
+    log.Write(channels::Health(kEmulatorId), 2000000, Health(2000000, kEmulatorId, 0.0007, 8));
+  }
+  const RunData run = Load(path);
+  EXPECT_FALSE(run.has_scenario);
+  EXPECT_EQ(run.followers, 2);  // from the status
+  const RunAnalysis a = AnalyseRun(run);
+  EXPECT_FALSE(a.has_formation);
+  EXPECT_EQ(a.mode, "realtime");  // an emulator and no clock
+  EXPECT_DOUBLE_EQ(a.summary.lateness_p99_s, 0.005);
+  EXPECT_EQ(a.summary.overruns, 7);  // vehicles only; the emulator's 8 are not loop overruns
+  EXPECT_DOUBLE_EQ(a.summary.release_error_p99_s, 0.0007);
+  EXPECT_DOUBLE_EQ(a.channel.release_error_p99_s, 0.0007);
+  ASSERT_EQ(a.processes.size(), 4u);
+  EXPECT_EQ(a.processes[0].id, -1);
+  EXPECT_EQ(a.processes[2].id, 1);
+  EXPECT_EQ(a.processes[2].reports, 2);
+  EXPECT_DOUBLE_EQ(a.processes[2].last.lateness_max_s, 0.004);
+  const FollowerAnalysis& f1 = a.followers[0];
+  EXPECT_EQ(f1.stale_ticks, 15);
+  EXPECT_EQ(f1.stale_events, 2);
+  EXPECT_EQ(f1.saturated_ticks, 5);
+  EXPECT_DOUBLE_EQ(f1.saturation_fraction, 0.05);
+  EXPECT_EQ(a.followers[1].stale_events, 0);
+}
+
+TEST(Analysis, ModeAndProblemsFromStatuses) {
+  const std::string path = Tmp("lockstep.lcmlog");
+  {
+    LogWriter log(path);
+    clock_tick_t c{};
+    c.period_us = kPeriod;
+    c.vehicle_id = kEmulatorId;
+    log.Write(channels::Clock(), 0, c);
+    log.Write(channels::Health(kEmulatorId), 0, Health(0, kEmulatorId, 0, 0));
+    run_status_t lost = Status(0, kEmulatorId, "vehicle_lost", "");
+    lost.message = "vehicle 2 stopped answering at t = 0 s";
+    log.Write(channels::Status(), 0, lost);
+    log.Write(channels::Status(), 0, Status(0, kEmulatorId, "finished", ""));
+  }
+  const RunAnalysis a = AnalyseRun(Load(path));
+  EXPECT_EQ(a.mode, "lockstep");
+  ASSERT_EQ(a.problems.size(), 1u);
+  EXPECT_NE(a.problems[0].find("vehicle 2 stopped answering"), std::string::npos);
+  EXPECT_FALSE(a.interrupted);
+}
+
+TEST(RunData, KeepsEveryStateFieldSortsAndDeduplicates) {
+  const std::string path = Tmp("fields.lcmlog");
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1e3, 1e3);
+  std::vector<StateMsg> written;
+  {
+    LogWriter log(path);
+    log.Write("OTHER_CHANNEL", 0, ToLcm(State(0, 0, Vec5::Zero(), Vec5::Zero())));
+    for (int k : {0, 2, 1, 3, 3}) {  // out of order, and utime 3 twice
+      StateMsg m;
+      m.vehicle_id = 1;
+      m.seq = k * 10 + static_cast<int>(written.size());
+      m.utime = k * kPeriod;
+      for (Vec5* v : {&m.eta, &m.nu, &m.eta_dot, &m.accel_cmd, &m.tau}) {
+        for (int c = 0; c < 5; ++c) (*v)(c) = u(rng);
+      }
+      m.flags = k;
+      written.push_back(m);
+      log.Write(channels::State(1), m.utime, ToLcm(m));
+    }
+    StateMsg bad = written[0];
+    bad.vehicle_id = 2;  // on SHOAL_STATE_1: inconsistent
+    log.Write(channels::State(1), 0, ToLcm(bad));
+    StateMsg nan = written[0];
+    nan.utime = 10 * kPeriod;
+    nan.eta(0) = std::nan("");
+    log.Write(channels::State(1), nan.utime, ToLcm(nan));
+  }
+  RunData run = Load(path);
+  EXPECT_EQ(run.other_events, 1);
+  EXPECT_EQ(run.rejected, 1);
+  EXPECT_FALSE(run.has_scenario);
+  const VehicleTrack& v = run.vehicles[1];
+  EXPECT_EQ(v.received, 6);
+  EXPECT_EQ(v.repeated, 1);
+  EXPECT_EQ(v.nonfinite, 1);
+  EXPECT_EQ(v.first_nonfinite_utime, 10 * kPeriod);
+  ASSERT_EQ(v.samples.size(), 5u);  // 0, 1, 2, 3 (the later one), 10 (NaN, kept)
+  const int expect_index[] = {0, 2, 1, 4};
+  for (int k = 0; k < 4; ++k) {
+    const StateMsg& a = v.samples[k];
+    const StateMsg& b = written[expect_index[k]];
+    EXPECT_EQ(a.utime, b.utime);
+    EXPECT_EQ(a.seq, b.seq);
+    EXPECT_EQ(a.flags, b.flags);
+    EXPECT_EQ(a.eta, b.eta);
+    EXPECT_EQ(a.nu, b.nu);
+    EXPECT_EQ(a.eta_dot, b.eta_dot);
+    EXPECT_EQ(a.accel_cmd, b.accel_cmd);
+    EXPECT_EQ(a.tau, b.tau);
+  }
+  EXPECT_TRUE(std::isnan(v.samples[4].eta(0)));
+  // A NaN state is a divergence, as in shoal sim.
+  EXPECT_EQ(AnalyseRun(run).diverged_follower, 1);
+}
+
+// ---- Damaged, empty and foreign files --------------------------------------------------
+
+TEST(LogDamage, EmptyFileIsAnError) {
+  const std::string path = Tmp("empty.lcmlog");
+  WriteBytes(path, "");
+  RunData run;
+  std::string err;
+  EXPECT_FALSE(LoadRunLog(path, LoadOptions(), &run, &err));
+  EXPECT_NE(err.find("empty"), std::string::npos) << err;
+}
+
+TEST(LogDamage, NonLcmFileIsAnError) {
+  const std::string path = Tmp("text.lcmlog");
+  WriteBytes(path, std::string(kScenario) + std::string(5000, 'x'));
+  RunData run;
+  std::string err;
+  EXPECT_FALSE(LoadRunLog(path, LoadOptions(), &run, &err));
+  EXPECT_NE(err.find("not an LCM log"), std::string::npos) << err;
+  WriteBytes(path, "abc");
+  EXPECT_FALSE(LoadRunLog(path, LoadOptions(), &run, &err));
+  EXPECT_NE(err.find("too short"), std::string::npos) << err;
+  EXPECT_FALSE(LoadRunLog(Tmp("does_not_exist.lcmlog"), LoadOptions(), &run, &err));
+  EXPECT_NE(err.find("cannot read"), std::string::npos) << err;
+}
+
+TEST(LogDamage, LcmLogWithoutShoalMessagesIsAnError) {
+  const std::string path = Tmp("foreign.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write("POSE", 0, ToLcm(State(0, 0, Vec5::Zero(), Vec5::Zero())));
+  }
+  RunData run;
+  std::string err;
+  EXPECT_FALSE(LoadRunLog(path, LoadOptions(), &run, &err));
+  EXPECT_NE(err.find("no Shoal message"), std::string::npos) << err;
+}
+
+struct EventSpan {
+  std::int64_t offset, size;
+};
+// Event boundaries of a well-formed log.
+std::vector<EventSpan> Spans(const std::string& bytes) {
+  std::vector<EventSpan> v;
+  std::size_t p = 0;
+  auto u32 = [&](std::size_t at) {
+    return (std::uint32_t(std::uint8_t(bytes[at])) << 24) | (std::uint32_t(std::uint8_t(bytes[at + 1])) << 16) |
+           (std::uint32_t(std::uint8_t(bytes[at + 2])) << 8) | std::uint32_t(std::uint8_t(bytes[at + 3]));
+  };
+  while (p + 28 <= bytes.size()) {
+    const std::size_t n = 28 + u32(p + 20) + u32(p + 24);
+    v.push_back({static_cast<std::int64_t>(p), static_cast<std::int64_t>(n)});
+    p += n;
+  }
+  return v;
+}
+
+TEST(LogDamage, TruncatedLastEventIsReportedAndTheRestAnalysed) {
+  const std::string full = ReadBytes(WriteChannelLog(50));
+  const auto spans = Spans(full);
+  ASSERT_GT(spans.size(), 100u);
+  const EventSpan last = spans.back();
+  const std::string path = Tmp("truncated.lcmlog");
+  WriteBytes(path, full.substr(0, last.offset + last.size / 2));
+  RunData run;
+  std::string err;
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
+  EXPECT_TRUE(run.damaged);
+  EXPECT_EQ(run.events, static_cast<std::int64_t>(spans.size()) - 1);
+  ASSERT_FALSE(run.warnings.empty());
+  EXPECT_NE(run.warnings[0].find("truncated"), std::string::npos) << run.warnings[0];
+  EXPECT_NE(run.warnings[0].find("byte " + std::to_string(last.offset)), std::string::npos)
+      << run.warnings[0];
+}
+
+TEST(LogDamage, BadSyncInTheMiddleResynchronisesAndLosesOneEvent) {
+  const std::string full = ReadBytes(WriteChannelLog(50));
+  const auto spans = Spans(full);
+  const EventSpan hit = spans[spans.size() / 2];
+  std::string bytes = full;
+  bytes[hit.offset + 1] ^= 0x5A;
+  const std::string path = Tmp("badsync.lcmlog");
+  WriteBytes(path, bytes);
+  RunData run;
+  std::string err;
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
+  EXPECT_EQ(run.events, static_cast<std::int64_t>(spans.size()) - 1);
+  ASSERT_EQ(run.warnings.size(), 1u);
+  EXPECT_NE(run.warnings[0].find("byte " + std::to_string(hit.offset)), std::string::npos);
+  EXPECT_NE(run.warnings[0].find("resynchronised"), std::string::npos) << run.warnings[0];
+}
+
+TEST(LogDamage, WrongDataLengthLosesOnlyThatEvent) {
+  const std::string full = ReadBytes(WriteChannelLog(50));
+  const auto spans = Spans(full);
+  const EventSpan hit = spans[spans.size() / 3];
+  std::string bytes = full;
+  bytes[hit.offset + 26] = static_cast<char>(bytes[hit.offset + 26] + 1);  // data length + 256
+  const std::string path = Tmp("badlen.lcmlog");
+  WriteBytes(path, bytes);
+  RunData run;
+  std::string err;
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
+  EXPECT_EQ(run.events, static_cast<std::int64_t>(spans.size()) - 1);
+  EXPECT_TRUE(run.damaged);
+  // A length far beyond the end of the file (200 MB) is damage too, not a truncation.
+  bytes = full;
+  bytes[hit.offset + 24] = 0x0C;
+  WriteBytes(path, bytes);
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
+  EXPECT_EQ(run.events, static_cast<std::int64_t>(spans.size()) - 1);
+  ASSERT_FALSE(run.warnings.empty());
+  EXPECT_NE(run.warnings[0].find("resynchronised"), std::string::npos) << run.warnings[0];
+}
+
+TEST(LogDamage, DamagedStartIsSkippedNotFatal) {
+  const std::string full = ReadBytes(WriteChannelLog(20));
+  const std::string path = Tmp("badstart.lcmlog");
+  WriteBytes(path, std::string(100, '\x07') + full);
+  RunData run;
+  std::string err;
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
+  EXPECT_EQ(run.events, static_cast<std::int64_t>(Spans(full).size()));
+  EXPECT_NE(run.warnings[0].find("skipped 100 bytes"), std::string::npos) << run.warnings[0];
+}
+
+// Property: at any truncation point the loader returns (never crashes), reads exactly the
+// complete events before the cut, and warns unless the cut falls on an event boundary.
+TEST(LogDamage, RandomTruncations) {
+  const std::string full = ReadBytes(WriteChannelLog(40));
+  const auto spans = Spans(full);
+  std::mt19937 rng(42);
+  std::uniform_int_distribution<std::size_t> cut(1, full.size() - 1);
+  const std::string path = Tmp("fuzz_trunc.lcmlog");
+  for (int trial = 0; trial < 150; ++trial) {
+    const std::size_t n = cut(rng);
+    WriteBytes(path, full.substr(0, n));
+    std::int64_t complete = 0;
+    bool boundary = false;
+    for (const EventSpan& s : spans) {
+      if (s.offset + s.size <= static_cast<std::int64_t>(n)) ++complete;
+      boundary = boundary || s.offset + s.size == static_cast<std::int64_t>(n);
+    }
+    RunData run;
+    std::string err;
+    const bool ok = LoadRunLog(path, LoadOptions(), &run, &err);
+    if (complete == 0) {
+      EXPECT_FALSE(ok);
+      EXPECT_FALSE(err.empty());
+      continue;
+    }
+    ASSERT_TRUE(ok) << "cut at " << n << ": " << err;
+    EXPECT_EQ(run.events, complete) << "cut at " << n;
+    EXPECT_EQ(run.damaged, !boundary) << "cut at " << n;
+    AnalyseRun(run);  // must not crash either
+  }
+}
+
+// Property: random byte flips never crash the loader or the analysis; whatever loads has
+// no more events than the original and every kept state is one that was written.
+TEST(LogDamage, RandomByteFlips) {
+  const std::string full = ReadBytes(WriteChannelLog(40));
+  const std::int64_t n_events = static_cast<std::int64_t>(Spans(full).size());
+  std::mt19937 rng(4242);
+  std::uniform_int_distribution<std::size_t> pos(0, full.size() - 1);
+  std::uniform_int_distribution<int> flips(1, 12), byte(1, 255);
+  const std::string path = Tmp("fuzz_flip.lcmlog");
+  int loaded = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    std::string bytes = full;
+    const int k = flips(rng);
+    for (int i = 0; i < k; ++i) bytes[pos(rng)] ^= static_cast<char>(byte(rng));
+    WriteBytes(path, bytes);
+    RunData run;
+    std::string err;
+    if (!LoadRunLog(path, LoadOptions(), &run, &err)) {
+      EXPECT_FALSE(err.empty());
+      continue;
+    }
+    ++loaded;
+    // LCM has no checksum, so a flipped data byte may survive as a wrong value; what the
+    // loader guarantees is structure: ids in range, tracks sorted with unique times.
+    EXPECT_LE(run.events, n_events);
+    ASSERT_LE(run.vehicles.size(), 3u);
+    for (const VehicleTrack& v : run.vehicles) {
+      for (std::size_t i = 1; i < v.samples.size(); ++i) {
+        EXPECT_LT(v.samples[i - 1].utime, v.samples[i].utime);
+      }
+    }
+    const RunAnalysis a = AnalyseRun(run);
+    if (trial % 10 == 0) {
+      std::vector<std::string> files;
+      std::string cerr;
+      EXPECT_TRUE(WriteRunCsv(run, a, Tmp("fuzz_csv"), &files, &cerr)) << cerr;
+    }
+  }
+  EXPECT_GT(loaded, 250);  // a few flips damage a few events, not the whole log
+}
+
+// A string length of 0 or less makes LCM's generated decoder throw std::length_error;
+// runtime's Decode() (used in the processes' LCM handlers) must refuse it instead.
+TEST(LogDamage, DamagedStringLengthIsRefusedNotThrown) {
+  run_status_t st = Status(0, 1, "ready", "");
+  std::vector<std::uint8_t> b(st.getEncodedSize());
+  ASSERT_EQ(st.encode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
+  for (std::int32_t len : {0, -1, -100000}) {
+    for (int k = 0; k < 4; ++k) b[24 + k] = static_cast<std::uint8_t>(static_cast<std::uint32_t>(len) >> (24 - 8 * k));
+    run_status_t out;
+    EXPECT_FALSE(Decode(b.data(), static_cast<int>(b.size()), &out)) << len;
+  }
+}
+
+// ---- Reader details --------------------------------------------------------------------
+
+TEST(LogReader, ReadsEveryEventOfALargeLogAcrossBufferRefills) {
+  const std::string path = Tmp("large.lcmlog");
+  const int n = 60000;  // ~16 MB: several 8 MB reads
+  {
+    LogWriter log(path);
+    for (int k = 0; k < n; ++k) {
+      log.Write(channels::State(0), k, ToLcm(State(0, k * kPeriod, Vec5::Constant(k), Vec5::Zero())));
+    }
+  }
+  LcmLogReader r;
+  std::string err;
+  ASSERT_TRUE(r.Open(path, &err)) << err;
+  LogEventView ev;
+  std::int64_t k = 0;
+  while (r.Next(&ev)) {
+    EXPECT_EQ(ev.eventnum, k);
+    EXPECT_EQ(ev.timestamp, k);
+    EXPECT_EQ(ev.channel, "SHOAL_STATE_0");
+    ++k;
+  }
+  EXPECT_EQ(k, n);
+  EXPECT_TRUE(r.warnings().empty());
+  RunData run = Load(path);
+  ASSERT_EQ(run.vehicles[0].samples.size(), static_cast<std::size_t>(n));
+  EXPECT_EQ(run.vehicles[0].samples.back().eta(0), n - 1);
+}
+
+// ---- Summary shared with shoal run -------------------------------------------------------
+
+TEST(RunSummaryTest, MatchesTheAnalysisAndToleratesMissingOrEmptyLogs) {
+  const std::string path = WriteFormationLog(400);
+  RunData run = Load(path);
+  RunSummary s;
+  ASSERT_TRUE(SummariseRunLog(path, run.scenario, &s));
+  const RunSummary& a = AnalyseRun(run).summary;
+  EXPECT_EQ(s.converged, a.converged);
+  EXPECT_EQ(s.convergence_time_s, a.convergence_time_s);
+  EXPECT_EQ(s.final_worst.position_m, a.final_worst.position_m);
+  EXPECT_EQ(s.states, 3 * 400 - 1);
+  EXPECT_FALSE(SummariseRunLog(Tmp("missing.lcmlog"), run.scenario, &s));
+  const std::string empty = Tmp("empty_summary.lcmlog");
+  WriteBytes(empty, "");
+  ASSERT_TRUE(SummariseRunLog(empty, run.scenario, &s));
+  EXPECT_EQ(s.states, 0);
+  EXPECT_FALSE(s.converged);
+}
+
+// ---- CSV ---------------------------------------------------------------------------------
+
+std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    std::string c;
+    while (std::getline(ss, c, ',')) cells.push_back(c);
+    rows.push_back(cells);
+  }
+  return rows;
+}
+
+TEST(Csv, EveryVehicleAndEventWithExactNumbers) {
+  const RunData run = Load(WriteFormationLog(100));
+  const RunAnalysis a = AnalyseRun(run);
+  std::vector<std::string> files;
+  std::string err;
+  const std::string dir = Tmp("csv");
+  ASSERT_TRUE(WriteRunCsv(run, a, dir, &files, &err)) << err;
+  ASSERT_EQ(files.size(), 5u);  // 3 vehicles, channel events, health
+  const auto lead = ReadCsv(dir + "/vehicle_0.csv");
+  const auto f1 = ReadCsv(dir + "/vehicle_1.csv");
+  ASSERT_EQ(lead.size(), 101u);  // header + 100 samples
+  ASSERT_EQ(f1.size(), 101u);
+  EXPECT_EQ(lead[0].size(), 30u);
+  ASSERT_EQ(f1[0].size(), 36u);
+  EXPECT_EQ(f1[0][0], "time_s");
+  EXPECT_EQ(f1[0][30], "position_error_m");
+  for (std::size_t r = 1; r < f1.size(); ++r) {
+    ASSERT_EQ(f1[r].size(), 36u);
+    const StateMsg& m = run.vehicles[1].samples[r - 1];
+    EXPECT_EQ(std::stod(f1[r][0]), ToSeconds(m.utime));
+    EXPECT_EQ(std::stoll(f1[r][1]), m.utime);
+    for (int c = 0; c < 5; ++c) EXPECT_EQ(std::stod(f1[r][3 + c]), m.eta(c));  // exact
+    EXPECT_EQ(std::stod(f1[r][30]), a.followers[0].errors[r - 1].position_m);
+  }
+  EXPECT_NEAR(std::stod(f1[1][33]), 3.0, 1e-9);  // error components at t = 0
+  EXPECT_NEAR(std::stod(f1[1][34]), 4.0, 1e-9);
+  const auto ch = ReadCsv(dir + "/channel_events.csv");
+  ASSERT_EQ(ch.size(), 1u);  // header only
+  EXPECT_EQ(ch[0].size(), 12u);
+  // A file where a directory is needed.
+  EXPECT_FALSE(WriteRunCsv(run, a, dir + "/vehicle_0.csv", &files, &err));
+  EXPECT_NE(err.find("not a directory"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace shoal
