@@ -11,6 +11,8 @@ CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps \
   liblcm-dev liblcm-bin libglib2.0-dev \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev
+# shoal design: gain tuning (design/)
+DEB_PACKAGES += libceres-dev
 
 .PHONY: demo test deps build configure clean
 
