@@ -5,9 +5,8 @@
 // whole story: x is n-dimensional. Used to check the exact delay margin independently.
 #pragma once
 
-#include <vector>
-
 #include <Eigen/Dense>
+#include <vector>
 
 namespace shoal {
 

@@ -1,10 +1,9 @@
 #include "core/theory.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <Eigen/Eigenvalues>
 
 #include "core/channel_model.h"
 #include "core/topology.h"
@@ -192,10 +191,11 @@ Lipschitz LipschitzOf(const DisturbanceConfig& d) {
     }
     case DisturbanceKind::kOceanCurrent:
       l.applicable = false;
-      l.note = "ocean current: an exogenous disturbance acting through the relative velocity "
-               "nu - nu_c; it does not vanish at consensus and is not a Lipschitz function of "
-               "the formation error, so Assumption 2 gives no rho0 (give --rho0 to evaluate "
-               "Theorem 2 for an assumed bound)";
+      l.note =
+          "ocean current: an exogenous disturbance acting through the relative velocity "
+          "nu - nu_c; it does not vanish at consensus and is not a Lipschitz function of "
+          "the formation error, so Assumption 2 gives no rho0 (give --rho0 to evaluate "
+          "Theorem 2 for an assumed bound)";
       return l;
   }
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eg(l.G.transpose() * l.G, Eigen::EigenvaluesOnly);
@@ -273,7 +273,8 @@ EigenMargin EigenDelayMargin(Complex lambda, double k1, double k2) {
 
   // |s^2| = |lambda| |k1 + k2 s| at s = j w:  w^4 = |lambda|^2 (k1^2 + k2^2 w^2).
   const double a2 = std::norm(lambda);
-  const double u = 0.5 * (a2 * k2 * k2 + std::sqrt(a2 * a2 * k2 * k2 * k2 * k2 + 4.0 * a2 * k1 * k1));
+  const double u =
+      0.5 * (a2 * k2 * k2 + std::sqrt(a2 * a2 * k2 * k2 * k2 * k2 + 4.0 * a2 * k1 * k1));
   const double w = std::sqrt(u);
   m.tau_s = std::numeric_limits<double>::infinity();
   const Complex j(0.0, 1.0);

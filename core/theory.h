@@ -5,12 +5,11 @@
 // Theorem 3 (an LMI solved with an SDP solver) lives outside core/.
 #pragma once
 
+#include <Eigen/Dense>
 #include <complex>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "core/scenario.h"
 
@@ -30,13 +29,13 @@ std::optional<Eigen::MatrixXd> SolveW(const Eigen::MatrixXd& H);
 
 /// Paper Theorem 1 (eq. (14)-(18)) for gains k1, k2 and the free parameters alpha, beta.
 struct Theorem1 {
-  Eigen::MatrixXd W;                      ///< W H + H^T W = I
-  Eigen::VectorXd W_eigenvalues;          ///< ascending
-  Eigen::MatrixXd M;                      ///< M = W - alpha beta W H - H^T W
-  std::vector<Complex> M2_eigenvalues;    ///< eig(M^2), descending real part
+  Eigen::MatrixXd W;                    ///< W H + H^T W = I
+  Eigen::VectorXd W_eigenvalues;        ///< ascending
+  Eigen::MatrixXd M;                    ///< M = W - alpha beta W H - H^T W
+  std::vector<Complex> M2_eigenvalues;  ///< eig(M^2), descending real part
   double lambda_max_W = 0.0;
-  double lambda_max_M2 = 0.0;             ///< largest real part of eig(M^2) (as the paper)
-  double lambda_max_MtM = 0.0;            ///< lambda_max(M^T M) = ||M||_2^2
+  double lambda_max_M2 = 0.0;   ///< largest real part of eig(M^2) (as the paper)
+  double lambda_max_MtM = 0.0;  ///< lambda_max(M^T M) = ||M||_2^2
   /// Eq. (15) as printed, with lambda_max(M^2):
   ///   k1 > max{alpha^2, 2 alpha^2 lambda_max(W) / (alpha beta - lambda_max(M^2))},
   ///   k2 > max{alpha^2 beta, 2 alpha^2 beta lambda_max(W) / (alpha beta - lambda_max(M^2))}.

@@ -24,9 +24,9 @@ EmpiricalMargin FindEmpiricalMargin(const Scenario& s, const EmpiricalMarginOpti
 
   // A neighbour whose newest message is older than the timeout drops out of the law:
   // beyond that the loop is a different one, so the search stays below it.
-  const std::int64_t cap =
-      std::max<std::int64_t>(1, static_cast<std::int64_t>(std::floor(
-                                    (s.neighbour_timeout_s - r.period_s) / r.period_s + 1e-9)));
+  const std::int64_t cap = std::max<std::int64_t>(
+      1, static_cast<std::int64_t>(
+             std::floor((s.neighbour_timeout_s - r.period_s) / r.period_s + 1e-9)));
   r.cap_s = ToSeconds(cap * period_us);
 
   // One period is the smallest delay the step semantics allow (tau = 0 behaves the same).

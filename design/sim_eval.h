@@ -11,10 +11,10 @@ namespace shoal {
 namespace design {
 
 struct SimOutcome {
-  bool converged = false;           ///< shoal sim's criterion, and no follower diverged
-  double convergence_time_s = -1.0; ///< -1 if not converged
-  int diverged_id = 0;              ///< first follower that diverged (0: none)
-  double sim_time_s = 0.0;          ///< simulated time reached
+  bool converged = false;            ///< shoal sim's criterion, and no follower diverged
+  double convergence_time_s = -1.0;  ///< -1 if not converged
+  int diverged_id = 0;               ///< first follower that diverged (0: none)
+  double sim_time_s = 0.0;           ///< simulated time reached
   /// Integrated squared position error, sum over followers of the integral of
   /// ||(p_i - d_i) - p_0||^2 dt (m^2 s), rectangle rule at the control period.
   double ise_m2s = 0.0;

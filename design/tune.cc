@@ -1,11 +1,11 @@
 #include "design/tune.h"
 
+#include <ceres/ceres.h>
+#include <glog/logging.h>
+
 #include <algorithm>
 #include <cmath>
 #include <memory>
-
-#include <ceres/ceres.h>
-#include <glog/logging.h>
 
 #include "design/sim_eval.h"
 
@@ -24,8 +24,7 @@ struct Gains {
   bool valid = false;
 };
 
-Gains GainsOf(const std::vector<theory::Complex>& ev, double log_r, double u,
-              double required_s) {
+Gains GainsOf(const std::vector<theory::Complex>& ev, double log_r, double u, double required_s) {
   Gains g;
   const double r = std::exp(log_r);
   const double theta = ShapeMargin(ev, r);
@@ -95,8 +94,9 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
 
   // Number of residuals of a complete run over the horizon: ticks 0..final (Swarm) per
   // follower.
-  const auto ticks = static_cast<std::size_t>(
-      std::floor(out.horizon_s * 1e6 / static_cast<double>(s.period_us()) + 1e-9)) + 1;
+  const auto ticks = static_cast<std::size_t>(std::floor(
+                         out.horizon_s * 1e6 / static_cast<double>(s.period_us()) + 1e-9)) +
+                     1;
   const std::size_t count = 2 * ticks * static_cast<std::size_t>(s.followers);
 
   // Starts: the scenario's gains (scaled down onto the feasible set if they miss the
@@ -107,8 +107,7 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
   const double u0 = theta0 > 0.0 ? std::min(1.0, s.k2 * out.required_margin_s / theta0) : 0.5;
   const double log_r0 = std::log(r0);
   const std::vector<std::pair<double, double>> starts = {
-      {log_r0, u0}, {log_r0 - std::log(4.0), 0.9}, {log_r0 + std::log(4.0), 0.9},
-      {log_r0, 1.0}};
+      {log_r0, u0}, {log_r0 - std::log(4.0), 0.9}, {log_r0 + std::log(4.0), 0.9}, {log_r0, 1.0}};
   const double log_r_lo = log_r0 - std::log(100.0), log_r_hi = log_r0 + std::log(100.0);
   const double u_lo = 0.02, u_hi = 1.0;
 
@@ -128,8 +127,8 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
       out.starts.push_back(ts);
       continue;
     }
-    auto* functor = new SimResiduals{&s, &ev, out.required_margin_s, out.horizon_s, count,
-                                     &out.sim_runs};
+    auto* functor =
+        new SimResiduals{&s, &ev, out.required_margin_s, out.horizon_s, count, &out.sim_runs};
     {
       // Ceres cannot start from a point it cannot evaluate (a run that diverges).
       std::vector<double> r0(count);

@@ -30,11 +30,11 @@ struct TuneOptions {
 
 struct TunePoint {
   double k1 = 0.0, k2 = 0.0;
-  double margin_s = 0.0;            ///< exact constant-delay margin
-  double cost_s = 0.0;              ///< tuning cost over the horizon (SimOutcome::cost_s)
-  double position_ise_m2s = 0.0;    ///< position part alone, in m^2 s
-  bool converged = false;           ///< full-length run (scenario duration) converged
-  double convergence_time_s = -1.0; ///< of that run; -1 if not converged
+  double margin_s = 0.0;             ///< exact constant-delay margin
+  double cost_s = 0.0;               ///< tuning cost over the horizon (SimOutcome::cost_s)
+  double position_ise_m2s = 0.0;     ///< position part alone, in m^2 s
+  bool converged = false;            ///< full-length run (scenario duration) converged
+  double convergence_time_s = -1.0;  ///< of that run; -1 if not converged
 };
 
 struct TuneStart {
@@ -48,12 +48,12 @@ struct TuneStart {
 
 struct TuneResult {
   bool ok = false;
-  std::string message;             ///< why not ok
+  std::string message;  ///< why not ok
   double h_s = 0.0;
   double required_margin_s = 0.0;  ///< safety x max(h, control period)
   double horizon_s = 0.0;
   TunePoint before, after;
-  bool before_feasible = false;    ///< the scenario's gains meet the margin requirement
+  bool before_feasible = false;  ///< the scenario's gains meet the margin requirement
   std::vector<TuneStart> starts;
   int sim_runs = 0;
 };

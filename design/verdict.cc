@@ -41,7 +41,7 @@ std::string MarginText(const VerdictInput& in) {
 std::string Verdict::Line() const {
   std::string s = certified ? "verdict: CERTIFIED by " + by + ": " + reason
                             : "verdict: NOT CERTIFIED: " + reason;
-  if (!advice.empty()) s += "; to change: " + advice;
+  if (!advice.empty()) s += (certified ? "; advice: " : "; to change: ") + advice;
   return s;
 }
 
@@ -70,13 +70,16 @@ Verdict Decide(const VerdictInput& in) {
         v.certified = true;
         if (in.theorem1 && in.theorem1->certifies) {
           v.by = "Theorem 1";
-          v.reason = "no delay, no uncertain factor; P = Q(A+B) + (A+B)^T Q has largest "
-                     "eigenvalue " + Num(in.theorem1->P_max_eigenvalue) + " < 0";
+          v.reason =
+              "no delay, no uncertain factor; P = Q(A+B) + (A+B)^T Q has largest "
+              "eigenvalue " +
+              Num(in.theorem1->P_max_eigenvalue) + " < 0";
         } else {
           v.by = "the exact characteristic equation at tau = 0";
-          v.reason = "no delay, no uncertain factor; every s^2 + lambda (k2 s + k1) is "
-                     "Hurwitz (Theorem 1's Lyapunov function does not certify these gains, "
-                     "but it is only sufficient)";
+          v.reason =
+              "no delay, no uncertain factor; every s^2 + lambda (k2 s + k1) is "
+              "Hurwitz (Theorem 1's Lyapunov function does not certify these gains, "
+              "but it is only sufficient)";
         }
         return v;
       case FactorKind::kLipschitz:
@@ -87,25 +90,27 @@ Verdict Decide(const VerdictInput& in) {
                      Num(in.theorem2->P_tilde_max_eigenvalue) + " < 0";
           return v;
         }
-        v.reason = "no delay, but Theorem 2 does not certify the gains with rho0 = " +
-                   Num(in.rho0) +
-                   (in.theorem2 ? " (corrected P~ has largest eigenvalue " +
-                                      Num(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
-                                : "") +
-                   "; without the uncertain factor the loop is stable (exact)";
+        v.reason =
+            "no delay, but Theorem 2 does not certify the gains with rho0 = " + Num(in.rho0) +
+            (in.theorem2 ? " (corrected P~ has largest eigenvalue " +
+                               Num(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
+                         : "") +
+            "; without the uncertain factor the loop is stable (exact)";
         if (in.theorem2 && in.theorem2->k1_min_corrected) {
           v.advice = "raise k1 above " + Num(*in.theorem2->k1_min_corrected) + " and k2 above " +
                      Num(*in.theorem2->k2_min_corrected) + " (corrected (20)-(21))";
         } else {
-          v.advice = "Theorem 2's bounds (20)-(21) have no solution for this topology, alpha "
-                     "and beta (alpha beta <= 2 lambda_max(M^T M)); try other --alpha/--beta "
-                     "or higher gains checked by the P~ test";
+          v.advice =
+              "Theorem 2's bounds (20)-(21) have no solution for this topology, alpha "
+              "and beta (alpha beta <= 2 lambda_max(M^T M)); try other --alpha/--beta "
+              "or higher gains checked by the P~ test";
         }
         return v;
       case FactorKind::kUncovered:
-        v.reason = "no delay and the nominal loop is stable (exact), but the uncertain factor "
-                   "is not a Lipschitz f(x_i) - f(x_0): no theorem here covers it (expect a "
-                   "bounded formation error rather than convergence)";
+        v.reason =
+            "no delay and the nominal loop is stable (exact), but the uncertain factor "
+            "is not a Lipschitz f(x_i) - f(x_0): no theorem here covers it (expect a "
+            "bounded formation error rather than convergence)";
         return v;
     }
   }
@@ -115,19 +120,21 @@ Verdict Decide(const VerdictInput& in) {
   if (in.theorem3_certified.value_or(false) && t3_applicable) {
     v.certified = true;
     v.by = "Theorem 3 (LMI (27)-(28))";
-    v.reason = "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
-               (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " +
-                                                          Num(in.rho0)
-                                                    : std::string(", no uncertain factor")) +
-               "; " + MarginText(in);
+    v.reason =
+        "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
+        (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + Num(in.rho0)
+                                             : std::string(", no uncertain factor")) +
+        "; " + MarginText(in);
     return v;
   }
   if (in.factor == FactorKind::kNone && in.delay_common_constant) {
     if (m.tau_s > in.h_s) {
       v.certified = true;
       v.by = "the exact delay margin";
-      v.reason = "one constant delay h = " + Num(in.h_s) + " s on every link, no uncertain "
-                 "factor; " + MarginText(in);
+      v.reason = "one constant delay h = " + Num(in.h_s) +
+                 " s on every link, no uncertain "
+                 "factor; " +
+                 MarginText(in);
       if (m.tau_s < in.safety * in.h_s) {
         v.advice = "the margin is below the safety factor " + Num(in.safety) + ": " +
                    ScaleAdvice(in, in.safety * in.h_s);
@@ -143,13 +150,16 @@ Verdict Decide(const VerdictInput& in) {
   // Delays or an uncertain factor that only Theorem 3 covers.
   std::string why;
   auto add = [&why](const std::string& s) { why += (why.empty() ? "" : ", ") + s; };
-  if (in.delay_time_varying) add("the delay is time-varying (a constant-delay margin does not "
-                                 "certify time-varying delays)");
-  else if (!in.delay_common_constant) add("the links have different delays");
-  if (in.factor == FactorKind::kLipschitz) add("an uncertain factor acts (rho0 = " +
-                                               Num(in.rho0) + ")");
-  if (in.factor == FactorKind::kUncovered) add("an uncertain factor acts that no theorem "
-                                               "here covers");
+  if (in.delay_time_varying)
+    add("the delay is time-varying (a constant-delay margin does not "
+        "certify time-varying delays)");
+  else if (!in.delay_common_constant)
+    add("the links have different delays");
+  if (in.factor == FactorKind::kLipschitz)
+    add("an uncertain factor acts (rho0 = " + Num(in.rho0) + ")");
+  if (in.factor == FactorKind::kUncovered)
+    add("an uncertain factor acts that no theorem "
+        "here covers");
   std::string t3;
   if (!t3_applicable) {
     t3 = in.kappa ? (in.factor == FactorKind::kUncovered
@@ -166,8 +176,9 @@ Verdict Decide(const VerdictInput& in) {
     v.advice = "the gains are unstable already for a constant delay h: " +
                ScaleAdvice(in, in.safety * in.h_s);
   } else if (t3_applicable && in.theorem3_certified.has_value()) {
-    v.advice = "lower the gains (Theorem 3's LMI is only sufficient; its max_delay_s shows "
-               "how far it certifies) or reduce the delay";
+    v.advice =
+        "lower the gains (Theorem 3's LMI is only sufficient; its max_delay_s shows "
+        "how far it certifies) or reduce the delay";
   }
   return v;
 }

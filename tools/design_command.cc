@@ -64,18 +64,25 @@ std::string OrNone(const std::optional<double>& v) { return v ? G(*v) : "none"; 
 
 std::string DelayKindName(DelayKind k) {
   switch (k) {
-    case DelayKind::kNone: return "none";
-    case DelayKind::kConstant: return "constant";
-    case DelayKind::kSinusoid: return "sinusoid";
-    case DelayKind::kUniform: return "uniform";
+    case DelayKind::kNone:
+      return "none";
+    case DelayKind::kConstant:
+      return "constant";
+    case DelayKind::kSinusoid:
+      return "sinusoid";
+    case DelayKind::kUniform:
+      return "uniform";
   }
   return "?";
 }
 std::string DisturbanceName(DisturbanceKind k) {
   switch (k) {
-    case DisturbanceKind::kNone: return "none";
-    case DisturbanceKind::kPaperExample2: return "paper_example2";
-    case DisturbanceKind::kOceanCurrent: return "ocean_current";
+    case DisturbanceKind::kNone:
+      return "none";
+    case DisturbanceKind::kPaperExample2:
+      return "paper_example2";
+    case DisturbanceKind::kOceanCurrent:
+      return "ocean_current";
   }
   return "?";
 }
@@ -116,8 +123,7 @@ std::string ValidateOptions(const DesignOptions& o) {
            "): the required margin is safety x h";
   }
   if (!(std::isfinite(o.tune_horizon_s) && o.tune_horizon_s > 0.0)) {
-    return "--tune-horizon must be a positive number of seconds (got " + G(o.tune_horizon_s) +
-           ")";
+    return "--tune-horizon must be a positive number of seconds (got " + G(o.tune_horizon_s) + ")";
   }
   if (o.empirical_duration_s != -1.0 &&
       !(std::isfinite(o.empirical_duration_s) && o.empirical_duration_s > 0.0)) {
@@ -136,8 +142,8 @@ std::string ValidateOptions(const DesignOptions& o) {
 // verdict says "Theorem 3 not evaluated".
 std::optional<bool> AddTheorem3Block(const Scenario& /*s*/, const Eigen::MatrixXd& /*H*/,
                                      double /*k1*/, double /*k2*/, double /*h_s*/,
-                                     const std::optional<double>& /*kappa*/,
-                                     JsonWriter* /*json*/, std::ostream* /*text*/) {
+                                     const std::optional<double>& /*kappa*/, JsonWriter* /*json*/,
+                                     std::ostream* /*text*/) {
   return std::nullopt;
 }
 
@@ -237,13 +243,15 @@ int RunDesign(const DesignOptions& opt) {
         .Bool("common_constant", delay.constant);
     j.Raw("delay", d.Done());
   }
-  txt << "delays\n  " << (delay_overridden ? "from the flags" : "model " + DelayKindName(s.delay.kind))
+  txt << "delays\n  "
+      << (delay_overridden ? "from the flags" : "model " + DelayKindName(s.delay.kind))
       << (s.links.empty() || delay_overridden ? "" : " (with per-link overrides: max over links)")
       << ": h = " << G(delay.h_s) << " s, kappa = "
       << (delay.kappa ? G(*delay.kappa)
                       : std::string("unbounded (a new random delay per message: tau jumps)"))
-      << (delay.time_varying ? " (time-varying)" : delay.constant ? " (one constant delay)"
-                                                                  : " (different constant delays)")
+      << (delay.time_varying ? " (time-varying)"
+          : delay.constant   ? " (one constant delay)"
+                             : " (different constant delays)")
       << "\n";
 
   // Uncertain factor.
@@ -365,8 +373,7 @@ int RunDesign(const DesignOptions& opt) {
           << G(alpha * beta - 2 * t1->lambda_max_MtM) << " <= 0)\n";
     }
     txt << "  P~ for these gains: largest eigenvalue " << G(t2->P_tilde_max_eigenvalue)
-        << (t2->certifies ? " < 0: certifies them (no delay)" : ": does not certify them")
-        << "\n";
+        << (t2->certifies ? " < 0: certifies them (no delay)" : ": does not certify them") << "\n";
   } else {
     j.Raw("theorem2", "null");
     txt << "theorem 2: not evaluated (no rho0 for this uncertain factor; give --rho0)\n";
@@ -405,12 +412,12 @@ int RunDesign(const DesignOptions& opt) {
     } else {
       const theory::EigenMargin& c = margin.per_eigenvalue[margin.critical];
       txt << "  delay_margin_s = " << Fmt("%.4f", margin.tau_s) << " s (eigenvalue "
-          << ComplexText(c.lambda) << ", crossing at " << G(std::abs(c.omega_rad_s))
-          << " rad/s)";
+          << ComplexText(c.lambda) << ", crossing at " << G(std::abs(c.omega_rad_s)) << " rad/s)";
       if (delay.h_s > 0) txt << " = " << Fmt("%.2f", margin.tau_s / delay.h_s) << " x h";
       txt << "\n  per eigenvalue:";
-      for (const theory::EigenMargin& e : margin.per_eigenvalue) {
-        txt << " " << ComplexText(e.lambda) << ": " << Fmt("%.4f", e.tau_s) << " s;";
+      for (std::size_t i = 0; i < margin.per_eigenvalue.size(); ++i) {
+        const theory::EigenMargin& e = margin.per_eigenvalue[i];
+        txt << (i ? "; " : " ") << ComplexText(e.lambda) << ": " << Fmt("%.4f", e.tau_s) << " s";
       }
       txt << "\n";
     }
@@ -421,7 +428,8 @@ int RunDesign(const DesignOptions& opt) {
     design::EmpiricalMarginOptions eo;
     eo.duration_s = opt.empirical_duration_s;
     eo.initial_upper_s = margin.stable_at_zero ? 2.0 * margin.tau_s : 1.0;
-    if (!opt.json && Tty()) std::fprintf(stderr, "shoal design: empirical margin (bisection over shoal sim runs)...\n");
+    if (!opt.json && Tty())
+      std::fprintf(stderr, "shoal design: empirical margin (bisection over shoal sim runs)...\n");
     const auto t0 = std::chrono::steady_clock::now();
     const design::EmpiricalMargin em = design::FindEmpiricalMargin(s, eo);
     const double wall =
@@ -447,9 +455,8 @@ int RunDesign(const DesignOptions& opt) {
       txt << "  converges at every delay tried, up to " << G(em.cap_s)
           << " s (the neighbour timeout limits the search)\n";
     } else {
-      txt << "  empirical_margin_s = " << Fmt("%.3f", em.margin_s)
-          << " s (converges; does not at " << Fmt("%.3f", em.first_failing_s)
-          << " s; resolution one control period)\n";
+      txt << "  empirical_margin_s = " << Fmt("%.3f", em.margin_s) << " s (converges; does not at "
+          << Fmt("%.3f", em.first_failing_s) << " s; resolution one control period)\n";
     }
     txt << "  " << em.runs << " runs of " << G(em.duration_s) << " s in " << Fmt("%.1f", wall)
         << " s wall; model: " << model << "\n";
@@ -460,7 +467,8 @@ int RunDesign(const DesignOptions& opt) {
     design::TuneOptions to;
     to.safety = opt.safety;
     to.horizon_s = opt.tune_horizon_s;
-    if (!opt.json && Tty()) std::fprintf(stderr, "shoal design: tuning k1, k2 with Ceres (4 starts)...\n");
+    if (!opt.json && Tty())
+      std::fprintf(stderr, "shoal design: tuning k1, k2 with Ceres (4 starts)...\n");
     const auto t0 = std::chrono::steady_clock::now();
     const design::TuneResult tr = design::Tune(s, eig, delay.h_s, to);
     const double wall =
@@ -497,26 +505,25 @@ int RunDesign(const DesignOptions& opt) {
           .Str("message", st.message);
       starts.push_back(w.Done());
     }
-    t.Raw("starts", JsonWriter::List(starts))
-        .Int("sim_runs", tr.sim_runs)
-        .Num("wall_time_s", wall);
+    t.Raw("starts", JsonWriter::List(starts)).Int("sim_runs", tr.sim_runs).Num("wall_time_s", wall);
     if (!tr.ok) t.Str("message", tr.message);
     j.Raw("tune", t.Done());
 
     auto line = [&](const char* name, const design::TunePoint& p) {
-      txt << "  " << name << ": k1 = " << G(p.k1) << ", k2 = " << G(p.k2)
-          << ", margin " << Fmt("%.4f", p.margin_s) << " s, cost " << G(p.cost_s)
-          << " s (position ISE " << G(p.position_ise_m2s) << " m^2 s), "
+      txt << "  " << name << ": k1 = " << G(p.k1) << ", k2 = " << G(p.k2) << ", margin "
+          << Fmt("%.4f", p.margin_s) << " s, cost " << G(p.cost_s) << " s (position ISE "
+          << G(p.position_ise_m2s) << " m^2 s), "
           << (p.converged ? "converged at " + Fmt("%.2f", p.convergence_time_s) + " s"
                           : std::string("did NOT converge"))
           << "\n";
     };
     txt << "tune (--tune: min integral of (e_p/" << G(s.metrics.position_tol_m) << " m)^2 + (e_v/"
         << G(s.metrics.velocity_tol_mps) << " m/s)^2 over " << G(tr.horizon_s)
-        << " s, margin >= " << G(opt.safety) << " x max(h, control period) = "
-        << G(tr.required_margin_s) << " s)\n";
+        << " s, margin >= " << G(opt.safety)
+        << " x max(h, control period) = " << G(tr.required_margin_s) << " s)\n";
     line("before", tr.before);
-    if (!tr.before_feasible) txt << "          (the scenario's gains do not meet the margin requirement)\n";
+    if (!tr.before_feasible)
+      txt << "          (the scenario's gains do not meet the margin requirement)\n";
     if (tr.ok) {
       line("after ", tr.after);
     } else {

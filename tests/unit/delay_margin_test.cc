@@ -65,8 +65,8 @@ TEST(DelayMargin, TopologiesCoverComplexAndDefectiveH) {
   const auto cases = Cases();
   // ring3 and ring4: the critical eigenvalue is complex.
   for (int k : {1, 2}) {
-    const auto d = theory::ComputeDelayMargin(theory::HEigenvalues(cases[k].H), cases[k].k1,
-                                              cases[k].k2);
+    const auto d =
+        theory::ComputeDelayMargin(theory::HEigenvalues(cases[k].H), cases[k].k1, cases[k].k2);
     ASSERT_GE(d.critical, 0);
     EXPECT_GT(std::abs(d.per_eigenvalue[d.critical].lambda.imag()), 0.5) << cases[k].name;
   }

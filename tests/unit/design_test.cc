@@ -25,8 +25,7 @@ struct Fixture {
   theory::Theorem1 t1;
   theory::DelayMargin margin;
   Fixture(double k1, double k2) {
-    H = Topology::Build(5, {{1, 3}, {2, 1}, {2, 5}, {3, 1}, {4, 5}, {5, 2}, {5, 4}}, {1, 3, 5})
-            .H();
+    H = Topology::Build(5, {{1, 3}, {2, 1}, {2, 5}, {3, 1}, {4, 5}, {5, 2}, {5, 4}}, {1, 3, 5}).H();
     eig = theory::HEigenvalues(H);
     t1 = *theory::ComputeTheorem1(H, k1, k2, 0.05, 6.4);
     margin = theory::ComputeDelayMargin(eig, k1, k2);

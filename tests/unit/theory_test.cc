@@ -305,8 +305,8 @@ TEST(Theory, DelayMarginRealEigenvalueClosedForm) {
 TEST(Theory, DelayMarginIsARootOnTheImaginaryAxis) {
   for (const Complex l : {Complex(2.0, 0.0), Complex(1.5, 0.866), Complex(1.5, -0.866),
                           Complex(0.3, 2.0), Complex(5.0, -0.1)}) {
-    for (const auto& [k1, k2] : {std::pair{0.18, 1.152}, std::pair{1.0, 2.0},
-                                 std::pair{0.02, 0.5}}) {
+    for (const auto& [k1, k2] :
+         {std::pair{0.18, 1.152}, std::pair{1.0, 2.0}, std::pair{0.02, 0.5}}) {
       const EigenMargin m = EigenDelayMargin(l, k1, k2);
       if (!m.stable_at_zero) continue;
       const Complex s(0.0, m.omega_rad_s);
