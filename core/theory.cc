@@ -169,6 +169,7 @@ Lipschitz LipschitzOf(const DisturbanceConfig& d) {
       l.applicable = true;
       l.G = Eigen::MatrixXd::Zero(5, 5);
       l.J = Eigen::MatrixXd::Zero(5, 5);
+      l.slopes_known = true;
       l.note = "no uncertain factor: F = 0, rho0 = 0 (Theorem 2 reduces to a Theorem 1-type bound)";
       break;
     case DisturbanceKind::kPaperExample2: {
@@ -180,6 +181,14 @@ Lipschitz LipschitzOf(const DisturbanceConfig& d) {
       j << 0.4, 0.45, 0.0, 0.48, 0.5;
       l.G = g.asDiagonal();
       l.J = j.asDiagonal();
+      // Signed slope ranges [dx min, dx max, dv min, dv max]: tanh' in (0, 1], and
+      // sin' / cos' take both signs along the way.
+      l.slopes_known = true;
+      l.slopes << 0.0, 0.0, 0.0, 0.4,  //
+          -0.01, 0.01, -0.45, 0.0,     //
+          -0.01, 0.01, 0.0, 0.0,       //
+          0.0, 0.0, 0.0, 0.48,         //
+          -0.02, 0.02, -0.5, 0.0;
       l.applicable = d.relative_to_leader;
       l.note = d.relative_to_leader
                    ? "paper Example 2's F~ felt as f(x_i) - f(x_0) (relative_to_leader = true): "
@@ -313,6 +322,80 @@ DelayMargin ComputeDelayMargin(const std::vector<Complex>& eigenvalues, double k
   }
   if (!d.stable_at_zero) d.tau_s = 0.0;
   return d;
+}
+
+EigenMargin GeneralDelayMargin(Complex a, Complex b) {
+  EigenMargin m;
+  const Complex disc = std::sqrt(a * a - 4.0 * b);
+  const Complex r1 = (-a + disc) / 2.0, r2 = (-a - disc) / 2.0;
+  m.stable_at_zero = r1.real() < 0.0 && r2.real() < 0.0;
+  m.tau_s = std::numeric_limits<double>::infinity();
+
+  // Real roots of p(w) = w^4 + c2 w^2 + c1 w + c0 from its companion matrix, polished.
+  const double c2 = -std::norm(a), c1 = 2.0 * std::imag(a * std::conj(b)), c0 = -std::norm(b);
+  Eigen::Matrix4d C = Eigen::Matrix4d::Zero();
+  C(1, 0) = C(2, 1) = C(3, 2) = 1.0;
+  C(0, 3) = -c0;
+  C(1, 3) = -c1;
+  C(2, 3) = -c2;
+  Eigen::EigenSolver<Eigen::Matrix4d> es(C, false);
+  const double scale = 1.0 + std::sqrt(std::abs(c2)) + std::sqrt(std::sqrt(std::abs(c0)));
+  const Complex j(0.0, 1.0);
+  for (int k = 0; k < 4; ++k) {
+    const Complex r = es.eigenvalues()(k);
+    if (std::abs(r.imag()) > 1e-6 * scale) continue;
+    double w = r.real();
+    for (int it = 0; it < 4; ++it) {
+      const double p = ((w * w + c2) * w + c1) * w + c0;
+      const double dp = (4.0 * w * w + 2.0 * c2) * w + c1;
+      if (dp == 0.0) break;
+      w -= p / dp;
+    }
+    if (w == 0.0) continue;
+    const double phi = std::arg(j * w * a + b);
+    const double tau = w > 0.0 ? PositiveAngle(phi) / w : PositiveAngle(-phi) / -w;
+    if (tau < m.tau_s) {
+      m.tau_s = tau;
+      m.omega_rad_s = w;
+    }
+  }
+  if (std::isfinite(m.tau_s)) {
+    const Complex s = j * m.omega_rad_s;
+    const Complex e = std::exp(-s * m.tau_s);
+    const Complex g = (a * s + b) * e;
+    m.crossing_direction = (s * g / (2.0 * s + a * e - m.tau_s * g)).real();
+  }
+  return m;
+}
+
+FactorDelayMargin ComputeFactorDelayMargin(const std::vector<Complex>& eigenvalues, double k1,
+                                           double k2, const Lipschitz& l) {
+  FactorDelayMargin f;
+  if (!l.slopes_known) return f;
+  f.available = true;
+  f.stable_at_zero = true;
+  f.tau_s = std::numeric_limits<double>::infinity();
+  for (const Complex& lambda : eigenvalues) {
+    for (int c = 0; c < 5; ++c) {
+      for (int gi = 0; gi < 2; ++gi) {
+        for (int ji = 2; ji < 4; ++ji) {
+          const double g = l.slopes(c, gi), jv = l.slopes(c, ji);
+          const EigenMargin m = GeneralDelayMargin(lambda * k2 - jv, lambda * k1 - g);
+          const double tau = m.stable_at_zero ? m.tau_s : 0.0;
+          if (!m.stable_at_zero) f.stable_at_zero = false;
+          if (tau < f.tau_s) {
+            f.tau_s = tau;
+            f.lambda = lambda;
+            f.component = c;
+            f.x_slope = g;
+            f.v_slope = jv;
+            f.omega_rad_s = m.omega_rad_s;
+          }
+        }
+      }
+    }
+  }
+  return f;
 }
 
 }  // namespace theory

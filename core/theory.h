@@ -97,6 +97,11 @@ struct Lipschitz {
   Eigen::MatrixXd G, J;     ///< 5x5, when applicable
   double lambda_max_G2 = 0.0, lambda_max_J2 = 0.0;
   double rho0 = 0.0;
+  /// The factor is separable per component (f_c depends on x_c and v_c only): the range
+  /// [min, max] over all states of df_c/dx_c (column 0, 1) and df_c/dv_c (columns 2, 3).
+  /// Known for none and paper_example2 (slopes_known).
+  bool slopes_known = false;
+  Eigen::Matrix<double, 5, 4> slopes = Eigen::Matrix<double, 5, 4>::Zero();
   std::string note;  ///< what the numbers mean for this model (or why there are none)
 };
 
@@ -151,6 +156,33 @@ struct DelayMargin {
 
 EigenMargin EigenDelayMargin(Complex lambda, double k1, double k2);
 DelayMargin ComputeDelayMargin(const std::vector<Complex>& eigenvalues, double k1, double k2);
+
+/// Delay margin of s^2 + (a s + b) e^{-s tau} = 0 for complex a, b (lambda is left 0):
+/// the crossing frequencies are the real roots of
+///   w^4 - |a|^2 w^2 + 2 Im(a conj(b)) w - |b|^2 = 0   (|j w a + b| = w^2),
+/// and w tau = arg(j w a + b) (mod 2 pi). With a = lambda k2, b = lambda k1 this is
+/// EigenDelayMargin.
+EigenMargin GeneralDelayMargin(Complex a, Complex b);
+
+/// An indication, not a certificate: the exact constant-delay margin of the loop with the
+/// uncertain factor replaced by its linearisation (delayed like the protocol), its slopes
+/// frozen at the corners of their ranges (Lipschitz::slopes). Per eigenvalue lambda of H,
+/// component c of eta and corner (g, j):
+///   s^2 + ((lambda k2 - j) s + (lambda k1 - g)) e^{-s tau} = 0.
+/// The smallest margin over all of them (0 if some corner is unstable without delay).
+struct FactorDelayMargin {
+  bool available = false;  ///< the factor's slopes are known
+  bool stable_at_zero = false;
+  double tau_s = 0.0;
+  Complex lambda;          ///< the critical eigenvalue of H
+  int component = -1;      ///< the critical component of eta (0..4: x y z theta psi)
+  double x_slope = 0.0;    ///< g at the critical corner
+  double v_slope = 0.0;    ///< j at the critical corner
+  double omega_rad_s = 0.0;
+};
+
+FactorDelayMargin ComputeFactorDelayMargin(const std::vector<Complex>& eigenvalues, double k1,
+                                           double k2, const Lipschitz& l);
 
 }  // namespace theory
 }  // namespace shoal

@@ -1,5 +1,6 @@
 #include "design/verdict.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -29,10 +30,33 @@ std::string ScaleAdvice(const VerdictInput& in, double target_s) {
          Num(1.0 / c) + " x slower; or run --tune";
 }
 
+const char* kComponent[] = {"x", "y", "z", "theta", "psi"};
+
+bool FactorUnstable(const VerdictInput& in) {
+  return in.factor_margin && in.factor_margin->available && !in.factor_margin->stable_at_zero;
+}
+
 std::string MarginText(const VerdictInput& in) {
   const theory::DelayMargin& m = *in.margin;
   std::string s = "exact constant-delay margin " + Num(m.tau_s) + " s";
   if (in.h_s > 0.0) s += " = " + Num(m.tau_s / in.h_s) + " x h";
+  const theory::FactorDelayMargin* f = in.factor_margin;
+  if (f && f->available && in.factor != FactorKind::kNone) {
+    s += f->stable_at_zero ? " (" + Num(f->tau_s) + " s with the uncertain factor linearised)"
+                           : " (UNSTABLE with the uncertain factor linearised)";
+  }
+  return s;
+}
+
+/// Advice when the linearised factor removes all damping of a component.
+std::string FactorAdvice(const VerdictInput& in) {
+  const theory::FactorDelayMargin& f = *in.factor_margin;
+  const std::string c = kComponent[std::max(0, f.component)];
+  std::string s = "raise k2: the uncertain factor's slope " + Num(f.v_slope) + " on " + c +
+                  "' exceeds the damping lambda k2 of eigenvalue " + Lambda(f.lambda);
+  if (std::abs(f.lambda.imag()) < 1e-12 && f.lambda.real() > 0.0) {
+    s += " (k2 > " + Num(f.v_slope / f.lambda.real()) + " is needed without delay)";
+  }
   return s;
 }
 
@@ -96,7 +120,10 @@ Verdict Decide(const VerdictInput& in) {
                                Num(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
                          : "") +
             "; without the uncertain factor the loop is stable (exact)";
-        if (in.theorem2 && in.theorem2->k1_min_corrected) {
+        if (FactorUnstable(in)) {
+          v.reason += "; with the factor linearised the loop is unstable";
+          v.advice = FactorAdvice(in);
+        } else if (in.theorem2 && in.theorem2->k1_min_corrected) {
           v.advice = "raise k1 above " + Num(*in.theorem2->k1_min_corrected) + " and k2 above " +
                      Num(*in.theorem2->k2_min_corrected) + " (corrected (20)-(21))";
         } else {
@@ -171,8 +198,10 @@ Verdict Decide(const VerdictInput& in) {
   } else {
     t3 = "Theorem 3's LMI is not feasible at h = " + Num(in.h_s) + " s";
   }
-  v.reason = why + "; " + t3 + "; " + MarginText(in) + " (nominal loop, indication only)";
-  if (m.tau_s <= in.h_s) {
+  v.reason = why + "; " + t3 + "; " + MarginText(in) + ": indications, not certificates";
+  if (FactorUnstable(in)) {
+    v.advice = FactorAdvice(in);
+  } else if (m.tau_s <= in.h_s) {
     v.advice = "the gains are unstable already for a constant delay h: " +
                ScaleAdvice(in, in.safety * in.h_s);
   } else if (t3_applicable && in.theorem3_certified.has_value()) {

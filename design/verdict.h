@@ -30,6 +30,8 @@ struct VerdictInput {
   const theory::Theorem1* theorem1 = nullptr;  ///< null if W does not exist
   const theory::Theorem2* theorem2 = nullptr;  ///< null if not evaluated (no rho0)
   const theory::DelayMargin* margin = nullptr;
+  /// The margin with the uncertain factor linearised (an indication); may be null.
+  const theory::FactorDelayMargin* factor_margin = nullptr;
   double safety = 2.0;  ///< for the "what to change" advice
   /// Theorem 3 (LMI (27)-(28)) at the scenario's h and kappa: true = feasible (certified),
   /// false = infeasible or solver failure, empty = not evaluated.

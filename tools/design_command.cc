@@ -423,6 +423,40 @@ int RunDesign(const DesignOptions& opt) {
     }
   }
 
+  // The same with the uncertain factor linearised (an indication).
+  const bool factor_margin_shown = s.disturbance.kind != DisturbanceKind::kNone && lip.slopes_known;
+  const theory::FactorDelayMargin factor_margin =
+      theory::ComputeFactorDelayMargin(eig, k1, k2, lip);
+  if (factor_margin_shown) {
+    const theory::FactorDelayMargin& f = factor_margin;
+    static const char* kComponent[] = {"x", "y", "z", "theta", "psi"};
+    JsonWriter d;
+    d.Bool("stable_at_zero_delay", f.stable_at_zero)
+        .Num("tau_s", f.stable_at_zero ? f.tau_s : 0.0)
+        .Raw("critical_eigenvalue", ComplexJson(f.lambda))
+        .Str("critical_component", f.component >= 0 ? kComponent[f.component] : "")
+        .Num("x_slope", f.x_slope)
+        .Num("v_slope", f.v_slope)
+        .Str("meaning",
+             "exact constant-delay margin of the loop with the uncertain factor "
+             "linearised, slopes frozen at the worst corner of their ranges: an "
+             "indication, not a certificate");
+    j.Raw("delay_margin_with_factor", d.Done());
+    txt << "delay margin with the uncertain factor linearised (slopes frozen at their worst "
+           "corner; indication only)\n  ";
+    if (!f.stable_at_zero) {
+      txt << "UNSTABLE without delay: component " << kComponent[f.component] << " with slope "
+          << G(f.v_slope) << " on its rate, eigenvalue " << ComplexText(f.lambda)
+          << " (lambda k2 - slope has no damping left)\n";
+    } else {
+      txt << Fmt("%.4f", f.tau_s) << " s (component " << kComponent[f.component] << ", eigenvalue "
+          << ComplexText(f.lambda) << ", slopes dx " << G(f.x_slope) << ", dv " << G(f.v_slope)
+          << ")";
+      if (delay.h_s > 0) txt << " = " << Fmt("%.2f", f.tau_s / delay.h_s) << " x h";
+      txt << "\n";
+    }
+  }
+
   // Empirical margin.
   if (opt.empirical) {
     design::EmpiricalMarginOptions eo;
@@ -473,12 +507,14 @@ int RunDesign(const DesignOptions& opt) {
     const design::TuneResult tr = design::Tune(s, eig, delay.h_s, to);
     const double wall =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    auto point = [](const design::TunePoint& p) {
+    auto point = [&](const design::TunePoint& p) {
       JsonWriter w;
-      w.Num("k1", p.k1)
-          .Num("k2", p.k2)
-          .Num("delay_margin_s", p.margin_s)
-          .Num("cost_s", p.cost_s)
+      w.Num("k1", p.k1).Num("k2", p.k2).Num("delay_margin_s", p.margin_s);
+      if (factor_margin_shown) {
+        const theory::FactorDelayMargin f = theory::ComputeFactorDelayMargin(eig, p.k1, p.k2, lip);
+        w.Num("delay_margin_with_factor_s", f.stable_at_zero ? f.tau_s : 0.0);
+      }
+      w.Num("cost_s", p.cost_s)
           .Num("position_ise_m2s", p.position_ise_m2s)
           .Bool("converged", p.converged)
           .Num("convergence_time_s", p.converged ? p.convergence_time_s : NAN);
@@ -511,8 +547,13 @@ int RunDesign(const DesignOptions& opt) {
 
     auto line = [&](const char* name, const design::TunePoint& p) {
       txt << "  " << name << ": k1 = " << G(p.k1) << ", k2 = " << G(p.k2) << ", margin "
-          << Fmt("%.4f", p.margin_s) << " s, cost " << G(p.cost_s) << " s (position ISE "
-          << G(p.position_ise_m2s) << " m^2 s), "
+          << Fmt("%.4f", p.margin_s) << " s";
+      if (factor_margin_shown) {
+        const theory::FactorDelayMargin f = theory::ComputeFactorDelayMargin(eig, p.k1, p.k2, lip);
+        txt << " (with the factor linearised: " << Fmt("%.4f", f.stable_at_zero ? f.tau_s : 0.0)
+            << " s)";
+      }
+      txt << ", cost " << G(p.cost_s) << " s (position ISE " << G(p.position_ise_m2s) << " m^2 s), "
           << (p.converged ? "converged at " + Fmt("%.2f", p.convergence_time_s) + " s"
                           : std::string("did NOT converge"))
           << "\n";
@@ -555,6 +596,7 @@ int RunDesign(const DesignOptions& opt) {
   vi.theorem1 = t1 ? &*t1 : nullptr;
   vi.theorem2 = t2 ? &*t2 : nullptr;
   vi.margin = &margin;
+  vi.factor_margin = factor_margin_shown ? &factor_margin : nullptr;
   vi.safety = opt.safety;
   vi.theorem3_certified = theorem3_certified;
   const design::Verdict v = design::Decide(vi);

@@ -119,6 +119,31 @@ TEST(Verdict, TimeVaryingDelayNeedsTheorem3) {
   EXPECT_FALSE(Decide(in).certified);
 }
 
+// Example 2's factor removes the pitch damping when lambda_min k2 < 0.48: the verdict
+// says so and asks for k2 > 0.48 / lambda_min.
+TEST(Verdict, LinearisedFactorWithoutDampingAsksForMoreK2) {
+  const Fixture f(0.18, 1.0);
+  DisturbanceConfig d;
+  d.kind = DisturbanceKind::kPaperExample2;
+  const theory::FactorDelayMargin fm =
+      theory::ComputeFactorDelayMargin(f.eig, 0.18, 1.0, theory::LipschitzOf(d));
+  ASSERT_FALSE(fm.stable_at_zero);
+  VerdictInput in = f.Input(0.18, 1.0);
+  in.h_s = 0.15;
+  in.kappa = 0.05;
+  in.delay_time_varying = true;
+  in.delay_common_constant = false;
+  in.factor = FactorKind::kLipschitz;
+  in.rho0 = 0.5;
+  in.factor_margin = &fm;
+  const Verdict v = Decide(in);
+  EXPECT_FALSE(v.certified);
+  EXPECT_NE(v.reason.find("UNSTABLE with the uncertain factor linearised"), std::string::npos);
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "k2 > %.4g", 0.48 / f.eig.back().real());
+  EXPECT_NE(v.advice.find(buf), std::string::npos) << v.advice;
+}
+
 TEST(Verdict, UnstableWithoutDelayIsNeverCertified) {
   // A complex eigenvalue with a large k1 / k2^2: unstable at tau = 0.
   const Eigen::MatrixXd H = Topology::Build(3, {{1, 3}, {2, 1}, {3, 2}}, {1}).H();

@@ -346,6 +346,56 @@ TEST(Theory, DelayMarginScalingLaw) {
   }
 }
 
+// The general form s^2 + (a s + b) e^{-s tau} reduces to the eigenvalue form, and its
+// margin is a root on the imaginary axis for arbitrary complex a, b.
+TEST(Theory, GeneralDelayMarginAgreesAndIsARoot) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int checked = 0;
+  for (int k = 0; k < 200; ++k) {
+    const Complex l(2.0 + 2.0 * u(rng), 1.5 * u(rng));
+    const double k1 = 0.5 + 0.5 * u(rng), k2 = 1.0 + 0.8 * u(rng);
+    const EigenMargin e = EigenDelayMargin(l, k1, k2);
+    const EigenMargin g = GeneralDelayMargin(l * k2, l * k1);
+    ASSERT_EQ(e.stable_at_zero, g.stable_at_zero);
+    if (!e.stable_at_zero) continue;
+    EXPECT_NEAR(g.tau_s, e.tau_s, 1e-9 * e.tau_s) << l;
+    const Complex a(1.0 + u(rng), u(rng)), b(1.0 + u(rng), u(rng));
+    const EigenMargin m = GeneralDelayMargin(a, b);
+    if (!m.stable_at_zero || !std::isfinite(m.tau_s)) continue;
+    const Complex s(0.0, m.omega_rad_s);
+    EXPECT_LT(std::abs(s * s + (a * s + b) * std::exp(-s * m.tau_s)), 1e-9) << a << b;
+    ++checked;
+  }
+  EXPECT_GT(checked, 50);
+}
+
+// Example 2's factor: -0.5 tanh(psi') adds delayed damping to the heading channel, which
+// lowers the margin of the largest eigenvalue (0.3435 s -> about 0.31 s); 0.48 tanh(theta')
+// removes damping from pitch, which makes k2 = 1.0 unstable without any delay
+// (lambda_min k2 = 0.468 < 0.48), as shoal sim shows (README of this change: docs/theory.md).
+TEST(Theory, FactorDelayMarginOfPaperExample2) {
+  DisturbanceConfig d;
+  d.kind = DisturbanceKind::kPaperExample2;
+  const Lipschitz l = LipschitzOf(d);
+  const auto ev = HEigenvalues(PaperH());
+  const FactorDelayMargin f = ComputeFactorDelayMargin(ev, 0.18, 1.152, l);
+  ASSERT_TRUE(f.available);
+  ASSERT_TRUE(f.stable_at_zero);
+  EXPECT_EQ(f.component, 4);  // heading
+  EXPECT_NEAR(f.v_slope, -0.5, 1e-15);
+  EXPECT_NEAR(f.lambda.real(), 3.8794, 1e-4);
+  EXPECT_LT(f.tau_s, ComputeDelayMargin(ev, 0.18, 1.152).tau_s);
+  EXPECT_NEAR(f.tau_s, 0.31, 0.01);
+  EXPECT_FALSE(ComputeFactorDelayMargin(ev, 0.18, 1.0, l).stable_at_zero);
+  // No factor: the same as the nominal margin.
+  d.kind = DisturbanceKind::kNone;
+  EXPECT_NEAR(ComputeFactorDelayMargin(ev, 0.18, 1.152, LipschitzOf(d)).tau_s,
+              ComputeDelayMargin(ev, 0.18, 1.152).tau_s, 1e-9);
+  d.kind = DisturbanceKind::kOceanCurrent;
+  EXPECT_FALSE(ComputeFactorDelayMargin(ev, 0.18, 1.152, LipschitzOf(d)).available);
+}
+
 }  // namespace
 }  // namespace theory
 }  // namespace shoal
