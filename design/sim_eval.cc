@@ -7,7 +7,20 @@
 namespace shoal {
 namespace design {
 
-SimOutcome RunSwarm(const Scenario& s, double duration_s, std::vector<double>* residuals) {
+const char* CostName(CostKind k) {
+  switch (k) {
+    case CostKind::kPositionIse:
+      return "position_ise";
+    case CostKind::kIse:
+      return "ise";
+    case CostKind::kItse:
+      return "itse";
+  }
+  return "?";
+}
+
+SimOutcome RunSwarm(const Scenario& s, double duration_s, CostKind cost,
+                    std::vector<double>* residuals) {
   Swarm swarm(s, duration_s);
   const double period_s = ToSeconds(swarm.period_us());
   const double sqrt_period = std::sqrt(period_s);
@@ -16,19 +29,24 @@ SimOutcome RunSwarm(const Scenario& s, double duration_s, std::vector<double>* r
     residuals->reserve(2 * static_cast<std::size_t>(swarm.final_tick() + 1) *
                        static_cast<std::size_t>(s.followers));
   }
+  const double wp = cost == CostKind::kPositionIse ? 1.0 : 1.0 / s.metrics.position_tol_m;
+  const double wv = cost == CostKind::kPositionIse ? 0.0 : 1.0 / s.metrics.velocity_tol_mps;
   SimOutcome out;
   bool more = true;
   while (more) {
     more = swarm.Step(nullptr);
     if (swarm.metrics().samples() == 0) break;
+    // Residual weight: sqrt(dt), times sqrt(t) for the time-weighted cost.
+    const double w = cost == CostKind::kItse
+                         ? sqrt_period * std::sqrt(swarm.metrics().last_time_s())
+                         : sqrt_period;
     for (const FormationErrors& e : swarm.metrics().final_errors()) {
-      const double p = e.position_m / s.metrics.position_tol_m;
-      const double v = e.velocity_mps / s.metrics.velocity_tol_mps;
+      const double rp = w * wp * e.position_m, rv = w * wv * e.velocity_mps;
       out.ise_m2s += e.position_m * e.position_m * period_s;
-      out.cost_s += (p * p + v * v) * period_s;
+      out.cost += rp * rp + rv * rv;
       if (residuals) {
-        residuals->push_back(sqrt_period * p);
-        residuals->push_back(sqrt_period * v);
+        residuals->push_back(rp);
+        residuals->push_back(rv);
       }
     }
   }

@@ -41,6 +41,7 @@ struct SimResiduals {
   const std::vector<theory::Complex>* ev;
   double required_s;
   double horizon_s;
+  CostKind cost;
   std::size_t count;
   int* runs;
 
@@ -49,7 +50,7 @@ struct SimResiduals {
     if (!g.valid) return false;
     std::vector<double> r;
     ++*runs;
-    const SimOutcome o = RunSwarm(WithGains(*s, g.k1, g.k2), horizon_s, &r);
+    const SimOutcome o = RunSwarm(WithGains(*s, g.k1, g.k2), horizon_s, cost, &r);
     // A run that diverged stops early: no cost for it (Ceres rejects the step).
     if (o.diverged_id != 0 || r.size() != count) return false;
     for (std::size_t i = 0; i < count; ++i) {
@@ -80,8 +81,8 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
     t.margin_s = d.tau_s;
     const Scenario g = WithGains(s, k1, k2);
     ++out.sim_runs;
-    const SimOutcome o = RunSwarm(g, out.horizon_s);
-    t.cost_s = o.cost_s;
+    const SimOutcome o = RunSwarm(g, out.horizon_s, opt.cost);
+    t.cost = o.cost;
     t.position_ise_m2s = o.ise_m2s;
     ++out.sim_runs;
     const SimOutcome full = RunSwarm(g, -1.0);
@@ -127,8 +128,8 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
       out.starts.push_back(ts);
       continue;
     }
-    auto* functor =
-        new SimResiduals{&s, &ev, out.required_margin_s, out.horizon_s, count, &out.sim_runs};
+    auto* functor = new SimResiduals{&s,       &ev,   out.required_margin_s, out.horizon_s,
+                                     opt.cost, count, &out.sim_runs};
     {
       // Ceres cannot start from a point it cannot evaluate (a run that diverges).
       std::vector<double> r0(count);
@@ -169,10 +170,10 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
     const Gains g = GainsOf(ev, x[0], x[1], out.required_margin_s);
     ts.k1 = g.k1;
     ts.k2 = g.k2;
-    ts.cost_s = 2.0 * summary.final_cost;  // Ceres' cost is half the sum of squares
+    ts.cost = 2.0 * summary.final_cost;  // Ceres' cost is half the sum of squares
     ts.usable = ts.usable && g.valid;
     out.starts.push_back(ts);
-    if (ts.usable && (best < 0 || ts.cost_s < out.starts[best].cost_s)) {
+    if (ts.usable && (best < 0 || ts.cost < out.starts[best].cost)) {
       best = static_cast<int>(out.starts.size()) - 1;
     }
   }

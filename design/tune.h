@@ -1,7 +1,7 @@
 // Gain tuning with Ceres: k1, k2 minimising the integrated squared formation error of a
-// `shoal sim` run of the scenario (core::Swarm over a tuning horizon; position and
-// velocity errors, each normalised by its convergence tolerance, see SimOutcome::cost_s),
-// subject to the exact constant-delay margin being at least safety x h.
+// `shoal sim` run of the scenario (core::Swarm over a tuning horizon; see CostKind: by
+// default time-weighted, position and velocity errors each normalised by its convergence
+// tolerance), subject to the exact constant-delay margin being at least safety x h.
 //
 // The constraint is built into the parametrisation instead of a penalty. Scaling
 // k1 -> c^2 k1, k2 -> c k2 divides the margin by c exactly (s -> c s, tau -> tau / c in
@@ -18,6 +18,7 @@
 
 #include "core/scenario.h"
 #include "core/theory.h"
+#include "design/sim_eval.h"
 
 namespace shoal {
 namespace design {
@@ -26,12 +27,13 @@ struct TuneOptions {
   double safety = 2.0;       ///< required margin = safety x max(h, control period)
   double horizon_s = 120.0;  ///< simulated horizon of each cost evaluation
   int max_iterations = 20;   ///< per start
+  CostKind cost = CostKind::kItse;
 };
 
 struct TunePoint {
   double k1 = 0.0, k2 = 0.0;
   double margin_s = 0.0;             ///< exact constant-delay margin
-  double cost_s = 0.0;               ///< tuning cost over the horizon (SimOutcome::cost_s)
+  double cost = 0.0;                 ///< the tuning cost over the horizon (TuneOptions::cost)
   double position_ise_m2s = 0.0;     ///< position part alone, in m^2 s
   bool converged = false;            ///< full-length run (scenario duration) converged
   double convergence_time_s = -1.0;  ///< of that run; -1 if not converged
@@ -40,7 +42,7 @@ struct TunePoint {
 struct TuneStart {
   double k1_start = 0.0, k2_start = 0.0;
   double k1 = 0.0, k2 = 0.0;
-  double cost_s = 0.0;
+  double cost = 0.0;
   int iterations = 0;
   bool usable = false;
   std::string message;  ///< Ceres' termination message

@@ -501,6 +501,9 @@ int RunDesign(const DesignOptions& opt) {
     design::TuneOptions to;
     to.safety = opt.safety;
     to.horizon_s = opt.tune_horizon_s;
+    to.cost = opt.tune_cost == "ise"            ? design::CostKind::kIse
+              : opt.tune_cost == "position_ise" ? design::CostKind::kPositionIse
+                                                : design::CostKind::kItse;
     if (!opt.json && Tty())
       std::fprintf(stderr, "shoal design: tuning k1, k2 with Ceres (4 starts)...\n");
     const auto t0 = std::chrono::steady_clock::now();
@@ -514,7 +517,7 @@ int RunDesign(const DesignOptions& opt) {
         const theory::FactorDelayMargin f = theory::ComputeFactorDelayMargin(eig, p.k1, p.k2, lip);
         w.Num("delay_margin_with_factor_s", f.stable_at_zero ? f.tau_s : 0.0);
       }
-      w.Num("cost_s", p.cost_s)
+      w.Num("cost", p.cost)
           .Num("position_ise_m2s", p.position_ise_m2s)
           .Bool("converged", p.converged)
           .Num("convergence_time_s", p.converged ? p.convergence_time_s : NAN);
@@ -525,6 +528,7 @@ int RunDesign(const DesignOptions& opt) {
         .Num("safety", opt.safety)
         .Num("required_margin_s", tr.required_margin_s)
         .Num("horizon_s", tr.horizon_s)
+        .Str("cost_kind", design::CostName(to.cost))
         .Raw("before", point(tr.before))
         .Bool("before_meets_requirement", tr.before_feasible);
     if (tr.ok) t.Raw("after", point(tr.after));
@@ -535,7 +539,7 @@ int RunDesign(const DesignOptions& opt) {
           .Num("k2_start", st.k2_start)
           .Num("k1", st.k1)
           .Num("k2", st.k2)
-          .Num("cost_s", st.usable ? st.cost_s : NAN)
+          .Num("cost", st.usable ? st.cost : NAN)
           .Int("iterations", st.iterations)
           .Bool("usable", st.usable)
           .Str("message", st.message);
@@ -553,14 +557,19 @@ int RunDesign(const DesignOptions& opt) {
         txt << " (with the factor linearised: " << Fmt("%.4f", f.stable_at_zero ? f.tau_s : 0.0)
             << " s)";
       }
-      txt << ", cost " << G(p.cost_s) << " s (position ISE " << G(p.position_ise_m2s) << " m^2 s), "
+      txt << ", cost " << G(p.cost) << " (position ISE " << G(p.position_ise_m2s) << " m^2 s), "
           << (p.converged ? "converged at " + Fmt("%.2f", p.convergence_time_s) + " s"
                           : std::string("did NOT converge"))
           << "\n";
     };
-    txt << "tune (--tune: min integral of (e_p/" << G(s.metrics.position_tol_m) << " m)^2 + (e_v/"
-        << G(s.metrics.velocity_tol_mps) << " m/s)^2 over " << G(tr.horizon_s)
-        << " s, margin >= " << G(opt.safety)
+    const std::string pt = "(e_p/" + G(s.metrics.position_tol_m) + " m)^2";
+    const std::string vt = "(e_v/" + G(s.metrics.velocity_tol_mps) + " m/s)^2";
+    const std::string integrand = to.cost == design::CostKind::kPositionIse ? "e_p^2 dt"
+                                  : to.cost == design::CostKind::kIse
+                                      ? pt + " + " + vt + " dt"
+                                      : "t (" + pt + " + " + vt + ") dt";
+    txt << "tune (--tune, cost " << design::CostName(to.cost) << ": integral of " << integrand
+        << " over " << G(tr.horizon_s) << " s, summed over followers; margin >= " << G(opt.safety)
         << " x max(h, control period) = " << G(tr.required_margin_s) << " s)\n";
     line("before", tr.before);
     if (!tr.before_feasible)
@@ -574,7 +583,7 @@ int RunDesign(const DesignOptions& opt) {
     for (const design::TuneStart& st : tr.starts) {
       txt << " (" << G(st.k1_start) << ", " << G(st.k2_start) << ") -> ";
       if (st.usable) {
-        txt << "(" << G(st.k1) << ", " << G(st.k2) << ") cost " << G(st.cost_s) << ";";
+        txt << "(" << G(st.k1) << ", " << G(st.k2) << ") cost " << G(st.cost) << ";";
       } else {
         txt << "not usable (" << st.message << ");";
       }

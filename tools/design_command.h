@@ -19,6 +19,7 @@ struct DesignOptions {
   double empirical_duration_s = -1.0;  // < 0: the scenario's run.duration_s
   bool tune = false;
   double tune_horizon_s = 120.0;
+  std::string tune_cost = "itse";  // itse, ise or position_ise (design/sim_eval.h)
 };
 
 /// `shoal design`: exit status 0 certified, 1 not certified, 2 bad input.

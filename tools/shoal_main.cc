@@ -71,6 +71,11 @@ int main(int argc, char** argv) {
                        "Tune k1, k2 with Ceres (min formation error, margin >= safety x h)");
   design_cmd->add_option("--tune-horizon", design.tune_horizon_s,
                          "Simulated seconds per --tune cost evaluation (default 120)");
+  design_cmd
+      ->add_option("--tune-cost", design.tune_cost,
+                   "--tune cost: itse (time-weighted, default), ise, position_ise "
+                   "(docs/theory.md)")
+      ->check(CLI::IsMember({"itse", "ise", "position_ise"}));
 
   try {
     app.parse(argc, argv);

@@ -212,15 +212,21 @@ TEST(EmpiricalMargin, PaperExample1IsJustBelowTheExactMargin) {
   EXPECT_FALSE(RunSwarm(WithConstantDelay(s, em.first_failing_s), -1).converged);
 }
 
+// Each cost is the squared sum of its residuals; the position ISE is its own cost.
 TEST(SimEval, CostIsTheSquaredSumOfTheResiduals) {
   const Scenario s = Load("scenarios/paper_example1.toml");
   std::vector<double> r;
-  const SimOutcome o = RunSwarm(s, 20.0, &r);
-  double sum = 0.0;
-  for (double x : r) sum += x * x;
-  EXPECT_NEAR(sum, o.cost_s, 1e-9 * o.cost_s);
-  EXPECT_EQ(r.size(), 2u * 1001u * 5u);  // ticks 0..1000, two errors per follower
-  EXPECT_GT(o.ise_m2s, 0.0);
+  for (CostKind k : {CostKind::kPositionIse, CostKind::kIse, CostKind::kItse}) {
+    const SimOutcome o = RunSwarm(s, 20.0, k, &r);
+    double sum = 0.0;
+    for (double x : r) sum += x * x;
+    EXPECT_NEAR(sum, o.cost, 1e-9 * o.cost) << CostName(k);
+    EXPECT_EQ(r.size(), 2u * 1001u * 5u);  // ticks 0..1000, two errors per follower
+    EXPECT_GT(o.ise_m2s, 0.0);
+    if (k == CostKind::kPositionIse) {
+      EXPECT_NEAR(o.cost, o.ise_m2s, 1e-9 * o.cost);
+    }
+  }
 }
 
 // Tuning respects the margin requirement exactly and never ends worse than the best start,
@@ -239,11 +245,11 @@ TEST(Tune, MeetsTheMarginRequirementAndDoesNotIncreaseTheCost) {
   EXPECT_NEAR(r.required_margin_s, 0.2, 1e-12);
   EXPECT_TRUE(r.before_feasible);  // 0.3435 >= 0.2
   EXPECT_GE(r.after.margin_s, r.required_margin_s - 1e-9);
-  EXPECT_LE(r.after.cost_s, r.before.cost_s * (1 + 1e-9));
+  EXPECT_LE(r.after.cost, r.before.cost * (1 + 1e-9));
   for (const TuneStart& st : r.starts) {
     if (!st.usable) continue;
     EXPECT_GE(theory::ComputeDelayMargin(eig, st.k1, st.k2).tau_s, r.required_margin_s - 1e-9);
-    EXPECT_GE(st.cost_s, r.after.cost_s * (1 - 1e-9));
+    EXPECT_GE(st.cost, r.after.cost * (1 - 1e-9));
   }
   EXPECT_GT(r.sim_runs, 4);
 }
