@@ -73,7 +73,8 @@ TEST(DesignCli, BadScenarioFilesAndFlagsExitTwo) {
        {"design " + SourcePath("tests/data/bad_scenarios/k1_zero.toml"),
         "design " + SourcePath("tests/data/bad_scenarios/k2_negative.toml"),
         std::string("design /nonexistent/scenario.toml"), "design " + Example(2) + " --k1 abc",
-        "design " + Example(2) + " --no-such-flag", std::string("design")}) {
+        "design " + Example(2) + " --no-such-flag", "design " + Example(2) + " --tune-cost foo",
+        std::string("design")}) {
     const auto r = RunShoal(args, "d_badfile");
     EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
     EXPECT_FALSE(r.err.empty()) << args;
