@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace shoal {
 
@@ -45,7 +46,31 @@ class JsonWriter {
     out_ << json;
     return *this;
   }
+  /// An array of numbers (null for non-finite entries).
+  JsonWriter& NumArray(const std::string& key, const std::vector<double>& v) {
+    return Raw(key, Array(v));
+  }
   std::string Done() { return out_.str() + "}"; }
+
+  /// A number as JSON text: "null" if not finite.
+  static std::string Number(double v) {
+    if (!std::isfinite(v)) return "null";
+    char buf[40];
+    std::snprintf(buf, sizeof(buf), "%.10g", v);
+    return buf;
+  }
+  /// An array of numbers.
+  static std::string Array(const std::vector<double>& v) {
+    std::string o = "[";
+    for (std::size_t i = 0; i < v.size(); ++i) o += (i ? "," : "") + Number(v[i]);
+    return o + "]";
+  }
+  /// An array of already serialised JSON values.
+  static std::string List(const std::vector<std::string>& items) {
+    std::string o = "[";
+    for (std::size_t i = 0; i < items.size(); ++i) o += (i ? "," : "") + items[i];
+    return o + "]";
+  }
 
   static std::string Quote(const std::string& s) {
     std::string o = "\"";

@@ -3,6 +3,7 @@
 
 #include "tools/analyze_command.h"
 #include "tools/compare_command.h"
+#include "tools/design_command.h"
 #include "tools/run_command.h"
 #include "tools/sim_command.h"
 
@@ -69,6 +70,38 @@ int main(int argc, char** argv) {
   ana_cmd->add_option("--lcm-url", ana.lcm_url, "With --live: LCM URL (default: LCM's default)");
   ana_cmd->add_option("--duration", ana.duration_s, "With --live: stop after S wall-clock seconds");
   ana_cmd->add_flag("--quiet", ana.quiet, "No progress line (--live)");
+  shoal::DesignOptions design;
+  CLI::App* design_cmd = app.add_subcommand(
+      "design", "Gains and stability certificates for a scenario: Theorems 1-2, the exact "
+                "delay margin, a verdict; optionally the empirical margin and Ceres tuning "
+                "(docs/theory.md)");
+  design_cmd->add_option("scenario", design.scenario, "Scenario file (TOML)")->required();
+  design_cmd->add_flag("--json", design.json, "Print one JSON object instead of the report");
+  design_cmd->add_option("--k1", design.k1, "Position gain k1 (default: the scenario's)");
+  design_cmd->add_option("--k2", design.k2, "Velocity gain k2 (default: the scenario's)");
+  design_cmd->add_option("--h", design.h_s,
+                         "Delay bound h in seconds (default: max tau of the scenario's links)");
+  design_cmd->add_option("--kappa", design.kappa,
+                         "Bound on d tau/dt, in [0, 1) (default: from the delay model)");
+  design_cmd->add_option("--alpha", design.alpha, "Theorem 1-2 alpha (default 0.05, the paper's)");
+  design_cmd->add_option("--beta", design.beta, "Theorem 1-2 beta (default 6.4, the paper's)");
+  design_cmd->add_option("--rho0", design.rho0,
+                         "Lipschitz constant of the uncertain factor (default: from the model)");
+  design_cmd->add_option("--safety", design.safety,
+                         "Required margin as a multiple of h for --tune and advice (default 2)");
+  design_cmd->add_flag("--empirical", design.empirical,
+                       "Also find the constant delay at which shoal sim stops converging");
+  design_cmd->add_option("--empirical-duration", design.empirical_duration_s,
+                         "Simulated seconds per --empirical run (default: the scenario's)");
+  design_cmd->add_flag("--tune", design.tune,
+                       "Tune k1, k2 with Ceres (min formation error, margin >= safety x h)");
+  design_cmd->add_option("--tune-horizon", design.tune_horizon_s,
+                         "Simulated seconds per --tune cost evaluation (default 120)");
+  design_cmd
+      ->add_option("--tune-cost", design.tune_cost,
+                   "--tune cost: itse (time-weighted, default), ise, position_ise "
+                   "(docs/theory.md)")
+      ->check(CLI::IsMember({"itse", "ise", "position_ise"}));
 
   try {
     app.parse(argc, argv);
@@ -80,5 +113,6 @@ int main(int argc, char** argv) {
   if (cmp_cmd->parsed()) return shoal::RunCompare(cmp);
   if (run_cmd->parsed()) return shoal::RunRun(run);
   if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
+  if (design_cmd->parsed()) return shoal::RunDesign(design);
   return 2;
 }

@@ -1,0 +1,216 @@
+#include "design/verdict.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+namespace shoal {
+namespace design {
+namespace {
+
+std::string Num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.4g", v);
+  return buf;
+}
+
+std::string Lambda(const theory::Complex& l) {
+  if (std::abs(l.imag()) < 1e-12) return Num(l.real());
+  return Num(l.real()) + (l.imag() < 0 ? " - " : " + ") + Num(std::abs(l.imag())) + "j";
+}
+
+/// k1 -> c^2 k1, k2 -> c k2 divides the margin by c: the gains that give `target_s`.
+std::string ScaleAdvice(const VerdictInput& in, double target_s) {
+  const double c = in.margin->tau_s / target_s;
+  return "scale the gains to k1 = " + Num(c * c * in.k1) + ", k2 = " + Num(c * in.k2) +
+         " (k1 x c^2, k2 x c with c = " + Num(c) + "), which makes the exact margin " +
+         Num(target_s) + " s = " + Num(in.safety) + " x h, at the price of a response " +
+         Num(1.0 / c) + " x slower; or run --tune";
+}
+
+const char* kComponent[] = {"x", "y", "z", "theta", "psi"};
+
+bool FactorUnstable(const VerdictInput& in) {
+  return in.factor_margin && in.factor_margin->available && !in.factor_margin->stable_at_zero;
+}
+
+std::string MarginText(const VerdictInput& in) {
+  const theory::DelayMargin& m = *in.margin;
+  std::string s = "exact constant-delay margin " + Num(m.tau_s) + " s";
+  if (in.h_s > 0.0) s += " = " + Num(m.tau_s / in.h_s) + " x h";
+  const theory::FactorDelayMargin* f = in.factor_margin;
+  if (f && f->available && in.factor != FactorKind::kNone) {
+    s += f->stable_at_zero ? " (" + Num(f->tau_s) + " s with the uncertain factor linearised)"
+                           : " (UNSTABLE with the uncertain factor linearised)";
+  }
+  return s;
+}
+
+/// Advice when the linearised factor removes all damping of a component.
+std::string FactorAdvice(const VerdictInput& in) {
+  const theory::FactorDelayMargin& f = *in.factor_margin;
+  const std::string c = kComponent[std::max(0, f.component)];
+  std::string s = "raise k2: the uncertain factor's slope " + Num(f.v_slope) + " on " + c +
+                  "' exceeds the damping lambda k2 of eigenvalue " + Lambda(f.lambda);
+  if (std::abs(f.lambda.imag()) < 1e-12 && f.lambda.real() > 0.0) {
+    s += " (k2 > " + Num(f.v_slope / f.lambda.real()) + " is needed without delay)";
+  }
+  return s;
+}
+
+}  // namespace
+
+std::string Verdict::Line() const {
+  std::string s = certified ? "verdict: CERTIFIED by " + by + ": " + reason
+                            : "verdict: NOT CERTIFIED: " + reason;
+  if (!advice.empty()) s += (certified ? "; advice: " : "; to change: ") + advice;
+  return s;
+}
+
+Verdict Decide(const VerdictInput& in) {
+  Verdict v;
+  const theory::DelayMargin& m = *in.margin;
+  v.margin_over_h = in.h_s > 0.0 ? m.tau_s / in.h_s : std::numeric_limits<double>::infinity();
+
+  if (!m.stable_at_zero) {
+    std::string which;
+    for (const theory::EigenMargin& e : m.per_eigenvalue) {
+      if (!e.stable_at_zero) {
+        which = Lambda(e.lambda);
+        break;
+      }
+    }
+    v.reason = "the loop is unstable even without delay (eigenvalue " + which +
+               " of H: s^2 + lambda (k2 s + k1) has a root with Re s > 0)";
+    v.advice = "raise k2 relative to k1 (a larger k2^2 / k1 damps the complex eigenvalues)";
+    return v;
+  }
+
+  if (in.h_s <= 0.0) {
+    switch (in.factor) {
+      case FactorKind::kNone:
+        v.certified = true;
+        if (in.theorem1 && in.theorem1->certifies) {
+          v.by = "Theorem 1";
+          v.reason =
+              "no delay, no uncertain factor; P = Q(A+B) + (A+B)^T Q has largest "
+              "eigenvalue " +
+              Num(in.theorem1->P_max_eigenvalue) + " < 0";
+        } else {
+          v.by = "the exact characteristic equation at tau = 0";
+          v.reason =
+              "no delay, no uncertain factor; every s^2 + lambda (k2 s + k1) is "
+              "Hurwitz (Theorem 1's Lyapunov function does not certify these gains, "
+              "but it is only sufficient)";
+        }
+        return v;
+      case FactorKind::kLipschitz:
+        if (in.theorem2 && in.theorem2->certifies) {
+          v.certified = true;
+          v.by = "Theorem 2 (corrected)";
+          v.reason = "no delay; P~ with rho0 = " + Num(in.rho0) + " has largest eigenvalue " +
+                     Num(in.theorem2->P_tilde_max_eigenvalue) + " < 0";
+          return v;
+        }
+        v.reason =
+            "no delay, but Theorem 2 does not certify the gains with rho0 = " + Num(in.rho0) +
+            (in.theorem2 ? " (corrected P~ has largest eigenvalue " +
+                               Num(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
+                         : "") +
+            "; without the uncertain factor the loop is stable (exact)";
+        if (FactorUnstable(in)) {
+          v.reason += "; with the factor linearised the loop is unstable";
+          v.advice = FactorAdvice(in);
+        } else if (in.theorem2 && in.theorem2->k1_min_corrected) {
+          v.advice = "raise k1 above " + Num(*in.theorem2->k1_min_corrected) + " and k2 above " +
+                     Num(*in.theorem2->k2_min_corrected) + " (corrected (20)-(21))";
+        } else {
+          v.advice =
+              "Theorem 2's bounds (20)-(21) have no solution for this topology, alpha "
+              "and beta (alpha beta <= 2 lambda_max(M^T M)); try other --alpha/--beta "
+              "or higher gains checked by the P~ test";
+        }
+        return v;
+      case FactorKind::kUncovered:
+        v.reason =
+            "no delay and the nominal loop is stable (exact), but the uncertain factor "
+            "is not a Lipschitz f(x_i) - f(x_0): no theorem here covers it (expect a "
+            "bounded formation error rather than convergence)";
+        return v;
+    }
+  }
+
+  // h > 0.
+  const bool t3_applicable = in.factor != FactorKind::kUncovered && in.kappa && *in.kappa < 1.0;
+  if (in.theorem3_certified.value_or(false) && t3_applicable) {
+    v.certified = true;
+    v.by = "Theorem 3 (LMI (27)-(28))";
+    v.reason =
+        "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
+        (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + Num(in.rho0)
+                                             : std::string(", no uncertain factor")) +
+        "; " + MarginText(in);
+    return v;
+  }
+  if (in.factor == FactorKind::kNone && in.delay_common_constant) {
+    if (m.tau_s > in.h_s) {
+      v.certified = true;
+      v.by = "the exact delay margin";
+      v.reason = "one constant delay h = " + Num(in.h_s) +
+                 " s on every link, no uncertain "
+                 "factor; " +
+                 MarginText(in);
+      if (m.tau_s < in.safety * in.h_s) {
+        v.advice = "the margin is below the safety factor " + Num(in.safety) + ": " +
+                   ScaleAdvice(in, in.safety * in.h_s);
+      }
+      return v;
+    }
+    v.reason = "one constant delay h = " + Num(in.h_s) + " s on every link exceeds the " +
+               MarginText(in) + ": the loop is unstable at this delay";
+    v.advice = ScaleAdvice(in, in.safety * in.h_s);
+    return v;
+  }
+
+  // Delays or an uncertain factor that only Theorem 3 covers.
+  std::string why;
+  auto add = [&why](const std::string& s) { why += (why.empty() ? "" : ", ") + s; };
+  if (in.delay_time_varying)
+    add("the delay is time-varying (a constant-delay margin does not "
+        "certify time-varying delays)");
+  else if (!in.delay_common_constant)
+    add("the links have different delays");
+  if (in.factor == FactorKind::kLipschitz)
+    add("an uncertain factor acts (rho0 = " + Num(in.rho0) + ")");
+  if (in.factor == FactorKind::kUncovered)
+    add("an uncertain factor acts that no theorem "
+        "here covers");
+  std::string t3;
+  if (!t3_applicable) {
+    t3 = in.kappa ? (in.factor == FactorKind::kUncovered
+                         ? "Theorem 3 does not cover this uncertain factor"
+                         : "Theorem 3 needs kappa < 1")
+                  : "Theorem 3 needs a bounded d tau/dt (kappa), which this delay model lacks";
+  } else if (!in.theorem3_certified) {
+    t3 = "Theorem 3 not evaluated";
+  } else {
+    t3 = "Theorem 3's LMI is not feasible at h = " + Num(in.h_s) + " s";
+  }
+  v.reason = why + "; " + t3 + "; " + MarginText(in) + ": indications, not certificates";
+  if (FactorUnstable(in)) {
+    v.advice = FactorAdvice(in);
+  } else if (m.tau_s <= in.h_s) {
+    v.advice = "the gains are unstable already for a constant delay h: " +
+               ScaleAdvice(in, in.safety * in.h_s);
+  } else if (t3_applicable && in.theorem3_certified.has_value()) {
+    v.advice =
+        "lower the gains (Theorem 3's LMI is only sufficient; its max_delay_s shows "
+        "how far it certifies) or reduce the delay";
+  }
+  return v;
+}
+
+}  // namespace design
+}  // namespace shoal

@@ -1,0 +1,144 @@
+// `shoal design` as a user runs it: bad input (exit 2, clear messages), the JSON keys and
+// the paper's numbers, the verdict and its exit status, and advice that really works.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <string>
+
+#include "tests/integration/test_util.h"
+
+namespace shoal {
+namespace {
+
+using shoal::testing::RunShoal;
+using shoal::testing::SourcePath;
+
+/// The number after the first occurrence of "key": in a JSON text (NaN if absent/null).
+double JsonNumber(const std::string& json, const std::string& key) {
+  const std::string k = "\"" + key + "\":";
+  const std::size_t p = json.find(k);
+  if (p == std::string::npos) return NAN;
+  const char* start = json.c_str() + p + k.size();
+  char* end = nullptr;
+  const double v = std::strtod(start, &end);
+  return end == start ? NAN : v;
+}
+
+std::string Example(int n) {
+  return SourcePath("scenarios/paper_example" + std::to_string(n) + ".toml");
+}
+
+TEST(DesignCli, AssumptionOneViolationNamesTheUnreachableFollowers) {
+  const auto r = RunShoal(
+      "design " + SourcePath("tests/data/bad_scenarios/unreachable_followers.toml"), "d_a1");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("shoal design:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("followers 2, 4 cannot be reached from the leader (Assumption 1)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_TRUE(r.out.empty()) << r.out;
+}
+
+TEST(DesignCli, NonPositiveGainsAndDelaysExitTwoNamingTheFlag) {
+  const struct {
+    std::string args, expect;
+  } cases[] = {
+      {"--k1 0", "--k1 must be a positive number (got 0)"},
+      {"--k1 -0.5", "--k1 must be a positive number (got -0.5)"},
+      {"--k2 0", "--k2 must be a positive number (got 0)"},
+      {"--k2 -1", "--k2 must be a positive number (got -1)"},
+      {"--k1 nan", "--k1 must be a positive number"},
+      {"--h 0", "--h must be a positive number (got 0)"},
+      {"--h -0.1", "--h must be a positive number (got -0.1)"},
+      {"--kappa 1", "--kappa must be in [0, 1) (got 1)"},
+      {"--kappa -0.2", "--kappa must be in [0, 1)"},
+      {"--alpha 0", "--alpha must be a positive number"},
+      {"--beta -2", "--beta must be a positive number"},
+      {"--rho0 -1", "--rho0 must be a number >= 0"},
+      {"--safety 0.5", "--safety must be a number >= 1"},
+      {"--tune-horizon 0", "--tune-horizon must be a positive number"},
+  };
+  for (const auto& c : cases) {
+    const auto r = RunShoal("design " + Example(2) + " " + c.args, "d_bad");
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find("shoal design: " + c.expect), std::string::npos) << c.args << "\n"
+                                                                          << r.err;
+    EXPECT_TRUE(r.out.empty()) << c.args << "\n" << r.out;
+  }
+}
+
+TEST(DesignCli, BadScenarioFilesAndFlagsExitTwo) {
+  for (const std::string& args :
+       {"design " + SourcePath("tests/data/bad_scenarios/k1_zero.toml"),
+        "design " + SourcePath("tests/data/bad_scenarios/k2_negative.toml"),
+        std::string("design /nonexistent/scenario.toml"), "design " + Example(2) + " --k1 abc",
+        "design " + Example(2) + " --no-such-flag", "design " + Example(2) + " --tune-cost foo",
+        std::string("design")}) {
+    const auto r = RunShoal(args, "d_badfile");
+    EXPECT_EQ(r.status, 2) << args << "\n" << r.err;
+    EXPECT_FALSE(r.err.empty()) << args;
+  }
+  const auto help = RunShoal("design --help", "d_help");
+  EXPECT_EQ(help.status, 0);
+  EXPECT_NE(help.out.find("--empirical"), std::string::npos);
+}
+
+// The JSON object has the keys and the paper's numbers.
+TEST(DesignCli, JsonHasThePaperNumbers) {
+  const auto r = RunShoal("design " + Example(2) + " --json", "d_json");
+  ASSERT_TRUE(r.status == 0 || r.status == 1) << r.err;
+  ASSERT_EQ(r.out.front(), '{');
+  ASSERT_EQ(r.out.substr(r.out.size() - 2), "}\n");
+  for (const char* key :
+       {"H_eigenvalues", "assumption1", "theorem1", "W", "W_eigenvalues", "M2_eigenvalues",
+        "k1_min", "k2_min", "k1_min_corrected", "k2_min_corrected", "P_max_eigenvalue", "theorem2",
+        "delay_margin_s", "verdict", "lambda_max_G2", "lambda_max_J2", "rho0"}) {
+    EXPECT_NE(r.out.find(std::string("\"") + key + "\":"), std::string::npos) << key;
+  }
+  EXPECT_NE(r.out.find("\"assumption1\":{\"holds\":true,\"unreachable_followers\":[]}"),
+            std::string::npos);
+  EXPECT_NEAR(JsonNumber(r.out, "k1_min"), 0.1286, 1e-4);
+  EXPECT_NEAR(JsonNumber(r.out, "k1_min_corrected"), 0.1754, 1e-4);
+  EXPECT_NEAR(JsonNumber(r.out, "P_max_eigenvalue"), -7.3e-4, 0.05e-4);
+  EXPECT_NEAR(JsonNumber(r.out, "delay_margin_s"), 0.3435, 1e-4);
+  EXPECT_NEAR(JsonNumber(r.out, "h_s"), 0.15, 1e-12);
+  EXPECT_NEAR(JsonNumber(r.out, "kappa"), 0.05, 1e-12);
+  EXPECT_NEAR(JsonNumber(r.out, "lambda_max_G2"), 0.0004, 1e-12);
+  EXPECT_NEAR(JsonNumber(r.out, "lambda_max_J2"), 0.25, 1e-12);
+  // Exit status follows the verdict.
+  const bool certified = r.out.find("\"certified\":true") != std::string::npos;
+  EXPECT_EQ(r.status, certified ? 0 : 1);
+}
+
+TEST(DesignCli, ReadableReportHasEverySectionAndAVerdictLine) {
+  const auto r = RunShoal("design " + Example(1), "d_text");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;  // no delay, no factor: Theorem 1 certifies
+  for (const char* s : {"H eigenvalues: 3.8794, 3, 1.6527, 1, 0.46791", "Assumption 1: holds",
+                        "W eigenvalues: 0.1278, 0.1650, 0.2940, 0.5506, 1.1167",
+                        "delay_margin_s = 0.3435 s", "verdict: CERTIFIED by Theorem 1"}) {
+    EXPECT_NE(r.out.find(s), std::string::npos) << s << "\n" << r.out;
+  }
+}
+
+// A constant delay above the margin is not certified; the advised gains are (with margin
+// exactly safety x h, so a delay of h is certified).
+TEST(DesignCli, AdviceForTooLargeADelayWorks) {
+  const auto bad = RunShoal("design " + Example(1) + " --h 0.5 --json", "d_adv1");
+  EXPECT_EQ(bad.status, 1) << bad.err;
+  const std::string tag = "scale the gains to k1 = ";
+  const std::size_t p = bad.out.find(tag);
+  ASSERT_NE(p, std::string::npos) << bad.out;
+  const double k1 = std::strtod(bad.out.c_str() + p + tag.size(), nullptr);
+  const std::size_t q = bad.out.find("k2 = ", p);
+  const double k2 = std::strtod(bad.out.c_str() + q + 5, nullptr);
+  char args[128];
+  std::snprintf(args, sizeof(args), " --h 0.5 --k1 %.6g --k2 %.6g --json", k1, k2);
+  const auto good = RunShoal("design " + Example(1) + args, "d_adv2");
+  EXPECT_EQ(good.status, 0) << good.out;
+  EXPECT_NEAR(JsonNumber(good.out, "delay_margin_s"), 1.0, 2e-3);
+  EXPECT_NE(good.out.find("\"by\":\"the exact delay margin\""), std::string::npos);
+}
+
+}  // namespace
+}  // namespace shoal

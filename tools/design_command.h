@@ -1,0 +1,28 @@
+#pragma once
+
+#include <optional>
+#include <string>
+
+namespace shoal {
+
+struct DesignOptions {
+  std::string scenario;
+  bool json = false;
+  // Overrides of the scenario's values (empty: the scenario's).
+  std::optional<double> k1, k2;
+  std::optional<double> h_s, kappa;
+  std::optional<double> rho0;
+  double alpha = 0.05;  // Theorem 1-2 parameters, the paper's values by default
+  double beta = 6.4;
+  double safety = 2.0;  // required margin = safety x h (--tune, advice)
+  bool empirical = false;
+  double empirical_duration_s = -1.0;  // < 0: the scenario's run.duration_s
+  bool tune = false;
+  double tune_horizon_s = 120.0;
+  std::string tune_cost = "itse";  // itse, ise or position_ise (design/sim_eval.h)
+};
+
+/// `shoal design`: exit status 0 certified, 1 not certified, 2 bad input.
+int RunDesign(const DesignOptions& opt);
+
+}  // namespace shoal
