@@ -205,9 +205,17 @@ Verdict Decide(const VerdictInput& in) {
     v.advice = "the gains are unstable already for a constant delay h: " +
                ScaleAdvice(in, in.safety * in.h_s);
   } else if (t3_applicable && in.theorem3_certified.has_value()) {
-    v.advice =
-        "lower the gains (Theorem 3's LMI is only sufficient; its max_delay_s shows "
-        "how far it certifies) or reduce the delay";
+    if (in.theorem3_max_delay_s && *in.theorem3_max_delay_s <= 0.0) {
+      v.advice =
+          "Theorem 3's LMI is infeasible even at h = 0 with these gains and this uncertain "
+          "factor: the velocity gain must dominate the factor's slope (a necessary condition "
+          "is k2 lambda_min(H) > sqrt(2 lambda_max(J^2)), docs/theory_theorem3.md); raise k2 "
+          "(check the delay margin again), or weaken the factor";
+    } else {
+      v.advice = "reduce the delay below Theorem 3's max_delay_s" +
+                 (in.theorem3_max_delay_s ? " = " + Num(*in.theorem3_max_delay_s) + " s" : "") +
+                 ", or change the gains and compare max_delay_s (the LMI is only sufficient)";
+    }
   }
   return v;
 }

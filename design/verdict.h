@@ -36,6 +36,8 @@ struct VerdictInput {
   /// Theorem 3 (LMI (27)-(28)) at the scenario's h and kappa: true = feasible (certified),
   /// false = infeasible or solver failure, empty = not evaluated.
   std::optional<bool> theorem3_certified;
+  /// Theorem 3's largest certified h (0: infeasible even at h = 0), if evaluated.
+  std::optional<double> theorem3_max_delay_s;
 };
 
 struct Verdict {

@@ -13,6 +13,7 @@
 #include "core/theory.h"
 #include "core/topology.h"
 #include "design/empirical_margin.h"
+#include "design/theorem3.h"
 #include "design/tune.h"
 #include "design/verdict.h"
 #include "runtime/scenario_loader.h"
@@ -133,18 +134,106 @@ std::string ValidateOptions(const DesignOptions& o) {
   return "";
 }
 
-// ---- Theorem 3 (LMI (27)-(28), CSDP): the place where it is wired in ----
-// design/theorem3 (written on another branch) adds the "theorem3" block of the report here:
-// h_s, kappa, feasible at the scenario's h, max_delay_s, paper_multipliers_max_eigenvalue,
-// and writes --certificate. Its result feeds the verdict through the return value: true
-// when the LMI is feasible at (h, kappa), false when it is infeasible or the solver failed,
-// std::nullopt when it was not evaluated. Until it is wired in, this prints nothing and the
-// verdict says "Theorem 3 not evaluated".
-std::optional<bool> AddTheorem3Block(const Scenario& /*s*/, const Eigen::MatrixXd& /*H*/,
-                                     double /*k1*/, double /*k2*/, double /*h_s*/,
-                                     const std::optional<double>& /*kappa*/, JsonWriter* /*json*/,
-                                     std::ostream* /*text*/) {
-  return std::nullopt;
+// ---- Theorem 3 (LMI (27)-(28), every multiplier free, CSDP; design/theorem3) ----
+// Adds the "theorem3" block: feasibility at the scenario's (h, kappa), max_delay_s by
+// bisection, the paper's multipliers' best lambda_max(Xi), and writes --certificate.
+// Returns true when the corrected LMI is feasible at (h, kappa) (checked with Eigen),
+// false when it is infeasible or CSDP failed, std::nullopt when the theorem does not apply
+// (no bound on tau', kappa >= 1, or an uncertain factor without Lipschitz data).
+std::optional<bool> AddTheorem3Block(const Scenario& s, const Eigen::MatrixXd& H, double k1,
+                                     double k2, double h_s, const std::optional<double>& kappa,
+                                     const theory::Lipschitz& lip,
+                                     const std::optional<double>& rho0_flag,
+                                     const std::string& certificate, JsonWriter* json,
+                                     std::ostream* text, std::optional<double>* max_delay_s) {
+  JsonWriter t;
+  std::ostream& txt = *text;
+  txt << "theorem 3 (LMI (27)-(28) corrected, every multiplier free, CSDP)\n";
+  std::string why_not;
+  if (!kappa) {
+    why_not = "the delay's rate is unbounded (uniform jitter draws a new delay per message)";
+  } else if (*kappa >= 1.0) {
+    why_not = "kappa = " + G(*kappa) + " >= 1 (Assumption 3 needs tau' <= kappa < 1)";
+  } else if (!rho0_flag && s.disturbance.kind == DisturbanceKind::kOceanCurrent) {
+    why_not = "the ocean current has no Lipschitz bound of the form f(x_i) - f(x_0) "
+              "(pass --rho0 to assume one)";
+  }
+  if (!why_not.empty()) {
+    t.Bool("evaluated", false).Str("reason", why_not);
+    json->Raw("theorem3", t.Done());
+    txt << "  not evaluated: " << why_not << "\n";
+    if (!certificate.empty()) {
+      std::cerr << "shoal design: --certificate: Theorem 3 was not evaluated, nothing written\n";
+    }
+    return std::nullopt;
+  }
+  design::Theorem3Input in;
+  in.H = H;
+  in.k1 = k1;
+  in.k2 = k2;
+  in.h_s = h_s;
+  in.kappa = *kappa;
+  if (rho0_flag) {  // an assumed bound ||F|| <= rho0 (||x|| + ||v||): G = J = rho0 I
+    in.lambda_G2 = in.lambda_J2 = *rho0_flag * *rho0_flag;
+  } else {
+    in.lambda_G2 = lip.lambda_max_G2;
+    in.lambda_J2 = lip.lambda_max_J2;
+  }
+  const design::Theorem3Result at_h = design::CheckTheorem3(in);
+  const design::MaxDelayResult maxd = design::MaxDelayTheorem3(in);
+  const design::PaperMultipliersResult paper = design::PaperMultipliersMaxEigenvalue(in);
+  if (maxd.input_valid) *max_delay_s = maxd.feasible_at_zero ? maxd.max_delay_s : 0.0;
+  t.Bool("evaluated", true)
+      .Num("h_s", h_s)
+      .Num("kappa", *kappa)
+      .Num("lambda_max_G2", in.lambda_G2)
+      .Num("lambda_max_J2", in.lambda_J2)
+      .Bool("feasible", at_h.certifies())
+      .Int("csdp_return_code", at_h.csdp_return_code)
+      .Str("csdp_status", at_h.csdp_status)
+      .Num("margin", at_h.check.margin)
+      .Str("message", at_h.message)
+      .Bool("feasible_at_zero_delay", maxd.feasible_at_zero)
+      .Num("max_delay_s", maxd.feasible_at_zero ? maxd.max_delay_s : 0.0)
+      .Bool("max_delay_hit_cap", maxd.hit_cap)
+      .Int("max_delay_solves", maxd.solves)
+      .Int("max_delay_solver_failures", maxd.solver_failures)
+      .Num("paper_multipliers_max_eigenvalue", paper.solved ? paper.max_eigenvalue : NAN)
+      .Num("seconds", at_h.seconds + maxd.seconds + paper.seconds);
+  txt << "  lambda_max(G^2) = " << G(in.lambda_G2) << ", lambda_max(J^2) = " << G(in.lambda_J2)
+      << (rho0_flag ? " (from --rho0)" : "") << "\n";
+  txt << "  at h = " << G(h_s) << " s, kappa = " << G(*kappa) << ": "
+      << (at_h.certifies() ? "FEASIBLE (certified)" : "infeasible") << "; " << at_h.message
+      << "\n";
+  if (!maxd.input_valid) {
+    txt << "  max delay: " << maxd.message << "\n";
+  } else if (!maxd.feasible_at_zero) {
+    txt << "  max delay: none (infeasible even at h = 0; docs/theory_theorem3.md says why)\n";
+  } else {
+    txt << "  max_delay_s = " << G(maxd.max_delay_s) << " s" << (maxd.hit_cap ? " (search cap)" : "")
+        << " (" << maxd.solves << " solves)\n";
+  }
+  txt << "  paper's multipliers (X = 0.3I, Y = 0, Z = I, psi = 0.1I, Phi = 0.6I), best Q: "
+      << (paper.solved ? "lambda_max(Xi) = " + G(paper.max_eigenvalue) +
+                             (paper.max_eigenvalue < 0 ? " < 0 (certifies)" : " >= 0 (does not certify)")
+                       : paper.message)
+      << "\n";
+  if (!certificate.empty()) {
+    // The certificate at the scenario's h if there is one, else at the largest certified h.
+    const design::Theorem3Result& r =
+        at_h.certifies() || !maxd.feasible_at_zero ? at_h : maxd.at_max;
+    std::string err;
+    if (!design::WriteCertificate(r, certificate, &err)) {
+      std::cerr << "shoal design: --certificate: " << err << "\n";
+    } else {
+      txt << "  certificate (h = " << G(r.input.h_s) << " s, "
+          << (r.certifies() ? "feasible" : "NOT feasible: the solver's last matrices") << ") written to "
+          << certificate << "\n";
+      t.Str("certificate", certificate).Num("certificate_h_s", r.input.h_s);
+    }
+  }
+  json->Raw("theorem3", t.Done());
+  return at_h.certifies();
 }
 
 bool Tty() { return isatty(2) != 0; }
@@ -380,8 +469,10 @@ int RunDesign(const DesignOptions& opt) {
   }
 
   // Theorem 3 (wired in by design/theorem3; see AddTheorem3Block).
+  std::optional<double> theorem3_max_delay;
   const std::optional<bool> theorem3_certified =
-      AddTheorem3Block(s, H, k1, k2, delay.h_s, delay.kappa, &j, &txt);
+      AddTheorem3Block(s, H, k1, k2, delay.h_s, delay.kappa, lip, opt.rho0, opt.certificate,
+                       &j, &txt, &theorem3_max_delay);
 
   // Exact delay margin.
   {
@@ -608,6 +699,7 @@ int RunDesign(const DesignOptions& opt) {
   vi.factor_margin = factor_margin_shown ? &factor_margin : nullptr;
   vi.safety = opt.safety;
   vi.theorem3_certified = theorem3_certified;
+  vi.theorem3_max_delay_s = theorem3_max_delay;
   const design::Verdict v = design::Decide(vi);
   {
     JsonWriter w;

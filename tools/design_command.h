@@ -15,6 +15,7 @@ struct DesignOptions {
   double alpha = 0.05;  // Theorem 1-2 parameters, the paper's values by default
   double beta = 6.4;
   double safety = 2.0;  // required margin = safety x h (--tune, advice)
+  std::string certificate;  // --certificate FILE: Theorem 3's matrices (JSON)
   bool empirical = false;
   double empirical_duration_s = -1.0;  // < 0: the scenario's run.duration_s
   bool tune = false;

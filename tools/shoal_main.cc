@@ -89,6 +89,8 @@ int main(int argc, char** argv) {
                          "Lipschitz constant of the uncertain factor (default: from the model)");
   design_cmd->add_option("--safety", design.safety,
                          "Required margin as a multiple of h for --tune and advice (default 2)");
+  design_cmd->add_option("--certificate", design.certificate,
+                         "Write Theorem 3's matrices (Q, Psi, Z, X, Y, Phi) as JSON to this file");
   design_cmd->add_flag("--empirical", design.empirical,
                        "Also find the constant delay at which shoal sim stops converging");
   design_cmd->add_option("--empirical-duration", design.empirical_duration_s,

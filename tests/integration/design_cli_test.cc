@@ -111,6 +111,35 @@ TEST(DesignCli, JsonHasThePaperNumbers) {
   EXPECT_EQ(r.status, certified ? 0 : 1);
 }
 
+// Theorem 3 through the CLI: without an uncertain factor the corrected LMI certifies a
+// time-varying delay of 0.15 s at the scenario's gains, up to max_delay_s below the exact
+// constant-delay margin; with paper Example 2's factor it is infeasible (the necessary
+// condition k2 lambda_min(H) > sqrt(2 lambda_max(J^2)) fails: 0.539 < 0.707), so the
+// verdict is "not certified" and the certificate file says so.
+TEST(DesignCli, Theorem3CertifiesWithoutTheFactorAndNotWithIt) {
+  const auto ok = RunShoal("design " + Example(1) + " --h 0.15 --kappa 0.05 --json", "d_t3a");
+  EXPECT_EQ(ok.status, 0) << ok.out << ok.err;
+  const std::string t3 = ok.out.substr(ok.out.find("\"theorem3\":"));
+  EXPECT_NE(t3.find("\"evaluated\":true"), std::string::npos) << t3;
+  EXPECT_NE(t3.find("\"feasible\":true"), std::string::npos) << t3;
+  const double max_delay = JsonNumber(t3, "max_delay_s");
+  EXPECT_GT(max_delay, 0.15);
+  EXPECT_LT(max_delay, JsonNumber(ok.out, "delay_margin_s"));  // the LMI is only sufficient
+  EXPECT_NE(ok.out.find("\"by\":\"Theorem 3"), std::string::npos) << ok.out;
+
+  const std::string cert = shoal::testing::TmpPath("d_t3_cert.json");
+  const auto no = RunShoal("design " + Example(2) + " --json --certificate " + cert, "d_t3b");
+  EXPECT_EQ(no.status, 1) << no.out << no.err;
+  const std::string t3b = no.out.substr(no.out.find("\"theorem3\":"));
+  EXPECT_NE(t3b.find("\"feasible\":false"), std::string::npos) << t3b;
+  EXPECT_NE(t3b.find("\"feasible_at_zero_delay\":false"), std::string::npos) << t3b;
+  EXPECT_GT(JsonNumber(t3b, "paper_multipliers_max_eigenvalue"), 0.0);
+  const std::string text = shoal::testing::ReadFile(cert);
+  for (const char* m : {"\"Q\"", "\"Psi\"", "\"Z\"", "\"X\"", "\"Y\"", "\"Phi\""}) {
+    EXPECT_NE(text.find(m), std::string::npos) << m;
+  }
+}
+
 TEST(DesignCli, ReadableReportHasEverySectionAndAVerdictLine) {
   const auto r = RunShoal("design " + Example(1), "d_text");
   EXPECT_EQ(r.status, 0) << r.out << r.err;  // no delay, no factor: Theorem 1 certifies
