@@ -144,16 +144,6 @@ Verdict Decide(const VerdictInput& in) {
 
   // h > 0.
   const bool t3_applicable = in.factor != FactorKind::kUncovered && in.kappa && *in.kappa < 1.0;
-  if (in.theorem3_certified.value_or(false) && t3_applicable) {
-    v.certified = true;
-    v.by = "Theorem 3 (LMI (27)-(28))";
-    v.reason =
-        "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
-        (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + Num(in.rho0)
-                                             : std::string(", no uncertain factor")) +
-        "; " + MarginText(in);
-    return v;
-  }
   if (in.factor == FactorKind::kNone && in.delay_common_constant) {
     if (m.tau_s > in.h_s) {
       v.certified = true;
@@ -171,6 +161,18 @@ Verdict Decide(const VerdictInput& in) {
     v.reason = "one constant delay h = " + Num(in.h_s) + " s on every link exceeds the " +
                MarginText(in) + ": the loop is unstable at this delay";
     v.advice = ScaleAdvice(in, in.safety * in.h_s);
+    return v;
+  }
+  // Time-varying delays or an uncertain factor: Theorem 3 (the exact margin above is
+  // necessary and sufficient for one constant delay, so it decides that case first).
+  if (in.theorem3_certified.value_or(false) && t3_applicable) {
+    v.certified = true;
+    v.by = "Theorem 3 (LMI (27)-(28))";
+    v.reason =
+        "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
+        (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + Num(in.rho0)
+                                             : std::string(", no uncertain factor")) +
+        "; " + MarginText(in);
     return v;
   }
 
