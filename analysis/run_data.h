@@ -116,7 +116,7 @@ struct RunData {
 };
 
 struct LoadOptions {
-  /// Scenario to use instead of the one in the log (e.g. for shoal run logs, which do not
+  /// Scenario to use instead of the one in the log (e.g. for logs which do not
   /// carry the scenario text). Null: the log's, if any.
   const Scenario* scenario = nullptr;
   /// Largest vehicle id accepted when the scenario does not say (protects against

@@ -402,7 +402,7 @@ int RunAnalyze(const AnalyzeOptions& opt) {
   if (!run.has_scenario) {
     std::cerr << who << "warning: no scenario text in "
               << (opt.live ? "the received statuses" : "the log")
-              << " (shoal run logs do not carry it); formation errors and configured delays "
+              << "; formation errors and configured delays "
                  "need --scenario FILE\n";
   }
   const RunAnalysis a = AnalyseRun(run);
