@@ -16,12 +16,19 @@ DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
 .PHONY: demo test deps build configure clean
 
 demo: build
+	@echo "== shoal design: gains and certificates of the paper's Example 2"
+	-$(BUILD_DIR)/tools/shoal design scenarios/paper_example2.toml
 	@echo "== shoal sim: the paper's Example 2 in one process"
 	$(BUILD_DIR)/tools/shoal sim scenarios/paper_example2.toml --out $(BUILD_DIR)/paper_example2_sim.lcmlog
 	@echo "== shoal run: the same as a lockstep SIL run (one process per vehicle, channel emulator, lcm-logger)"
 	$(BUILD_DIR)/tools/shoal run scenarios/paper_example2.toml --mode lockstep --out $(BUILD_DIR)/paper_example2_sil.lcmlog
 	$(BUILD_DIR)/tools/shoal compare $(BUILD_DIR)/paper_example2_sil.lcmlog $(BUILD_DIR)/paper_example2_sim.lcmlog
+	@echo "== shoal analyze: the SIL run's log (CSV time series in $(BUILD_DIR)/paper_example2_csv)"
+	$(BUILD_DIR)/tools/shoal analyze $(BUILD_DIR)/paper_example2_sil.lcmlog --csv $(BUILD_DIR)/paper_example2_csv
+	@echo "== shoal render: its figures, drawn off-screen (OSMesa)"
+	$(BUILD_DIR)/tools/shoal render $(BUILD_DIR)/paper_example2_sil.lcmlog --out $(BUILD_DIR)/paper_example2_figures
 	@echo "== SIL log: $(BUILD_DIR)/paper_example2_sil.lcmlog (replay: lcm-logplayer $(BUILD_DIR)/paper_example2_sil.lcmlog)"
+	@echo "== figures: $(BUILD_DIR)/paper_example2_figures/*.png"
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
