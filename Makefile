@@ -10,7 +10,8 @@ CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 # Debian packages the build, the tests and the demo need.
 DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps \
   liblcm-dev liblcm-bin libglib2.0-dev \
-  libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev
+  libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev \
+  libosmesa6-dev libstb-dev zlib1g-dev fonts-dejavu-core
 
 .PHONY: demo test deps build configure clean
 
