@@ -310,7 +310,7 @@ void Plot3D::PlaceAxisLabels() {
     const Vec2 pa = P2(a.edge_a), pb = P2(a.edge_b);
     const float edge_px = std::hypot(pb.x - pa.x, pb.y - pa.y);
     const Vec2 along{(pb.x - pa.x) / std::max(edge_px, 1e-3f), (pb.y - pa.y) / std::max(edge_px, 1e-3f)};
-    for (int n = 8;; --n) {
+    for (int n = 7;; --n) {
       const TickSet ts = LinearTicks(dlo, dhi, n);
       a.world.clear();
       a.labels.clear();
@@ -325,7 +325,7 @@ void Plot3D::PlaceAxisLabels() {
       const float spacing = ts.major.size() > 1
                                 ? edge_px * static_cast<float>(ts.step / (dhi - dlo))
                                 : edge_px;
-      if (n <= 2 || spacing >= need + 14.0f * s_) break;
+      if (n <= 2 || spacing >= need + 20.0f * s_) break;
     }
     // Screen direction away from the box at the edge's middle.
     const V3 mid{0.5 * (a.edge_a[0] + a.edge_b[0]), 0.5 * (a.edge_a[1] + a.edge_b[1]),
@@ -359,7 +359,7 @@ void Plot3D::PlaceAxisLabels() {
     a.title_rotated = k == 2;
     const float tw = text_->Width(a.title, label_px_), th = text_->LineHeight(label_px_);
     const float e = a.title_rotated ? extent(th, tw, a.dir) : extent(tw, th, a.dir);
-    const float r = max_reach + pad + e;
+    const float r = max_reach + 2.0f * pad + e;
     a.title_pos = {mp.x + a.dir.x * r, mp.y + a.dir.y * r};
   }
 }

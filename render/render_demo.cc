@@ -38,6 +38,8 @@ int main(int argc, char** argv) {
   app.add_option("--duration", duration_s, "Synthetic run length in seconds")
       ->check(CLI::Range(10.0, 36000.0));
   app.add_option("--drop", drop, "Drop probability per message")->check(CLI::Range(0.0, 1.0));
+  std::string size;
+  app.add_option("--size", size, "Figure size WxH in pixels (default: 1400x1000 for 3-D, 1600x1000 for 2-D)");
   app.add_option("--azimuth", azimuth_deg, "3-D camera bearing, degrees clockwise from north (default: automatic)");
   app.add_option("--elevation", elevation_deg, "3-D camera elevation, degrees")
       ->check(CLI::Range(-85.0, 85.0));
@@ -46,6 +48,14 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
+  }
+  int width = 0, height = 0;
+  if (!size.empty()) {
+    char x = 0;
+    if (std::sscanf(size.c_str(), "%d%c%d", &width, &x, &height) != 3 || (x != 'x' && x != 'X')) {
+      std::fprintf(stderr, "render_demo: --size '%s' is not WxH (e.g. 1600x1000)\n", size.c_str());
+      return 2;
+    }
   }
   std::error_code ec;
   std::filesystem::create_directories(out, ec);
@@ -63,12 +73,17 @@ int main(int argc, char** argv) {
   to.scenario = scenario;
   to.snapshot_times_s = {0.0, 30.0};
   for (double t = 100.0; t <= duration_s + 1e-9; t += 100.0) to.snapshot_times_s.push_back(t);
+  if (width > 0) {
+    to.width_px = width;
+    to.height_px = height;
+  }
   Figure3D traj = TrajectoryFigure(run.vehicles, to);
   traj.azimuth_deg = azimuth_deg;
   traj.elevation_deg = elevation_deg;
   bool ok = Write(out + "/trajectories.png", traj);
 
-  ok = Write(out + "/states.png", StateFigure(run.vehicles, scenario)) && ok;
+  const int w2 = width > 0 ? width : 1600, h2 = height > 0 ? height : 1000;
+  ok = Write(out + "/states.png", StateFigure(run.vehicles, scenario, w2, h2)) && ok;
 
   ErrorOptions eo;
   eo.scenario = scenario;
@@ -76,6 +91,8 @@ int main(int argc, char** argv) {
   eo.position_tol_m = 0.5;
   eo.velocity_tol_mps = 0.05;
   eo.converged_s = run.converged_s;
+  eo.width_px = w2;
+  eo.height_px = h2;
   ok = Write(out + "/errors.png", ErrorFigure(run.errors, eo)) && ok;
   eo.log_y = false;
   ok = Write(out + "/errors_linear.png", ErrorFigure(run.errors, eo)) && ok;
@@ -84,6 +101,8 @@ int main(int argc, char** argv) {
   co.scenario = scenario;
   co.tau_t_s = run.tau_t_s;
   co.tau_s = run.tau_s;
+  co.width_px = w2;
+  co.height_px = h2;
   ok = Write(out + "/channel.png", ChannelFigure(run.links, co)) && ok;
   return ok ? 0 : 1;
 }

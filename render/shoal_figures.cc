@@ -247,8 +247,9 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
     const double a = T[i], b = T[i + 1];
     return o.tau_s[i] + (o.tau_s[i + 1] - o.tau_s[i]) * (t - a) / (b - a);
   };
-  // Markers of dense series are translucent, so that the density shows: alpha such that
-  // k markers on one pixel column of a plot ~1500 px wide reach about half opacity.
+  // Drop markers of dense links are translucent, so that bursts show as darker: alpha
+  // such that the average number of drops per pixel column of a plot ~1500 px wide reaches
+  // about half opacity. (The delay scatter stays opaque: single outliers must show.)
   const auto density_alpha = [](std::size_t points, float floor_alpha) {
     const double per_column = static_cast<double>(points) / 1500.0;
     if (per_column <= 1.0) return 1.0f;
@@ -351,7 +352,6 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
       std::size_t hint = 0;
       for (std::size_t i = 0; i < s.x.size(); ++i) s.y[i] -= tau_at(s.x[i], &hint);
     }
-    s.color.a = density_alpha(s.x.size(), 0.08f);
     if (!s.x.empty()) all.series.push_back(std::move(s));
   }
   f.panels.push_back(std::move(all));

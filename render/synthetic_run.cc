@@ -26,7 +26,7 @@ void FinishVehicle(const std::vector<double>& t, const Kinematics& k, const Vehi
   double prev = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const double horizontal = std::hypot(k.vx[i], k.vy[i]);
-    const double offset = std::exp(-t[i] / 8.0) * std::cos(0.4 * t[i]);
+    const double offset = std::exp(-t[i] / 8.0) * std::cos(0.4 * t[i]) + 2e-3 * std::sin(0.7 * t[i]);
     double psi = ref ? ref->eta[4][i] + dpsi0 * offset : std::atan2(k.vy[i], k.vx[i]);
     if (i > 0) psi = prev + Wrap(psi - prev);  // continuous
     prev = psi;
@@ -111,7 +111,8 @@ SyntheticRun MakeSyntheticRun(double duration_s, double rate_hz, double drop_pro
       const double g = decay * (std::cos(w * s) + std::sin(w * s) / (w * T));
       const double gd = -decay * std::sin(w * s) * (w + 1.0 / (w * T * T));
       // Delay-induced wobble at tau's frequency (1 rad/s), decaying more slowly.
-      const double wob = 0.25 * std::exp(-s / 25.0);
+      // (plus a small persistent part: the delayed law never settles exactly).
+      const double wob = 0.25 * std::exp(-s / 25.0) + 0.003;
       const double wx = wob * std::sin(s + phase), wxd = wob * (std::cos(s + phase) - std::sin(s + phase) / 25.0);
       // Steady bias towards the helix axis.
       const double rb = bias[f] * (1.0 - decay);

@@ -49,8 +49,19 @@ double NiceStep(double span, int max_intervals) {
 TickSet LinearTicks(double lo, double hi, int max_ticks) {
   TickSet t;
   if (!(lo < hi) || !std::isfinite(lo) || !std::isfinite(hi) || max_ticks < 2) return t;
-  const double step = NiceStep(hi - lo, max_ticks - 1);
+  const auto count = [&](double s) {
+    return std::floor(hi / s + 1e-9) - std::ceil(lo / s - 1e-9) + 1.0;
+  };
+  double step = NiceStep(hi - lo, max_ticks - 1);
   if (step <= 0.0) return t;
+  // The span rule can be one step too coarse (0..3600 fits 8 ticks of 500, not only 4 of
+  // 1000): take smaller 1-2-5 steps while the ticks inside still number at most max_ticks.
+  for (;;) {
+    const double m = step / std::pow(10.0, std::floor(std::log10(step) + 1e-9));
+    const double smaller = m < 1.5 ? 0.5 * step : m < 3.0 ? 0.5 * step : 0.4 * step;
+    if (count(smaller) > max_ticks) break;
+    step = smaller;
+  }
   t.step = step;
   const double first = std::ceil(lo / step - 1e-9);
   const double last = std::floor(hi / step + 1e-9);

@@ -18,9 +18,10 @@ struct TickSet {
   bool decades = false;       // log: majors are powers of ten
 };
 
-/// Multiples of NiceStep(hi - lo, max_ticks - 1) inside [lo, hi] (ends included within a
-/// relative 1e-9 of the step). Values within 1e-9 step of zero are exactly 0. lo < hi and
-/// max_ticks >= 2, otherwise empty.
+/// Multiples of the smallest 1-2-5 step with at most max_ticks multiples inside [lo, hi]
+/// (ends included within a relative 1e-9 of the step); at least one when max_ticks >= 3.
+/// Values within 1e-9 step of zero are exactly 0. lo < hi and max_ticks >= 2, otherwise
+/// empty.
 TickSet LinearTicks(double lo, double hi, int max_ticks);
 
 /// Ticks of a base-10 log axis on [lo, hi] (0 < lo < hi), at most max_ticks majors:
