@@ -9,7 +9,7 @@
 // Sizes. Every size below that is given in "px" (line widths, marker sizes) is in pixels
 // of a figure at scale 1. A figure's scale is chosen from its size, so that text, lines
 // and markers keep their proportions at any --size: scale = sqrt(W*H / (1600*1000)) for
-// a Figure2D and sqrt(W*H / (1400*1000)) for a Figure3D (clamped to [0.6, 3]), unless
+// a Figure2D and sqrt(W*H / (1400*1000)) for a Figure3D (clamped to [0.75, 3]), unless
 // Figure2D::scale / Figure3D::scale is set (> 0).
 //
 // Long series. Time series are decimated inside the library to at most four points per
@@ -65,6 +65,7 @@ struct LegendEntry {
   Color color;
   LineStyle line = LineStyle::kSolid;
   Marker marker = Marker::kNone;
+  float line_width_px = 2.0f;  // the sample is drawn at most 5 px wide
 };
 
 /// An x-y data series. x and y have the same length (at least one point). A NaN or
@@ -102,7 +103,8 @@ struct Axis {
   std::string label;  // e.g. "x", "position error"
   std::string unit;   // e.g. "m"; shown as "x [m]"; empty: no brackets
   bool log = false;   // base-10 log scale; decades labelled 10ⁿ
-  double min = kAutoRange;  // fixed range; NaN: from the data (x tight, y padded by 4 %)
+  double min = kAutoRange;  // fixed range; NaN: from the data (y padded by 4 %; x tight
+                            // for time series, padded for curves and markers)
   double max = kAutoRange;
   std::vector<Tick> ticks;  // explicit ticks; empty: automatic 1-2-5 ticks
 };

@@ -62,7 +62,7 @@ LegendBox::LegendBox(std::vector<LegendEntry> entries, const LegendMetrics& m,
 void DrawLegendSample(const LegendEntry& e, float cx, float cy, float length, float scale,
                       Mesh* mesh) {
   if (e.line != LineStyle::kNone) {
-    const float w = 2.0f * scale;
+    const float w = std::clamp(e.line_width_px, 1.0f, 5.0f) * scale;
     // Start a dash pattern so that the sample is symmetric.
     float on = 0, off = 0;
     DashPattern(e.line, w, &on, &off);

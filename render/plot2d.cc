@@ -123,7 +123,9 @@ AxisTicks MakeTicks(const Axis& axis, double lo, double hi, int max_ticks,
     t.values = ts.major;
     t.minor = ts.minor;
     for (double v : ts.major) {
-      t.labels.push_back(ts.step > 0 ? FormatLinearTick(v, ts.step) : FormatLogTick(v));
+      t.labels.push_back(ts.step > 0 ? FormatLinearTick(v, ts.step)
+                         : ts.decades ? FormatLogTick(v)
+                                      : FormatPlainTick(v));
     }
   } else {
     const TickSet ts = LinearTicks(lo, hi, max_ticks);
@@ -369,7 +371,12 @@ void Plot2D::ComputeRanges() {
       if (s.marker != Marker::kNone) marker_r = std::max(marker_r, 0.5f * s.marker_size_px * z_.s);
     }
     const float approx_w = 0.85f * static_cast<float>(f_.width_px) / static_cast<float>(cols_);
-    FinishRange(&xr, p.x.log, marker_r > 0.0f ? (marker_r + 1.0f) / approx_w : 0.0);
+    double pad = marker_r > 0.0f ? (marker_r + 1.0f) / approx_w : 0.0;
+    // Curves (x not sorted, e.g. a path in a plane) get the same margin as y.
+    for (const Series& s : p.series) {
+      if (s.line != LineStyle::kNone && !IsSortedX(s.x.data(), s.x.size())) pad = std::max(pad, 0.04);
+    }
+    FinishRange(&xr, p.x.log, pad);
     if (!std::isnan(p.x.min)) xr.lo = p.x.min;
     if (!std::isnan(p.x.max)) xr.hi = p.x.max;
     if (!(xr.lo < xr.hi)) xr.hi = xr.lo + 1.0;
@@ -543,7 +550,7 @@ bool Plot2D::Render(Image* out, std::string* err) {
   if (s <= 0.0f) {
     s = std::sqrt(static_cast<float>(f_.width_px) * static_cast<float>(f_.height_px) /
                   (1600.0f * 1000.0f));
-    s = std::clamp(s, 0.6f, 3.0f);
+    s = std::clamp(s, 0.75f, 3.0f);
   }
   z_ = MakeSizes(s);
   lm_ = MakeLegendMetrics(*text_, s);
@@ -562,13 +569,19 @@ bool Plot2D::Render(Image* out, std::string* err) {
     const Panel& p = *ps.panel;
     if (p.legend == LegendPlacement::kNone) continue;
     for (const Series& se : p.series) {
-      if (!se.label.empty()) ps.legend_entries.push_back({se.label, se.color, se.line, se.marker});
+      if (!se.label.empty()) {
+        ps.legend_entries.push_back({se.label, se.color, se.line, se.marker, se.line_width_px});
+      }
     }
     for (const RefLine& r : p.hlines) {
-      if (!r.label.empty()) ps.legend_entries.push_back({r.label, r.color, r.line, Marker::kNone});
+      if (!r.label.empty()) {
+        ps.legend_entries.push_back({r.label, r.color, r.line, Marker::kNone, r.line_width_px});
+      }
     }
     for (const RefLine& r : p.vlines) {
-      if (!r.label.empty()) ps.legend_entries.push_back({r.label, r.color, r.line, Marker::kNone});
+      if (!r.label.empty()) {
+        ps.legend_entries.push_back({r.label, r.color, r.line, Marker::kNone, r.line_width_px});
+      }
     }
   }
   std::vector<float> outside(ps_.size(), 0.0f);
@@ -591,7 +604,7 @@ bool Plot2D::Render(Image* out, std::string* err) {
                                ps.legend.height() < ps.plot.h() - 2 * inset;
       go_outside = !fits_inside || PlaceInside(&ps, inset) > 0;
       // Outside only if the plot keeps most of its width.
-      if (go_outside && ps.legend.width() + 12.0f * z_.s > 0.35f * ps.cell.w()) go_outside = false;
+      if (go_outside && ps.legend.width() + 12.0f * z_.s > 0.45f * ps.cell.w()) go_outside = false;
     }
     if (go_outside) {
       // Single column, as tall as needed (clipped by the cell).

@@ -431,7 +431,7 @@ void Plot3D::BuildLines() {
 void Plot3D::PlaceLegend(const Rect& area) {
   std::vector<LegendEntry> entries;
   for (const Polyline3D& l : f_.lines) {
-    if (!l.label.empty()) entries.push_back({l.label, l.color, l.line, Marker::kNone});
+    if (!l.label.empty()) entries.push_back({l.label, l.color, l.line, Marker::kNone, l.line_width_px});
   }
   for (const LegendEntry& e : f_.extra_legend) entries.push_back(e);
   if (entries.empty()) return;
@@ -475,7 +475,7 @@ bool Plot3D::Render(Image* out, std::string* err) {
   if (s_ <= 0.0f) {
     s_ = std::sqrt(static_cast<float>(f_.width_px) * static_cast<float>(f_.height_px) /
                    (1400.0f * 1000.0f));
-    s_ = std::clamp(s_, 0.6f, 3.0f);
+    s_ = std::clamp(s_, 0.75f, 3.0f);
   }
   tick_px_ = 13.5f * s_;
   label_px_ = 14.5f * s_;

@@ -17,7 +17,7 @@ std::string Title(const std::string& scenario, const std::string& what) {
 
 std::vector<LegendEntry> VehicleLegend(const std::vector<int>& ids) {
   std::vector<LegendEntry> legend;
-  for (int id : ids) legend.push_back({VehicleName(id), VehicleColor(id), LineStyle::kSolid, Marker::kNone});
+  for (int id : ids) legend.push_back({VehicleName(id), VehicleColor(id), LineStyle::kSolid, Marker::kNone, 2.5f});
   return legend;
 }
 
@@ -102,7 +102,7 @@ Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const Traj
     f.snapshots.push_back(std::move(s));
   }
   f.extra_legend.push_back({"formation snapshot", Color{0.3f, 0.3f, 0.3f, 1.0f}, LineStyle::kSolid,
-                            Marker::kCircle});
+                            Marker::kCircle, 1.5f});
   return f;
 }
 
@@ -280,12 +280,12 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
     if (std::find(receivers.begin(), receivers.end(), l->to) == receivers.end()) receivers.push_back(l->to);
   }
   for (int id : receivers) {
-    f.legend.push_back({"to " + VehicleName(id), VehicleColor(id), LineStyle::kNone, Marker::kCircle});
+    f.legend.push_back({"to " + VehicleName(id), VehicleColor(id), LineStyle::kNone, Marker::kCircle, 2.0f});
   }
   if (have_tau) {
-    f.legend.push_back({"configured \xCF\x84(t)", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kDashed, Marker::kNone});
+    f.legend.push_back({"configured \xCF\x84(t)", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kDashed, Marker::kNone, 1.8f});
   }
-  f.legend.push_back({"dropped", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kNone, Marker::kCross});
+  f.legend.push_back({"dropped", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kNone, Marker::kCross, 2.0f});
 
   // 1. Realised delay against tau over the first seconds.
   Panel zoom;

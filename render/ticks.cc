@@ -155,6 +155,15 @@ std::string FormatLogTick(double value) {
   const int k = FloorLog10(value);
   const double mantissa = value / std::pow(10.0, k);
   if (std::fabs(mantissa - 1.0) < 1e-9) return "10" + Superscript(k);
+  return FormatPlainTick(value);
+}
+
+std::string FormatPlainTick(double value) {
+  if (!std::isfinite(value)) return "";
+  if (value == 0.0) return "0";
+  if (value < 0.0) return ReplaceMinus("-" + FormatPlainTick(-value));
+  const int k = FloorLog10(value);
+  const double mantissa = value / std::pow(10.0, k);
   // Significant digits of the mantissa (1 for 2, 5; up to 3).
   int sig = 1;
   while (sig < 3 && std::fabs(mantissa * std::pow(10.0, sig - 1) -

@@ -41,6 +41,11 @@ std::string FormatLinearTick(double value, double step);
 /// 1e-4 <= value < 1e5 ("0.002", "500"), else m×10ⁿ ("2×10⁻⁵").
 std::string FormatLogTick(double value);
 
+/// A tick value in plain decimals with its own precision when 1e-4 <= |value| < 1e5
+/// ("0.002", "20", "0.25"), else m×10ⁿ; used for log axes with 1-2-5 ticks, so that all
+/// labels of an axis look alike.
+std::string FormatPlainTick(double value);
+
 /// For linear ticks with very large or very small values: the power of ten n to factor
 /// out (labels show value / 10^n, the axis shows "×10ⁿ"), or 0 when plain labels are
 /// short enough (largest |tick| < 1e5 and step >= 1e-4).
