@@ -77,6 +77,16 @@ Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const Traj
   if (times.empty() && t1 >= t0) {
     for (int k = 0; k < 6; ++k) times.push_back(t0 + (t1 - t0) * k / 5.0);
   }
+  // A snapshot at a line's first or last sample already marks its start or end.
+  for (std::size_t k = 0; k < sorted.size(); ++k) {
+    const std::vector<double>& t = sorted[k]->t_s;
+    if (t.empty()) continue;
+    const double dt = t.size() > 1 ? (t.back() - t.front()) / static_cast<double>(t.size() - 1) : 0.0;
+    for (double s : times) {
+      if (std::fabs(s - t.front()) <= dt) f.lines[k].mark_start = false;
+      if (std::fabs(s - t.back()) <= dt) f.lines[k].mark_end = false;
+    }
+  }
   std::vector<std::pair<int, int>> edges = o.snapshot_edges;
   if (edges.empty()) {
     for (const VehicleSeries* v : sorted) {

@@ -46,7 +46,9 @@ struct TrajectoryOptions {
   int width_px = 1400, height_px = 1000;
 };
 
-/// Paper Figs. 12 and 23: 3-D trajectories of all vehicles with formation snapshots.
+/// Paper Figs. 12 and 23: 3-D trajectories of all vehicles with formation snapshots. A
+/// line's start (hollow circle) and end (filled circle) are marked unless a snapshot is
+/// taken there.
 Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const TrajectoryOptions& o);
 
 /// Paper Figs. 2-11, 13-22: x, y, z, theta, psi (left column) and u, v, w, q, r (right)
