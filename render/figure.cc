@@ -154,8 +154,10 @@ bool Validate(const Figure2D& f, std::string* err) {
         return false;
       }
       for (std::size_t i = 0; i < series.x.size(); ++i) {
-        if (std::isfinite(series.x[i]) && std::isfinite(series.y[i]) &&
-            (!panel.x.log || series.x[i] > 0.0) && (!panel.y.log || series.y[i] > 0.0)) {
+        const auto usable = [](double v, bool log) {
+          return std::isfinite(v) && std::fabs(v) <= 1e300 && (!log || v >= 1e-300);
+        };
+        if (usable(series.x[i], panel.x.log) && usable(series.y[i], panel.y.log)) {
           ++drawable;
           break;
         }
@@ -163,8 +165,8 @@ bool Validate(const Figure2D& f, std::string* err) {
     }
   }
   if (drawable == 0) {
-    return Fail(err, "nothing to draw: no series has a finite point" +
-                         std::string(" (on a log axis, a point above 0); check the data"));
+    return Fail(err, "nothing to draw: no series has a usable point (finite, within "
+                     "+-1e300, and on a log axis above 0); check the data");
   }
   return true;
 }

@@ -69,8 +69,9 @@ struct LegendEntry {
 };
 
 /// An x-y data series. x and y have the same length (at least one point). A NaN or
-/// infinite value breaks the line; on a log axis, so does a value <= 0. x need not be
-/// sorted, but sorted x (time series) is decimated per pixel column and is much faster.
+/// infinite value (or one beyond +-1e300) breaks the line; on a log axis, so does a value
+/// <= 0 (or below 1e-300). x need not be sorted, but sorted x (time series) is decimated
+/// per pixel column and is much faster.
 struct Series {
   std::string label;  // legend text; empty: not in the legend
   std::vector<double> x, y;

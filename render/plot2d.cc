@@ -68,17 +68,21 @@ struct Range {
   }
 };
 
+// Values beyond +-1e300 (and on a log axis below 1e-300) are treated as missing: their
+// ranges and logarithms would overflow.
+bool Usable(double v, bool log) {
+  return std::isfinite(v) && std::fabs(v) <= 1e300 && (!log || v >= 1e-300);
+}
+
 // Maps data values to pixels along one axis (log10 first on a log axis).
 struct AxisMap {
   double lo = 0, hi = 1;  // in transformed units (log10 on a log axis)
   double p0 = 0, p1 = 1;  // pixels of lo and hi
   bool log = false;
-  double T(double v) const { return log ? (v > 0 ? std::log10(v) : kNaN) : v; }
+  double T(double v) const { return !Usable(v, log) ? kNaN : log ? std::log10(v) : v; }
   double MapT(double t) const { return p0 + (t - lo) * (p1 - p0) / (hi - lo); }
   double Map(double v) const { return MapT(T(v)); }
 };
-
-bool Usable(double v, bool log) { return std::isfinite(v) && (!log || v > 0.0); }
 
 // Automatic range: tight or padded, expanded when degenerate.
 void FinishRange(Range* r, bool log, double pad_fraction) {
@@ -95,6 +99,10 @@ void FinishRange(Range* r, bool log, double pad_fraction) {
     const double pad = pad_fraction * (hi - lo);
     lo -= pad;
     hi += pad;
+  }
+  if (log) {
+    lo = std::max(lo, -307.0);
+    hi = std::min(hi, 307.0);
   }
   r->lo = log ? std::pow(10.0, lo) : lo;
   r->hi = log ? std::pow(10.0, hi) : hi;
@@ -130,10 +138,22 @@ AxisTicks MakeTicks(const Axis& axis, double lo, double hi, int max_ticks,
   } else {
     const TickSet ts = LinearTicks(lo, hi, max_ticks);
     t.values = ts.major;
-    const int e = CommonExponent(ts);
-    const double f = std::pow(10.0, -e);
-    for (double v : ts.major) t.labels.push_back(FormatLinearTick(v * f, ts.step * f));
-    if (e != 0) t.exponent = ExponentLabel(e);
+    double biggest = 0.0;
+    for (double v : ts.major) biggest = std::max(biggest, std::fabs(v));
+    if (ts.step > 0 && biggest / ts.step >= 1e6) {
+      // A small range far from zero (e.g. epoch seconds): labels relative to an offset, the
+      // multiple of 10^k nearest to the first tick, 10^k just above the range.
+      const double unit = std::pow(10.0, std::floor(std::log10(hi - lo)) + 1.0);
+      const double offset = std::round(ts.major.front() / unit) * unit;
+      for (double v : ts.major) t.labels.push_back(FormatLinearTick(v - offset, ts.step));
+      const std::string o = FormatLinearTick(offset, unit);
+      t.exponent = offset > 0 ? "+" + o : o;
+    } else {
+      const int e = CommonExponent(ts);
+      const double f = std::pow(10.0, -e);
+      for (double v : ts.major) t.labels.push_back(FormatLinearTick(v * f, ts.step * f));
+      if (e != 0) t.exponent = ExponentLabel(e);
+    }
   }
   for (const std::string& l : t.labels) t.max_label_w = std::max(t.max_label_w, text.Width(l, tick_px));
   return t;
@@ -607,8 +627,12 @@ bool Plot2D::Render(Image* out, std::string* err) {
       if (go_outside && ps.legend.width() + 12.0f * z_.s > 0.45f * ps.cell.w()) go_outside = false;
     }
     if (go_outside) {
-      // Single column, as tall as needed (clipped by the cell).
+      // As few columns as fit the plot's height.
+      int columns_out = 1;
       ps.legend = LegendBox(ps.legend_entries, lm_, *text_, 1);
+      while (ps.legend.height() > ps.plot.h() && columns_out < 8) {
+        ps.legend = LegendBox(ps.legend_entries, lm_, *text_, ++columns_out);
+      }
       outside[i] = ps.legend.width() + 12.0f * z_.s;
       ps.legend_outside = true;
       any_outside = true;

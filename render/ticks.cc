@@ -106,13 +106,17 @@ TickSet LogTicks(double lo, double hi, int max_ticks) {
     for (int k = kmin; k <= kmax; ++k) n += (((k % step) + step) % step == 0);
     return n;
   };
-  while (count(m) > max_ticks) ++m;
+  // Every m-th decade, m from 1, 2, 3, 5, 10, 20, 30, 50, 100, ...
+  for (int i = 0; count(m) > max_ticks; ++i) {
+    static const int kSteps[4] = {1, 2, 3, 5};
+    m = kSteps[(i + 1) % 4] * static_cast<int>(std::pow(10.0, (i + 1) / 4));
+  }
   t.decades = true;
   for (int k = kmin; k <= kmax; ++k) {
     const double v = std::pow(10.0, k);
     if (((k % m) + m) % m == 0) {
       t.major.push_back(v);
-    } else {
+    } else if (decades <= 60) {  // skipped decades as minor ticks, unless they would be a wash
       t.minor.push_back(v);
     }
   }

@@ -26,8 +26,8 @@ TickSet LinearTicks(double lo, double hi, int max_ticks);
 
 /// Ticks of a base-10 log axis on [lo, hi] (0 < lo < hi), at most max_ticks majors:
 ///  - at least two powers of ten inside: majors at 10^k, every m-th decade (k a multiple
-///    of m) when there are more than max_ticks; minors at 2..9 x 10^k (m = 1) or at the
-///    skipped decades (m > 1);
+///    of m, m in 1, 2, 3, 5, 10, 20, 30, 50, ...) when there are more than max_ticks;
+///    minors at 2..9 x 10^k (m = 1) or at the skipped decades (m > 1, at most 60 decades);
 ///  - otherwise majors at 1, 2, 5 x 10^k inside the range (minors at the other n x 10^k),
 ///  - and if fewer than two of those fit, linear ticks on [lo, hi].
 TickSet LogTicks(double lo, double hi, int max_ticks);

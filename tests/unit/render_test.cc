@@ -623,6 +623,37 @@ TEST(RenderErrors, UnwritablePathIsReported) {
   EXPECT_NE(err.find("figure3d.png"), std::string::npos) << err;
 }
 
+TEST(RenderErrors, ExtremeValuesRenderOrAreRefused) {
+  const auto one_series = [](std::vector<double> x, std::vector<double> y, bool log) {
+    Figure2D f;
+    f.width_px = 500;
+    f.height_px = 300;
+    Panel p;
+    p.y.log = log;
+    Series s;
+    s.x = std::move(x);
+    s.y = std::move(y);
+    s.marker = Marker::kCircle;
+    p.series.push_back(std::move(s));
+    f.panels.push_back(std::move(p));
+    return f;
+  };
+  Image img;
+  std::string err;
+  // Beyond +-1e300 counts as missing.
+  EXPECT_FALSE(RenderImage(one_series({0, 1}, {1e308, -1e308}, false), &img, &err));
+  EXPECT_NE(err.find("usable"), std::string::npos) << err;
+  // 600 decades on a log axis, epoch seconds with a 2 ms range, a vertical line, denormals.
+  for (const Figure2D& f : {one_series({0, 1, 2}, {1e-300, 1, 1e300}, true),
+                            one_series({0, 1, 2}, {1.7e9, 1.7e9 + 1e-3, 1.7e9 + 2e-3}, false),
+                            one_series({5, 5, 5}, {1, 2, 3}, false),
+                            one_series({0, 1}, {4.9e-324, 1e-323}, false)}) {
+    ASSERT_TRUE(RenderImage(f, &img, &err)) << err;
+    EXPECT_EQ(img.width, 500);
+    EXPECT_GT(CountColour(img, Color{0, 0, 0, 1}, 40), 20u);  // the black series is drawn
+  }
+}
+
 TEST(RenderErrors, NonPositiveValuesOnALogAxisAreSkipped) {
   Figure2D f = TwoPanelFigure(600, 400);
   f.panels[1].series[0].y[100] = 0.0;
