@@ -38,10 +38,11 @@ double Ms(Clock::time_point a, Clock::time_point b) {
 
 int main(int argc, char** argv) {
   if (argc > 1 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) {
-    std::printf("usage: render_bench [runs] [out_dir]\n"
-                "Renders all figures of a synthetic one-hour, 6-vehicle, 50 Hz run `runs` times\n"
-                "(default 5) into out_dir (default: a temporary directory) and prints the\n"
-                "median time.\n");
+    std::printf(
+        "usage: render_bench [runs] [out_dir]\n"
+        "Renders all figures of a synthetic one-hour, 6-vehicle, 50 Hz run `runs` times\n"
+        "(default 5) into out_dir (default: a temporary directory) and prints the\n"
+        "median time.\n");
     return 0;
   }
   const int runs = argc > 1 ? std::atoi(argv[1]) : 5;
@@ -49,12 +50,13 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "render_bench: runs must be a positive integer (got '%s')\n", argv[1]);
     return 2;
   }
-  const std::string out = argc > 2 ? argv[2]
-                                   : (std::filesystem::temp_directory_path() / "shoal_render_bench").string();
+  const std::string out =
+      argc > 2 ? argv[2] : (std::filesystem::temp_directory_path() / "shoal_render_bench").string();
   std::error_code ec;
   std::filesystem::create_directories(out, ec);
   if (ec) {
-    std::fprintf(stderr, "render_bench: cannot create '%s': %s\n", out.c_str(), ec.message().c_str());
+    std::fprintf(stderr, "render_bench: cannot create '%s': %s\n", out.c_str(),
+                 ec.message().c_str());
     return 2;
   }
   using namespace shoal::render;
@@ -65,10 +67,11 @@ int main(int argc, char** argv) {
     delivered += l.sent_s.size();
     dropped += l.dropped_s.size();
   }
-  std::printf("render_bench: %zu vehicles x %zu samples, %zu links (%zu delivered, %zu dropped); "
-              "data generated in %.0f ms; output in %s\n",
-              run.vehicles.size(), run.vehicles[0].t_s.size(), run.links.size(), delivered, dropped,
-              Ms(g0, Clock::now()), out.c_str());
+  std::printf(
+      "render_bench: %zu vehicles x %zu samples, %zu links (%zu delivered, %zu dropped); "
+      "data generated in %.0f ms; output in %s\n",
+      run.vehicles.size(), run.vehicles[0].t_s.size(), run.links.size(), delivered, dropped,
+      Ms(g0, Clock::now()), out.c_str());
 
   const char* names[4] = {"trajectories", "states", "errors", "channel"};
   std::vector<double> per[4], total;
@@ -111,9 +114,10 @@ int main(int argc, char** argv) {
       return 1;
     }
     const double sum = t[0] + t[1] + t[2] + t[3];
-    std::printf("run %d: trajectories %.0f ms, states %.0f ms, errors %.0f ms, channel %.0f ms, "
-                "total %.0f ms\n",
-                r + 1, t[0], t[1], t[2], t[3], sum);
+    std::printf(
+        "run %d: trajectories %.0f ms, states %.0f ms, errors %.0f ms, channel %.0f ms, "
+        "total %.0f ms\n",
+        r + 1, t[0], t[1], t[2], t[3], sum);
     for (int k = 0; k < 4; ++k) per[k].push_back(t[k]);
     total.push_back(sum);
   }

@@ -129,7 +129,8 @@ bool Validate(const Figure2D& f, std::string* err) {
   for (std::size_t p = 0; p < f.panels.size(); ++p) {
     const Panel& panel = f.panels[p];
     const std::string where = "panel " + std::to_string(p + 1) + Quoted(panel.title);
-    if (!CheckAxis(panel.x, where + ", x axis", err) || !CheckAxis(panel.y, where + ", y axis", err)) {
+    if (!CheckAxis(panel.x, where + ", x axis", err) ||
+        !CheckAxis(panel.y, where + ", y axis", err)) {
       return false;
     }
     for (std::size_t s = 0; s < panel.series.size(); ++s) {
@@ -165,8 +166,9 @@ bool Validate(const Figure2D& f, std::string* err) {
     }
   }
   if (drawable == 0) {
-    return Fail(err, "nothing to draw: no series has a usable point (finite, within "
-                     "+-1e300, and on a log axis above 0); check the data");
+    return Fail(err,
+                "nothing to draw: no series has a usable point (finite, within "
+                "+-1e300, and on a log axis above 0); check the data");
   }
   return true;
 }
@@ -175,8 +177,9 @@ bool Validate(const Figure3D& f, std::string* err) {
   if (!CheckSize(f.width_px, f.height_px, err) || !CheckScale(f.scale, err)) return false;
   if (std::isinf(f.azimuth_deg) || !std::isfinite(f.elevation_deg) ||
       std::fabs(f.elevation_deg) >= 89.0) {
-    return Fail(err, "camera elevation must be within (-89, 89) degrees and the azimuth finite "
-                     "(or NaN: automatic)");
+    return Fail(err,
+                "camera elevation must be within (-89, 89) degrees and the azimuth finite "
+                "(or NaN: automatic)");
   }
   std::size_t drawable = 0;
   const auto finite = [](const Point3& p) {
@@ -208,9 +211,9 @@ bool Validate(const Figure3D& f, std::string* err) {
     for (const auto& e : s.edges) {
       const int n = static_cast<int>(s.points.size());
       if (e.first < 0 || e.second < 0 || e.first >= n || e.second >= n) {
-        return Fail(err, where + ": edge (" + std::to_string(e.first) + ", " +
-                             std::to_string(e.second) + ") refers to a point that does not exist (" +
-                             std::to_string(n) + " points)");
+        return Fail(
+            err, where + ": edge (" + std::to_string(e.first) + ", " + std::to_string(e.second) +
+                     ") refers to a point that does not exist (" + std::to_string(n) + " points)");
       }
     }
     if (!CheckWidth(s.marker_size_px, where + ": marker size", err)) return false;

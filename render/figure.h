@@ -101,9 +101,9 @@ struct Tick {
 constexpr double kAutoRange = std::numeric_limits<double>::quiet_NaN();
 
 struct Axis {
-  std::string label;  // e.g. "x", "position error"
-  std::string unit;   // e.g. "m"; shown as "x [m]"; empty: no brackets
-  bool log = false;   // base-10 log scale; decades labelled 10ⁿ
+  std::string label;        // e.g. "x", "position error"
+  std::string unit;         // e.g. "m"; shown as "x [m]"; empty: no brackets
+  bool log = false;         // base-10 log scale; decades labelled 10ⁿ
   double min = kAutoRange;  // fixed range; NaN: from the data (y padded by 4 %; x tight
                             // for time series, padded for curves and markers)
   double max = kAutoRange;

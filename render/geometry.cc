@@ -102,8 +102,8 @@ void DashPattern(LineStyle style, float width_px, float* on_px, float* off_px) {
   }
 }
 
-void StrokePolyline(const Vec2* p, const float* z, std::size_t n, float width_px,
-                    LineStyle style, const Color& color, Mesh* mesh, float* phase) {
+void StrokePolyline(const Vec2* p, const float* z, std::size_t n, float width_px, LineStyle style,
+                    const Color& color, Mesh* mesh, float* phase) {
   if (n < 2 || style == LineStyle::kNone || !(width_px > 0.0f)) return;
   std::uint8_t col[4];
   ToBytes(color, col);
@@ -119,7 +119,8 @@ void StrokePolyline(const Vec2* p, const float* z, std::size_t n, float width_px
   std::vector<Vec2> piece;
   std::vector<float> piece_z;
   const auto flush = [&] {
-    if (piece.size() >= 2) StrokeSolid(piece.data(), piece_z.data(), piece.size(), width_px, col, mesh);
+    if (piece.size() >= 2)
+      StrokeSolid(piece.data(), piece_z.data(), piece.size(), width_px, col, mesh);
     piece.clear();
     piece_z.clear();
   };
@@ -209,21 +210,24 @@ void AddMarker(Vec2 c, float z, Marker marker, float size, const Color& color, M
       return;
     case Marker::kSquare: {
       const float s = r * 0.85f;
-      const Vec2 q[4] = {{c.x - s, c.y - s}, {c.x + s, c.y - s}, {c.x + s, c.y + s}, {c.x - s, c.y + s}};
+      const Vec2 q[4] = {
+          {c.x - s, c.y - s}, {c.x + s, c.y - s}, {c.x + s, c.y + s}, {c.x - s, c.y + s}};
       const float zz[4] = {z, z, z, z};
       AddConvexPolygon(q, zz, 4, color, mesh);
       return;
     }
     case Marker::kDiamond: {
       const float s = r * 1.1f;
-      const Vec2 q[4] = {{c.x, c.y - s}, {c.x + s * 0.8f, c.y}, {c.x, c.y + s}, {c.x - s * 0.8f, c.y}};
+      const Vec2 q[4] = {
+          {c.x, c.y - s}, {c.x + s * 0.8f, c.y}, {c.x, c.y + s}, {c.x - s * 0.8f, c.y}};
       const float zz[4] = {z, z, z, z};
       AddConvexPolygon(q, zz, 4, color, mesh);
       return;
     }
     case Marker::kTriangle: {
       const float s = r * 1.15f;
-      const Vec2 q[3] = {{c.x, c.y - s}, {c.x + s * 0.866f, c.y + s * 0.5f}, {c.x - s * 0.866f, c.y + s * 0.5f}};
+      const Vec2 q[3] = {
+          {c.x, c.y - s}, {c.x + s * 0.866f, c.y + s * 0.5f}, {c.x - s * 0.866f, c.y + s * 0.5f}};
       const float zz[3] = {z, z, z};
       AddConvexPolygon(q, zz, 3, color, mesh);
       return;

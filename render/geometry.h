@@ -46,8 +46,8 @@ void DashPattern(LineStyle style, float width_px, float* on_px, float* off_px);
 /// A stroked polyline of `n` points (z may be null: depth 0) with bevel joins and butt ends,
 /// solid or dashed. Consecutive duplicate points are skipped. `phase` carries the dash
 /// phase between calls (may be null).
-void StrokePolyline(const Vec2* p, const float* z, std::size_t n, float width_px,
-                    LineStyle style, const Color& color, Mesh* mesh, float* phase = nullptr);
+void StrokePolyline(const Vec2* p, const float* z, std::size_t n, float width_px, LineStyle style,
+                    const Color& color, Mesh* mesh, float* phase = nullptr);
 
 /// A filled (or, for cross / plus / bar, stroked) marker of outer size `size_px` centred at c.
 void AddMarker(Vec2 c, float z, Marker marker, float size_px, const Color& color, Mesh* mesh);
@@ -64,7 +64,6 @@ void AddRectOutline(float x0, float y0, float x1, float y1, float width_px, cons
                     Mesh* mesh);
 
 /// A convex polygon (fan from the first vertex).
-void AddConvexPolygon(const Vec2* p, const float* z, std::size_t n, const Color& color,
-                      Mesh* mesh);
+void AddConvexPolygon(const Vec2* p, const float* z, std::size_t n, const Color& color, Mesh* mesh);
 
 }  // namespace shoal::render

@@ -1,9 +1,9 @@
 #include "render/gl_canvas.h"
 
 #define GL_GLEXT_PROTOTYPES 1
-#include <GL/osmesa.h>
 #include <GL/gl.h>
 #include <GL/glext.h>
+#include <GL/osmesa.h>
 
 #include <algorithm>
 #include <cmath>
@@ -39,15 +39,25 @@ struct GlCanvas::Context {
   }
 
   bool Create(std::string* err) {
-    const int attribs[] = {OSMESA_FORMAT,        OSMESA_RGBA, OSMESA_DEPTH_BITS, 0,
-                           OSMESA_STENCIL_BITS,  0,           OSMESA_PROFILE,    OSMESA_COMPAT_PROFILE,
-                           OSMESA_CONTEXT_MAJOR_VERSION, 3,   OSMESA_CONTEXT_MINOR_VERSION, 0,
+    const int attribs[] = {OSMESA_FORMAT,
+                           OSMESA_RGBA,
+                           OSMESA_DEPTH_BITS,
+                           0,
+                           OSMESA_STENCIL_BITS,
+                           0,
+                           OSMESA_PROFILE,
+                           OSMESA_COMPAT_PROFILE,
+                           OSMESA_CONTEXT_MAJOR_VERSION,
+                           3,
+                           OSMESA_CONTEXT_MINOR_VERSION,
+                           0,
                            0};
     osmesa = OSMesaCreateContextAttribs(attribs, nullptr);
     if (!osmesa) {
       if (err) {
-        *err = "cannot create an OSMesa OpenGL 3.0 compatibility context (is libosmesa6 "
-               "installed and using llvmpipe?)";
+        *err =
+            "cannot create an OSMesa OpenGL 3.0 compatibility context (is libosmesa6 "
+            "installed and using llvmpipe?)";
       }
       return false;
     }
@@ -132,10 +142,12 @@ bool GlCanvas::Init(int width, int height, std::string* err) {
   glBindFramebuffer(GL_FRAMEBUFFER, c->fbo_ms);
   glViewport(0, 0, width, height);
   // Pixel coordinates (x right, y down, z = NDC depth) to clip space.
+  // clang-format off
   const GLfloat m[16] = {2.0f / static_cast<GLfloat>(width), 0, 0, 0,
                          0, -2.0f / static_cast<GLfloat>(height), 0, 0,
                          0, 0, 1, 0,
                          -1, 1, 0, 1};
+  // clang-format on
   glMatrixMode(GL_PROJECTION);
   glLoadMatrixf(m);
   glMatrixMode(GL_MODELVIEW);
@@ -220,7 +232,8 @@ void GlCanvas::DrawLayer(int x, int y, int w, int h,
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
   glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE, premultiplied.data());
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE,
+               premultiplied.data());
   glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_REPLACE);
   glEnable(GL_TEXTURE_2D);
   glDisable(GL_DEPTH_TEST);
@@ -247,8 +260,8 @@ bool GlCanvas::Read(Image* out, std::string* err) {
   glDisable(GL_SCISSOR_TEST);
   glBindFramebuffer(GL_READ_FRAMEBUFFER, ctx_->fbo_ms);
   glBindFramebuffer(GL_DRAW_FRAMEBUFFER, ctx_->fbo_resolve);
-  glBlitFramebuffer(0, 0, ctx_->width, ctx_->height, 0, 0, ctx_->width, ctx_->height, GL_COLOR_BUFFER_BIT,
-                    GL_NEAREST);
+  glBlitFramebuffer(0, 0, ctx_->width, ctx_->height, 0, 0, ctx_->width, ctx_->height,
+                    GL_COLOR_BUFFER_BIT, GL_NEAREST);
   glBindFramebuffer(GL_READ_FRAMEBUFFER, ctx_->fbo_resolve);
   std::vector<std::uint8_t> raw(static_cast<std::size_t>(ctx_->width) * ctx_->height * 4);
   glPixelStorei(GL_PACK_ALIGNMENT, 1);

@@ -104,8 +104,8 @@ void LegendBox::DrawLabels(float x, float y, TextRenderer* text, Image* image) c
       const std::size_t i = static_cast<std::size_t>(c * rows_ + r);
       if (i >= entries_.size()) break;
       const float cy = y + m_.pad_px + (static_cast<float>(r) + 0.375f) * m_.row_px;
-      text->Draw(image, entries_[i].label, cx + m_.sample_px + m_.gap_px, cy, style,
-                 HAlign::kLeft, VAlign::kMiddle);
+      text->Draw(image, entries_[i].label, cx + m_.sample_px + m_.gap_px, cy, style, HAlign::kLeft,
+                 VAlign::kMiddle);
     }
     cx += col_width_[static_cast<std::size_t>(c)] + m_.col_gap_px;
   }
@@ -141,8 +141,8 @@ void LegendRow::DrawShapes(float y, Mesh* mesh) const {
   for (std::size_t l = 0; l < lines_.size(); ++l) {
     const float cy = y + (static_cast<float>(l) + 0.5f) * m_.row_px;
     for (const Item& it : lines_[l]) {
-      DrawLegendSample(entries_[it.entry], it.x + 0.5f * m_.sample_px, cy, m_.sample_px,
-                       m_.scale, mesh);
+      DrawLegendSample(entries_[it.entry], it.x + 0.5f * m_.sample_px, cy, m_.sample_px, m_.scale,
+                       mesh);
     }
   }
 }

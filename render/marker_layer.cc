@@ -63,7 +63,8 @@ bool Inside(Marker m, float size, float dx, float dy) {
 }  // namespace
 
 MarkerLayer::MarkerLayer(int w, int h)
-    : w_(std::max(0, w)), h_(std::max(0, h)),
+    : w_(std::max(0, w)),
+      h_(std::max(0, h)),
       rgba_(static_cast<std::size_t>(w_) * static_cast<std::size_t>(h_) * 4, 0.0f) {}
 
 float MarkerLayer::Coverage(Marker m, float size_px, float cx, float cy, int px, int py) {
@@ -79,8 +80,8 @@ float MarkerLayer::Coverage(Marker m, float size_px, float cx, float cy, int px,
 }
 
 const MarkerLayer::Mask& MarkerLayer::GetMask(Marker m, float size_px, int sub_x, int sub_y) {
-  const auto key = std::make_tuple(static_cast<int>(m), static_cast<int>(std::lround(size_px * 8.0f)),
-                                   sub_x, sub_y);
+  const auto key = std::make_tuple(static_cast<int>(m),
+                                   static_cast<int>(std::lround(size_px * 8.0f)), sub_x, sub_y);
   auto it = masks_.find(key);
   if (it != masks_.end()) return it->second;
   // Centre at (0.5 + sub/kSub) inside pixel (0, 0).
@@ -123,7 +124,8 @@ void MarkerLayer::Stamp(Marker m, float size_px, float x, float y, const Color& 
       const float a = mask.a[static_cast<std::size_t>(j * mask.w + i)] * alpha;
       if (a <= 0.0f) continue;
       float* p = &rgba_[(static_cast<std::size_t>(py) * static_cast<std::size_t>(w_) +
-                         static_cast<std::size_t>(px)) * 4];
+                         static_cast<std::size_t>(px)) *
+                        4];
       const float keep = 1.0f - a;
       p[0] = c.r * a + p[0] * keep;
       p[1] = c.g * a + p[1] * keep;

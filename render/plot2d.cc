@@ -116,12 +116,13 @@ struct AxisTicks {
   float max_label_w = 0.0f;
 };
 
-AxisTicks MakeTicks(const Axis& axis, double lo, double hi, int max_ticks,
-                    const TextRenderer& text, float tick_px) {
+AxisTicks MakeTicks(const Axis& axis, double lo, double hi, int max_ticks, const TextRenderer& text,
+                    float tick_px) {
   AxisTicks t;
   if (!axis.ticks.empty()) {
     for (const Tick& k : axis.ticks) {
-      if (k.value >= lo - 1e-12 * std::fabs(hi - lo) && k.value <= hi + 1e-12 * std::fabs(hi - lo)) {
+      if (k.value >= lo - 1e-12 * std::fabs(hi - lo) &&
+          k.value <= hi + 1e-12 * std::fabs(hi - lo)) {
         t.values.push_back(k.value);
         t.labels.push_back(k.label);
       }
@@ -131,7 +132,7 @@ AxisTicks MakeTicks(const Axis& axis, double lo, double hi, int max_ticks,
     t.values = ts.major;
     t.minor = ts.minor;
     for (double v : ts.major) {
-      t.labels.push_back(ts.step > 0 ? FormatLinearTick(v, ts.step)
+      t.labels.push_back(ts.step > 0  ? FormatLinearTick(v, ts.step)
                          : ts.decades ? FormatLogTick(v)
                                       : FormatPlainTick(v));
     }
@@ -155,7 +156,8 @@ AxisTicks MakeTicks(const Axis& axis, double lo, double hi, int max_ticks,
       if (e != 0) t.exponent = ExponentLabel(e);
     }
   }
-  for (const std::string& l : t.labels) t.max_label_w = std::max(t.max_label_w, text.Width(l, tick_px));
+  for (const std::string& l : t.labels)
+    t.max_label_w = std::max(t.max_label_w, text.Width(l, tick_px));
   return t;
 }
 
@@ -286,8 +288,8 @@ void BuildGeometry(PanelState* ps, float scale) {
                              static_cast<float>(py[i] - r + ps->plot.y0)});
         if (!counts.empty()) {
           // k translucent markers on one pixel: 1 - (1 - a)^k.
-          g.marker_alpha.push_back(
-              1.0f - std::pow(1.0f - s.color.a, static_cast<float>(counts[j])));
+          g.marker_alpha.push_back(1.0f -
+                                   std::pow(1.0f - s.color.a, static_cast<float>(counts[j])));
         }
       }
     }
@@ -299,7 +301,8 @@ std::size_t CountHidden(const PanelState& ps, const Rect& r) {
   std::size_t n = 0;
   for (const SeriesGeometry& g : ps.geom) {
     for (const auto& line : g.lines) {
-      for (std::size_t i = 0; i + 1 < line.size(); ++i) n += SegmentHitsRect(line[i], line[i + 1], r);
+      for (std::size_t i = 0; i + 1 < line.size(); ++i)
+        n += SegmentHitsRect(line[i], line[i + 1], r);
     }
     for (const Vec2& m : g.markers) n += r.Contains(m.x, m.y);
   }
@@ -321,8 +324,8 @@ std::size_t PlaceInside(PanelState* ps, float inset) {
   const float left = p.x0 + inset, right = p.x1 - inset - w;
   const float top = p.y0 + inset, bottom = p.y1 - inset - h;
   const float cx = 0.5f * (p.x0 + p.x1 - w), cy = 0.5f * (p.y0 + p.y1 - h);
-  const Vec2 candidates[8] = {{right, top},    {left, top},   {right, bottom}, {left, bottom},
-                              {cx, top},       {cx, bottom},  {right, cy},     {left, cy}};
+  const Vec2 candidates[8] = {{right, top}, {left, top},  {right, bottom}, {left, bottom},
+                              {cx, top},    {cx, bottom}, {right, cy},     {left, cy}};
   std::size_t best = std::numeric_limits<std::size_t>::max();
   for (const Vec2& c : candidates) {
     const Rect r{c.x - 3.0f, c.y - 3.0f, c.x + w + 3.0f, c.y + h + 3.0f};
@@ -394,7 +397,8 @@ void Plot2D::ComputeRanges() {
     double pad = marker_r > 0.0f ? (marker_r + 1.0f) / approx_w : 0.0;
     // Curves (x not sorted, e.g. a path in a plane) get the same margin as y.
     for (const Series& s : p.series) {
-      if (s.line != LineStyle::kNone && !IsSortedX(s.x.data(), s.x.size())) pad = std::max(pad, 0.04);
+      if (s.line != LineStyle::kNone && !IsSortedX(s.x.data(), s.x.size()))
+        pad = std::max(pad, 0.04);
     }
     FinishRange(&xr, p.x.log, pad);
     if (!std::isnan(p.x.min)) xr.lo = p.x.min;
@@ -645,7 +649,8 @@ bool Plot2D::Render(Image* out, std::string* err) {
       auto c = static_cast<std::size_t>(ps_[i].col);
       col_w[c] = std::max(col_w[c], outside[i]);
     }
-    for (std::size_t i = 0; i < ps_.size(); ++i) outside[i] = col_w[static_cast<std::size_t>(ps_[i].col)];
+    for (std::size_t i = 0; i < ps_.size(); ++i)
+      outside[i] = col_w[static_cast<std::size_t>(ps_[i].col)];
     Layout(outside);
   }
   for (PanelState& ps : ps_) {
@@ -735,8 +740,8 @@ void Plot2D::DrawGeometry(GlCanvas* gl) {
         flush_layer();
         for (const auto& line : g.lines) {
           float phase = 0.0f;
-          StrokePolyline(line.data(), nullptr, line.size(), s.line_width_px * z_.s, s.line,
-                         s.color, &mesh, &phase);
+          StrokePolyline(line.data(), nullptr, line.size(), s.line_width_px * z_.s, s.line, s.color,
+                         &mesh, &phase);
         }
         gl->Draw(mesh, GlCanvas::Depth::kOff, s.color.a < 1.0f);
         mesh.clear();
@@ -759,11 +764,13 @@ void Plot2D::DrawGeometry(GlCanvas* gl) {
     AddRectOutline(fx0, fy0, fx1, fy1, frame_w, kFrameColor, &mesh);
     for (double v : ps.xt.values) {
       const float x = Snap(static_cast<float>(ps.xm.Map(v)));
-      AddRect(x - 0.5f * frame_w, fy1, x + 0.5f * frame_w, fy1 + z_.tick_len, 0, kFrameColor, &mesh);
+      AddRect(x - 0.5f * frame_w, fy1, x + 0.5f * frame_w, fy1 + z_.tick_len, 0, kFrameColor,
+              &mesh);
     }
     for (double v : ps.yt.values) {
       const float y = Snap(static_cast<float>(ps.ym.Map(v)));
-      AddRect(fx0 - z_.tick_len, y - 0.5f * frame_w, fx0, y + 0.5f * frame_w, 0, kFrameColor, &mesh);
+      AddRect(fx0 - z_.tick_len, y - 0.5f * frame_w, fx0, y + 0.5f * frame_w, 0, kFrameColor,
+              &mesh);
     }
     gl->Draw(mesh);
     mesh.clear();

@@ -53,9 +53,9 @@ struct Projected {
 struct AxisLabels {
   std::vector<double> world;  // positions along the world axis
   std::vector<std::string> labels;
-  int axis = 0;               // world axis index
-  V3 edge_a, edge_b;          // display coordinates of the labelled edge's ends
-  V3 outward;                 // display direction away from the box
+  int axis = 0;       // world axis index
+  V3 edge_a, edge_b;  // display coordinates of the labelled edge's ends
+  V3 outward;         // display direction away from the box
   std::string title;
   // Screen placement.
   Vec2 dir{0, 0};
@@ -251,7 +251,8 @@ void Plot3D::SetUpCamera() {
   // Depth range of the box.
   double zmin = INFINITY, zmax = 0;
   for (int i = 0; i < 8; ++i) {
-    const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1], (i & 4 ? 1 : -1) * half_[2]};
+    const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1],
+               (i & 4 ? 1 : -1) * half_[2]};
     const double z = Camera(q)[2];
     zmin = std::min(zmin, z);
     zmax = std::max(zmax, z);
@@ -263,7 +264,8 @@ void Plot3D::SetUpCamera() {
 void Plot3D::Fit(const Rect& area) {
   double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
   for (int i = 0; i < 8; ++i) {
-    const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1], (i & 4 ? 1 : -1) * half_[2]};
+    const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1],
+               (i & 4 ? 1 : -1) * half_[2]};
     const V3 c = Camera(q);
     x0 = std::min(x0, c[0] / c[2]);
     x1 = std::max(x1, c[0] / c[2]);
@@ -278,7 +280,8 @@ void Plot3D::Fit(const Rect& area) {
 void Plot3D::MakeAxes() {
   // Front floor edges carry the two horizontal axes; a side vertical edge the third.
   const double floor_z = -half_[2];
-  const double front[2] = {back_[0] < 0 ? half_[0] : -half_[0], back_[1] < 0 ? half_[1] : -half_[1]};
+  const double front[2] = {back_[0] < 0 ? half_[0] : -half_[0],
+                           back_[1] < 0 ? half_[1] : -half_[1]};
   const double backv[2] = {-front[0], -front[1]};
   // Axis 0 (world x): the floor edge at y = front y.
   axes_[0].axis = 0;
@@ -309,7 +312,8 @@ void Plot3D::PlaceAxisLabels() {
     const double dhi = sign_[k] > 0 ? hi_[k] : -lo_[k];
     const Vec2 pa = P2(a.edge_a), pb = P2(a.edge_b);
     const float edge_px = std::hypot(pb.x - pa.x, pb.y - pa.y);
-    const Vec2 along{(pb.x - pa.x) / std::max(edge_px, 1e-3f), (pb.y - pa.y) / std::max(edge_px, 1e-3f)};
+    const Vec2 along{(pb.x - pa.x) / std::max(edge_px, 1e-3f),
+                     (pb.y - pa.y) / std::max(edge_px, 1e-3f)};
     for (int n = 7;; --n) {
       const TickSet ts = LinearTicks(dlo, dhi, n);
       a.world.clear();
@@ -322,15 +326,15 @@ void Plot3D::PlaceAxisLabels() {
         const float w = text_->Width(a.labels.back(), tick_px_);
         need = std::max(need, std::fabs(along.x) * w + std::fabs(along.y) * lh);
       }
-      const float spacing = ts.major.size() > 1
-                                ? edge_px * static_cast<float>(ts.step / (dhi - dlo))
-                                : edge_px;
+      const float spacing =
+          ts.major.size() > 1 ? edge_px * static_cast<float>(ts.step / (dhi - dlo)) : edge_px;
       if (n <= 2 || spacing >= need + 20.0f * s_) break;
     }
     // Screen direction away from the box at the edge's middle.
     const V3 mid{0.5 * (a.edge_a[0] + a.edge_b[0]), 0.5 * (a.edge_a[1] + a.edge_b[1]),
                  0.5 * (a.edge_a[2] + a.edge_b[2])};
-    const V3 out{mid[0] + 0.2 * a.outward[0], mid[1] + 0.2 * a.outward[1], mid[2] + 0.2 * a.outward[2]};
+    const V3 out{mid[0] + 0.2 * a.outward[0], mid[1] + 0.2 * a.outward[1],
+                 mid[2] + 0.2 * a.outward[2]};
     const Vec2 m0 = P2(mid), m1 = P2(out);
     float dx = m1.x - m0.x, dy = m1.y - m0.y;
     const float dn = std::hypot(dx, dy);
@@ -373,7 +377,8 @@ Rect Plot3D::LabelBounds() const {
     b.y1 = std::max(b.y1, y1);
   };
   for (int i = 0; i < 8; ++i) {
-    const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1], (i & 4 ? 1 : -1) * half_[2]};
+    const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1],
+               (i & 4 ? 1 : -1) * half_[2]};
     const Vec2 p = P2(q);
     add(p.x, p.y, p.x, p.y);
   }
@@ -431,7 +436,8 @@ void Plot3D::BuildLines() {
 void Plot3D::PlaceLegend(const Rect& area) {
   std::vector<LegendEntry> entries;
   for (const Polyline3D& l : f_.lines) {
-    if (!l.label.empty()) entries.push_back({l.label, l.color, l.line, Marker::kNone, l.line_width_px});
+    if (!l.label.empty())
+      entries.push_back({l.label, l.color, l.line, Marker::kNone, l.line_width_px});
   }
   for (const LegendEntry& e : f_.extra_legend) entries.push_back(e);
   if (entries.empty()) return;
@@ -454,7 +460,8 @@ void Plot3D::PlaceLegend(const Rect& area) {
     }
     // Box edges and labels count too, less than data.
     for (int i = 0; i < 8; ++i) {
-      const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1], (i & 4 ? 1 : -1) * half_[2]};
+      const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1],
+                 (i & 4 ? 1 : -1) * half_[2]};
       const Vec2 p = P2(q);
       hidden += r.Contains(p.x, p.y) ? 1 : 0;
     }
@@ -502,7 +509,8 @@ bool Plot3D::Render(Image* out, std::string* err) {
     // Label offsets do not scale with the box, so solve for the box size directly.
     Rect boxb{INFINITY, INFINITY, -INFINITY, -INFINITY};
     for (int i = 0; i < 8; ++i) {
-      const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1], (i & 4 ? 1 : -1) * half_[2]};
+      const V3 q{(i & 1 ? 1 : -1) * half_[0], (i & 2 ? 1 : -1) * half_[1],
+                 (i & 4 ? 1 : -1) * half_[2]};
       const Vec2 p = P2(q);
       boxb.x0 = std::min(boxb.x0, p.x);
       boxb.x1 = std::max(boxb.x1, p.x);
@@ -515,7 +523,8 @@ bool Plot3D::Render(Image* out, std::string* err) {
     (void)scale;
     // New box rectangle, centred so that box plus labels are centred in the area.
     const float left_extra = boxb.x0 - b.x0, top_extra = boxb.y0 - b.y0;
-    const float nbw = static_cast<float>(boxb.w() * grow), nbh = static_cast<float>(boxb.h() * grow);
+    const float nbw = static_cast<float>(boxb.w() * grow),
+                nbh = static_cast<float>(boxb.h() * grow);
     const float total_w = nbw + extra_w, total_h = nbh + extra_h;
     const float bx0 = area.x0 + 0.5f * (area.w() - total_w) + left_extra;
     const float by0 = area.y0 + 0.5f * (area.h() - total_h) + top_extra;
@@ -540,10 +549,18 @@ void Plot3D::DrawGeometry(GlCanvas* gl) {
   const float grid_w = std::max(1.0f, 1.0f * s_);
   // Back panes: x = back x, y = back y, the floor.
   const double bx = back_[0] * half_[0], by = back_[1] * half_[1], fz = -half_[2];
-  const V3 panes[3][4] = {
-      {{bx, -half_[1], -half_[2]}, {bx, half_[1], -half_[2]}, {bx, half_[1], half_[2]}, {bx, -half_[1], half_[2]}},
-      {{-half_[0], by, -half_[2]}, {half_[0], by, -half_[2]}, {half_[0], by, half_[2]}, {-half_[0], by, half_[2]}},
-      {{-half_[0], -half_[1], fz}, {half_[0], -half_[1], fz}, {half_[0], half_[1], fz}, {-half_[0], half_[1], fz}}};
+  const V3 panes[3][4] = {{{bx, -half_[1], -half_[2]},
+                           {bx, half_[1], -half_[2]},
+                           {bx, half_[1], half_[2]},
+                           {bx, -half_[1], half_[2]}},
+                          {{-half_[0], by, -half_[2]},
+                           {half_[0], by, -half_[2]},
+                           {half_[0], by, half_[2]},
+                           {-half_[0], by, half_[2]}},
+                          {{-half_[0], -half_[1], fz},
+                           {half_[0], -half_[1], fz},
+                           {half_[0], half_[1], fz},
+                           {-half_[0], half_[1], fz}}};
   for (const auto& pane : panes) {
     Vec2 p[4];
     for (int i = 0; i < 4; ++i) p[i] = P2(pane[i]);
@@ -611,7 +628,8 @@ void Plot3D::DrawGeometry(GlCanvas* gl) {
         z[i] = run[i].z;
       }
       float phase = 0.0f;
-      StrokePolyline(p.data(), z.data(), p.size(), l.line_width_px * s_, l.line, l.color, &mesh, &phase);
+      StrokePolyline(p.data(), z.data(), p.size(), l.line_width_px * s_, l.line, l.color, &mesh,
+                     &phase);
     }
     gl->Draw(mesh, GlCanvas::Depth::kTestAndWrite);
     mesh.clear();
@@ -663,13 +681,14 @@ void Plot3D::DrawGeometry(GlCanvas* gl) {
   }
 }
 
-void Plot3D::Halo(Image* img, const std::string& s, float x, float y, const TextStyle& st,
-                  HAlign h, VAlign v) {
+void Plot3D::Halo(Image* img, const std::string& s, float x, float y, const TextStyle& st, HAlign h,
+                  VAlign v) {
   TextStyle halo = st;
   halo.color = {1, 1, 1, 0.9f};
   for (int dx = -1; dx <= 1; ++dx) {
     for (int dy = -1; dy <= 1; ++dy) {
-      if (dx != 0 || dy != 0) text_->Draw(img, s, x + static_cast<float>(dx), y + static_cast<float>(dy), halo, h, v);
+      if (dx != 0 || dy != 0)
+        text_->Draw(img, s, x + static_cast<float>(dx), y + static_cast<float>(dy), halo, h, v);
     }
   }
   text_->Draw(img, s, x, y, st, h, v);
@@ -688,15 +707,16 @@ void Plot3D::DrawText(Image* img) {
       text_->Draw(img, a.labels[i], a.label_pos[i].x, a.label_pos[i].y, tick, HAlign::kCenter,
                   VAlign::kMiddle);
     }
-    text_->Draw(img, a.title, a.title_pos.x, a.title_pos.y, label, HAlign::kCenter,
-                VAlign::kMiddle, a.title_rotated);
+    text_->Draw(img, a.title, a.title_pos.x, a.title_pos.y, label, HAlign::kCenter, VAlign::kMiddle,
+                a.title_rotated);
   }
   // Snapshot labels: above-right, above-left, below-right or below-left of the first point,
   // whichever does not overlap a label already placed (or the legend); else none.
   const TextStyle snap_style{12.5f * s_, false, {0.25f, 0.25f, 0.25f, 1.0f}};
   std::vector<Rect> taken;
   if (!legend_.empty()) {
-    taken.push_back({legend_x_, legend_y_, legend_x_ + legend_.width(), legend_y_ + legend_.height()});
+    taken.push_back(
+        {legend_x_, legend_y_, legend_x_ + legend_.width(), legend_y_ + legend_.height()});
   }
   const float lh = text_->LineHeight(snap_style.size_px);
   for (const Snapshot& snap : f_.snapshots) {

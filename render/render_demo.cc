@@ -1,7 +1,6 @@
 // render_demo: writes the four standard Shoal figures of a synthetic Example-2-like run
 // (render/synthetic_run.h) as PNGs, off-screen, and prints where they are.
 #include <CLI/CLI.hpp>
-
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -39,8 +38,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(10.0, 36000.0));
   app.add_option("--drop", drop, "Drop probability per message")->check(CLI::Range(0.0, 1.0));
   std::string size;
-  app.add_option("--size", size, "Figure size WxH in pixels (default: 1400x1000 for 3-D, 1600x1000 for 2-D)");
-  app.add_option("--azimuth", azimuth_deg, "3-D camera bearing, degrees clockwise from north (default: automatic)");
+  app.add_option("--size", size,
+                 "Figure size WxH in pixels (default: 1400x1000 for 3-D, 1600x1000 for 2-D)");
+  app.add_option("--azimuth", azimuth_deg,
+                 "3-D camera bearing, degrees clockwise from north (default: automatic)");
   app.add_option("--elevation", elevation_deg, "3-D camera elevation, degrees")
       ->check(CLI::Range(-85.0, 85.0));
   try {

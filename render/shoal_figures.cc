@@ -17,7 +17,8 @@ std::string Title(const std::string& scenario, const std::string& what) {
 
 std::vector<LegendEntry> VehicleLegend(const std::vector<int>& ids) {
   std::vector<LegendEntry> legend;
-  for (int id : ids) legend.push_back({VehicleName(id), VehicleColor(id), LineStyle::kSolid, Marker::kNone, 2.5f});
+  for (int id : ids)
+    legend.push_back({VehicleName(id), VehicleColor(id), LineStyle::kSolid, Marker::kNone, 2.5f});
   return legend;
 }
 
@@ -81,7 +82,8 @@ Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const Traj
   for (std::size_t k = 0; k < sorted.size(); ++k) {
     const std::vector<double>& t = sorted[k]->t_s;
     if (t.empty()) continue;
-    const double dt = t.size() > 1 ? (t.back() - t.front()) / static_cast<double>(t.size() - 1) : 0.0;
+    const double dt =
+        t.size() > 1 ? (t.back() - t.front()) / static_cast<double>(t.size() - 1) : 0.0;
     for (double s : times) {
       if (std::fabs(s - t.front()) <= dt) f.lines[k].mark_start = false;
       if (std::fabs(s - t.back()) <= dt) f.lines[k].mark_end = false;
@@ -151,7 +153,8 @@ Figure2D StateFigure(const std::vector<VehicleSeries>& vehicles, const std::stri
       for (const VehicleSeries* v : order) {
         Series s;
         s.x = v->t_s;
-        s.y = col == 0 ? v->eta[static_cast<std::size_t>(row)] : v->nu[static_cast<std::size_t>(row)];
+        s.y =
+            col == 0 ? v->eta[static_cast<std::size_t>(row)] : v->nu[static_cast<std::size_t>(row)];
         if (col == 0 && row == 4) {
           // Heading wrapped to (-pi, pi], the line broken where it wraps.
           std::vector<double> x, y;
@@ -220,7 +223,8 @@ Figure2D ErrorFigure(const std::vector<ErrorSeries>& followers, const ErrorOptio
     if (which[k].tol > 0) {
       char buf[64];
       std::snprintf(buf, sizeof buf, "tolerance %g %s", which[k].tol, which[k].unit);
-      p.hlines.push_back({which[k].tol, Color{0.45f, 0.45f, 0.45f, 1.0f}, LineStyle::kDashed, 1.5f, buf});
+      p.hlines.push_back(
+          {which[k].tol, Color{0.45f, 0.45f, 0.45f, 1.0f}, LineStyle::kDashed, 1.5f, buf});
     }
     if (o.converged_s >= 0) {
       char buf[64];
@@ -267,9 +271,8 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
   };
   std::vector<const LinkSeries*> sorted;
   for (const LinkSeries& l : links) sorted.push_back(&l);
-  std::sort(sorted.begin(), sorted.end(), [](auto* a, auto* b) {
-    return a->to != b->to ? a->to < b->to : a->from < b->from;
-  });
+  std::sort(sorted.begin(), sorted.end(),
+            [](auto* a, auto* b) { return a->to != b->to ? a->to < b->to : a->from < b->from; });
   double t_end = 0.0, t_start = INFINITY;
   for (const LinkSeries* l : sorted) {
     if (!l->sent_s.empty()) {
@@ -287,15 +290,19 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
   // Legend: one entry per receiving vehicle, then tau and drops.
   std::vector<int> receivers;
   for (const LinkSeries* l : sorted) {
-    if (std::find(receivers.begin(), receivers.end(), l->to) == receivers.end()) receivers.push_back(l->to);
+    if (std::find(receivers.begin(), receivers.end(), l->to) == receivers.end())
+      receivers.push_back(l->to);
   }
   for (int id : receivers) {
-    f.legend.push_back({"to " + VehicleName(id), VehicleColor(id), LineStyle::kNone, Marker::kCircle, 2.0f});
+    f.legend.push_back(
+        {"to " + VehicleName(id), VehicleColor(id), LineStyle::kNone, Marker::kCircle, 2.0f});
   }
   if (have_tau) {
-    f.legend.push_back({"configured \xCF\x84(t)", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kDashed, Marker::kNone, 1.8f});
+    f.legend.push_back({"configured \xCF\x84(t)", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kDashed,
+                        Marker::kNone, 1.8f});
   }
-  f.legend.push_back({"dropped", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kNone, Marker::kCross, 2.0f});
+  f.legend.push_back(
+      {"dropped", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kNone, Marker::kCross, 2.0f});
 
   // 1. Realised delay against tau over the first seconds.
   Panel zoom;
@@ -375,7 +382,8 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
   for (std::size_t k = 0; k < sorted.size(); ++k) {
     const LinkSeries* l = sorted[k];
     const double row = static_cast<double>(sorted.size() - 1 - k);
-    drops.y.ticks.push_back({row, std::to_string(l->from) + " \xE2\x86\x92 " + std::to_string(l->to)});
+    drops.y.ticks.push_back(
+        {row, std::to_string(l->from) + " \xE2\x86\x92 " + std::to_string(l->to)});
     Series s;
     s.line = LineStyle::kNone;
     s.marker = Marker::kVBar;

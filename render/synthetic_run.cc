@@ -26,13 +26,13 @@ void FinishVehicle(const std::vector<double>& t, const Kinematics& k, const Vehi
   double prev = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const double horizontal = std::hypot(k.vx[i], k.vy[i]);
-    const double offset = std::exp(-t[i] / 8.0) * std::cos(0.4 * t[i]) + 2e-3 * std::sin(0.7 * t[i]);
+    const double offset =
+        std::exp(-t[i] / 8.0) * std::cos(0.4 * t[i]) + 2e-3 * std::sin(0.7 * t[i]);
     double psi = ref ? ref->eta[4][i] + dpsi0 * offset : std::atan2(k.vy[i], k.vx[i]);
     if (i > 0) psi = prev + Wrap(psi - prev);  // continuous
     prev = psi;
     psi_unwrapped[i] = psi;
-    const double theta =
-        ref ? ref->eta[3][i] + dtheta0 * offset : std::atan2(-k.vz[i], horizontal);
+    const double theta = ref ? ref->eta[3][i] + dtheta0 * offset : std::atan2(-k.vz[i], horizontal);
     v->eta[0][i] = k.x[i];
     v->eta[1][i] = k.y[i];
     v->eta[2][i] = k.z[i];
@@ -67,7 +67,8 @@ SyntheticRun MakeSyntheticRun(double duration_s, double rate_hz, double drop_pro
 
   const double a = 0.0022 * kPi, b = 0.0011 * kPi;
   Kinematics leader;
-  for (auto* v : {&leader.x, &leader.y, &leader.z, &leader.vx, &leader.vy, &leader.vz}) v->resize(n);
+  for (auto* v : {&leader.x, &leader.y, &leader.z, &leader.vx, &leader.vy, &leader.vz})
+    v->resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const double s = t[i];
     leader.x[i] = 60 * std::cos(a * s) + 25 * std::sin(b * s);
@@ -113,7 +114,8 @@ SyntheticRun MakeSyntheticRun(double duration_s, double rate_hz, double drop_pro
       // Delay-induced wobble at tau's frequency (1 rad/s), decaying more slowly.
       // (plus a small persistent part: the delayed law never settles exactly).
       const double wob = 0.25 * std::exp(-s / 25.0) + 0.003;
-      const double wx = wob * std::sin(s + phase), wxd = wob * (std::cos(s + phase) - std::sin(s + phase) / 25.0);
+      const double wx = wob * std::sin(s + phase),
+                   wxd = wob * (std::cos(s + phase) - std::sin(s + phase) / 25.0);
       // Steady bias towards the helix axis.
       const double rb = bias[f] * (1.0 - decay);
       const double cx = -std::cos(a * s), cy = -std::sin(a * s);
@@ -137,8 +139,10 @@ SyntheticRun MakeSyntheticRun(double duration_s, double rate_hz, double drop_pro
       double sq = 0.0;
       for (double d : dv) sq += d * d;
       es.velocity_mps[i] = std::sqrt(sq);
-      es.attitude_rad[i] = std::hypot(Wrap(v.eta[3][i] - l.eta[3][i]), Wrap(v.eta[4][i] - l.eta[4][i]));
-      if (es.position_m[i] > 0.5 || es.velocity_mps[i] > 0.05) last_bad[static_cast<std::size_t>(f)] = t[i];
+      es.attitude_rad[i] =
+          std::hypot(Wrap(v.eta[3][i] - l.eta[3][i]), Wrap(v.eta[4][i] - l.eta[4][i]));
+      if (es.position_m[i] > 0.5 || es.velocity_mps[i] > 0.05)
+        last_bad[static_cast<std::size_t>(f)] = t[i];
     }
     run.vehicles.push_back(std::move(v));
     run.errors.push_back(std::move(es));
@@ -148,7 +152,8 @@ SyntheticRun MakeSyntheticRun(double duration_s, double rate_hz, double drop_pro
   run.converged_s = bad < t.back() ? bad + dt : -1.0;
 
   // Channel: the paper's topology (Fig. 1), tau(t) = 0.1 + 0.05 cos t.
-  const int links[10][2] = {{0, 1}, {0, 3}, {0, 5}, {3, 1}, {1, 2}, {5, 2}, {1, 3}, {5, 4}, {2, 5}, {4, 5}};
+  const int links[10][2] = {{0, 1}, {0, 3}, {0, 5}, {3, 1}, {1, 2},
+                            {5, 2}, {1, 3}, {5, 4}, {2, 5}, {4, 5}};
   const auto tau = [](double s) { return 0.1 + 0.05 * std::cos(s); };
   for (double s = 0.0; s <= duration_s + 1e-9; s += 0.01) {
     run.tau_t_s.push_back(s);

@@ -24,9 +24,9 @@ struct SyntheticRun {
   std::vector<VehicleSeries> vehicles;  // leader first
   std::vector<ErrorSeries> errors;      // followers
   std::vector<LinkSeries> links;
-  std::vector<double> tau_t_s, tau_s;   // tau(t) every 10 ms
+  std::vector<double> tau_t_s, tau_s;         // tau(t) every 10 ms
   std::vector<std::pair<int, int>> topology;  // undirected vehicle pairs of the links
-  double converged_s = -1.0;            // last time any follower was outside 0.5 m / 0.05 m/s
+  double converged_s = -1.0;                  // last time any follower was outside 0.5 m / 0.05 m/s
 };
 
 /// duration_s at rate_hz for the leader and 5 followers; drop_probability per message.

@@ -120,9 +120,7 @@ bool TextRenderer::Load(const std::string& regular_path, const std::string& bold
   return load(regular_path, false, &regular_) && load(bold_path, true, &bold_);
 }
 
-const TextRenderer::Face& TextRenderer::face(bool bold) const {
-  return bold ? *bold_ : *regular_;
-}
+const TextRenderer::Face& TextRenderer::face(bool bold) const { return bold ? *bold_ : *regular_; }
 
 float TextRenderer::Width(const std::string& text, float size_px, bool bold) const {
   const Face& f = face(bold);
@@ -175,15 +173,14 @@ const TextRenderer::Glyph& TextRenderer::GetGlyph(const Face& f, int glyph, floa
   g.yoff = y0;
   if (g.w > 0 && g.h > 0) {
     g.alpha.assign(static_cast<std::size_t>(g.w * g.h), 0);
-    stbtt_MakeGlyphBitmapSubpixel(&f.info, g.alpha.data(), g.w, g.h, g.w, scale, scale, shift,
-                                  0.0f, glyph);
+    stbtt_MakeGlyphBitmapSubpixel(&f.info, g.alpha.data(), g.w, g.h, g.w, scale, scale, shift, 0.0f,
+                                  glyph);
   }
   return cache_.emplace(key, std::move(g)).first->second;
 }
 
-void TextRenderer::RenderLine(const Face& f, const std::vector<std::uint32_t>& cps,
-                              float size_px, std::vector<std::uint8_t>* alpha, int* w, int* h,
-                              float* baseline) {
+void TextRenderer::RenderLine(const Face& f, const std::vector<std::uint32_t>& cps, float size_px,
+                              std::vector<std::uint8_t>* alpha, int* w, int* h, float* baseline) {
   const float scale = f.Scale(size_px);
   struct Placed {
     int glyph;
@@ -226,7 +223,8 @@ void TextRenderer::RenderLine(const Face& f, const std::vector<std::uint32_t>& c
         if (x < 0 || x >= *w) continue;
         std::uint8_t& d = (*alpha)[static_cast<std::size_t>(y) * static_cast<std::size_t>(*w) +
                                    static_cast<std::size_t>(x)];
-        d = static_cast<std::uint8_t>(std::min(255, d + g.alpha[static_cast<std::size_t>(r * g.w + c)]));
+        d = static_cast<std::uint8_t>(
+            std::min(255, d + g.alpha[static_cast<std::size_t>(r * g.w + c)]));
       }
     }
   }
@@ -272,7 +270,8 @@ void TextRenderer::Draw(Image* image, const std::string& text, float x, float y,
     // Row (base - asc) of the buffer is the box's left edge; the text's end (column
     // margin + width) is the box's top.
     left = static_cast<int>(std::lround(box_left)) - static_cast<int>(std::lround(base - asc));
-    top = static_cast<int>(std::lround(box_top)) - (bw - 1 - margin - static_cast<int>(std::lround(width)));
+    top = static_cast<int>(std::lround(box_top)) -
+          (bw - 1 - margin - static_cast<int>(std::lround(width)));
   }
 
   const float cr = style.color.r * 255.0f, cg = style.color.g * 255.0f, cb = style.color.b * 255.0f;
@@ -287,7 +286,8 @@ void TextRenderer::Draw(Image* image, const std::string& text, float x, float y,
       const int dy = rotated ? top + (bw - 1 - c) : top + r;
       if (dx < 0 || dy < 0 || dx >= W || dy >= H) continue;
       std::uint8_t* p = &image->rgba[(static_cast<std::size_t>(dy) * static_cast<std::size_t>(W) +
-                                      static_cast<std::size_t>(dx)) * 4];
+                                      static_cast<std::size_t>(dx)) *
+                                     4];
       const float a = static_cast<float>(a8) * ca;
       p[0] = static_cast<std::uint8_t>(std::lround(p[0] + (cr - p[0]) * a));
       p[1] = static_cast<std::uint8_t>(std::lround(p[1] + (cg - p[1]) * a));

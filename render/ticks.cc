@@ -141,10 +141,9 @@ std::string FormatLinearTick(double value, double step) {
 }
 
 std::string Superscript(int n) {
-  static const char* const kDigits[10] = {"\xE2\x81\xB0", "\xC2\xB9",     "\xC2\xB2",
-                                          "\xC2\xB3",     "\xE2\x81\xB4", "\xE2\x81\xB5",
-                                          "\xE2\x81\xB6", "\xE2\x81\xB7", "\xE2\x81\xB8",
-                                          "\xE2\x81\xB9"};
+  static const char* const kDigits[10] = {
+      "\xE2\x81\xB0", "\xC2\xB9",     "\xC2\xB2",     "\xC2\xB3",     "\xE2\x81\xB4",
+      "\xE2\x81\xB5", "\xE2\x81\xB6", "\xE2\x81\xB7", "\xE2\x81\xB8", "\xE2\x81\xB9"};
   std::string s;
   if (n < 0) s += "\xE2\x81\xBB";  // superscript minus U+207B
   const std::string digits = std::to_string(n < 0 ? -static_cast<long>(n) : n);
@@ -152,7 +151,11 @@ std::string Superscript(int n) {
   return s;
 }
 
-std::string ExponentLabel(int n) { return "\xC3\x97" "10" + Superscript(n); }  // ×10ⁿ
+std::string ExponentLabel(int n) {
+  return "\xC3\x97"
+         "10" +
+         Superscript(n);
+}  // ×10ⁿ
 
 std::string FormatLogTick(double value) {
   if (!(value > 0.0) || !std::isfinite(value)) return "";
@@ -175,7 +178,10 @@ std::string FormatPlainTick(double value) {
     ++sig;
   }
   if (value >= 1e-4 && value < 1e5) return Fixed(value, std::max(0, sig - 1 - k));
-  return Fixed(mantissa, sig - 1) + "\xC3\x97" "10" + Superscript(k);
+  return Fixed(mantissa, sig - 1) +
+         "\xC3\x97"
+         "10" +
+         Superscript(k);
 }
 
 int CommonExponent(const TickSet& ticks) {

@@ -26,7 +26,7 @@ namespace {
 TEST(Ticks, NiceStepKnownAnswers) {
   EXPECT_DOUBLE_EQ(NiceStep(10.0, 5), 2.0);
   EXPECT_DOUBLE_EQ(NiceStep(10.0, 10), 1.0);
-  EXPECT_DOUBLE_EQ(NiceStep(10.0, 4), 5.0);   // 2.5 -> 5
+  EXPECT_DOUBLE_EQ(NiceStep(10.0, 4), 5.0);       // 2.5 -> 5
   EXPECT_DOUBLE_EQ(NiceStep(3600.0, 7), 1000.0);  // 514 -> 1000
   EXPECT_DOUBLE_EQ(NiceStep(3600.0, 8), 500.0);   // 450 -> 500
   EXPECT_DOUBLE_EQ(NiceStep(0.4, 5), 0.1);        // 0.08 -> 0.1
@@ -51,7 +51,9 @@ TEST(Ticks, NiceStepIsTheSmallest125StepThatFits) {
         << "step " << step;
     EXPECT_LE(span / step, n * (1 + 1e-9));
     // The next smaller 1-2-5 step would need more than n intervals.
-    const double smaller = std::fabs(m - 1) < 1e-9 ? 0.5 * step : std::fabs(m - 2) < 1e-9 ? 0.5 * step : 0.4 * step;
+    const double smaller = std::fabs(m - 1) < 1e-9   ? 0.5 * step
+                           : std::fabs(m - 2) < 1e-9 ? 0.5 * step
+                                                     : 0.4 * step;
     EXPECT_GT(span / smaller, n * (1 - 1e-9));
   }
 }
@@ -135,14 +137,18 @@ TEST(Ticks, LabelsKnownAnswers) {
   EXPECT_EQ(FormatLinearTick(0.05, 0.05), "0.05");
   EXPECT_EQ(FormatLinearTick(0.1, 0.1), "0.1");
   EXPECT_EQ(FormatLinearTick(500.0, 500.0), "500");
-  EXPECT_EQ(FormatLinearTick(-2.0, 1.0), "\xE2\x88\x92" "2");  // U+2212 minus
+  EXPECT_EQ(FormatLinearTick(-2.0, 1.0),
+            "\xE2\x88\x92"
+            "2");  // U+2212 minus
   EXPECT_EQ(FormatLinearTick(1e-17, 0.1), "0");
-  EXPECT_EQ(FormatLogTick(1e-3), "10\xE2\x81\xBB\xC2\xB3");   // 10⁻³
-  EXPECT_EQ(FormatLogTick(1.0), "10\xE2\x81\xB0");            // 10⁰
-  EXPECT_EQ(FormatLogTick(100.0), "10\xC2\xB2");              // 10²
+  EXPECT_EQ(FormatLogTick(1e-3), "10\xE2\x81\xBB\xC2\xB3");  // 10⁻³
+  EXPECT_EQ(FormatLogTick(1.0), "10\xE2\x81\xB0");           // 10⁰
+  EXPECT_EQ(FormatLogTick(100.0), "10\xC2\xB2");             // 10²
   EXPECT_EQ(FormatLogTick(0.002), "0.002");
   EXPECT_EQ(FormatLogTick(500.0), "500");
-  EXPECT_EQ(FormatLogTick(2e-6), "2\xC3\x97" "10\xE2\x81\xBB\xE2\x81\xB6");  // 2×10⁻⁶
+  EXPECT_EQ(FormatLogTick(2e-6),
+            "2\xC3\x97"
+            "10\xE2\x81\xBB\xE2\x81\xB6");  // 2×10⁻⁶
   EXPECT_EQ(Superscript(-12), "\xE2\x81\xBB\xC2\xB9\xC2\xB2");
   TickSet big = LinearTicks(0.0, 3.0e6, 7);
   EXPECT_EQ(CommonExponent(big), 6);
@@ -260,7 +266,8 @@ TEST(Palette, LeaderIsDarkAndVehiclesAreDistinct) {
   std::set<std::tuple<int, int, int>> seen;
   for (int id = 0; id <= 16; ++id) {
     const Color c = VehicleColor(id);
-    seen.insert({static_cast<int>(c.r * 255), static_cast<int>(c.g * 255), static_cast<int>(c.b * 255)});
+    seen.insert(
+        {static_cast<int>(c.r * 255), static_cast<int>(c.g * 255), static_cast<int>(c.b * 255)});
     // Visible on white: not too light.
     EXPECT_LT(0.299f * c.r + 0.587f * c.g + 0.114f * c.b, 0.85f) << "id " << id;
   }
@@ -302,7 +309,8 @@ Stats Measure(const Image& img, int x0, int y0, int x1, int y1) {
 
 // Pixels within `tol` (per channel) of colour c.
 std::size_t CountColour(const Image& img, const Color& c, int tol = 12) {
-  const int r = static_cast<int>(std::lround(c.r * 255)), g = static_cast<int>(std::lround(c.g * 255)),
+  const int r = static_cast<int>(std::lround(c.r * 255)),
+            g = static_cast<int>(std::lround(c.g * 255)),
             b = static_cast<int>(std::lround(c.b * 255));
   std::size_t n = 0;
   for (std::size_t i = 0; i < img.rgba.size(); i += 4) {
@@ -444,7 +452,8 @@ Figure3D HelixFigure(int w, int h) {
     l.color = VehicleColor(k);
     for (int i = 0; i <= 50000; ++i) {
       const double t = i * 0.01;
-      l.points.push_back({(50 + 5 * k) * std::cos(0.01 * t), (50 + 5 * k) * std::sin(0.01 * t), -0.1 * t});
+      l.points.push_back(
+          {(50 + 5 * k) * std::cos(0.01 * t), (50 + 5 * k) * std::sin(0.01 * t), -0.1 * t});
     }
     f.lines.push_back(std::move(l));
   }
@@ -644,10 +653,10 @@ TEST(RenderErrors, ExtremeValuesRenderOrAreRefused) {
   EXPECT_FALSE(RenderImage(one_series({0, 1}, {1e308, -1e308}, false), &img, &err));
   EXPECT_NE(err.find("usable"), std::string::npos) << err;
   // 600 decades on a log axis, epoch seconds with a 2 ms range, a vertical line, denormals.
-  for (const Figure2D& f : {one_series({0, 1, 2}, {1e-300, 1, 1e300}, true),
-                            one_series({0, 1, 2}, {1.7e9, 1.7e9 + 1e-3, 1.7e9 + 2e-3}, false),
-                            one_series({5, 5, 5}, {1, 2, 3}, false),
-                            one_series({0, 1}, {4.9e-324, 1e-323}, false)}) {
+  for (const Figure2D& f :
+       {one_series({0, 1, 2}, {1e-300, 1, 1e300}, true),
+        one_series({0, 1, 2}, {1.7e9, 1.7e9 + 1e-3, 1.7e9 + 2e-3}, false),
+        one_series({5, 5, 5}, {1, 2, 3}, false), one_series({0, 1}, {4.9e-324, 1e-323}, false)}) {
     ASSERT_TRUE(RenderImage(f, &img, &err)) << err;
     EXPECT_EQ(img.width, 500);
     EXPECT_GT(CountColour(img, Color{0, 0, 0, 1}, 40), 20u);  // the black series is drawn
