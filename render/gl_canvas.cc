@@ -1,0 +1,288 @@
+#include "render/gl_canvas.h"
+
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/gl.h>
+#include <GL/glext.h>
+#include <GL/osmesa.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <vector>
+
+namespace shoal::render {
+
+// One per thread: the OSMesa context and the framebuffers of the last size used.
+struct GlCanvas::Context {
+  OSMesaContext osmesa = nullptr;
+  unsigned char dummy[4 * 4 * 4] = {};
+  int width = 0, height = 0, samples = 0;
+  GLuint fbo_ms = 0, rb_color_ms = 0, rb_depth_ms = 0;
+  GLuint fbo_resolve = 0, rb_color_resolve = 0;
+
+  ~Context() {
+    if (!osmesa) return;
+    if (OSMesaMakeCurrent(osmesa, dummy, GL_UNSIGNED_BYTE, 4, 4)) ReleaseFramebuffers();
+    OSMesaDestroyContext(osmesa);
+  }
+
+  void ReleaseFramebuffers() {
+    if (fbo_ms) glDeleteFramebuffers(1, &fbo_ms);
+    if (fbo_resolve) glDeleteFramebuffers(1, &fbo_resolve);
+    for (GLuint* rb : {&rb_color_ms, &rb_depth_ms, &rb_color_resolve}) {
+      if (*rb) glDeleteRenderbuffers(1, rb);
+      *rb = 0;
+    }
+    fbo_ms = fbo_resolve = 0;
+    width = height = 0;
+  }
+
+  bool Create(std::string* err) {
+    const int attribs[] = {OSMESA_FORMAT,
+                           OSMESA_RGBA,
+                           OSMESA_DEPTH_BITS,
+                           0,
+                           OSMESA_STENCIL_BITS,
+                           0,
+                           OSMESA_PROFILE,
+                           OSMESA_COMPAT_PROFILE,
+                           OSMESA_CONTEXT_MAJOR_VERSION,
+                           3,
+                           OSMESA_CONTEXT_MINOR_VERSION,
+                           0,
+                           0};
+    osmesa = OSMesaCreateContextAttribs(attribs, nullptr);
+    if (!osmesa) {
+      if (err) {
+        *err =
+            "cannot create an OSMesa OpenGL 3.0 compatibility context (is libosmesa6 "
+            "installed and using llvmpipe?)";
+      }
+      return false;
+    }
+    if (!OSMesaMakeCurrent(osmesa, dummy, GL_UNSIGNED_BYTE, 4, 4)) {
+      if (err) *err = "cannot make the OSMesa context current";
+      return false;
+    }
+    GLint max_samples = 0;
+    glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
+    samples = std::min(4, static_cast<int>(max_samples));
+    if (samples < 2) samples = 0;
+    return true;
+  }
+
+  bool Resize(int w, int h, std::string* err) {
+    if (w == width && h == height) return true;
+    ReleaseFramebuffers();
+    GLint max_rb = 0, max_vp[2] = {0, 0};
+    glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_rb);
+    glGetIntegerv(GL_MAX_VIEWPORT_DIMS, max_vp);
+    const int limit = std::min<int>(max_rb, std::min(max_vp[0], max_vp[1]));
+    if (w > limit || h > limit) {
+      if (err) {
+        *err = "figure size " + std::to_string(w) + "x" + std::to_string(h) +
+               " exceeds this OpenGL's limit of " + std::to_string(limit) +
+               " pixels per side; choose a smaller size";
+      }
+      return false;
+    }
+    glGenFramebuffers(1, &fbo_resolve);
+    glGenRenderbuffers(1, &rb_color_resolve);
+    glBindRenderbuffer(GL_RENDERBUFFER, rb_color_resolve);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, w, h);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo_resolve);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER,
+                              rb_color_resolve);
+    glGenFramebuffers(1, &fbo_ms);
+    glGenRenderbuffers(1, &rb_color_ms);
+    glGenRenderbuffers(1, &rb_depth_ms);
+    glBindRenderbuffer(GL_RENDERBUFFER, rb_color_ms);
+    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_RGBA8, w, h);
+    glBindRenderbuffer(GL_RENDERBUFFER, rb_depth_ms);
+    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, GL_DEPTH24_STENCIL8, w, h);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo_ms);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, rb_color_ms);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER,
+                              rb_depth_ms);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE ||
+        glGetError() != GL_NO_ERROR) {
+      if (err) {
+        *err = "cannot create a " + std::to_string(w) + "x" + std::to_string(h) +
+               " off-screen framebuffer (out of memory?)";
+      }
+      ReleaseFramebuffers();
+      return false;
+    }
+    width = w;
+    height = h;
+    return true;
+  }
+};
+
+namespace {
+thread_local std::unique_ptr<GlCanvas::Context> t_context;
+}  // namespace
+
+int GlCanvas::samples() const { return ctx_ ? ctx_->samples : 0; }
+
+bool GlCanvas::Init(int width, int height, std::string* err) {
+  if (!t_context) {
+    auto c = std::make_unique<Context>();
+    if (!c->Create(err)) return false;
+    t_context = std::move(c);
+  }
+  Context* c = t_context.get();
+  if (!OSMesaMakeCurrent(c->osmesa, c->dummy, GL_UNSIGNED_BYTE, 4, 4)) {
+    if (err) *err = "cannot make the OSMesa context current";
+    return false;
+  }
+  if (!c->Resize(width, height, err)) return false;
+  ctx_ = c;
+  glBindFramebuffer(GL_FRAMEBUFFER, c->fbo_ms);
+  glViewport(0, 0, width, height);
+  // Pixel coordinates (x right, y down, z = NDC depth) to clip space.
+  // clang-format off
+  const GLfloat m[16] = {2.0f / static_cast<GLfloat>(width), 0, 0, 0,
+                         0, -2.0f / static_cast<GLfloat>(height), 0, 0,
+                         0, 0, 1, 0,
+                         -1, 1, 0, 1};
+  // clang-format on
+  glMatrixMode(GL_PROJECTION);
+  glLoadMatrixf(m);
+  glMatrixMode(GL_MODELVIEW);
+  glLoadIdentity();
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_DITHER);
+  glEnable(GL_BLEND);
+  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  glDepthFunc(GL_LEQUAL);
+  if (c->samples > 0) glEnable(GL_MULTISAMPLE);
+  glEnableClientState(GL_VERTEX_ARRAY);
+  glEnableClientState(GL_COLOR_ARRAY);
+  stencil_ref_ = 0;
+  return true;
+}
+
+void GlCanvas::Clear(const Color& bg) {
+  glDisable(GL_SCISSOR_TEST);
+  glClearColor(bg.r, bg.g, bg.b, 1.0f);
+  glClearDepth(1.0);
+  glClearStencil(0);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+  stencil_ref_ = 0;
+}
+
+void GlCanvas::SetClip(float x0, float y0, float x1, float y1) {
+  const int ix0 = std::max(0, static_cast<int>(std::floor(x0)));
+  const int iy0 = std::max(0, static_cast<int>(std::floor(y0)));
+  const int ix1 = std::min(ctx_->width, static_cast<int>(std::ceil(x1)));
+  const int iy1 = std::min(ctx_->height, static_cast<int>(std::ceil(y1)));
+  glEnable(GL_SCISSOR_TEST);
+  // GL's window origin is the bottom-left corner.
+  glScissor(ix0, ctx_->height - iy1, std::max(0, ix1 - ix0), std::max(0, iy1 - iy0));
+}
+
+void GlCanvas::ClearClip() { glDisable(GL_SCISSOR_TEST); }
+
+void GlCanvas::Draw(const Mesh& mesh, Depth depth, bool once_per_pixel) {
+  if (mesh.empty()) return;
+  switch (depth) {
+    case Depth::kOff:
+      glDisable(GL_DEPTH_TEST);
+      break;
+    case Depth::kTestAndWrite:
+      glEnable(GL_DEPTH_TEST);
+      glDepthMask(GL_TRUE);
+      break;
+    case Depth::kTestOnly:
+      glEnable(GL_DEPTH_TEST);
+      glDepthMask(GL_FALSE);
+      break;
+  }
+  if (once_per_pixel) {
+    if (++stencil_ref_ > 255) {
+      const GLboolean scissor = glIsEnabled(GL_SCISSOR_TEST);
+      glDisable(GL_SCISSOR_TEST);
+      glClearStencil(0);
+      glClear(GL_STENCIL_BUFFER_BIT);
+      if (scissor) glEnable(GL_SCISSOR_TEST);
+      stencil_ref_ = 1;
+    }
+    glEnable(GL_STENCIL_TEST);
+    glStencilFunc(GL_NOTEQUAL, stencil_ref_, 0xFF);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_REPLACE);
+  } else {
+    glDisable(GL_STENCIL_TEST);
+  }
+  glVertexPointer(3, GL_FLOAT, 0, mesh.xyz.data());
+  glColorPointer(4, GL_UNSIGNED_BYTE, 0, mesh.rgba.data());
+  glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(mesh.vertices()));
+  glDepthMask(GL_TRUE);
+}
+
+void GlCanvas::DrawLayer(int x, int y, int w, int h,
+                         const std::vector<std::uint8_t>& premultiplied) {
+  if (w <= 0 || h <= 0 || premultiplied.size() != static_cast<std::size_t>(w) * h * 4) return;
+  GLuint tex = 0;
+  glGenTextures(1, &tex);
+  glBindTexture(GL_TEXTURE_2D, tex);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE,
+               premultiplied.data());
+  glTexEnvi(GL_TEXTURE_ENV, GL_TEXTURE_ENV_MODE, GL_REPLACE);
+  glEnable(GL_TEXTURE_2D);
+  glDisable(GL_DEPTH_TEST);
+  glDisable(GL_STENCIL_TEST);
+  glBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  glDisableClientState(GL_COLOR_ARRAY);
+  glEnableClientState(GL_TEXTURE_COORD_ARRAY);
+  const float x0 = static_cast<float>(x), y0 = static_cast<float>(y);
+  const float x1 = x0 + static_cast<float>(w), y1 = y0 + static_cast<float>(h);
+  const GLfloat pos[] = {x0, y0, 0, x1, y0, 0, x1, y1, 0, x0, y0, 0, x1, y1, 0, x0, y1, 0};
+  const GLfloat uv[] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  glVertexPointer(3, GL_FLOAT, 0, pos);
+  glTexCoordPointer(2, GL_FLOAT, 0, uv);
+  glDrawArrays(GL_TRIANGLES, 0, 6);
+  glDisableClientState(GL_TEXTURE_COORD_ARRAY);
+  glEnableClientState(GL_COLOR_ARRAY);
+  glDisable(GL_TEXTURE_2D);
+  glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  glBindTexture(GL_TEXTURE_2D, 0);
+  glDeleteTextures(1, &tex);
+}
+
+bool GlCanvas::Read(Image* out, std::string* err) {
+  glDisable(GL_SCISSOR_TEST);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, ctx_->fbo_ms);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, ctx_->fbo_resolve);
+  glBlitFramebuffer(0, 0, ctx_->width, ctx_->height, 0, 0, ctx_->width, ctx_->height,
+                    GL_COLOR_BUFFER_BIT, GL_NEAREST);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, ctx_->fbo_resolve);
+  std::vector<std::uint8_t> raw(static_cast<std::size_t>(ctx_->width) * ctx_->height * 4);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, ctx_->width, ctx_->height, GL_RGBA, GL_UNSIGNED_BYTE, raw.data());
+  glBindFramebuffer(GL_FRAMEBUFFER, ctx_->fbo_ms);
+  const GLenum e = glGetError();
+  if (e != GL_NO_ERROR) {
+    if (err) *err = "OpenGL error " + std::to_string(e) + " while reading the image back";
+    return false;
+  }
+  out->width = ctx_->width;
+  out->height = ctx_->height;
+  out->rgba.resize(raw.size());
+  // glReadPixels returns the bottom row first.
+  const std::size_t row = static_cast<std::size_t>(ctx_->width) * 4;
+  for (int y = 0; y < ctx_->height; ++y) {
+    std::memcpy(&out->rgba[static_cast<std::size_t>(y) * row],
+                &raw[static_cast<std::size_t>(ctx_->height - 1 - y) * row], row);
+  }
+  for (std::size_t i = 3; i < out->rgba.size(); i += 4) out->rgba[i] = 255;
+  return true;
+}
+
+}  // namespace shoal::render

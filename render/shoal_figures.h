@@ -1,0 +1,85 @@
+// The standard figures of a Shoal run (issue 4, `shoal render`), built from plain
+// per-vehicle arrays. The caller (the render command) reads the log; these functions only
+// arrange numbers into Figure2D / Figure3D with one colour per vehicle (VehicleColor).
+#pragma once
+
+#include <array>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "render/figure.h"
+
+namespace shoal::render {
+
+/// One vehicle's states over time (leader: id 0). All arrays have t_s's length.
+struct VehicleSeries {
+  int id = 0;
+  std::vector<double> t_s;
+  std::array<std::vector<double>, 5> eta;  // x, y, z [m] (NED), theta, psi [rad]
+  std::array<std::vector<double>, 5> nu;   // u, v, w [m/s], q, r [rad/s]
+};
+
+/// One follower's tracking errors over time (definitions: docs/sim.md).
+struct ErrorSeries {
+  int id = 1;
+  std::vector<double> t_s;
+  std::vector<double> position_m, velocity_mps, attitude_rad;
+};
+
+/// One directed link's channel ground truth: delivered messages (send time, realised
+/// delay) and dropped ones (send time).
+struct LinkSeries {
+  int from = 0, to = 1;
+  std::vector<double> sent_s, delay_s;
+  std::vector<double> dropped_s;
+};
+
+struct TrajectoryOptions {
+  std::string scenario;  // in the title
+  /// Formation snapshots at these times (the nearest sample of each vehicle); empty: six
+  /// evenly spaced from the first to the last sample.
+  std::vector<double> snapshot_times_s;
+  /// Segments of each snapshot, as pairs of vehicle ids (e.g. the topology's links);
+  /// empty: the leader to every follower.
+  std::vector<std::pair<int, int>> snapshot_edges;
+  int width_px = 1400, height_px = 1000;
+};
+
+/// Paper Figs. 12 and 23: 3-D trajectories of all vehicles with formation snapshots. A
+/// line's start (hollow circle) and end (filled circle) are marked unless a snapshot is
+/// taken there.
+Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const TrajectoryOptions& o);
+
+/// Paper Figs. 2-11, 13-22: x, y, z, theta, psi (left column) and u, v, w, q, r (right)
+/// against time for all vehicles, one legend for the figure. psi is drawn wrapped to
+/// (-pi, pi] with the line broken at each wrap.
+Figure2D StateFigure(const std::vector<VehicleSeries>& vehicles, const std::string& scenario,
+                     int width_px = 1600, int height_px = 1000);
+
+struct ErrorOptions {
+  std::string scenario;
+  bool log_y = true;
+  double position_tol_m = -1.0;    // drawn as a dashed line if > 0
+  double velocity_tol_mps = -1.0;  // ditto
+  double converged_s = -1.0;       // a vertical line if >= 0
+  int width_px = 1600, height_px = 1000;
+};
+
+/// Paper Figs. 24-27: position, velocity and attitude tracking errors of every follower.
+Figure2D ErrorFigure(const std::vector<ErrorSeries>& followers, const ErrorOptions& o);
+
+struct ChannelOptions {
+  std::string scenario;
+  /// The configured delay tau(t), sampled by the caller (e.g. every 10 ms).
+  std::vector<double> tau_t_s, tau_s;
+  double zoom_s = 20.0;  // the first panel shows the first zoom_s seconds
+  int width_px = 1600, height_px = 1000;
+};
+
+/// The channel: realised delay against tau(t) over the first zoom_s seconds (drops
+/// marked), realised minus configured delay over the whole run, and drops over time per
+/// link. Colours: the receiving vehicle's.
+Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOptions& o);
+
+}  // namespace shoal::render

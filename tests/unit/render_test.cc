@@ -1,0 +1,676 @@
+// shoal_render: tick rules and decimation with known answers and properties; figures
+// rendered off-screen and checked by pixel statistics (never against stored images); bad
+// input refused with a message.
+#include <gtest/gtest.h>
+#include <stb_image.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <set>
+#include <string>
+
+#include "render/decimate.h"
+#include "render/figure.h"
+#include "render/shoal_figures.h"
+#include "render/synthetic_run.h"
+#include "render/text.h"
+#include "render/ticks.h"
+
+namespace shoal::render {
+namespace {
+
+// ---------------------------------------------------------------- ticks (pure functions)
+
+TEST(Ticks, NiceStepKnownAnswers) {
+  EXPECT_DOUBLE_EQ(NiceStep(10.0, 5), 2.0);
+  EXPECT_DOUBLE_EQ(NiceStep(10.0, 10), 1.0);
+  EXPECT_DOUBLE_EQ(NiceStep(10.0, 4), 5.0);       // 2.5 -> 5
+  EXPECT_DOUBLE_EQ(NiceStep(3600.0, 7), 1000.0);  // 514 -> 1000
+  EXPECT_DOUBLE_EQ(NiceStep(3600.0, 8), 500.0);   // 450 -> 500
+  EXPECT_DOUBLE_EQ(NiceStep(0.4, 5), 0.1);        // 0.08 -> 0.1
+  EXPECT_DOUBLE_EQ(NiceStep(1000.0, 1), 1000.0);  // exact powers stay
+  EXPECT_EQ(NiceStep(0.0, 5), 0.0);
+  EXPECT_EQ(NiceStep(1.0, 0), 0.0);
+}
+
+TEST(Ticks, NiceStepIsTheSmallest125StepThatFits) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> exp10(-8.0, 8.0);
+  std::uniform_int_distribution<int> intervals(1, 12);
+  for (int k = 0; k < 2000; ++k) {
+    const double span = std::pow(10.0, exp10(rng));
+    const int n = intervals(rng);
+    const double step = NiceStep(span, n);
+    ASSERT_GT(step, 0.0);
+    // Of the form m * 10^e with m in {1, 2, 5}.
+    const double e = std::floor(std::log10(step) + 1e-9);
+    const double m = step / std::pow(10.0, e);
+    EXPECT_TRUE(std::fabs(m - 1) < 1e-9 || std::fabs(m - 2) < 1e-9 || std::fabs(m - 5) < 1e-9)
+        << "step " << step;
+    EXPECT_LE(span / step, n * (1 + 1e-9));
+    // The next smaller 1-2-5 step would need more than n intervals.
+    const double smaller = std::fabs(m - 1) < 1e-9   ? 0.5 * step
+                           : std::fabs(m - 2) < 1e-9 ? 0.5 * step
+                                                     : 0.4 * step;
+    EXPECT_GT(span / smaller, n * (1 - 1e-9));
+  }
+}
+
+TEST(Ticks, LinearTicksKnownAnswers) {
+  TickSet t = LinearTicks(0.0, 3600.0, 8);
+  EXPECT_DOUBLE_EQ(t.step, 500.0);
+  ASSERT_EQ(t.major.size(), 8u);
+  EXPECT_DOUBLE_EQ(t.major.front(), 0.0);
+  EXPECT_DOUBLE_EQ(t.major.back(), 3500.0);
+
+  t = LinearTicks(-0.13, 0.27, 6);
+  EXPECT_DOUBLE_EQ(t.step, 0.1);
+  ASSERT_EQ(t.major.size(), 4u);
+  EXPECT_NEAR(t.major[0], -0.1, 1e-15);
+  EXPECT_EQ(t.major[1], 0.0);  // exactly zero, not 1e-17
+  EXPECT_NEAR(t.major[3], 0.2, 1e-15);
+
+  EXPECT_TRUE(LinearTicks(1.0, 1.0, 5).major.empty());
+  EXPECT_TRUE(LinearTicks(0.0, 1.0, 1).major.empty());
+}
+
+TEST(Ticks, LinearTicksAreMultiplesOfTheStepInsideTheRange) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1e4, 1e4), w(-6, 6);
+  for (int k = 0; k < 2000; ++k) {
+    const double lo = u(rng), hi = lo + std::pow(10.0, w(rng));
+    const int n = 3 + k % 8;
+    const TickSet t = LinearTicks(lo, hi, n);
+    ASSERT_FALSE(t.major.empty()) << lo << " " << hi;
+    EXPECT_LE(static_cast<int>(t.major.size()), n);
+    for (double v : t.major) {
+      EXPECT_GE(v, lo - 1e-9 * t.step);
+      EXPECT_LE(v, hi + 1e-9 * t.step);
+      const double q = v / t.step;  // an integer, to double precision
+      EXPECT_NEAR(q, std::round(q), 1e-9 * std::max(1.0, std::fabs(q)));
+    }
+    // The next smaller 1-2-5 step would put more than n ticks inside.
+    const double m = t.step / std::pow(10.0, std::floor(std::log10(t.step) + 1e-9));
+    const double smaller = m < 1.5 ? 0.5 * t.step : m < 3.0 ? 0.5 * t.step : 0.4 * t.step;
+    const double more = std::floor(hi / smaller + 1e-9) - std::ceil(lo / smaller - 1e-9) + 1;
+    EXPECT_GT(more, n);
+  }
+}
+
+TEST(Ticks, LogTicksKnownAnswers) {
+  // Six decades: majors at each power of ten, minors at 2..9 x 10^k.
+  TickSet t = LogTicks(1e-3, 1e2, 10);
+  EXPECT_TRUE(t.decades);
+  ASSERT_EQ(t.major.size(), 6u);
+  EXPECT_DOUBLE_EQ(t.major.front(), 1e-3);
+  EXPECT_DOUBLE_EQ(t.major.back(), 1e2);
+  EXPECT_EQ(t.minor.size(), 5u * 8u);
+  EXPECT_NEAR(t.minor.front(), 2e-3, 1e-18);
+
+  // Seventeen decades, at most six labels: every third decade (multiples of 3).
+  t = LogTicks(1e-15, 10.0, 6);
+  ASSERT_EQ(t.major.size(), 6u);
+  EXPECT_NEAR(std::log10(t.major.front()), -15, 1e-9);
+  EXPECT_NEAR(std::log10(t.major.back()), 0, 1e-9);
+
+  // Less than two decades inside: 1-2-5 majors.
+  t = LogTicks(0.02, 0.3, 8);
+  EXPECT_FALSE(t.decades);
+  ASSERT_EQ(t.major.size(), 4u);
+  EXPECT_DOUBLE_EQ(t.major[0], 0.02);
+  EXPECT_DOUBLE_EQ(t.major[1], 0.05);
+  EXPECT_DOUBLE_EQ(t.major[2], 0.1);
+  EXPECT_DOUBLE_EQ(t.major[3], 0.2);
+
+  // Narrower than one 1-2-5 step: linear ticks.
+  t = LogTicks(0.021, 0.029, 5);
+  EXPECT_DOUBLE_EQ(t.step, 0.002);
+  EXPECT_EQ(t.major.size(), 4u);  // 0.022 ... 0.028
+
+  EXPECT_TRUE(LogTicks(-1.0, 10.0, 5).major.empty());
+  EXPECT_TRUE(LogTicks(0.0, 10.0, 5).major.empty());
+}
+
+TEST(Ticks, LabelsKnownAnswers) {
+  EXPECT_EQ(FormatLinearTick(0.05, 0.05), "0.05");
+  EXPECT_EQ(FormatLinearTick(0.1, 0.1), "0.1");
+  EXPECT_EQ(FormatLinearTick(500.0, 500.0), "500");
+  EXPECT_EQ(FormatLinearTick(-2.0, 1.0),
+            "\xE2\x88\x92"
+            "2");  // U+2212 minus
+  EXPECT_EQ(FormatLinearTick(1e-17, 0.1), "0");
+  EXPECT_EQ(FormatLogTick(1e-3), "10\xE2\x81\xBB\xC2\xB3");  // 10⁻³
+  EXPECT_EQ(FormatLogTick(1.0), "10\xE2\x81\xB0");           // 10⁰
+  EXPECT_EQ(FormatLogTick(100.0), "10\xC2\xB2");             // 10²
+  EXPECT_EQ(FormatLogTick(0.002), "0.002");
+  EXPECT_EQ(FormatLogTick(500.0), "500");
+  EXPECT_EQ(FormatLogTick(2e-6),
+            "2\xC3\x97"
+            "10\xE2\x81\xBB\xE2\x81\xB6");  // 2×10⁻⁶
+  EXPECT_EQ(Superscript(-12), "\xE2\x81\xBB\xC2\xB9\xC2\xB2");
+  TickSet big = LinearTicks(0.0, 3.0e6, 7);
+  EXPECT_EQ(CommonExponent(big), 6);
+  TickSet small = LinearTicks(0.0, 5e-5, 6);
+  EXPECT_EQ(CommonExponent(small), -6);
+  EXPECT_EQ(CommonExponent(LinearTicks(0.0, 3600.0, 8)), 0);
+}
+
+// ---------------------------------------------------------------- decimation (pure)
+
+TEST(Decimate, MinMaxKeepsEveryColumnsExtremesAndSpikes) {
+  // Given 100,000 noisy samples with one spike, decimated onto 500 columns.
+  const std::size_t n = 100000;
+  std::vector<double> x(n), y(n);
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] = static_cast<double>(i) * 0.01;
+    y[i] = std::sin(x[i]) + 0.1 * noise(rng);
+  }
+  y[54321] = 50.0;
+  const int columns = 500;
+  const double x0 = 0.0, px_per_x = columns / (x.back() - x0);
+  const IndexRuns r = DecimateMinMax(x.data(), y.data(), n, x0, px_per_x, columns);
+  // Then: one run, at most 4 points per column, indices ascending, ends kept.
+  ASSERT_EQ(r.runs(), 1u);
+  EXPECT_LE(r.index.size(), 4u * (columns + 2));
+  EXPECT_EQ(r.index.front(), 0u);
+  EXPECT_EQ(r.index.back(), n - 1);
+  for (std::size_t k = 1; k < r.index.size(); ++k) ASSERT_LT(r.index[k - 1], r.index[k]);
+  // And every column's minimum and maximum are among the kept points.
+  std::vector<double> lo(columns + 1, INFINITY), hi(columns + 1, -INFINITY);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int c = std::min(columns, static_cast<int>(std::floor((x[i] - x0) * px_per_x)));
+    lo[c] = std::min(lo[c], y[i]);
+    hi[c] = std::max(hi[c], y[i]);
+  }
+  std::vector<double> klo(columns + 1, INFINITY), khi(columns + 1, -INFINITY);
+  for (std::uint32_t i : r.index) {
+    const int c = std::min(columns, static_cast<int>(std::floor((x[i] - x0) * px_per_x)));
+    klo[c] = std::min(klo[c], y[i]);
+    khi[c] = std::max(khi[c], y[i]);
+  }
+  for (int c = 0; c <= columns; ++c) {
+    EXPECT_EQ(lo[c], klo[c]) << "column " << c;
+    EXPECT_EQ(hi[c], khi[c]) << "column " << c;
+  }
+  EXPECT_NE(std::find(r.index.begin(), r.index.end(), 54321u), r.index.end());
+}
+
+TEST(Decimate, NonFiniteValuesBreakTheLine) {
+  std::vector<double> x = {0, 1, 2, 3, 4, 5, 6};
+  std::vector<double> y = {0, 1, NAN, 3, 4, INFINITY, 6};
+  const IndexRuns r = DecimateMinMax(x.data(), y.data(), x.size(), 0.0, 100.0, 1000);
+  ASSERT_EQ(r.runs(), 3u);
+  EXPECT_EQ(r.run_size(0), 2u);
+  EXPECT_EQ(r.run_size(1), 2u);
+  EXPECT_EQ(r.run_size(2), 1u);
+  EXPECT_TRUE(IsSortedX(x.data(), x.size()));
+  std::vector<double> unsorted = {0, 2, 1};
+  EXPECT_FALSE(IsSortedX(unsorted.data(), unsorted.size()));
+}
+
+TEST(Decimate, SimplifyKeepsTheLineWithinTolerance) {
+  // A straight line collapses to its ends.
+  std::vector<float> x, y;
+  for (int i = 0; i < 1000; ++i) {
+    x.push_back(static_cast<float>(i) * 0.7f);
+    y.push_back(3.0f + static_cast<float>(i) * 0.3f);
+  }
+  SimplifyPolyline(&x, &y, 0.2f);
+  EXPECT_EQ(x.size(), 2u);
+  // A random walk: every dropped point within ~tolerance of the kept polyline.
+  std::mt19937 rng(9);
+  std::normal_distribution<float> step(0.0f, 0.3f);
+  std::vector<float> ox, oy;
+  float v = 0.0f;
+  for (int i = 0; i < 5000; ++i) {
+    v += step(rng);
+    ox.push_back(static_cast<float>(i) * 0.25f);
+    oy.push_back(v);
+  }
+  std::vector<float> sx = ox, sy = oy;
+  SimplifyPolyline(&sx, &sy, 0.2f);
+  EXPECT_LT(sx.size(), ox.size());
+  EXPECT_EQ(sx.front(), ox.front());
+  EXPECT_EQ(sx.back(), ox.back());
+  std::size_t seg = 0;
+  for (std::size_t i = 0; i < ox.size(); ++i) {
+    while (seg + 1 < sx.size() - 1 && sx[seg + 1] < ox[i]) ++seg;
+    const float ax = sx[seg], ay = sy[seg], bx = sx[seg + 1], by = sy[seg + 1];
+    const float dx = bx - ax, dy = by - ay;
+    const float d = std::fabs(dy * (ox[i] - ax) - dx * (oy[i] - ay)) / std::hypot(dx, dy);
+    EXPECT_LE(d, 0.4f) << "point " << i;
+  }
+}
+
+TEST(Decimate, ScatterKeepsOnePointPerCellAndCountsTheRest) {
+  std::vector<double> px = {0.2, 0.7, 1.5, 1.6, 9.9, -1.0, 3.0};
+  std::vector<double> py = {0.2, 0.9, 0.5, 0.5, 9.9, 1.0, 20.0};
+  std::vector<std::uint32_t> counts;
+  const auto kept = DecimateScatter(px.data(), py.data(), px.size(), 10.0, 10.0, 1.0, &counts);
+  ASSERT_EQ(kept.size(), 3u);  // cells (0,0), (1,0), (9,9); two points outside
+  EXPECT_EQ(kept[0], 0u);
+  EXPECT_EQ(kept[1], 2u);
+  EXPECT_EQ(kept[2], 4u);
+  EXPECT_EQ(counts, (std::vector<std::uint32_t>{2, 2, 1}));
+}
+
+// ---------------------------------------------------------------- palette and text
+
+TEST(Palette, LeaderIsDarkAndVehiclesAreDistinct) {
+  const Color leader = VehicleColor(0);
+  EXPECT_LT(leader.r + leader.g + leader.b, 0.5f);
+  std::set<std::tuple<int, int, int>> seen;
+  for (int id = 0; id <= 16; ++id) {
+    const Color c = VehicleColor(id);
+    seen.insert(
+        {static_cast<int>(c.r * 255), static_cast<int>(c.g * 255), static_cast<int>(c.b * 255)});
+    // Visible on white: not too light.
+    EXPECT_LT(0.299f * c.r + 0.587f * c.g + 0.114f * c.b, 0.85f) << "id " << id;
+  }
+  EXPECT_EQ(seen.size(), 17u);
+  EXPECT_EQ(VehicleName(0), "leader");
+  EXPECT_EQ(VehicleName(3), "follower 3");
+}
+
+TEST(Text, DecodesUtf8) {
+  const auto cps = DecodeUtf8("a\xCE\xB8\xE2\x88\x92\xF0\x9F\x98\x80\xFF");
+  ASSERT_EQ(cps.size(), 5u);
+  EXPECT_EQ(cps[0], 'a');
+  EXPECT_EQ(cps[1], 0x3B8u);   // θ
+  EXPECT_EQ(cps[2], 0x2212u);  // −
+  EXPECT_EQ(cps[3], 0x1F600u);
+  EXPECT_EQ(cps[4], 0xFFFDu);  // invalid byte
+}
+
+// ---------------------------------------------------------------- rendered figures
+
+struct Stats {
+  std::size_t non_white = 0;
+  std::size_t distinct = 0;
+};
+
+Stats Measure(const Image& img, int x0, int y0, int x1, int y1) {
+  Stats s;
+  std::set<std::uint32_t> colours;
+  for (int y = std::max(0, y0); y < std::min(img.height, y1); ++y) {
+    for (int x = std::max(0, x0); x < std::min(img.width, x1); ++x) {
+      const std::uint8_t* p = &img.rgba[(static_cast<std::size_t>(y) * img.width + x) * 4];
+      if (p[0] < 250 || p[1] < 250 || p[2] < 250) ++s.non_white;
+      colours.insert((p[0] << 16) | (p[1] << 8) | p[2]);
+    }
+  }
+  s.distinct = colours.size();
+  return s;
+}
+
+// Pixels within `tol` (per channel) of colour c.
+std::size_t CountColour(const Image& img, const Color& c, int tol = 12) {
+  const int r = static_cast<int>(std::lround(c.r * 255)),
+            g = static_cast<int>(std::lround(c.g * 255)),
+            b = static_cast<int>(std::lround(c.b * 255));
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < img.rgba.size(); i += 4) {
+    if (std::abs(img.rgba[i] - r) <= tol && std::abs(img.rgba[i + 1] - g) <= tol &&
+        std::abs(img.rgba[i + 2] - b) <= tol) {
+      ++n;
+    }
+  }
+  return n;
+}
+
+// Dark pixels (luminance < 100) in a region.
+std::size_t CountDark(const Image& img, int x0, int y0, int x1, int y1) {
+  std::size_t n = 0;
+  for (int y = y0; y < y1; ++y) {
+    for (int x = x0; x < x1; ++x) {
+      const std::uint8_t* p = &img.rgba[(static_cast<std::size_t>(y) * img.width + x) * 4];
+      if (0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2] < 100) ++n;
+    }
+  }
+  return n;
+}
+
+Figure2D TwoPanelFigure(int w, int h) {
+  Figure2D f;
+  f.width_px = w;
+  f.height_px = h;
+  f.title = "test figure";
+  f.columns = 2;
+  for (int p = 0; p < 2; ++p) {
+    Panel panel;
+    panel.title = p == 0 ? "sine" : "decay";
+    panel.x.label = "time";
+    panel.x.unit = "s";
+    panel.y.label = p == 0 ? "x" : "error";
+    panel.y.unit = "m";
+    panel.y.log = p == 1;
+    for (int k = 1; k <= 2; ++k) {
+      Series s;
+      s.label = VehicleName(k);
+      s.color = VehicleColor(k);
+      for (int i = 0; i <= 20000; ++i) {
+        const double t = i * 0.01;
+        s.x.push_back(t);
+        s.y.push_back(p == 0 ? k * std::sin(t) : std::exp(-t / (10.0 * k)) + 1e-6);
+      }
+      panel.series.push_back(std::move(s));
+    }
+    f.panels.push_back(std::move(panel));
+  }
+  return f;
+}
+
+TEST(Render2D, FigureHasTheRequestedSizeAndIsNotBlank) {
+  for (const auto& [w, h] : {std::pair{1600, 1000}, std::pair{800, 500}, std::pair{1234, 777}}) {
+    Image img;
+    std::string err;
+    ASSERT_TRUE(RenderImage(TwoPanelFigure(w, h), &img, &err)) << err;
+    EXPECT_EQ(img.width, w);
+    EXPECT_EQ(img.height, h);
+    ASSERT_EQ(img.rgba.size(), static_cast<std::size_t>(w) * h * 4);
+    // Several colours overall, and drawn pixels in the middle of each panel's plot area.
+    EXPECT_GT(Measure(img, 0, 0, w, h).distinct, 20u);
+    EXPECT_GT(Measure(img, w / 8, h / 3, w * 3 / 8, h * 2 / 3).non_white, 100u);
+    EXPECT_GT(Measure(img, w * 5 / 8, h / 3, w * 7 / 8, h * 2 / 3).non_white, 100u);
+    // Both series colours appear.
+    EXPECT_GT(CountColour(img, VehicleColor(1)), 200u);
+    EXPECT_GT(CountColour(img, VehicleColor(2)), 200u);
+  }
+}
+
+TEST(Render2D, TitleTextIsDrawn) {
+  Figure2D with = TwoPanelFigure(800, 500);
+  Figure2D without = with;
+  without.title.clear();
+  Image a, b;
+  std::string err;
+  ASSERT_TRUE(RenderImage(with, &a, &err)) << err;
+  ASSERT_TRUE(RenderImage(without, &b, &err)) << err;
+  // The title band (top 30 px, middle third) is dark only when there is a title.
+  EXPECT_GT(CountDark(a, 800 / 3, 0, 800 * 2 / 3, 30), 100u);
+  EXPECT_EQ(CountDark(b, 800 / 3, 0, 800 * 2 / 3, 8), 0u);
+}
+
+TEST(Render2D, AutoLegendDoesNotHideData) {
+  // Given dense data in the upper-right quarter only.
+  Figure2D f;
+  f.width_px = 800;
+  f.height_px = 600;
+  Panel p;
+  p.x.min = 0;
+  p.x.max = 10;
+  p.y.min = 0;
+  p.y.max = 10;
+  Series s;
+  s.color = VehicleColor(1);
+  s.line = LineStyle::kNone;
+  s.marker = Marker::kSquare;
+  s.marker_size_px = 6;
+  for (double x = 5.5; x <= 9.9; x += 0.05) {
+    for (double y = 5.5; y <= 9.9; y += 0.05) {
+      s.x.push_back(x);
+      s.y.push_back(y);
+    }
+  }
+  p.series.push_back(s);
+  f.panels.push_back(p);
+  Image without, with;
+  std::string err;
+  ASSERT_TRUE(RenderImage(f, &without, &err)) << err;
+  f.panels[0].series[0].label = "a rather long legend label";
+  ASSERT_TRUE(RenderImage(f, &with, &err)) << err;
+  // Then the legend goes elsewhere: no data pixel is lost (the legend adds a sample).
+  EXPECT_GE(CountColour(with, VehicleColor(1)), CountColour(without, VehicleColor(1)));
+}
+
+TEST(Render2D, PngIsWrittenAtTheRequestedSize) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / "shoal_render_test_2d.png").string();
+  std::string err;
+  ASSERT_TRUE(RenderPng(TwoPanelFigure(640, 400), path, &err)) << err;
+  int w = 0, h = 0, n = 0;
+  unsigned char* data = stbi_load(path.c_str(), &w, &h, &n, 3);
+  ASSERT_NE(data, nullptr);
+  EXPECT_EQ(w, 640);
+  EXPECT_EQ(h, 400);
+  stbi_image_free(data);
+  std::filesystem::remove(path);
+}
+
+Figure3D HelixFigure(int w, int h) {
+  Figure3D f;
+  f.width_px = w;
+  f.height_px = h;
+  f.title = "helix";
+  for (int k = 0; k < 3; ++k) {
+    Polyline3D l;
+    l.label = VehicleName(k);
+    l.color = VehicleColor(k);
+    for (int i = 0; i <= 50000; ++i) {
+      const double t = i * 0.01;
+      l.points.push_back(
+          {(50 + 5 * k) * std::cos(0.01 * t), (50 + 5 * k) * std::sin(0.01 * t), -0.1 * t});
+    }
+    f.lines.push_back(std::move(l));
+  }
+  Snapshot s;
+  s.label = "t = 0 s";
+  s.points = {f.lines[0].points[0], f.lines[1].points[0], f.lines[2].points[0]};
+  s.colors = {VehicleColor(0), VehicleColor(1), VehicleColor(2)};
+  s.edges = {{0, 1}, {0, 2}};
+  f.snapshots.push_back(s);
+  return f;
+}
+
+TEST(Render3D, FigureHasTheRequestedSizeAndIsNotBlank) {
+  for (const auto& [w, h] : {std::pair{1400, 1000}, std::pair{700, 500}}) {
+    Image img;
+    std::string err;
+    ASSERT_TRUE(RenderImage(HelixFigure(w, h), &img, &err)) << err;
+    EXPECT_EQ(img.width, w);
+    EXPECT_EQ(img.height, h);
+    EXPECT_GT(Measure(img, 0, 0, w, h).distinct, 20u);
+    // Drawn pixels in the central area where the box and data are.
+    EXPECT_GT(Measure(img, w / 4, h / 4, w * 3 / 4, h * 3 / 4).non_white, 1000u);
+    for (int k = 0; k < 3; ++k) EXPECT_GT(CountColour(img, VehicleColor(k)), 100u) << "line " << k;
+    EXPECT_GT(CountDark(img, w / 3, 0, w * 2 / 3, h / 20), 50u);  // the title
+  }
+}
+
+// Mean image row of the pixels of colour c.
+double MeanRow(const Image& img, const Color& c) {
+  double sum = 0, n = 0;
+  for (int y = 0; y < img.height; ++y) {
+    for (int x = 0; x < img.width; ++x) {
+      const std::uint8_t* p = &img.rgba[(static_cast<std::size_t>(y) * img.width + x) * 4];
+      if (std::abs(p[0] - c.r * 255) < 12 && std::abs(p[1] - c.g * 255) < 12 &&
+          std::abs(p[2] - c.b * 255) < 12) {
+        sum += y;
+        n += 1;
+      }
+    }
+  }
+  return n > 0 ? sum / n : NAN;
+}
+
+TEST(Render3D, NedDepthGrowsDownTheScreen) {
+  // Given a shallow ring (depth 0 m) and a deep ring (depth 80 m) in NED coordinates.
+  Figure3D f;
+  f.width_px = 600;
+  f.height_px = 600;
+  for (int k = 0; k < 2; ++k) {
+    Polyline3D l;
+    l.color = VehicleColor(k + 1);
+    for (int i = 0; i <= 360; ++i) {
+      const double a = i * M_PI / 180.0;
+      l.points.push_back({50 * std::cos(a), 50 * std::sin(a), k == 0 ? 0.0 : 80.0});
+    }
+    f.lines.push_back(l);
+  }
+  for (const bool z_down : {true, false}) {
+    f.z_down = z_down;
+    Image img;
+    std::string err;
+    ASSERT_TRUE(RenderImage(f, &img, &err)) << err;
+    const double shallow = MeanRow(img, VehicleColor(1)), deep = MeanRow(img, VehicleColor(2));
+    // Then with z down the deep ring is lower on the screen; with z up it is higher.
+    if (z_down) {
+      EXPECT_GT(deep, shallow + 50);
+    } else {
+      EXPECT_LT(deep, shallow - 50);
+    }
+  }
+}
+
+TEST(RenderFigures, StandardFiguresFromSyntheticData) {
+  const SyntheticRun run = MakeSyntheticRun(120.0, 10.0, 0.05, 2);
+  const Figure2D states = StateFigure(run.vehicles, "synthetic", 1000, 700);
+  ASSERT_EQ(states.panels.size(), 10u);
+  for (const Panel& p : states.panels) EXPECT_EQ(p.series.size(), run.vehicles.size());
+  // psi is broken where it wraps: NaNs inserted, all values in (-pi, pi].
+  for (const Series& s : states.panels[8].series) {
+    for (double v : s.y) {
+      if (std::isfinite(v)) {
+        EXPECT_GT(v, -M_PI - 1e-12);
+        EXPECT_LE(v, M_PI + 1e-12);
+      }
+    }
+  }
+  ErrorOptions eo;
+  eo.position_tol_m = 0.5;
+  eo.converged_s = run.converged_s;
+  const Figure2D errors = ErrorFigure(run.errors, eo);
+  ASSERT_EQ(errors.panels.size(), 3u);
+  EXPECT_TRUE(errors.panels[0].y.log);
+  ChannelOptions co;
+  co.tau_t_s = run.tau_t_s;
+  co.tau_s = run.tau_s;
+  const Figure2D channel = ChannelFigure(run.links, co);
+  ASSERT_EQ(channel.panels.size(), 3u);
+  EXPECT_EQ(channel.panels[2].y.ticks.size(), run.links.size());
+  TrajectoryOptions to;
+  to.snapshot_times_s = {0.0, 60.0, 120.0};
+  const Figure3D traj = TrajectoryFigure(run.vehicles, to);
+  EXPECT_EQ(traj.lines.size(), run.vehicles.size());
+  ASSERT_EQ(traj.snapshots.size(), 3u);
+  EXPECT_EQ(traj.snapshots[0].edges.size(), run.vehicles.size() - 1);  // leader to each
+  std::string err;
+  Image img;
+  for (const Figure2D* f : {&states, &errors, &channel}) {
+    ASSERT_TRUE(RenderImage(*f, &img, &err)) << err;
+    EXPECT_EQ(img.width, f->width_px);
+    EXPECT_GT(Measure(img, 0, 0, img.width, img.height).distinct, 20u);
+  }
+  ASSERT_TRUE(RenderImage(traj, &img, &err)) << err;
+}
+
+// ---------------------------------------------------------------- bad input
+
+TEST(RenderErrors, BadInputIsRefusedWithAMessage) {
+  Image img;
+  std::string err;
+  Figure2D f = TwoPanelFigure(0, 0);
+  EXPECT_FALSE(RenderImage(f, &img, &err));
+  EXPECT_NE(err.find("too small"), std::string::npos) << err;
+
+  f = TwoPanelFigure(800, 500);
+  f.panels[1].series[0].x.clear();
+  f.panels[1].series[0].y.clear();
+  EXPECT_FALSE(RenderImage(f, &img, &err));
+  EXPECT_NE(err.find("panel 2"), std::string::npos) << err;
+  EXPECT_NE(err.find("empty"), std::string::npos) << err;
+
+  f = TwoPanelFigure(800, 500);
+  f.panels[0].series[1].y.pop_back();
+  EXPECT_FALSE(RenderImage(f, &img, &err));
+  EXPECT_NE(err.find("same length"), std::string::npos) << err;
+
+  f = TwoPanelFigure(800, 500);
+  for (Panel& p : f.panels) {
+    for (Series& s : p.series) std::fill(s.y.begin(), s.y.end(), NAN);
+  }
+  EXPECT_FALSE(RenderImage(f, &img, &err));
+  EXPECT_NE(err.find("nothing to draw"), std::string::npos) << err;
+
+  f = TwoPanelFigure(800, 500);
+  f.panels.clear();
+  EXPECT_FALSE(RenderImage(f, &img, &err));
+  EXPECT_NE(err.find("no panels"), std::string::npos) << err;
+
+  f = TwoPanelFigure(800, 500);
+  f.panels[1].y.min = -1.0;  // log axis
+  EXPECT_FALSE(RenderImage(f, &img, &err));
+  EXPECT_NE(err.find("log axis"), std::string::npos) << err;
+
+  f = TwoPanelFigure(800, 500);
+  f.font_path = "/nonexistent/font.ttf";
+  EXPECT_FALSE(RenderImage(f, &img, &err));
+  EXPECT_NE(err.find("/nonexistent/font.ttf"), std::string::npos) << err;
+
+  Figure3D g = HelixFigure(700, 500);
+  g.snapshots[0].edges.push_back({0, 7});
+  EXPECT_FALSE(RenderImage(g, &img, &err));
+  EXPECT_NE(err.find("does not exist"), std::string::npos) << err;
+  g = HelixFigure(700, 500);
+  g.lines[1].points.clear();
+  EXPECT_FALSE(RenderImage(g, &img, &err));
+  EXPECT_NE(err.find("line 2"), std::string::npos) << err;
+  g = HelixFigure(100, 50);
+  EXPECT_FALSE(RenderImage(g, &img, &err));
+  EXPECT_NE(err.find("too small"), std::string::npos) << err;
+}
+
+TEST(RenderErrors, UnwritablePathIsReported) {
+  std::string err;
+  EXPECT_FALSE(RenderPng(TwoPanelFigure(400, 300), "/nonexistent_dir/figure.png", &err));
+  EXPECT_NE(err.find("/nonexistent_dir/figure.png"), std::string::npos) << err;
+  EXPECT_FALSE(RenderPng(HelixFigure(400, 300), "/nonexistent_dir/figure3d.png", &err));
+  EXPECT_NE(err.find("figure3d.png"), std::string::npos) << err;
+}
+
+TEST(RenderErrors, ExtremeValuesRenderOrAreRefused) {
+  const auto one_series = [](std::vector<double> x, std::vector<double> y, bool log) {
+    Figure2D f;
+    f.width_px = 500;
+    f.height_px = 300;
+    Panel p;
+    p.y.log = log;
+    Series s;
+    s.x = std::move(x);
+    s.y = std::move(y);
+    s.marker = Marker::kCircle;
+    p.series.push_back(std::move(s));
+    f.panels.push_back(std::move(p));
+    return f;
+  };
+  Image img;
+  std::string err;
+  // Beyond +-1e300 counts as missing.
+  EXPECT_FALSE(RenderImage(one_series({0, 1}, {1e308, -1e308}, false), &img, &err));
+  EXPECT_NE(err.find("usable"), std::string::npos) << err;
+  // 600 decades on a log axis, epoch seconds with a 2 ms range, a vertical line, denormals.
+  for (const Figure2D& f :
+       {one_series({0, 1, 2}, {1e-300, 1, 1e300}, true),
+        one_series({0, 1, 2}, {1.7e9, 1.7e9 + 1e-3, 1.7e9 + 2e-3}, false),
+        one_series({5, 5, 5}, {1, 2, 3}, false), one_series({0, 1}, {4.9e-324, 1e-323}, false)}) {
+    ASSERT_TRUE(RenderImage(f, &img, &err)) << err;
+    EXPECT_EQ(img.width, 500);
+    EXPECT_GT(CountColour(img, Color{0, 0, 0, 1}, 40), 20u);  // the black series is drawn
+  }
+}
+
+TEST(RenderErrors, NonPositiveValuesOnALogAxisAreSkipped) {
+  Figure2D f = TwoPanelFigure(600, 400);
+  f.panels[1].series[0].y[100] = 0.0;
+  f.panels[1].series[0].y[200] = -5.0;
+  Image img;
+  std::string err;
+  EXPECT_TRUE(RenderImage(f, &img, &err)) << err;
+}
+
+}  // namespace
+}  // namespace shoal::render
