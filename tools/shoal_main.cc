@@ -4,6 +4,7 @@
 #include "tools/analyze_command.h"
 #include "tools/compare_command.h"
 #include "tools/design_command.h"
+#include "tools/render_command.h"
 #include "tools/run_command.h"
 #include "tools/sim_command.h"
 
@@ -105,6 +106,21 @@ int main(int argc, char** argv) {
                    "(docs/theory.md)")
       ->check(CLI::IsMember({"itse", "ise", "position_ise"}));
 
+  shoal::RenderOptions ren;
+  CLI::App* ren_cmd = app.add_subcommand(
+      "render", "Draw a run's figures from its log as PNG, off-screen (OSMesa): 3-D "
+                "trajectories, states, tracking errors, the channel");
+  ren_cmd->add_option("log", ren.log, "LCM log of shoal sim or shoal run (or re-recorded)")
+      ->required();
+  ren_cmd->add_option("--out", ren.out_dir, "Directory for the PNG files (created)")->required();
+  ren_cmd->add_option("--size", ren.size, "Size of every figure, WxH pixels (default: "
+                                          "1400x1000 for 3-D, 1600x1000 for the others)");
+  ren_cmd->add_option("--scenario", ren.scenario,
+                      "Scenario file to use instead of the one in the log");
+  ren_cmd->add_flag("--linear-errors", ren.linear_errors,
+                    "Tracking errors on a linear axis (default: logarithmic)");
+  ren_cmd->add_flag("--quiet", ren.quiet, "Do not list the files written");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -116,5 +132,6 @@ int main(int argc, char** argv) {
   if (run_cmd->parsed()) return shoal::RunRun(run);
   if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
   if (design_cmd->parsed()) return shoal::RunDesign(design);
+  if (ren_cmd->parsed()) return shoal::RunRender(ren);
   return 2;
 }
