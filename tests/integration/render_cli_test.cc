@@ -1,0 +1,108 @@
+// `shoal render` as a user runs it: every figure of a shoal sim log at the requested size,
+// not blank, in the vehicles' colours; bad input exits 2 with a message.
+#include <gtest/gtest.h>
+#include <stb_image.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <set>
+#include <string>
+
+#include "render/figure.h"
+#include "tests/integration/test_util.h"
+
+namespace shoal {
+namespace {
+
+using shoal::testing::RunShoal;
+using shoal::testing::SourcePath;
+using shoal::testing::TmpPath;
+
+struct Stats {
+  int w = 0, h = 0;
+  std::size_t colours = 0;
+  double drawn = 0.0;  // fraction of pixels that are not (near) white
+  bool has_colour(const render::Color& c) const { return found.count(Key(c)) > 0; }
+  std::set<int> found;  // colours quantised to 4 bits per channel
+  static int Key(int r, int g, int b) { return (r >> 4) << 8 | (g >> 4) << 4 | (b >> 4); }
+  static int Key(const render::Color& c) {
+    return Key(static_cast<int>(std::lround(c.r * 255)), static_cast<int>(std::lround(c.g * 255)),
+               static_cast<int>(std::lround(c.b * 255)));
+  }
+};
+
+Stats Load(const std::string& path) {
+  Stats s;
+  int n = 0;
+  unsigned char* d = stbi_load(path.c_str(), &s.w, &s.h, &n, 3);
+  if (!d) return s;
+  std::set<int> exact;
+  std::size_t drawn = 0;
+  for (int i = 0; i < s.w * s.h; ++i) {
+    const int r = d[3 * i], g = d[3 * i + 1], b = d[3 * i + 2];
+    exact.insert(r << 16 | g << 8 | b);
+    s.found.insert(Stats::Key(r, g, b));
+    drawn += (r < 235 || g < 235 || b < 235);
+  }
+  stbi_image_free(d);
+  s.colours = exact.size();
+  s.drawn = static_cast<double>(drawn) / (s.w * s.h);
+  return s;
+}
+
+TEST(RenderCli, EveryFigureOfASimLogAtTheRequestedSizeAndNotBlank) {
+  const std::string log = TmpPath("render_cli.lcmlog");
+  const std::string dir = TmpPath("render_cli_figures");
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +
+                         " --duration 60 --quiet --out " + log, "rc_sim").status, 0);
+  const auto r = RunShoal("render " + log + " --out " + dir + " --size 900x600", "rc_render");
+  ASSERT_EQ(r.status, 0) << r.out << r.err;
+  for (const char* name : {"trajectory", "states", "errors", "channel"}) {
+    const std::string path = dir + "/" + name + ".png";
+    EXPECT_NE(r.out.find(path), std::string::npos) << r.out;
+    const Stats s = Load(path);
+    EXPECT_EQ(s.w, 900) << path;
+    EXPECT_EQ(s.h, 600) << path;
+    EXPECT_GT(s.colours, 50u) << path;  // anti-aliased lines and text in several colours
+    EXPECT_GT(s.drawn, 0.02) << path;
+    EXPECT_LT(s.drawn, 0.9) << path;    // not a filled canvas either
+    if (std::string(name) != "channel") {  // the channel figure is coloured by receiver
+      for (int id = 1; id <= 5; ++id) {
+        EXPECT_TRUE(s.has_colour(render::VehicleColor(id))) << path << " follower " << id;
+      }
+    }
+  }
+  EXPECT_TRUE(Load(dir + "/trajectory.png").has_colour(render::VehicleColor(0)));
+}
+
+TEST(RenderCli, BadInputExitsTwoWithAMessage) {
+  const std::string dir = TmpPath("render_cli_bad");
+  const std::string empty = TmpPath("render_cli_empty.lcmlog");
+  const std::string text = TmpPath("render_cli_text.lcmlog");
+  std::fclose(std::fopen(empty.c_str(), "w"));
+  FILE* f = std::fopen(text.c_str(), "w");
+  std::fputs("this is not an LCM log\n", f);
+  std::fclose(f);
+  const std::string log = TmpPath("render_cli.lcmlog");  // from the test above, if it ran
+  struct Case {
+    std::string args, says;
+  } cases[] = {
+      {"render /nonexistent.lcmlog --out " + dir, "nonexistent"},
+      {"render " + empty + " --out " + dir, "empty"},
+      {"render " + text + " --out " + dir, "LCM"},
+      {"render " + empty + " --out " + dir + " --size 10x10", "--size"},
+      {"render " + empty + " --out " + dir + " --size big", "--size"},
+      {"render " + empty + " --out " + text, "not a directory"},
+      {"render " + empty, "--out"},
+  };
+  for (const Case& c : cases) {
+    const auto r = RunShoal(c.args, "rc_bad");
+    EXPECT_EQ(r.status, 2) << c.args << "\n" << r.out << r.err;
+    EXPECT_NE(r.err.find(c.says), std::string::npos) << c.args << "\n" << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace shoal
