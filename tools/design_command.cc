@@ -374,6 +374,7 @@ int RunDesign(const DesignOptions& opt) {
                             t1->W_eigenvalues.data() + t1->W_eigenvalues.size());
     t.Raw("W", MatrixJson(t1->W))
         .NumArray("W_eigenvalues", wev)
+        .Raw("M", MatrixJson(t1->M))
         .Raw("M2_eigenvalues", ComplexListJson(t1->M2_eigenvalues))
         .Num("lambda_max_W", t1->lambda_max_W)
         .Num("lambda_max_M2", t1->lambda_max_M2)
