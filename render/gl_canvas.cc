@@ -218,10 +218,6 @@ void GlCanvas::Draw(const Mesh& mesh, Depth depth, bool once_per_pixel) {
       glEnable(GL_DEPTH_TEST);
       glDepthMask(GL_TRUE);
       break;
-    case Depth::kTestOnly:
-      glEnable(GL_DEPTH_TEST);
-      glDepthMask(GL_FALSE);
-      break;
   }
   if (once_per_pixel) {
     if (++stencil_ref_ > 255) {

@@ -18,7 +18,7 @@ namespace shoal::render {
 
 class GlCanvas {
  public:
-  enum class Depth { kOff, kTestAndWrite, kTestOnly };
+  enum class Depth { kOff, kTestAndWrite };
 
   GlCanvas() = default;
   ~GlCanvas();

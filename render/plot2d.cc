@@ -657,7 +657,8 @@ bool Plot2D::Render(Image* out, std::string* err) {
     Layout(outside);
   }
   for (PanelState& ps : ps_) {
-    BuildGeometry(&ps, z_.s);
+    // Geometry built for the legend's placement is still valid unless the layout changed.
+    if (any_outside || ps.geom.size() != ps.panel->series.size()) BuildGeometry(&ps, z_.s);
     if (ps.legend.empty()) continue;
     if (ps.legend_outside) {
       ps.legend_x = ps.plot.x1 + 12.0f * z_.s;

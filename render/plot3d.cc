@@ -505,7 +505,6 @@ bool Plot3D::Render(Image* out, std::string* err) {
   PlaceAxisLabels();
   for (int pass = 0; pass < 2; ++pass) {
     const Rect b = LabelBounds();
-    const double scale = std::min(area.w() / b.w(), area.h() / b.h());
     // Label offsets do not scale with the box, so solve for the box size directly.
     Rect boxb{INFINITY, INFINITY, -INFINITY, -INFINITY};
     for (int i = 0; i < 8; ++i) {
@@ -520,7 +519,6 @@ bool Plot3D::Render(Image* out, std::string* err) {
     const float extra_w = b.w() - boxb.w(), extra_h = b.h() - boxb.h();
     const double kx = (area.w() - extra_w) / boxb.w(), ky = (area.h() - extra_h) / boxb.h();
     const double grow = std::min(kx, ky);
-    (void)scale;
     // New box rectangle, centred so that box plus labels are centred in the area.
     const float left_extra = boxb.x0 - b.x0, top_extra = boxb.y0 - b.y0;
     const float nbw = static_cast<float>(boxb.w() * grow),
