@@ -8,24 +8,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <memory>
+#include <mutex>
 #include <vector>
 
 namespace shoal::render {
 
-// One per thread: the OSMesa context and the framebuffers of the last size used.
+// An OSMesa context and the framebuffers of the last size drawn with it.
 struct GlCanvas::Context {
   OSMesaContext osmesa = nullptr;
   unsigned char dummy[4 * 4 * 4] = {};
   int width = 0, height = 0, samples = 0;
   GLuint fbo_ms = 0, rb_color_ms = 0, rb_depth_ms = 0;
   GLuint fbo_resolve = 0, rb_color_resolve = 0;
-
-  ~Context() {
-    if (!osmesa) return;
-    if (OSMesaMakeCurrent(osmesa, dummy, GL_UNSIGNED_BYTE, 4, 4)) ReleaseFramebuffers();
-    OSMesaDestroyContext(osmesa);
-  }
 
   void ReleaseFramebuffers() {
     if (fbo_ms) glDeleteFramebuffers(1, &fbo_ms);
@@ -121,24 +115,53 @@ struct GlCanvas::Context {
 };
 
 namespace {
-thread_local std::unique_ptr<GlCanvas::Context> t_context;
+
+// Contexts not in use by any canvas, shared by all threads. They are never destroyed:
+// llvmpipe compiles its shaders per context (more work than drawing a figure), and Mesa
+// leaks a little of every context it destroys. One thread drawing figure after figure
+// uses a single context.
+std::mutex g_pool_mutex;
+std::vector<GlCanvas::Context*>* const g_pool = new std::vector<GlCanvas::Context*>();
+
+GlCanvas::Context* TakeContext() {
+  std::lock_guard<std::mutex> lock(g_pool_mutex);
+  if (g_pool->empty()) return nullptr;
+  GlCanvas::Context* c = g_pool->back();
+  g_pool->pop_back();
+  return c;
+}
+
+void ReturnContext(GlCanvas::Context* c) {
+  std::lock_guard<std::mutex> lock(g_pool_mutex);
+  g_pool->push_back(c);
+}
+
 }  // namespace
+
+GlCanvas::~GlCanvas() {
+  if (!ctx_) return;
+  OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0);  // release it for another thread
+  ReturnContext(ctx_);
+}
 
 int GlCanvas::samples() const { return ctx_ ? ctx_->samples : 0; }
 
 bool GlCanvas::Init(int width, int height, std::string* err) {
-  if (!t_context) {
-    auto c = std::make_unique<Context>();
-    if (!c->Create(err)) return false;
-    t_context = std::move(c);
+  Context* c = ctx_ ? ctx_ : TakeContext();
+  if (!c) {
+    c = new Context();
+    if (!c->Create(err)) {
+      if (c->osmesa) OSMesaDestroyContext(c->osmesa);
+      delete c;
+      return false;
+    }
   }
-  Context* c = t_context.get();
+  ctx_ = c;  // returned to the pool by the destructor, whatever happens below
   if (!OSMesaMakeCurrent(c->osmesa, c->dummy, GL_UNSIGNED_BYTE, 4, 4)) {
     if (err) *err = "cannot make the OSMesa context current";
     return false;
   }
   if (!c->Resize(width, height, err)) return false;
-  ctx_ = c;
   glBindFramebuffer(GL_FRAMEBUFFER, c->fbo_ms);
   glViewport(0, 0, width, height);
   // Pixel coordinates (x right, y down, z = NDC depth) to clip space.
@@ -194,10 +217,6 @@ void GlCanvas::Draw(const Mesh& mesh, Depth depth, bool once_per_pixel) {
     case Depth::kTestAndWrite:
       glEnable(GL_DEPTH_TEST);
       glDepthMask(GL_TRUE);
-      break;
-    case Depth::kTestOnly:
-      glEnable(GL_DEPTH_TEST);
-      glDepthMask(GL_FALSE);
       break;
   }
   if (once_per_pixel) {

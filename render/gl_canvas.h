@@ -1,9 +1,10 @@
 // An OSMesa (llvmpipe) OpenGL context drawing triangle meshes into a 4x multisampled
 // off-screen framebuffer (internal to shoal_render). Pixel coordinates: x right, y down.
 //
-// The context is created once per thread and reused by later figures (llvmpipe compiles
-// its shaders per context, which costs more than drawing a figure); the framebuffers are
-// reallocated when the size changes. It is destroyed when the thread exits.
+// Contexts are kept in a process-wide pool and reused by later figures (llvmpipe compiles
+// its shaders per context, which costs more than drawing a figure); a canvas holds one
+// from Init to its destruction, and its framebuffers are reallocated when the size
+// changes. Canvases on different threads use different contexts.
 #pragma once
 
 #include <cstdint>
@@ -17,14 +18,15 @@ namespace shoal::render {
 
 class GlCanvas {
  public:
-  enum class Depth { kOff, kTestAndWrite, kTestOnly };
+  enum class Depth { kOff, kTestAndWrite };
 
   GlCanvas() = default;
+  ~GlCanvas();
   GlCanvas(const GlCanvas&) = delete;
   GlCanvas& operator=(const GlCanvas&) = delete;
 
-  /// Makes this thread's context current with width x height framebuffers; false with a
-  /// message on failure.
+  /// Makes a context current on this thread with width x height framebuffers; false with
+  /// a message on failure.
   bool Init(int width, int height, std::string* err);
 
   void Clear(const Color& background);
@@ -42,7 +44,7 @@ class GlCanvas {
 
   int samples() const;
 
-  struct Context;  // per thread, defined in gl_canvas.cc
+  struct Context;  // defined in gl_canvas.cc
 
  private:
   Context* ctx_ = nullptr;

@@ -505,7 +505,6 @@ bool Plot3D::Render(Image* out, std::string* err) {
   PlaceAxisLabels();
   for (int pass = 0; pass < 2; ++pass) {
     const Rect b = LabelBounds();
-    const double scale = std::min(area.w() / b.w(), area.h() / b.h());
     // Label offsets do not scale with the box, so solve for the box size directly.
     Rect boxb{INFINITY, INFINITY, -INFINITY, -INFINITY};
     for (int i = 0; i < 8; ++i) {
@@ -520,7 +519,6 @@ bool Plot3D::Render(Image* out, std::string* err) {
     const float extra_w = b.w() - boxb.w(), extra_h = b.h() - boxb.h();
     const double kx = (area.w() - extra_w) / boxb.w(), ky = (area.h() - extra_h) / boxb.h();
     const double grow = std::min(kx, ky);
-    (void)scale;
     // New box rectangle, centred so that box plus labels are centred in the area.
     const float left_extra = boxb.x0 - b.x0, top_extra = boxb.y0 - b.y0;
     const float nbw = static_cast<float>(boxb.w() * grow),
@@ -702,18 +700,40 @@ void Plot3D::DrawText(Image* img) {
   }
   const TextStyle tick{tick_px_, false, kTickLabelColor};
   const TextStyle label{label_px_, false, kLabelColor};
+  // Axis titles first, then tick labels (vertical axis first); where two axes meet at a
+  // corner, a tick label that would overlap one already placed is left out.
+  std::vector<Rect> taken;
+  const auto overlaps = [&](const Rect& r) {
+    for (const Rect& t : taken) {
+      if (r.x1 + 2 > t.x0 && r.x0 - 2 < t.x1 && r.y1 + 2 > t.y0 && r.y0 - 2 < t.y1) return true;
+    }
+    return false;
+  };
+  const float tick_lh = text_->LineHeight(tick_px_), label_lh = text_->LineHeight(label_px_);
   for (const AxisLabels& a : axes_) {
+    text_->Draw(img, a.title, a.title_pos.x, a.title_pos.y, label, HAlign::kCenter, VAlign::kMiddle,
+                a.title_rotated);
+    const float tw = text_->Width(a.title, label_px_);
+    const float hw = 0.5f * (a.title_rotated ? label_lh : tw);
+    const float hh = 0.5f * (a.title_rotated ? tw : label_lh);
+    taken.push_back(
+        {a.title_pos.x - hw, a.title_pos.y - hh, a.title_pos.x + hw, a.title_pos.y + hh});
+  }
+  for (int k : {2, 0, 1}) {
+    const AxisLabels& a = axes_[static_cast<std::size_t>(k)];
     for (std::size_t i = 0; i < a.labels.size(); ++i) {
+      const float hw = 0.5f * text_->Width(a.labels[i], tick_px_), hh = 0.4f * tick_lh;
+      const Rect r{a.label_pos[i].x - hw, a.label_pos[i].y - hh, a.label_pos[i].x + hw,
+                   a.label_pos[i].y + hh};
+      if (overlaps(r)) continue;
+      taken.push_back(r);
       text_->Draw(img, a.labels[i], a.label_pos[i].x, a.label_pos[i].y, tick, HAlign::kCenter,
                   VAlign::kMiddle);
     }
-    text_->Draw(img, a.title, a.title_pos.x, a.title_pos.y, label, HAlign::kCenter, VAlign::kMiddle,
-                a.title_rotated);
   }
   // Snapshot labels: above-right, above-left, below-right or below-left of the first point,
   // whichever does not overlap a label already placed (or the legend); else none.
   const TextStyle snap_style{12.5f * s_, false, {0.25f, 0.25f, 0.25f, 1.0f}};
-  std::vector<Rect> taken;
   if (!legend_.empty()) {
     taken.push_back(
         {legend_x_, legend_y_, legend_x_ + legend_.width(), legend_y_ + legend_.height()});

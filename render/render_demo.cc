@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "render/shoal_figures.h"
 #include "render/synthetic_run.h"
@@ -68,7 +70,6 @@ int main(int argc, char** argv) {
   using namespace shoal::render;
   const SyntheticRun run = MakeSyntheticRun(duration_s, 50.0, drop, 1);
   const std::string scenario = "synthetic paper_example2";
-  std::printf("render_demo: %.0f s of synthetic data at 50 Hz, figures:\n", duration_s);
 
   TrajectoryOptions to;
   to.scenario = scenario;
@@ -81,11 +82,10 @@ int main(int argc, char** argv) {
   Figure3D traj = TrajectoryFigure(run.vehicles, to);
   traj.azimuth_deg = azimuth_deg;
   traj.elevation_deg = elevation_deg;
-  bool ok = Write(out + "/trajectories.png", traj);
 
   const int w2 = width > 0 ? width : 1600, h2 = height > 0 ? height : 1000;
-  ok = Write(out + "/states.png", StateFigure(run.vehicles, scenario, w2, h2)) && ok;
-
+  std::vector<std::pair<std::string, Figure2D>> figures;
+  figures.emplace_back("states.png", StateFigure(run.vehicles, scenario, w2, h2));
   ErrorOptions eo;
   eo.scenario = scenario;
   eo.log_y = true;
@@ -94,16 +94,27 @@ int main(int argc, char** argv) {
   eo.converged_s = run.converged_s;
   eo.width_px = w2;
   eo.height_px = h2;
-  ok = Write(out + "/errors.png", ErrorFigure(run.errors, eo)) && ok;
+  figures.emplace_back("errors.png", ErrorFigure(run.errors, eo));
   eo.log_y = false;
-  ok = Write(out + "/errors_linear.png", ErrorFigure(run.errors, eo)) && ok;
-
+  figures.emplace_back("errors_linear.png", ErrorFigure(run.errors, eo));
   ChannelOptions co;
   co.scenario = scenario;
   co.tau_t_s = run.tau_t_s;
   co.tau_s = run.tau_s;
   co.width_px = w2;
   co.height_px = h2;
-  ok = Write(out + "/channel.png", ChannelFigure(run.links, co)) && ok;
+  figures.emplace_back("channel.png", ChannelFigure(run.links, co));
+
+  // Bad options (e.g. a size too small for a figure) are reported before anything is drawn.
+  std::string err;
+  bool valid = Validate(traj, &err);
+  for (const auto& f : figures) valid = valid && Validate(f.second, &err);
+  if (!valid) {
+    std::fprintf(stderr, "render_demo: %s\n", err.c_str());
+    return 2;
+  }
+  std::printf("render_demo: %.0f s of synthetic data at 50 Hz, figures:\n", duration_s);
+  bool ok = Write(out + "/trajectories.png", traj);
+  for (const auto& f : figures) ok = Write(out + "/" + f.first, f.second) && ok;
   return ok ? 0 : 1;
 }
