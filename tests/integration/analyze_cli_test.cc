@@ -18,21 +18,13 @@ namespace shoal {
 namespace {
 
 using shoal::testing::ReadFile;
+using shoal::testing::JsonNumber;
+using shoal::testing::JsonRaw;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::TmpPath;
 
 const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
-
-// The raw JSON text of the first value of "key" (number, bool, null or string).
-std::string JsonRaw(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\":";
-  const auto p = json.find(k);
-  if (p == std::string::npos) return "<missing>";
-  const auto b = p + k.size();
-  const auto e = json.find_first_of(",}]", b);
-  return json.substr(b, e - b);
-}
 
 // One shoal sim log of Example 2 (60 s: converges at 53.02 s) shared by the tests.
 const std::string& SimLog() {

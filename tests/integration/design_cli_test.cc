@@ -11,19 +11,10 @@
 namespace shoal {
 namespace {
 
+using shoal::testing::JsonNumber;
+using shoal::testing::JsonRaw;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
-
-/// The number after the first occurrence of "key": in a JSON text (NaN if absent/null).
-double JsonNumber(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\":";
-  const std::size_t p = json.find(k);
-  if (p == std::string::npos) return NAN;
-  const char* start = json.c_str() + p + k.size();
-  char* end = nullptr;
-  const double v = std::strtod(start, &end);
-  return end == start ? NAN : v;
-}
 
 std::string Example(int n) {
   return SourcePath("scenarios/paper_example" + std::to_string(n) + ".toml");

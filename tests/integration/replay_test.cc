@@ -22,6 +22,8 @@ namespace shoal {
 namespace {
 
 using shoal::testing::ReadFile;
+using shoal::testing::JsonNumber;
+using shoal::testing::JsonRaw;
 using shoal::testing::RunShoal;
 using shoal::testing::ShoalBinary;
 using shoal::testing::SourcePath;
@@ -29,18 +31,6 @@ using shoal::testing::TmpPath;
 using shoal::testing::WaitExit;
 
 constexpr double kPeriodS = 0.02;  // the scenario's 50 Hz
-
-std::string JsonRaw(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\":";
-  const auto p = json.find(k);
-  if (p == std::string::npos) return "<missing>";
-  const auto b = p + k.size();
-  return json.substr(b, json.find_first_of(",}]", b) - b);
-}
-double JsonNum(const std::string& json, const std::string& key) {
-  const std::string v = JsonRaw(json, key);
-  return v == "null" || v == "<missing>" ? std::nan("") : std::atof(v.c_str());
-}
 
 /// Multicast on the private group must stay on loopback (as shoal run ensures).
 std::string EnsureLoopbackMulticast() {
@@ -128,7 +118,7 @@ class Replay : public ::testing::Test {
     ASSERT_EQ(std::system("command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null"), 0)
         << "lcm-logplayer / lcm-logger missing (Debian package liblcm-bin)";
     ASSERT_EQ(JsonRaw(Orig().json, "converged"), "true") << Orig().json;
-    ASSERT_EQ(JsonNum(Orig().json, "convergence_time_s"), 20.56) << Orig().json;
+    ASSERT_EQ(JsonNumber(Orig().json, "convergence_time_s"), 20.56) << Orig().json;
   }
 };
 
@@ -138,7 +128,7 @@ class Replay : public ::testing::Test {
 // queue holds 30): at least 98 % must be there.
 void ExpectSameAnalysis(const std::string& orig, const std::string& other) {
   EXPECT_EQ(JsonRaw(other, "converged"), JsonRaw(orig, "converged")) << other;
-  EXPECT_LE(std::abs(JsonNum(other, "convergence_time_s") - JsonNum(orig, "convergence_time_s")),
+  EXPECT_LE(std::abs(JsonNumber(other, "convergence_time_s") - JsonNumber(orig, "convergence_time_s")),
             kPeriodS + 1e-9)
       << other;
   EXPECT_EQ(JsonRaw(other, "scenario"), JsonRaw(orig, "scenario"));
@@ -147,9 +137,9 @@ void ExpectSameAnalysis(const std::string& orig, const std::string& other) {
   // lcm-logger's 30-message subscription queue drops bursts when the machine is loaded
   // (seen: 2-3 % at 4x and 8x with a parallel build): every recorded state must be equal
   // (below), and at least 90 % must be there, as in the SIL tests.
-  EXPECT_GE(JsonNum(other, "log_states"), 0.9 * JsonNum(orig, "log_states")) << other;
-  EXPECT_GE(JsonNum(other, "channel_delivered"), 0.9 * JsonNum(orig, "channel_delivered"));
-  EXPECT_EQ(JsonNum(other, "channel_dropped"), 0.0);
+  EXPECT_GE(JsonNumber(other, "log_states"), 0.9 * JsonNumber(orig, "log_states")) << other;
+  EXPECT_GE(JsonNumber(other, "channel_delivered"), 0.9 * JsonNumber(orig, "channel_delivered"));
+  EXPECT_EQ(JsonNumber(other, "channel_dropped"), 0.0);
 }
 
 TEST_F(Replay, LoggerReRecordingAnalysesTheSameAtSeveralSpeeds) {
@@ -173,15 +163,15 @@ TEST_F(Replay, LoggerReRecordingAnalysesTheSameAtSeveralSpeeds) {
     ExpectSameAnalysis(Orig().json, ana.out);
     // lcm-logger stamps events with the wall clock: the recording span gives the speed,
     // and the player never plays faster than asked.
-    EXPECT_GT(JsonNum(ana.out, "wall_time_s"), 0.0);
-    EXPECT_LE(JsonNum(ana.out, "realtime_factor"), speed * 1.05);
+    EXPECT_GT(JsonNumber(ana.out, "wall_time_s"), 0.0);
+    EXPECT_LE(JsonNumber(ana.out, "realtime_factor"), speed * 1.05);
     // State by state.
     const auto cmp = RunShoal("compare " + Orig().log + " " + rec + " --json", tag + "_cmp");
     ASSERT_EQ(cmp.status, 0) << cmp.err;
-    EXPECT_LE(JsonNum(cmp.out, "max_position_diff_m"), 1e-9) << cmp.out;
-    EXPECT_LE(JsonNum(cmp.out, "max_velocity_diff_mps"), 1e-9) << cmp.out;
-    EXPECT_EQ(JsonNum(cmp.out, "samples"), JsonNum(cmp.out, "states_b")) << cmp.out;
-    EXPECT_GE(JsonNum(cmp.out, "samples"), 0.9 * JsonNum(cmp.out, "states_a")) << cmp.out;
+    EXPECT_LE(JsonNumber(cmp.out, "max_position_diff_m"), 1e-9) << cmp.out;
+    EXPECT_LE(JsonNumber(cmp.out, "max_velocity_diff_mps"), 1e-9) << cmp.out;
+    EXPECT_EQ(JsonNumber(cmp.out, "samples"), JsonNumber(cmp.out, "states_b")) << cmp.out;
+    EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * JsonNumber(cmp.out, "states_a")) << cmp.out;
   }
 }
 
@@ -213,10 +203,10 @@ TEST_F(Replay, LiveAnalysisStopsOnSigintWithWhatItHas) {
   kill(player, SIGTERM);
   WaitExit(player, 10, nullptr);
   const std::string json = ReadFile(out);
-  const double t = JsonNum(json, "sim_time_s");
+  const double t = JsonNumber(json, "sim_time_s");
   EXPECT_GT(t, 0.5) << json;
   EXPECT_LT(t, 29.0) << json;
-  EXPECT_GT(JsonNum(json, "log_states"), 0.0);
+  EXPECT_GT(JsonNumber(json, "log_states"), 0.0);
 }
 
 // Nothing on the bus: a clear message and exit 2 after --duration.

@@ -22,6 +22,8 @@ namespace shoal {
 namespace {
 
 using shoal::testing::ReadFile;
+using shoal::testing::JsonNumber;
+using shoal::testing::JsonRaw;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::StartShoal;
@@ -32,13 +34,6 @@ const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
 
 std::string Url(int port) {
   return "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0&recv_buf_size=4194304";
-}
-
-// Extracts a number after "key": in a flat or nested JSON text.
-double JsonNumber(const std::string& json, const std::string& key) {
-  const auto p = json.find("\"" + key + "\":");
-  if (p == std::string::npos) return std::numeric_limits<double>::quiet_NaN();
-  return std::atof(json.c_str() + p + key.size() + 3);
 }
 
 // pgrep -f over full command lines. The first character is bracketed so that the shell
