@@ -107,6 +107,13 @@ Verdict Decide(const VerdictInput& in) {
         }
         return v;
       case FactorKind::kLipschitz:
+        if (in.theorem3_certified.value_or(false) && in.kappa && *in.kappa < 1.0) {
+          v.certified = true;
+          v.by = "Theorem 3 (LMI (27)-(28))";
+          v.reason = "no delay (h = 0), uncertain factor with rho0 = " + Num(in.rho0) +
+                     "; the LMI is feasible";
+          return v;
+        }
         if (in.theorem2 && in.theorem2->certifies) {
           v.certified = true;
           v.by = "Theorem 2 (corrected)";

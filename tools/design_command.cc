@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <cerrno>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -144,8 +146,9 @@ std::optional<bool> AddTheorem3Block(const Scenario& s, const Eigen::MatrixXd& H
                                      double k2, double h_s, const std::optional<double>& kappa,
                                      const theory::Lipschitz& lip,
                                      const std::optional<double>& rho0_flag,
-                                     const std::string& certificate, JsonWriter* json,
-                                     std::ostream* text, std::optional<double>* max_delay_s) {
+                                     const std::string& certificate, bool factor_covered,
+                                     JsonWriter* json, std::ostream* text,
+                                     std::optional<double>* max_delay_s, bool* write_failed) {
   JsonWriter t;
   std::ostream& txt = *text;
   txt << "theorem 3 (LMI (27)-(28) corrected, every multiplier free, CSDP)\n";
@@ -154,9 +157,12 @@ std::optional<bool> AddTheorem3Block(const Scenario& s, const Eigen::MatrixXd& H
     why_not = "the delay's rate is unbounded (uniform jitter draws a new delay per message)";
   } else if (*kappa >= 1.0) {
     why_not = "kappa = " + G(*kappa) + " >= 1 (Assumption 3 needs tau' <= kappa < 1)";
-  } else if (!rho0_flag && s.disturbance.kind == DisturbanceKind::kOceanCurrent) {
-    why_not = "the ocean current has no Lipschitz bound of the form f(x_i) - f(x_0) "
-              "(pass --rho0 to assume one)";
+  } else if (!factor_covered) {
+    why_not = s.disturbance.kind == DisturbanceKind::kOceanCurrent
+                  ? "the ocean current has no Lipschitz bound of the form f(x_i) - f(x_0) "
+                    "(pass --rho0 to assume one)"
+                  : "the uncertain factor is not of the form f(x_i) - f(x_0) that Theorem 3 "
+                    "covers (relative_to_leader = false; pass --rho0 to assume a bound)";
   }
   if (!why_not.empty()) {
     t.Bool("evaluated", false).Str("reason", why_not);
@@ -225,6 +231,7 @@ std::optional<bool> AddTheorem3Block(const Scenario& s, const Eigen::MatrixXd& H
     std::string err;
     if (!design::WriteCertificate(r, certificate, &err)) {
       std::cerr << "shoal design: --certificate: " << err << "\n";
+      *write_failed = true;
     } else {
       txt << "  certificate (h = " << G(r.input.h_s) << " s, "
           << (r.certifies() ? "feasible" : "NOT feasible: the solver's last matrices") << ") written to "
@@ -248,6 +255,17 @@ int RunDesign(const DesignOptions& opt) {
     return 2;
   }
 
+  if (!opt.certificate.empty()) {  // before the solves, not after them
+    const bool existed = access(opt.certificate.c_str(), F_OK) == 0;
+    FILE* f = std::fopen(opt.certificate.c_str(), "a");
+    if (f && !existed) std::remove(opt.certificate.c_str());
+    if (!f) {
+      std::cerr << "shoal design: --certificate: " << opt.certificate
+                << ": cannot write there (" << std::strerror(errno) << ")\n";
+      return 2;
+    }
+    std::fclose(f);
+  }
   const double k1 = opt.k1.value_or(s.k1);
   const double k2 = opt.k2.value_or(s.k2);
   s.k1 = k1;
@@ -272,6 +290,14 @@ int RunDesign(const DesignOptions& opt) {
 
   // Uncertain factor.
   const theory::Lipschitz lip = theory::LipschitzOf(s.disturbance);
+  if (opt.rho0 && lip.applicable && s.disturbance.kind != DisturbanceKind::kNone &&
+      *opt.rho0 < lip.rho0) {
+    std::cerr << "shoal design: --rho0 " << G(*opt.rho0) << " is below the uncertain factor's "
+              << "own Lipschitz constant " << G(lip.rho0) << " (" << DisturbanceName(s.disturbance.kind)
+              << "): a certificate would rest on a bound the model does not satisfy; give "
+              << "--rho0 >= " << G(lip.rho0) << " or leave it out\n";
+    return 2;
+  }
   std::optional<double> rho0;
   if (opt.rho0) {
     rho0 = *opt.rho0;
@@ -471,9 +497,11 @@ int RunDesign(const DesignOptions& opt) {
 
   // Theorem 3 (wired in by design/theorem3; see AddTheorem3Block).
   std::optional<double> theorem3_max_delay;
+  bool certificate_failed = false;
   const std::optional<bool> theorem3_certified =
       AddTheorem3Block(s, H, k1, k2, delay.h_s, delay.kappa, lip, opt.rho0, opt.certificate,
-                       &j, &txt, &theorem3_max_delay);
+                       factor != design::FactorKind::kUncovered, &j, &txt, &theorem3_max_delay,
+                       &certificate_failed);
 
   // Exact delay margin.
   {
@@ -719,6 +747,7 @@ int RunDesign(const DesignOptions& opt) {
   } else {
     std::cout << txt.str();
   }
+  if (certificate_failed) return 2;
   return v.certified ? 0 : 1;
 }
 

@@ -61,6 +61,17 @@ int RunRender(const RenderOptions& opt) {
     std::cerr << kWho << opt.out_dir << ": exists and is not a directory; give --out a directory\n";
     return 2;
   }
+  {  // Writable before anything is loaded or drawn.
+    const std::string probe = opt.out_dir + "/.shoal_render_probe";
+    FILE* f = std::fopen(probe.c_str(), "w");
+    if (!f) {
+      std::cerr << kWho << opt.out_dir << ": cannot write there (" << std::strerror(errno)
+                << ")\n";
+      return 2;
+    }
+    std::fclose(f);
+    std::remove(probe.c_str());
+  }
   Scenario scenario;
   LoadOptions lo;
   if (!opt.scenario.empty()) {

@@ -1,6 +1,9 @@
 // shoal: the command-line tool. main() only parses flags and dispatches.
 #include <CLI/CLI.hpp>
 
+#include <iostream>
+#include <tuple>
+
 #include "tools/analyze_command.h"
 #include "tools/compare_command.h"
 #include "tools/design_command.h"
@@ -64,7 +67,7 @@ int main(int argc, char** argv) {
   ana_cmd->add_option("--csv", ana.csv_dir,
                       "Write tidy CSV time series into this directory (created if missing)");
   ana_cmd->add_option("--scenario", ana.scenario,
-                      "Scenario file to use instead of the log's (shoal run logs carry none)");
+                      "Scenario file to use instead of the one the log carries");
   ana_cmd->add_flag("--live", ana.live,
                     "Listen on an LCM URL (a running swarm or lcm-logplayer) instead of a log; "
                     "ends on Ctrl-C, when the run finishes, or after --duration");
@@ -126,6 +129,17 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
+  }
+  // -1 is the commands' "not given" marker: a --duration the user typed must be positive.
+  for (auto [cmd, flag, value] :
+       {std::make_tuple(sim_cmd, "--duration", sim.duration_s),
+        std::make_tuple(run_cmd, "--duration", run.duration_s),
+        std::make_tuple(design_cmd, "--empirical-duration", design.empirical_duration_s)}) {
+    if (cmd->parsed() && cmd->count(flag) > 0 && !(value > 0)) {
+      std::cerr << "shoal " << cmd->get_name() << ": " << flag
+                << " must be a positive number of seconds (got " << value << ")\n";
+      return 2;
+    }
   }
   if (sim_cmd->parsed()) return shoal::RunSim(sim);
   if (cmp_cmd->parsed()) return shoal::RunCompare(cmp);

@@ -29,8 +29,10 @@ const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
 // One shoal sim log of Example 2 (60 s: converges at 53.02 s) shared by the tests.
 const std::string& SimLog() {
   static const std::string log = [] {
-    const std::string p = TmpPath("analyze_cli_ex2.lcmlog");
-    RunShoal("sim " + kExample2 + " --duration 60 --quiet --out " + p, "analyze_cli_sim");
+    // Per process: CTest runs each test of this file as its own process, in parallel.
+    const std::string id = std::to_string(getpid());
+    const std::string p = TmpPath("analyze_cli_ex2_" + id + ".lcmlog");
+    RunShoal("sim " + kExample2 + " --duration 60 --quiet --out " + p, "analyze_cli_sim_" + id);
     return p;
   }();
   return log;

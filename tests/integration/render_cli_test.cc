@@ -85,7 +85,6 @@ TEST(RenderCli, BadInputExitsTwoWithAMessage) {
   FILE* f = std::fopen(text.c_str(), "w");
   std::fputs("this is not an LCM log\n", f);
   std::fclose(f);
-  const std::string log = TmpPath("render_cli.lcmlog");  // from the test above, if it ran
   struct Case {
     std::string args, says;
   } cases[] = {
