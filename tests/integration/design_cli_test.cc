@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 
@@ -49,6 +50,9 @@ TEST(DesignCli, NonPositiveGainsAndDelaysExitTwoNamingTheFlag) {
       {"--rho0 -1", "--rho0 must be a number >= 0"},
       {"--safety 0.5", "--safety must be a number >= 1"},
       {"--tune-horizon 0", "--tune-horizon must be a positive number"},
+      {"--rho0 0.1", "--rho0 0.1 is below the uncertain factor's own Lipschitz constant 0.5"},
+      {"--certificate /nonexistent-dir/c.json", "--certificate: /nonexistent-dir/c.json: cannot write"},
+      {"--empirical --empirical-duration -1", "--empirical-duration must be a positive number"},
   };
   for (const auto& c : cases) {
     const auto r = RunShoal("design " + Example(2) + " " + c.args, "d_bad");
@@ -129,6 +133,24 @@ TEST(DesignCli, Theorem3CertifiesWithoutTheFactorAndNotWithIt) {
   for (const char* m : {"\"Q\"", "\"Psi\"", "\"Z\"", "\"X\"", "\"Y\"", "\"Phi\""}) {
     EXPECT_NE(text.find(m), std::string::npos) << m;
   }
+}
+
+// Theorem 3 covers only factors of the form f(x_i) - f(x_0): with the absolute factor
+// (relative_to_leader = false) it is not evaluated, and says why, whatever the LMI would give.
+TEST(DesignCli, Theorem3IsNotEvaluatedForAFactorItDoesNotCover) {
+  std::string text = shoal::testing::ReadFile(Example(2));
+  const std::string from = "relative_to_leader = true", to = "relative_to_leader = false";
+  ASSERT_NE(text.find(from), std::string::npos);
+  text.replace(text.find(from), from.size(), to);
+  const std::string path = shoal::testing::TmpPath("d_abs.toml");
+  FILE* f = std::fopen(path.c_str(), "w");
+  std::fputs(text.c_str(), f);
+  std::fclose(f);
+  const auto r = RunShoal("design " + path + " --k1 0.5 --k2 2.5 --h 0.05 --kappa 0 --json", "d_abs");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  const std::string t3 = r.out.substr(r.out.find("\"theorem3\":"));
+  EXPECT_EQ(t3.rfind("\"theorem3\":{\"evaluated\":false", 0), 0u) << t3;
+  EXPECT_EQ(r.out.find("\"feasible\":true"), std::string::npos) << r.out;
 }
 
 TEST(DesignCli, ReadableReportHasEverySectionAndAVerdictLine) {
