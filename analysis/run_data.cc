@@ -12,6 +12,7 @@
 
 #include "analysis/log_reader.h"
 #include "analysis/memory.h"
+#include "runtime/lcm_bus.h"  // Decode: the generated decoder, made safe
 #include "runtime/scenario_loader.h"
 
 namespace shoal {
@@ -78,18 +79,6 @@ bool DecodeChannelEvent(const std::uint8_t* p, int size, channel_event_t* e) {
   e->deliver_utime = I64(p + 44);
   e->status = static_cast<std::int8_t>(p[52]);
   return true;
-}
-
-/// The generated decoder, made safe: false instead of an exception, and the whole buffer
-/// must be consumed.
-template <typename Msg>
-bool SafeDecode(const std::uint8_t* data, int size, Msg* out) {
-  if (size < 8) return false;
-  try {
-    return out->decode(data, 0, size) == size;
-  } catch (...) {
-    return false;
-  }
 }
 
 /// "123" or "-1" (whole string) -> id; false otherwise.
@@ -183,7 +172,7 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
     d_->channel_events.push_back(r);
   } else if (StartsWith(rest, "HEALTH_") && ParseId(rest.substr(7), &id)) {
     health_t h{};
-    if (!SafeDecode(data, size, &h)) {
+    if (!Decode(data, size, &h)) {
       ++d_->undecodable;
       return;
     }
@@ -209,7 +198,7 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
     d_->health.push_back(r);
   } else if (rest == "CLOCK") {
     clock_tick_t c{};
-    if (!SafeDecode(data, size, &c)) {
+    if (!Decode(data, size, &c)) {
       ++d_->undecodable;
       return;
     }
@@ -241,7 +230,7 @@ void RunDataBuilder::AddState(int id, const std::uint8_t* data, int size) {
 
 void RunDataBuilder::AddStatus(const std::uint8_t* data, int size) {
   run_status_t st;
-  if (!SafeDecode(data, size, &st)) {
+  if (!Decode(data, size, &st)) {
     ++d_->undecodable;
     return;
   }

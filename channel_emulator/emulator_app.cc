@@ -24,8 +24,7 @@ EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, doubl
       mode_(mode),
       t0_ns_(t0_ns),
       period_us_(s.period_us()),
-      final_tick_(static_cast<std::int64_t>(
-          std::floor((duration_s >= 0 ? duration_s : s.duration_s) * 1e6 / period_us_ + 1e-9))),
+      final_tick_(s.final_tick(duration_s)),
       bus_(bus),
       vbus_(std::move(vehicle_buses)),
       channel_(BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links)),

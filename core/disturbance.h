@@ -46,8 +46,11 @@ class Environment {
  public:
   /// `disturbance_delay`: the delay model at whose tau(t) the uncertain factor's
   /// arguments are taken (the scenario's default link delay).
-  Environment(const LeaderConfig& c, const DelayConfig& disturbance_delay)
-      : path_(c), delay_(disturbance_delay) {}
+  /// `leader_factor` false: f0 is not needed (the factor is absolute, not relative to the
+  /// leader) and stays zero, so that the leader's path is not evaluated for nothing.
+  Environment(const LeaderConfig& c, const DelayConfig& disturbance_delay,
+              bool leader_factor = true)
+      : path_(c), delay_(disturbance_delay), leader_factor_(leader_factor) {}
   const LeaderPath& leader_path() const { return path_; }
 
   /// The uncertain factor's delay at tick time `now`, in whole microseconds (its
@@ -75,6 +78,7 @@ class Environment {
     DelayedLeader d;
     d.delay_us = static_cast<Micros>(
         std::llround(NominalDelaySeconds(delay_, ToSeconds(now)) * 1e6));
+    if (!leader_factor_) return d;
     const LeaderSample l = path_.At(std::max(0.0, ToSeconds(now - d.delay_us)));
     d.f0 = PaperExample2F(l.eta, l.eta_dot);
     return d;
@@ -82,6 +86,7 @@ class Environment {
 
   LeaderPath path_;
   DelayConfig delay_;
+  bool leader_factor_ = true;
   bool valid_ = false;
   Micros now_ = 0;
   DelayedLeader cached_;

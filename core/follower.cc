@@ -20,7 +20,9 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
       tau_max_(s.vehicle.tau_max),
       disturbance_(s.disturbance.kind),
       disturbance_relative_(s.disturbance.relative_to_leader),
-      env_(env ? std::move(env) : std::make_shared<const Environment>(s.leader, s.delay)),
+      env_(env ? std::move(env)
+               : std::make_shared<const Environment>(s.leader, s.delay,
+                                                     s.disturbance.relative_to_leader)),
       current_(s.disturbance.current, Rng(s.seed, 0xC0FFEEULL, static_cast<std::uint64_t>(id))),
       slot_of_(topo.n() + 1, -1) {
   // Initial state: as given, or at the leader's start + offset, at rest.

@@ -3,6 +3,8 @@
 // stays free of I/O. Every key is documented in docs/scenario.md.
 #pragma once
 
+#include <cmath>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <utility>
@@ -130,6 +132,14 @@ struct Scenario {
   /// Control period in whole microseconds.
   Micros period_us() const {
     return static_cast<Micros>(1e6 / control_rate_hz + 0.5);
+  }
+
+  /// Index of the last control tick of a run of `duration_s` seconds (< 0: duration_s of
+  /// the scenario); ticks 0..final_tick(), the last one at or before the duration.
+  std::int64_t final_tick(double duration = -1.0) const {
+    const double d = duration >= 0 ? duration : duration_s;
+    return static_cast<std::int64_t>(
+        std::floor(d * 1e6 / static_cast<double>(period_us()) + 1e-9));
   }
 };
 

@@ -7,12 +7,11 @@ namespace shoal {
 Swarm::Swarm(const Scenario& s, double duration_s)
     : topo_(Topology::Build(s.followers, s.edges, s.leader_links)),
       period_us_(s.period_us()),
-      final_tick_(static_cast<std::int64_t>(
-          std::floor((duration_s >= 0 ? duration_s : s.duration_s) * 1e6 / period_us_ + 1e-9))),
+      final_tick_(s.final_tick(duration_s)),
       leader_(s),
       channel_(BuildLinks(s, topo_), period_us_),
       metrics_(s.offsets_m, s.metrics),
-      env_(std::make_shared<Environment>(s.leader, s.delay)),
+      env_(std::make_shared<Environment>(s.leader, s.delay, s.disturbance.relative_to_leader)),
       warm_env_(s.disturbance.kind == DisturbanceKind::kPaperExample2) {
   for (int i = 1; i <= s.followers; ++i) {
     followers_.push_back(std::make_unique<Follower>(s, topo_, i, env_));

@@ -95,9 +95,7 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
 
   // Number of residuals of a complete run over the horizon: ticks 0..final (Swarm) per
   // follower.
-  const auto ticks = static_cast<std::size_t>(std::floor(
-                         out.horizon_s * 1e6 / static_cast<double>(s.period_us()) + 1e-9)) +
-                     1;
+  const auto ticks = static_cast<std::size_t>(s.final_tick(out.horizon_s)) + 1;
   const std::size_t count = 2 * ticks * static_cast<std::size_t>(s.followers);
 
   // Starts: the scenario's gains (scaled down onto the feasible set if they miss the

@@ -126,9 +126,9 @@ std::string Vec3Json(const Vec3& v) {
 }
 
 std::string StrList(const std::vector<std::string>& v) {
-  std::string s = "[";
-  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? "," : "") + JsonWriter::Quote(v[i]);
-  return s + "]";
+  std::vector<std::string> quoted;
+  for (const std::string& x : v) quoted.push_back(JsonWriter::Quote(x));
+  return JsonWriter::List(quoted);
 }
 
 /// Last health report of process `id`, or null.
@@ -163,9 +163,8 @@ void PrintJson(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis&
       .Num("message_age_max_s", c.age_at_use_s.max)
       .Int("model_mismatches", c.model_mismatches)
       .Int("unknown_link_events", c.unknown_links);
-  std::string links = "[";
-  for (std::size_t i = 0; i < c.links.size(); ++i) {
-    const LinkAnalysis& l = c.links[i];
+  std::vector<std::string> links;
+  for (const LinkAnalysis& l : c.links) {
     JsonWriter lj;
     lj.Int("from", l.from)
         .Int("to", l.to)
@@ -180,15 +179,14 @@ void PrintJson(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis&
         .Raw("message_age_s", QuantileJson(l.age_at_use_s))
         .Int("stale_ticks", l.ticks_stale)
         .Int("ticks_before_first_message", l.ticks_before_first);
-    links += (i ? "," : "") + lj.Done();
+    links.push_back(lj.Done());
   }
-  ch.Raw("links", links + "]");
+  ch.Raw("links", JsonWriter::List(links));
 
   JsonWriter loop;
   loop.Num("lateness_p99_s", s.lateness_p99_s).Int("overruns", s.overruns);
-  std::string procs = "[";
-  for (std::size_t i = 0; i < a.processes.size(); ++i) {
-    const ProcessAnalysis& p = a.processes[i];
+  std::vector<std::string> procs;
+  for (const ProcessAnalysis& p : a.processes) {
     const HealthRecord& h = p.last;
     JsonWriter pj;
     pj.Int("id", p.id)
@@ -203,11 +201,11 @@ void PrintJson(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis&
         .Int("msgs_received", h.msgs_received)
         .Int("msgs_dropped_invalid", h.msgs_dropped_invalid)
         .Int("msgs_dropped_old", h.msgs_dropped_old);
-    procs += (i ? "," : "") + pj.Done();
+    procs.push_back(pj.Done());
   }
-  loop.Raw("processes", procs + "]");
+  loop.Raw("processes", JsonWriter::List(procs));
 
-  std::string per = "[";
+  std::vector<std::string> per_follower;
   for (std::size_t i = 0; i < a.followers.size(); ++i) {
     const FollowerAnalysis& fa = a.followers[i];
     const FormationErrors e = i < a.final_errors.size() ? a.final_errors[i]
@@ -228,9 +226,9 @@ void PrintJson(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis&
         .Int("compared_samples", fa.compared)
         .Int("stale_ticks", fa.stale_ticks)
         .Int("stale_events", fa.stale_events);
-    per += (i ? "," : "") + fj.Done();
+    per_follower.push_back(fj.Done());
   }
-  per += "]";
+  const std::string per = JsonWriter::List(per_follower);
 
   JsonWriter lead;
   lead.Num("path_length_m", a.leader_path_length_m)

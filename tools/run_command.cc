@@ -405,8 +405,7 @@ int RunRun(const RunOptions& opt) {
   // lcm-logger drops messages when it cannot keep up (LCM's 30-message subscription
   // queue); say so instead of hiding it.
   const std::int64_t expected_states =
-      (static_cast<std::int64_t>(std::floor(duration * 1e6 / s.period_us() + 1e-9)) + 1) *
-      (s.followers + 1);
+      (s.final_tick(duration) + 1) * (s.followers + 1);
   const bool all_ok = problems.empty() && !g_interrupted;
 
   if (opt.json) {

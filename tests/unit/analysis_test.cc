@@ -28,7 +28,11 @@ constexpr double kPi = 3.14159265358979323846;
 std::string Tmp(const std::string& name) {
   const std::string dir = std::string(SHOAL_BINARY_DIR) + "/test_tmp";
   std::system(("mkdir -p " + dir).c_str());
-  return dir + "/analysis_" + name;
+  // Per test: ctest runs each test as its own process, in parallel, and several tests
+  // write logs with the same helper.
+  const ::testing::TestInfo* t = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::string test = t != nullptr ? std::string(t->name()) + "_" : std::string();
+  return dir + "/analysis_" + test + name;
 }
 
 std::string ReadBytes(const std::string& path) {
