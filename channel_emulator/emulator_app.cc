@@ -2,6 +2,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -43,6 +44,17 @@ EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, doubl
   tick_state_.resize(slots);
   tick_seq_.assign(slots, 0);
   for (int id = 0; id <= n_; ++id) rx_channels_.push_back(channels::Rx(id));
+  for (int id = 0; id <= n_; ++id) {
+    auto group = std::find_if(bus_groups_.begin(), bus_groups_.end(),
+                              [&](const std::vector<int>& g) { return vbus_[g[0]] == vbus_[id]; });
+    if (group == bus_groups_.end()) {
+      bus_groups_.push_back({id});
+    } else {
+      group->push_back(id);
+    }
+    shared_has_vehicles_ = shared_has_vehicles_ || vbus_[id] == bus_;
+  }
+  outbox_.resize(static_cast<std::size_t>(n_ + 1));
 }
 
 void EmulatorApp::Init() {
@@ -111,7 +123,7 @@ void EmulatorApp::OnState(const std::string& channel, const void* data, int size
 
 void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime) {
   decisions_.clear();
-  channel_.Submit(id, seq, utime, raw, &decisions_);
+  channel_.Submit(id, seq, utime, Datagram{id, seq, raw}, &decisions_);
   for (const ChannelDecision& d : decisions_) {
     if (d.status == ChannelDecision::kDelivered) {
       ++counters_.delivered;
@@ -123,31 +135,56 @@ void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utim
   }
 }
 
-void EmulatorApp::DeliverLockstep(Micros now) {
-  channel_.DeliverDue(now, [&](int receiver, const Bytes& raw) {
-    vbus_[receiver]->PublishRaw(rx_channels_[receiver], raw.data(), static_cast<int>(raw.size()));
-  });
+void EmulatorApp::ReleaseWindow() {
+  // The window's deliveries, per receiver, in delivery order.
+  for (auto& o : outbox_) o.clear();
+  for (std::int64_t j = win_first_; j <= win_last_; ++j) {
+    channel_.DeliverDue(j * period_us_, [&](int receiver, const Datagram& d) {
+      outbox_[receiver].push_back(Outgoing{j, d});
+    });
+  }
+  // Bus by bus, the whole window in one burst: per tick the deliveries due to the bus's
+  // vehicles, then the clock tick that lists them. With a bus per vehicle a vehicle is
+  // woken once per window rather than once per message. Vehicles apply what a tick lists,
+  // whatever order the datagrams arrive in, so this order only matters for speed.
+  std::vector<std::size_t> next(static_cast<std::size_t>(n_ + 1));
+  for (const std::vector<int>& group : bus_groups_) {
+    Bus* b = vbus_[group[0]];
+    for (int id : group) next[id] = 0;
+    for (std::int64_t j = win_first_; j <= win_last_; ++j) {
+      clock_tick_t c = ClockTick(j);
+      for (int id : group) {
+        const std::vector<Outgoing>& out = outbox_[id];
+        for (; next[id] < out.size() && out[next[id]].tick == j; ++next[id]) {
+          const Datagram& d = out[next[id]].d;
+          b->PublishRaw(rx_channels_[id], d.raw.data(), static_cast<int>(d.raw.size()));
+          c.delivery_receiver.push_back(id);
+          c.delivery_sender.push_back(d.sender);
+          c.delivery_seq.push_back(d.seq);
+        }
+      }
+      c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
+      b->Publish(channels::Clock(), c);
+    }
+  }
+  // The logger's copy when no vehicle shares its bus: the ticks, without the lists.
+  if (!shared_has_vehicles_) {
+    for (std::int64_t j = win_first_; j <= win_last_; ++j) bus_->Publish(channels::Clock(), ClockTick(j));
+  }
+  clock_seq_ += static_cast<std::int32_t>(win_last_ - win_first_ + 1);
+  tick_ = win_last_;
 }
 
-void EmulatorApp::PublishClock(std::int64_t tick) {
+clock_tick_t EmulatorApp::ClockTick(std::int64_t tick) const {
   clock_tick_t c;
   c.utime = tick * period_us_;
   c.vehicle_id = kEmulatorId;
-  c.seq = clock_seq_++;
+  c.seq = clock_seq_ + static_cast<std::int32_t>(tick - win_first_);
   c.tick = tick;
   c.period_us = period_us_;
   c.final_tick = tick == final_tick_ ? 1 : 0;
-  // On every vehicle bus (after that vehicle's deliveries, so it sees them first) and on
-  // the shared bus for the logger.
-  bool on_shared = false;
-  for (Bus* b : vbus_) {
-    if (b == bus_) {
-      if (on_shared) continue;
-      on_shared = true;
-    }
-    b->Publish(channels::Clock(), c);
-  }
-  if (!on_shared) bus_->Publish(channels::Clock(), c);
+  c.n_deliveries = 0;
+  return c;
 }
 
 void EmulatorApp::PublishHealth(Micros utime) {
@@ -228,11 +265,7 @@ int EmulatorApp::RunLockstep() {
     win_first_ = k;
     win_last_ = std::min(k + lookahead_ - 1, final_tick_);
     std::fill(got_tick_.begin(), got_tick_.end(), false);
-    for (std::int64_t j = win_first_; j <= win_last_; ++j) {
-      tick_ = j;
-      DeliverLockstep(j * period_us_);
-      PublishClock(j);
-    }
+    ReleaseWindow();
     // Wait for the state of every live process for every tick of the window.
     const std::int64_t asked = MonotonicNs();
     const std::size_t used = static_cast<std::size_t>((win_last_ - win_first_ + 1) * (n_ + 1));
@@ -300,9 +333,9 @@ int EmulatorApp::RunRealtime() {
     const Micros due = channel_.NextDue();
     if (due >= 0 && due <= now_us) {
       const std::int64_t due_ns = t0_ns_ + due * 1000;
-      channel_.DeliverDue(due, [&](int receiver, const Bytes& raw) {
-        vbus_[receiver]->PublishRaw(rx_channels_[receiver], raw.data(),
-                                    static_cast<int>(raw.size()));
+      channel_.DeliverDue(due, [&](int receiver, const Datagram& d) {
+        vbus_[receiver]->PublishRaw(rx_channels_[receiver], d.raw.data(),
+                                    static_cast<int>(d.raw.size()));
         release_error_.Add(static_cast<double>(MonotonicNs() - due_ns) * 1e-9);
       });
       continue;
@@ -354,6 +387,8 @@ int EmulatorMain(int argc, char** argv) {
   // vehicles: releases are the delays the run is about.
   if (opt.parsed_mode() == Mode::kRealtime) {
     std::cerr << "shoal_channel_emulator: " << EnableRealtimeScheduling(50) << "\n";
+  } else {
+    std::cerr << "shoal_channel_emulator: " << EnableBatchScheduling() << "\n";
   }
   try {
     LcmBus bus(opt.lcm_url);

@@ -11,6 +11,7 @@
 #include "core/scenario.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/messages.h"
 #include "runtime/process.h"
 
 namespace shoal {
@@ -41,11 +42,18 @@ class EmulatorApp {
 
  private:
   using Bytes = std::vector<unsigned char>;
+  /// A state in transit: its encoded bytes (forwarded unchanged) and its identity, which
+  /// a lockstep clock tick lists for the receiver.
+  struct Datagram {
+    std::int32_t sender = 0;
+    std::int32_t seq = 0;
+    Bytes raw;
+  };
   void OnState(const std::string& channel, const void* data, int size);
   void OnStatus(const void* data, int size);
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
-  void DeliverLockstep(Micros now);
-  void PublishClock(std::int64_t tick);
+  void ReleaseWindow();
+  clock_tick_t ClockTick(std::int64_t tick) const;
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);
   int RunLockstep();
@@ -58,10 +66,19 @@ class EmulatorApp {
   std::int64_t final_tick_;
   Bus* bus_;
   std::vector<Bus*> vbus_;
-  Channel<Bytes> channel_;
+  Channel<Datagram> channel_;
   std::vector<ChannelDecision> decisions_;
   std::vector<std::string> rx_channels_;
   int n_;  // followers
+  // Lockstep: the distinct vehicle buses, each with the vehicles that receive on it, and
+  // whether the shared bus is one of them (else the logger gets clock ticks of its own).
+  std::vector<std::vector<int>> bus_groups_;
+  bool shared_has_vehicles_ = false;
+  struct Outgoing {
+    std::int64_t tick;
+    Datagram d;
+  };
+  std::vector<std::vector<Outgoing>> outbox_;  // lockstep window, per receiving vehicle
 
   // Per sender: newest accepted seq, and (lockstep) the states received for the ticks of
   // the current window [win_first_, win_last_], at slot (tick - win_first_) * (n + 1) + id.

@@ -66,7 +66,7 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
   out_.seq = -1;
 }
 
-RxResult Follower::Receive(const StateMsg& m) {
+RxResult Follower::Screen(const StateMsg& m) {
   if (m.vehicle_id < 0 || m.vehicle_id >= static_cast<int>(slot_of_.size()) ||
       slot_of_[m.vehicle_id] < 0) {
     ++counters_.msgs_dropped_invalid;
@@ -76,11 +76,18 @@ RxResult Follower::Receive(const StateMsg& m) {
     ++counters_.msgs_dropped_invalid;
     return RxResult::kNonFinite;
   }
-  Slot& sl = slots_[slot_of_[m.vehicle_id]];
+  const Slot& sl = slots_[slot_of_[m.vehicle_id]];
   if (sl.have && (m.utime <= sl.msg.utime || m.seq <= sl.msg.seq)) {
     ++counters_.msgs_dropped_old;
     return RxResult::kOld;
   }
+  return RxResult::kAccepted;
+}
+
+RxResult Follower::Receive(const StateMsg& m) {
+  const RxResult r = Screen(m);
+  if (r != RxResult::kAccepted) return r;
+  Slot& sl = slots_[slot_of_[m.vehicle_id]];
   sl.msg = m;
   sl.have = true;
   sl.stale = false;

@@ -2,6 +2,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -43,24 +44,88 @@ void NodeApp::Init() {
   }
 }
 
+namespace {
+// Lockstep bounds on what a vehicle holds: far more than a run ever has in flight (a
+// window's deliveries and ticks), so that only forged traffic can reach them.
+constexpr std::size_t kMaxHeldDeliveries = 4096;
+constexpr std::size_t kMaxDueTicks = 4096;
+constexpr std::int64_t kWaitWarningNs = 5000000000LL;
+}  // namespace
+
 void NodeApp::OnRx(const void* data, int size) {
   vehicle_state_t m{};
   if (!Decode(data, size, &m)) {
     ++counters_.bad_rx;
     return;
   }
-  follower_->Receive(FromLcm(m));  // validates and counts (NaN/Inf, unknown, old)
+  const StateMsg msg = FromLcm(m);
+  if (mode_ != Mode::kLockstep) {
+    follower_->Receive(msg);  // validates and counts (NaN/Inf, unknown, old)
+    return;
+  }
+  // Lockstep: hold it until the clock tick that lists it (counting what could never be
+  // used: NaN/Inf, unknown sender, older than what is held).
+  if (follower_->Screen(msg) != RxResult::kAccepted) return;
+  if (held_.size() >= kMaxHeldDeliveries) {
+    held_.erase(held_.begin());
+    ++counters_.unlisted_rx;
+  }
+  held_.push_back(msg);
+  StepWhatIsDue();
 }
 
 void NodeApp::OnClock(const void* data, int size) {
   clock_tick_t c;
-  if (!Decode(data, size, &c) || c.vehicle_id != kEmulatorId || c.tick != next_tick_ ||
-      c.period_us != period_us_ || c.utime != c.tick * period_us_) {
+  if (!Decode(data, size, &c) || c.vehicle_id != kEmulatorId || c.tick < next_tick_ ||
+      c.tick > final_tick_ || c.period_us != period_us_ || c.utime != c.tick * period_us_ ||
+      due_.count(c.tick) != 0 || due_.size() >= kMaxDueTicks) {
     ++counters_.bad_clock;
     return;
   }
-  Step(c.tick);
-  if (c.final_tick || c.tick >= final_tick_) done_ = true;
+  DueTick& d = due_[c.tick];
+  d.final_tick = c.final_tick != 0;
+  for (std::int32_t k = 0; k < c.n_deliveries; ++k) {
+    if (c.delivery_receiver[k] == id_) d.deliveries.emplace_back(c.delivery_sender[k], c.delivery_seq[k]);
+  }
+  StepWhatIsDue();
+}
+
+void NodeApp::StepWhatIsDue() {
+  for (auto it = due_.find(next_tick_); it != due_.end(); it = due_.find(next_tick_)) {
+    // Every listed delivery must be here; apply them in the listed order, as shoal sim.
+    std::vector<std::size_t> at;
+    at.reserve(it->second.deliveries.size());
+    for (const auto& [sender, seq] : it->second.deliveries) {
+      std::size_t k = 0;
+      while (k < held_.size() && (held_[k].vehicle_id != sender || held_[k].seq != seq)) ++k;
+      if (k == held_.size()) {
+        if (waiting_since_ns_ == 0) waiting_since_ns_ = MonotonicNs();
+        if (!warned_waiting_ && MonotonicNs() - waiting_since_ns_ > kWaitWarningNs) {
+          std::fprintf(stderr, "vehicle %d: tick %lld still waits for the delivery of %d's "
+                       "state seq %d (a datagram lost on the bus?)\n", id_,
+                       static_cast<long long>(next_tick_), sender, seq);
+          warned_waiting_ = true;
+        }
+        return;
+      }
+      at.push_back(k);
+    }
+    if (follower_) {
+      for (std::size_t k : at) follower_->Receive(held_[k]);
+    }
+    std::sort(at.begin(), at.end());
+    for (auto k = at.rbegin(); k != at.rend(); ++k) held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(*k));
+    const bool final_tick = it->second.final_tick;
+    const std::int64_t tick = it->first;
+    due_.erase(it);
+    waiting_since_ns_ = 0;
+    warned_waiting_ = false;
+    Step(tick);
+    if (final_tick || tick >= final_tick_) {
+      done_ = true;
+      return;
+    }
+  }
 }
 
 void NodeApp::Step(std::int64_t tick) {
@@ -75,7 +140,7 @@ void NodeApp::PublishHealth(Micros utime) {
   health_t h;
   if (follower_) {
     h = ToLcmHealth(utime, *follower_, health_seq_++);
-    h.msgs_dropped_invalid += counters_.bad_rx + counters_.bad_clock;
+    h.msgs_dropped_invalid += counters_.bad_rx + counters_.bad_clock + counters_.unlisted_rx;
   } else {
     h = health_t();
     h.utime = utime;
@@ -122,7 +187,9 @@ int NodeApp::RunLockstep() {
         return 3;
       }
     }
-    if (rx_bus_->Handle(50) < 0) return 1;
+    const int handled = rx_bus_->Handle(50);
+    if (handled < 0) return 1;
+    if (handled == 0 && !due_.empty()) StepWhatIsDue();  // to say what it waits for
   }
   if (done_) PublishStatus("finished", "");
   return done_ ? 0 : 1;
@@ -166,6 +233,8 @@ int NodeMain(int argc, char** argv, bool leader) {
   // Before LCM starts its receive thread, so that the thread inherits the policy.
   if (opt.parsed_mode() == Mode::kRealtime) {
     std::cerr << name << ": " << EnableRealtimeScheduling(40) << "\n";
+  } else {
+    std::cerr << name << ": " << EnableBatchScheduling() << "\n";
   }
   try {
     LcmBus bus(opt.lcm_url);

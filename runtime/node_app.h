@@ -3,8 +3,11 @@
 // deadlines) -> exit code. The maths is the core's Follower / Leader, unchanged.
 #pragma once
 
+#include <map>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "core/follower.h"
 #include "core/leader.h"
@@ -17,6 +20,7 @@ namespace shoal {
 struct NodeCounters {
   std::int64_t bad_rx = 0;     // undecodable / wrong fingerprint / truncated on SHOAL_RX
   std::int64_t bad_clock = 0;  // undecodable, duplicate, out-of-order or foreign clock ticks
+  std::int64_t unlisted_rx = 0;  // lockstep: held deliveries no tick listed, evicted
   std::int64_t overruns = 0;
 };
 
@@ -39,6 +43,8 @@ class NodeApp {
   void OnRx(const void* data, int size);
   void OnClock(const void* data, int size);
   void Step(std::int64_t tick);
+  /// Lockstep: steps every tick whose clock tick and listed deliveries are all here.
+  void StepWhatIsDue();
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);
   int RunLockstep();
@@ -56,6 +62,16 @@ class NodeApp {
   std::unique_ptr<Leader> leader_;
   std::string state_channel_, health_channel_;
   std::int64_t next_tick_ = 0;  // lockstep: the clock tick expected next
+  // Lockstep: clock ticks received, by tick, with the deliveries (sender, seq) each lists
+  // for this vehicle; and the deliveries received and not yet applied, in arrival order.
+  struct DueTick {
+    bool final_tick = false;
+    std::vector<std::pair<std::int32_t, std::int32_t>> deliveries;
+  };
+  std::map<std::int64_t, DueTick> due_;
+  std::vector<StateMsg> held_;
+  std::int64_t waiting_since_ns_ = 0;  // when the tick expected next started to wait
+  bool warned_waiting_ = false;
   bool done_ = false;
   std::int32_t health_seq_ = 0, status_seq_ = 0;
   NodeCounters counters_;

@@ -65,4 +65,11 @@ std::string EnableRealtimeScheduling(int priority) {
          "), timer slack 1 ns";
 }
 
+std::string EnableBatchScheduling() {
+  sched_param sp = {};
+  sp.sched_priority = 0;
+  if (sched_setscheduler(0, SCHED_BATCH, &sp) == 0) return "SCHED_BATCH";
+  return std::string("SCHED_OTHER (SCHED_BATCH refused: ") + std::strerror(errno) + ")";
+}
+
 }  // namespace shoal

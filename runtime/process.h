@@ -41,6 +41,11 @@ bool StopRequested();
 
 /// Real-time mode: timer slack 1 ns and, when permitted (root), SCHED_FIFO at `priority`.
 /// Returns a note describing what was applied (for the process's log).
+/// Lockstep is a throughput job: SCHED_BATCH, so that a process woken by a message does
+/// not preempt the process that is sending it the rest of a burst (with SCHED_OTHER every
+/// datagram of a burst costs two context switches). Call before LCM starts its receive
+/// thread, so that the thread inherits the policy. Returns what was set, for the log.
+std::string EnableBatchScheduling();
 std::string EnableRealtimeScheduling(int priority);
 
 }  // namespace shoal

@@ -1,5 +1,6 @@
 #include "tools/run_command.h"
 
+#include <sched.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/prctl.h>
@@ -167,7 +168,10 @@ int RunRun(const RunOptions& opt) {
   }
   if (url.empty()) {
     std::random_device rd;
-    port = 20000 + static_cast<int>(rd() % 20000) * 2;
+    // A block of ports per run, aligned so that two runs' blocks are the same or
+    // disjoint: the shared bus on the first, each vehicle's bus on one of the next n + 1.
+    const int block = s.followers + 2;
+    port = 20000 + static_cast<int>(rd() % static_cast<unsigned>(40000 / block)) * block;
     url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
   }
   // Each vehicle receives on its own group unless asked otherwise: on one shared group
@@ -183,11 +187,15 @@ int RunRun(const RunOptions& opt) {
       return 2;
     }
     for (int id = 0; id <= s.followers; ++id) {
-      // 239.255.77-82.x: one group per vehicle for up to 1200 vehicles, never the run's
-      // shared group 239.255.76.67.
+      // A port and a group per vehicle. The port is what isolates: LCM binds its receive
+      // socket to INADDR_ANY:port, and Linux delivers to such a socket the datagrams of
+      // every group joined on the host for that port (IP_MULTICAST_ALL), so vehicles on
+      // one port and different groups would still receive -- and wake up for -- each
+      // other's traffic. Groups 239.255.77-82.x (up to 1200 vehicles), never the shared
+      // 239.255.76.67.
       vurls.push_back("udpm://239.255." + std::to_string(77 + id / 200) + "." +
-                      std::to_string(20 + id % 200) + ":" +
-                      std::to_string(port + 1) + "?ttl=0&recv_buf_size=4194304");
+                      std::to_string(20 + id % 200) + ":" + std::to_string(port + 1 + id) +
+                      "?ttl=0&recv_buf_size=4194304");
     }
   }
 

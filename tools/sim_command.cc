@@ -40,6 +40,7 @@ class LogObserver : public SwarmObserver {
     c.tick = tick;
     c.period_us = period_us;
     c.final_tick = final_tick ? 1 : 0;
+    c.n_deliveries = 0;  // shoal sim's deliveries are in SHOAL_CHANNEL
     log_->Write(channels::Clock(), utime, c);
     now_ = utime;
   }
