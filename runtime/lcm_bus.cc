@@ -1,5 +1,10 @@
 #include "runtime/lcm_bus.h"
 
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <random>
 #include <stdexcept>
 
 namespace shoal {
@@ -36,6 +41,43 @@ int LcmBus::Handle(int timeout_ms) {
 
 std::string PrivateLcmUrl(int port, const std::string& group) {
   return "udpm://" + group + ":" + std::to_string(port) + "?ttl=0";
+}
+
+int RandomPrivatePort(int followers) {
+  std::random_device rd;
+  const int block = followers + 2;
+  return 20000 + static_cast<int>(rd() % static_cast<unsigned>(40000 / block)) * block;
+}
+
+std::vector<std::string> PerVehicleLcmUrls(int port, int followers) {
+  std::vector<std::string> urls;
+  for (int id = 0; id <= followers; ++id) {
+    urls.push_back("udpm://239.255." + std::to_string(77 + id / 200) + "." +
+                   std::to_string(20 + id % 200) + ":" + std::to_string(port + 1 + id) +
+                   "?ttl=0&recv_buf_size=4194304");
+  }
+  return urls;
+}
+
+/// Makes sure multicast on the private group stays on loopback.
+bool EnsureLoopbackMulticast(std::string* err) {
+  FILE* p = popen("ip route get 239.255.76.67 2>/dev/null", "r");
+  std::string out;
+  if (p) {
+    char buf[512];
+    while (fgets(buf, sizeof(buf), p)) out += buf;
+    pclose(p);
+  }
+  if (out.find(" dev lo") != std::string::npos) return true;
+  const char* fix = "ip link set lo multicast on && ip route add 239.255.0.0/16 dev lo";
+  if (geteuid() == 0) {
+    if (std::system((std::string(fix) + " 2>/dev/null").c_str()) == 0) return true;
+    *err = std::string("could not route multicast to loopback; run: ") + fix;
+    return false;
+  }
+  *err = std::string("multicast is not routed to the loopback interface, so a run could "
+                     "reach the network; as root run:\n  sudo sh -c '") + fix + "'";
+  return false;
 }
 
 }  // namespace shoal

@@ -77,4 +77,21 @@ bool Decode(const void* data, int size, Msg* out) {
 /// The LCM URL of a private run: multicast group, own port, ttl=0 (never leaves the host).
 std::string PrivateLcmUrl(int port, const std::string& group = "239.255.76.67");
 
+/// A random port for a private run with `followers` followers: the first of a block of
+/// followers + 2 ports (the shared bus, then one per vehicle), aligned so that two runs'
+/// blocks are the same or disjoint; in [20000, 60000).
+int RandomPrivatePort(int followers);
+
+/// The URL on which each vehicle 0..followers receives in a private run on `port`: a
+/// port and a group of its own. The port is what isolates: LCM binds its receive socket
+/// to INADDR_ANY:port, and Linux delivers to such a socket the datagrams of every group
+/// joined on the host for that port (IP_MULTICAST_ALL), so vehicles on one port and
+/// different groups would still receive -- and wake up for -- each other's traffic.
+/// Groups 239.255.77-82.x (up to 1200 vehicles), never the shared 239.255.76.67.
+std::vector<std::string> PerVehicleLcmUrls(int port, int followers);
+
+/// Makes sure multicast on the private groups stays on loopback (adds the route as
+/// root). False with the reason and the command to run in `err` otherwise.
+bool EnsureLoopbackMulticast(std::string* err);
+
 }  // namespace shoal

@@ -1,6 +1,5 @@
 #include "tools/run_command.h"
 
-#include <sched.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/prctl.h>
@@ -99,27 +98,6 @@ pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::strin
   _exit(127);
 }
 
-/// Makes sure multicast on the private group stays on loopback.
-bool EnsureLoopbackMulticast(std::string* err) {
-  FILE* p = popen("ip route get 239.255.76.67 2>/dev/null", "r");
-  std::string out;
-  if (p) {
-    char buf[512];
-    while (fgets(buf, sizeof(buf), p)) out += buf;
-    pclose(p);
-  }
-  if (out.find(" dev lo") != std::string::npos) return true;
-  const char* fix = "ip link set lo multicast on && ip route add 239.255.0.0/16 dev lo";
-  if (geteuid() == 0) {
-    if (std::system((std::string(fix) + " 2>/dev/null").c_str()) == 0) return true;
-    *err = std::string("could not route multicast to loopback; run: ") + fix;
-    return false;
-  }
-  *err = std::string("multicast is not routed to the loopback interface, so a run could "
-                     "reach the network; as root run:\n  sudo sh -c '") + fix + "'";
-  return false;
-}
-
 }  // namespace
 
 int RunRun(const RunOptions& opt) {
@@ -167,11 +145,7 @@ int RunRun(const RunOptions& opt) {
     }
   }
   if (url.empty()) {
-    std::random_device rd;
-    // A block of ports per run, aligned so that two runs' blocks are the same or
-    // disjoint: the shared bus on the first, each vehicle's bus on one of the next n + 1.
-    const int block = s.followers + 2;
-    port = 20000 + static_cast<int>(rd() % static_cast<unsigned>(40000 / block)) * block;
+    port = RandomPrivatePort(s.followers);
     url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
   }
   // Each vehicle receives on its own group unless asked otherwise: on one shared group
@@ -186,17 +160,7 @@ int RunRun(const RunOptions& opt) {
       std::cerr << "shoal run: --per-vehicle-urls needs the default private URL\n";
       return 2;
     }
-    for (int id = 0; id <= s.followers; ++id) {
-      // A port and a group per vehicle. The port is what isolates: LCM binds its receive
-      // socket to INADDR_ANY:port, and Linux delivers to such a socket the datagrams of
-      // every group joined on the host for that port (IP_MULTICAST_ALL), so vehicles on
-      // one port and different groups would still receive -- and wake up for -- each
-      // other's traffic. Groups 239.255.77-82.x (up to 1200 vehicles), never the shared
-      // 239.255.76.67.
-      vurls.push_back("udpm://239.255." + std::to_string(77 + id / 200) + "." +
-                      std::to_string(20 + id % 200) + ":" + std::to_string(port + 1 + id) +
-                      "?ttl=0&recv_buf_size=4194304");
-    }
+    vurls = PerVehicleLcmUrls(port, s.followers);
   }
 
   // Child output goes next to the log.

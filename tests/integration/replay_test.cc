@@ -16,6 +16,7 @@
 #include <string>
 #include <thread>
 
+#include "runtime/lcm_bus.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -31,20 +32,6 @@ using shoal::testing::TmpPath;
 using shoal::testing::WaitExit;
 
 constexpr double kPeriodS = 0.02;  // the scenario's 50 Hz
-
-/// Multicast on the private group must stay on loopback (as shoal run ensures).
-std::string EnsureLoopbackMulticast() {
-  std::string out;
-  if (FILE* p = popen("ip route get 239.255.76.67 2>/dev/null", "r")) {
-    char buf[512];
-    while (fgets(buf, sizeof(buf), p)) out += buf;
-    pclose(p);
-  }
-  if (out.find(" dev lo") != std::string::npos) return "";
-  const std::string fix = "ip link set lo multicast on && ip route add 239.255.0.0/16 dev lo";
-  if (geteuid() == 0 && std::system((fix + " 2>/dev/null").c_str()) == 0) return "";
-  return "multicast is not routed to lo; as root run: " + fix;
-}
 
 int RandomEvenPort() {
   std::random_device rd;
@@ -113,8 +100,8 @@ int Play(const std::string& url, double speed, const std::string& tag) {
 class Replay : public ::testing::Test {
  protected:
   void SetUp() override {
-    const std::string err = EnsureLoopbackMulticast();
-    ASSERT_TRUE(err.empty()) << err;
+    std::string err;
+    ASSERT_TRUE(shoal::EnsureLoopbackMulticast(&err)) << err;
     ASSERT_EQ(std::system("command -v lcm-logplayer >/dev/null && command -v lcm-logger >/dev/null"), 0)
         << "lcm-logplayer / lcm-logger missing (Debian package liblcm-bin)";
     ASSERT_EQ(JsonRaw(Orig().json, "converged"), "true") << Orig().json;

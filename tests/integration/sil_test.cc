@@ -16,6 +16,7 @@
 #include <shoal/health_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
 
+#include "runtime/lcm_bus.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -201,6 +202,56 @@ TEST(Sil, KilledVehicleIsReportedByIdAndTheOthersFinish) {
   EXPECT_EQ(last1, 120000000);
   EXPECT_LT(last3, 120000000);
   EXPECT_GE(timeouts1, 1);
+}
+
+// The per-vehicle buses of a run isolate: a listener on one vehicle's URL receives
+// nothing published on another's (real LCM, UDP multicast on loopback). Groups alone do
+// not isolate on Linux (IP_MULTICAST_ALL): shown first, as the reason for a port each.
+TEST(Sil, PerVehicleBusesCarryOnlyTheirOwnTraffic) {
+  std::string err;
+  ASSERT_TRUE(EnsureLoopbackMulticast(&err)) << err;
+  const int port = 31201;
+  const std::vector<std::string> urls = PerVehicleLcmUrls(port, 3);
+  ASSERT_EQ(urls.size(), 4u);
+  for (std::size_t i = 0; i < urls.size(); ++i) {
+    EXPECT_EQ(urls[i].find("udpm://239.255.77." + std::to_string(20 + i) + ":" +
+                           std::to_string(port + 1 + static_cast<int>(i)) + "?ttl=0"),
+              0u)
+        << urls[i];
+  }
+  struct Count {
+    int n = 0;
+    void On(const lcm::ReceiveBuffer*, const std::string&) { ++n; }
+  };
+  auto received = [](const std::string& listen, const std::string& send) {
+    lcm::LCM rx(listen), tx(send);
+    Count c;
+    rx.subscribe("SHOAL_CLOCK", &Count::On, &c);
+    const unsigned char byte = 1;
+    for (int k = 0; k < 5; ++k) {
+      tx.publish("SHOAL_CLOCK", &byte, 1);
+      rx.handleTimeout(30);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    while (std::chrono::steady_clock::now() - t0 < std::chrono::milliseconds(300)) {
+      rx.handleTimeout(30);
+    }
+    return c.n;
+  };
+  // Same port, another group: received anyway.
+  EXPECT_EQ(received("udpm://239.255.77.20:31211?ttl=0", "udpm://239.255.77.21:31211?ttl=0"), 5);
+  // The run's URLs: vehicle 1 hears its own bus only.
+  EXPECT_EQ(received(urls[1], urls[1]), 5);
+  EXPECT_EQ(received(urls[1], urls[2]), 0);
+  EXPECT_EQ(received(urls[1], urls[0]), 0);
+  EXPECT_EQ(received(urls[1], PrivateLcmUrl(port)), 0);
+  // Two runs' port blocks are the same or disjoint.
+  for (int k = 0; k < 200; ++k) {
+    const int p = RandomPrivatePort(5);
+    EXPECT_EQ((p - 20000) % 7, 0);
+    EXPECT_GE(p, 20000);
+    EXPECT_LT(p + 6, 60000);
+  }
 }
 
 // Bad input on every channel the processes listen to is dropped and counted, never a

@@ -1,0 +1,159 @@
+// The vehicle process's lockstep logic, in process (memq://): a tick is stepped only once
+// its clock tick and every delivery it lists are here, whatever order they arrive in, and
+// only the listed deliveries reach the control law. UDP keeps no order between datagrams,
+// so this is what makes a lockstep run equal shoal sim on a loaded machine.
+#include "runtime/node_app.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/leader.h"
+#include "core/topology.h"
+#include "runtime/channels.h"
+#include "runtime/messages.h"
+#include "runtime/scenario_loader.h"
+
+namespace shoal {
+namespace {
+
+constexpr int kId = 1;   // pinned to the leader in Example 2
+constexpr int kLag = 3;  // ticks between a leader state and its delivery
+
+Scenario Example2() {
+  return LoadScenario(std::string(SHOAL_SOURCE_DIR) + "/scenarios/paper_example2.toml");
+}
+
+clock_tick_t Tick(const Scenario& s, std::int64_t k,
+                  const std::vector<std::pair<int, int>>& deliveries) {  // (sender, seq)
+  clock_tick_t c{};
+  c.utime = k * s.period_us();
+  c.vehicle_id = kEmulatorId;
+  c.seq = static_cast<std::int32_t>(k);
+  c.tick = k;
+  c.period_us = s.period_us();
+  c.final_tick = 0;
+  for (const auto& [sender, seq] : deliveries) {
+    c.delivery_receiver.push_back(kId);
+    c.delivery_sender.push_back(sender);
+    c.delivery_seq.push_back(seq);
+  }
+  c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
+  return c;
+}
+
+struct Rig {
+  Scenario s = Example2();
+  LcmBus bus{"memq://"};
+  NodeApp node{s, kId, Mode::kLockstep, 0, 10.0, &bus, &bus};
+  Follower reference{s, Topology::Build(s.followers, s.edges, s.leader_links), kId};
+  Leader leader{s};
+  std::vector<StateMsg> sent;  // leader states, by tick
+
+  Rig() { node.Init(); }
+  void Pump() {
+    while (bus.Handle(0) > 0) {
+    }
+  }
+  std::int64_t ticks() const { return node.follower()->counters().ticks; }
+};
+
+TEST(NodeAppLockstep, AppliesTheListedDeliveriesWhateverOrderTheyArriveIn) {
+  Rig r;
+  const int n = 60;
+  for (int k = 0; k < n; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
+  // The delivery of tick k (the leader's state of tick k - kLag) arrives in three ways by
+  // turns: before its clock tick, after it, and early (before the previous tick's clock).
+  std::map<int, bool> published;
+  auto publish_rx = [&](int k) {
+    if (k < kLag || k >= n || published[k]) return;
+    published[k] = true;
+    r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[k - kLag]));
+  };
+  for (int k = 0; k < n; ++k) {
+    std::vector<std::pair<int, int>> list;
+    if (k >= kLag) list.emplace_back(0, r.sent[k - kLag].seq);
+    if (k % 3 == 0) publish_rx(k);
+    if (k % 3 == 1) publish_rx(k + 1);  // held a tick ahead: must not be used at tick k
+    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
+    r.Pump();
+    if (k >= kLag && !published[k]) {
+      EXPECT_EQ(r.ticks(), k) << "tick " << k << " stepped before its delivery arrived";
+      publish_rx(k);
+      r.Pump();
+    }
+    ASSERT_EQ(r.ticks(), k + 1) << "tick " << k;
+    // The reference: shoal sim's order, delivery first, then the tick.
+    if (k >= kLag) r.reference.Receive(r.sent[k - kLag]);
+    r.reference.Tick(k * r.s.period_us());
+    ASSERT_EQ(r.node.follower()->state().eta, r.reference.state().eta) << "tick " << k;
+    ASSERT_EQ(r.node.follower()->state().nu, r.reference.state().nu) << "tick " << k;
+  }
+  EXPECT_EQ(r.node.follower()->counters().msgs_received, n - kLag);
+}
+
+TEST(NodeAppLockstep, AClockTickArrivingEarlyWaitsForTheTicksBeforeIt) {
+  Rig r;
+  for (int k = 0; k < 4; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
+  r.bus.Publish(channels::Clock(), Tick(r.s, 2, {}));
+  r.bus.Publish(channels::Clock(), Tick(r.s, 1, {}));
+  r.Pump();
+  EXPECT_EQ(r.ticks(), 0);
+  r.bus.Publish(channels::Clock(), Tick(r.s, 0, {}));
+  r.Pump();
+  EXPECT_EQ(r.ticks(), 3);
+  // A second tick 2, or one in the past, is refused and counted.
+  r.bus.Publish(channels::Clock(), Tick(r.s, 2, {}));
+  r.bus.Publish(channels::Clock(), Tick(r.s, 3, {}));
+  r.bus.Publish(channels::Clock(), Tick(r.s, 3, {}));
+  r.Pump();
+  EXPECT_EQ(r.ticks(), 4);
+  EXPECT_EQ(r.node.counters().bad_clock, 2);
+}
+
+TEST(NodeAppLockstep, AnUnlistedPlausibleMessageNeverReachesTheControlLaw) {
+  Rig r;
+  const int n = 20;
+  for (int k = 0; k < n; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
+  // A forged leader state: valid, finite, newest seq, far away. No tick lists it.
+  StateMsg forged = r.sent[0];
+  forged.seq = 1000000;
+  forged.utime = 0;
+  forged.eta(0) += 500.0;
+  r.bus.Publish(channels::Rx(kId), ToLcm(forged));
+  for (int k = 0; k < n; ++k) {
+    std::vector<std::pair<int, int>> list;
+    if (k >= kLag) {
+      list.emplace_back(0, r.sent[k - kLag].seq);
+      r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[k - kLag]));
+      r.reference.Receive(r.sent[k - kLag]);
+    }
+    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
+    r.Pump();
+    r.reference.Tick(k * r.s.period_us());
+  }
+  ASSERT_EQ(r.ticks(), n);
+  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
+  EXPECT_EQ(r.node.follower()->state().nu, r.reference.state().nu);
+}
+
+TEST(NodeAppLockstep, InvalidDeliveriesAreCountedOnArrival) {
+  Rig r;
+  StateMsg m = r.leader.Tick(0);
+  StateMsg nan = m;
+  nan.eta(1) = std::nan("");
+  StateMsg unknown = m;
+  unknown.vehicle_id = 4;  // not an in-neighbour of follower 1
+  r.bus.Publish(channels::Rx(kId), ToLcm(nan));
+  r.bus.Publish(channels::Rx(kId), ToLcm(unknown));
+  const unsigned char garbage[16] = {1, 2, 3};
+  r.bus.PublishRaw(channels::Rx(kId), garbage, sizeof(garbage));
+  r.Pump();
+  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_invalid, 2);
+  EXPECT_EQ(r.node.counters().bad_rx, 1);
+}
+
+}  // namespace
+}  // namespace shoal
