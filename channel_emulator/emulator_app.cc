@@ -16,6 +16,7 @@ namespace shoal {
 
 namespace {
 constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process is gone
+constexpr std::size_t kEventsPerWait = 6;  // lockstep: SHOAL_CHANNEL events per wait step
 }
 
 EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
@@ -130,8 +131,18 @@ void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utim
     } else {
       ++counters_.dropped;
     }
-    channel_event_t e = ToLcm(d, event_seq_++);
-    bus_->Publish(channels::ChannelEvents(), e);
+    if (mode_ == Mode::kLockstep) {
+      event_backlog_.push_back(ToLcm(d, event_seq_++));
+    } else {
+      bus_->Publish(channels::ChannelEvents(), ToLcm(d, event_seq_++));
+    }
+  }
+}
+
+void EmulatorApp::PublishEvents(std::size_t at_most) {
+  for (; at_most > 0 && !event_backlog_.empty(); --at_most) {
+    bus_->Publish(channels::ChannelEvents(), event_backlog_.front());
+    event_backlog_.pop_front();
   }
 }
 
@@ -254,11 +265,13 @@ int EmulatorApp::RunLockstep() {
   // delivery due in the window [k, k + lookahead_) comes from states already submitted.
   // The master releases the whole window -- for each tick its deliveries, then its clock
   // tick, in that order on each vehicle's bus -- and waits once for all the window's states.
-  // Each vehicle still handles deliveries and ticks one by one in order, so every process
-  // computes exactly what it computes with one round trip per tick (and what shoal sim does).
+  // Each vehicle still applies each tick's deliveries (those the tick lists) and steps the
+  // ticks one by one in order, so every process computes exactly what it computes with one
+  // round trip per tick (and what shoal sim does).
   bool lost_any = false;
   for (std::int64_t k = 0; k <= final_tick_; k += lookahead_) {
     if (StopRequested()) {
+      PublishEvents(event_backlog_.size());
       PublishStatus("interrupted", "");
       return 1;
     }
@@ -276,6 +289,7 @@ int EmulatorApp::RunLockstep() {
       }
       if (all) break;
       if (StopRequested()) {
+        PublishEvents(event_backlog_.size());
         PublishStatus("interrupted", "");
         return 1;
       }
@@ -299,7 +313,11 @@ int EmulatorApp::RunLockstep() {
         }
         break;
       }
-      bus_->Handle(10);
+      // The SHOAL_CHANNEL events of the last window go out a few at a time while the
+      // vehicles compute: lcm-logger drops what exceeds its 30-message queue, and a
+      // window's events in one burst (lookahead x links) would exceed it.
+      PublishEvents(std::max<std::size_t>(kEventsPerWait, event_backlog_.size() / 4));
+      bus_->Handle(event_backlog_.empty() ? 10 : 0);
     }
     // States enter the channel tick by tick, in id order (leader first), as in shoal sim.
     for (std::int64_t j = win_first_; j <= win_last_; ++j) {
@@ -312,6 +330,7 @@ int EmulatorApp::RunLockstep() {
       if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
     }
   }
+  PublishEvents(event_backlog_.size());
   PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
   return lost_any ? 4 : 0;
 }

@@ -4,6 +4,7 @@
 // SHOAL_CHANNEL. In lockstep it is also the clock master.
 #pragma once
 
+#include <deque>
 #include <string>
 #include <vector>
 
@@ -53,6 +54,7 @@ class EmulatorApp {
   void OnStatus(const void* data, int size);
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
   void ReleaseWindow();
+  void PublishEvents(std::size_t at_most);
   clock_tick_t ClockTick(std::int64_t tick) const;
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);
@@ -78,7 +80,8 @@ class EmulatorApp {
     std::int64_t tick;
     Datagram d;
   };
-  std::vector<std::vector<Outgoing>> outbox_;  // lockstep window, per receiving vehicle
+  std::vector<std::vector<Outgoing>> outbox_;
+  std::deque<channel_event_t> event_backlog_;  // lockstep: decided, not yet published  // lockstep window, per receiving vehicle
 
   // Per sender: newest accepted seq, and (lockstep) the states received for the ticks of
   // the current window [win_first_, win_last_], at slot (tick - win_first_) * (n + 1) + id.
