@@ -64,11 +64,12 @@ TEST(Sil, LockstepRunEqualsShoalSim) {
   EXPECT_LE(JsonNumber(cmp.out, "max_position_diff_m"), 1e-9) << cmp.out;
   EXPECT_LE(JsonNumber(cmp.out, "max_velocity_diff_mps"), 1e-9) << cmp.out;
   // lcm-logger drops what exceeds its LCM subscription queue (30 messages) when it waits
-  // for the CPU. As root, lockstep runs it under SCHED_FIFO and it must record every
-  // state; otherwise at least 90 % (seen: up to 6 % lost with another build running).
-  // Everything it recorded must match. The run reports the figure.
+  // for the CPU. As root, lockstep runs it under SCHED_FIFO and it must record at least
+  // 99 % (seen: all in 60 s runs, 99.4 % in a 600 s one); otherwise at least 90 % (seen:
+  // up to 6 % lost with another build running). Everything it recorded must match. The
+  // run reports the figure.
   if (geteuid() == 0) {
-    EXPECT_EQ(JsonNumber(cmp.out, "samples"), 6.0 * (20 * 50 + 1)) << cmp.out;
+    EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.99 * 6.0 * (20 * 50 + 1)) << cmp.out;
   } else {
     EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * (20 * 50 + 1)) << cmp.out;
   }
