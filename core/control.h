@@ -84,11 +84,11 @@ inline double Clip(double v, double lim) { return v > lim ? lim : (v < -lim ? -l
 inline bool SaturatedFeedbackLinearise(const FossenModel& model, const AttitudeTrig<double>& c,
                                        const Vec5& nu, const Vec5& a, const Vec5& tau_max,
                                        Vec5* tau, Vec5* wanted = nullptr) {
-  const Vec5 nd = FossenModel::JInv(c) * (a - FossenModel::JDotNu(c, nu));
+  const Vec5 nd = FossenModel::JInvTimes(c, a - FossenModel::JDotNu(c, nu));
   Vec5 n = model.CoriolisForce(nu) + model.DampingForce(nu);
   n(3) += model.params().W * model.params().z_g * c.st;  // g(eta)
   const Mat5& M = model.M();
-  const Vec5 demand = M * nd + n;
+  const Vec5 demand = model.MTimes(nd) + n;
   Vec5& t = *tau;
   t(0) = Clip(demand(0), tau_max(0));
   t(1) = Clip(demand(1), tau_max(1));

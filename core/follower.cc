@@ -151,7 +151,7 @@ const StateMsg& Follower::Tick(Micros now) {
     if (disturbance_relative_) {
       f -= dl.f0;
     }
-    tau_dist = model_.M() * (FossenModel::JInv(trig) * f);
+    tau_dist = model_.MTimes(FossenModel::JInvTimes(trig, f));
   } else if (disturbance_ == DisturbanceKind::kOceanCurrent) {
     current = current_.Step(period_s);
   }

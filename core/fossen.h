@@ -207,6 +207,30 @@ class FossenModel {
   template <typename T>
   static Mat5T<T> JInv(const Vec5T<T>& eta) { return JInv(AttitudeTrig<T>(eta)); }
 
+  /// J^{-1}(eta) x without forming the matrix: its non-zero entries, each row summed in
+  /// column order as the dense product does (so the result is the same to the bit).
+  static Vec5 JInvTimes(const AttitudeTrig<double>& c, const Vec5& x) {
+    Vec5 y;
+    y(0) = c.cp * c.ct * x(0) + c.sp * c.ct * x(1) + -c.st * x(2);
+    y(1) = -c.sp * x(0) + c.cp * x(1);
+    y(2) = c.cp * c.st * x(0) + c.sp * c.st * x(1) + c.ct * x(2);
+    y(3) = x(3);
+    y(4) = c.ct * x(4);
+    return y;
+  }
+
+  /// M x using M's structure (the 2x2 blocks (v, r) and (w, q)), rows summed in column
+  /// order as the dense product does.
+  Vec5 MTimes(const Vec5& x) const {
+    Vec5 y;
+    y(0) = M_(0, 0) * x(0);
+    y(1) = M_(1, 1) * x(1) + M_(1, 4) * x(4);
+    y(2) = M_(2, 2) * x(2) + M_(2, 3) * x(3);
+    y(3) = M_(3, 2) * x(2) + M_(3, 3) * x(3);
+    y(4) = M_(4, 1) * x(1) + M_(4, 4) * x(4);
+    return y;
+  }
+
   /// eta_dot = J(eta) nu, without forming J.
   template <typename T>
   static Vec5T<T> EtaDot(const AttitudeTrig<T>& c, const Vec5T<T>& nu) {
