@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -124,7 +125,9 @@ void EmulatorApp::OnState(const std::string& channel, const void* data, int size
 
 void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime) {
   decisions_.clear();
-  channel_.Submit(id, seq, utime, Datagram{id, seq, raw}, &decisions_);
+  const std::int64_t digest =
+      mode_ == Mode::kLockstep ? Digest64(raw.data(), static_cast<int>(raw.size())) : 0;
+  channel_.Submit(id, seq, utime, Datagram{id, seq, digest, raw}, &decisions_);
   for (const ChannelDecision& d : decisions_) {
     if (d.status == ChannelDecision::kDelivered) {
       ++counters_.delivered;
@@ -143,6 +146,13 @@ void EmulatorApp::PublishEvents(std::size_t at_most) {
   for (; at_most > 0 && !event_backlog_.empty(); --at_most) {
     bus_->Publish(channels::ChannelEvents(), event_backlog_.front());
     event_backlog_.pop_front();
+  }
+}
+
+void EmulatorApp::FlushEvents() {
+  while (!event_backlog_.empty()) {
+    PublishEvents(kEventsPerWait);
+    if (!event_backlog_.empty()) SleepUntilNs(MonotonicNs() + 1000000);  // the logger's pace
   }
 }
 
@@ -172,6 +182,7 @@ void EmulatorApp::ReleaseWindow() {
           c.delivery_receiver.push_back(id);
           c.delivery_sender.push_back(d.sender);
           c.delivery_seq.push_back(d.seq);
+          c.delivery_digest.push_back(d.digest);
         }
       }
       c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
@@ -271,7 +282,7 @@ int EmulatorApp::RunLockstep() {
   bool lost_any = false;
   for (std::int64_t k = 0; k <= final_tick_; k += lookahead_) {
     if (StopRequested()) {
-      PublishEvents(event_backlog_.size());
+      FlushEvents();
       PublishStatus("interrupted", "");
       return 1;
     }
@@ -289,7 +300,7 @@ int EmulatorApp::RunLockstep() {
       }
       if (all) break;
       if (StopRequested()) {
-        PublishEvents(event_backlog_.size());
+        FlushEvents();
         PublishStatus("interrupted", "");
         return 1;
       }
@@ -317,7 +328,7 @@ int EmulatorApp::RunLockstep() {
       // vehicles compute: lcm-logger drops what exceeds its 30-message queue, and a
       // window's events in one burst (lookahead x links) would exceed it.
       PublishEvents(std::max<std::size_t>(kEventsPerWait, event_backlog_.size() / 4));
-      bus_->Handle(event_backlog_.empty() ? 10 : 0);
+      bus_->Handle(event_backlog_.empty() ? 10 : 1);
     }
     // States enter the channel tick by tick, in id order (leader first), as in shoal sim.
     for (std::int64_t j = win_first_; j <= win_last_; ++j) {
@@ -330,7 +341,7 @@ int EmulatorApp::RunLockstep() {
       if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
     }
   }
-  PublishEvents(event_backlog_.size());
+  FlushEvents();
   PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
   return lost_any ? 4 : 0;
 }
@@ -413,13 +424,18 @@ int EmulatorMain(int argc, char** argv) {
     LcmBus bus(opt.lcm_url);
     std::vector<std::unique_ptr<LcmBus>> own;
     std::vector<Bus*> vbus;
+    // One bus object per distinct URL: vehicles that share a URL share a bus, and get one
+    // clock tick listing all their deliveries (two bus objects on one address would each
+    // send a tick of their own, with half the list).
+    std::map<std::string, Bus*> by_url = {{opt.lcm_url, &bus}};
     for (int id = 0; id <= s.followers; ++id) {
-      if (vehicle_urls.empty() || vehicle_urls[id] == opt.lcm_url) {
-        vbus.push_back(&bus);
-      } else {
-        own.push_back(std::make_unique<LcmBus>(vehicle_urls[id]));
-        vbus.push_back(own.back().get());
+      const std::string& u = vehicle_urls.empty() ? opt.lcm_url : vehicle_urls[id];
+      auto found = by_url.find(u);
+      if (found == by_url.end()) {
+        own.push_back(std::make_unique<LcmBus>(u));
+        found = by_url.emplace(u, own.back().get()).first;
       }
+      vbus.push_back(found->second);
     }
     EmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus,
                      max_lookahead);

@@ -48,6 +48,7 @@ class EmulatorApp {
   struct Datagram {
     std::int32_t sender = 0;
     std::int32_t seq = 0;
+    std::int64_t digest = 0;  // Digest64(raw)
     Bytes raw;
   };
   void OnState(const std::string& channel, const void* data, int size);
@@ -55,6 +56,7 @@ class EmulatorApp {
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
   void ReleaseWindow();
   void PublishEvents(std::size_t at_most);
+  void FlushEvents();  // all of them, a few per millisecond
   clock_tick_t ClockTick(std::int64_t tick) const;
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);

@@ -6,6 +6,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -74,12 +75,22 @@ bool Decode(const void* data, int size, Msg* out) {
   }
 }
 
+/// FNV-1a, 64 bits, of a message's bytes: identifies a delivery in a lockstep clock tick.
+inline std::int64_t Digest64(const void* data, int size) {
+  std::uint64_t h = 14695981039346656037ULL;
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (int k = 0; k < size; ++k) h = (h ^ p[k]) * 1099511628211ULL;
+  return static_cast<std::int64_t>(h);
+}
+
 /// The LCM URL of a private run: multicast group, own port, ttl=0 (never leaves the host).
 std::string PrivateLcmUrl(int port, const std::string& group = "239.255.76.67");
 
 /// A random port for a private run with `followers` followers: the first of a block of
-/// followers + 2 ports (the shared bus, then one per vehicle), aligned so that two runs'
-/// blocks are the same or disjoint; in [20000, 60000).
+/// followers + 2 ports (the shared bus, then one per vehicle), aligned to its size, so
+/// that two runs with as many followers get the same block or disjoint ones (runs of
+/// different sizes can overlap; any two runs collide with a small probability, as two
+/// random ports can); in [20000, 60000).
 int RandomPrivatePort(int followers);
 
 /// The URL on which each vehicle 0..followers receives in a private run on `port`: a

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <iostream>
 
+#include "core/channel_model.h"
 #include "runtime/channels.h"
 #include "runtime/messages.h"
 #include "runtime/scenario_loader.h"
@@ -25,12 +27,23 @@ NodeApp::NodeApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, doubl
       rx_bus_(rx_bus),
       state_channel_(channels::State(id)),
       health_channel_(channels::Health(id)) {
+  const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
   if (id == 0) {
     leader_ = std::make_unique<Leader>(s);
   } else {
-    const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
     follower_ = std::make_unique<Follower>(s, topo, id);
   }
+  // Lockstep bounds from the links' delay models: the clock master never releases more
+  // ticks ahead than the smallest delivery lag, and a message is delivered (listed) at
+  // the latest one period after send time + the largest delay.
+  std::int64_t lag = std::numeric_limits<std::int64_t>::max();
+  double max_delay_s = 0.0;
+  for (const Link& l : BuildLinks(s, topo)) {
+    lag = std::min(lag, MinDeliveryLagTicks(MinDelaySeconds(l.delay), period_us_));
+    max_delay_s = std::max(max_delay_s, MaxDelaySeconds(l.delay));
+  }
+  max_ticks_ahead_ = lag == std::numeric_limits<std::int64_t>::max() ? 1 : lag;
+  listable_us_ = static_cast<Micros>(std::ceil(max_delay_s * 1e6)) + 2 * period_us_;
 }
 
 void NodeApp::Init() {
@@ -48,7 +61,6 @@ namespace {
 // Lockstep bounds on what a vehicle holds: far more than a run ever has in flight (a
 // window's deliveries and ticks), so that only forged traffic can reach them.
 constexpr std::size_t kMaxHeldDeliveries = 4096;
-constexpr std::size_t kMaxDueTicks = 4096;
 constexpr std::int64_t kWaitWarningNs = 5000000000LL;
 }  // namespace
 
@@ -63,29 +75,35 @@ void NodeApp::OnRx(const void* data, int size) {
     follower_->Receive(msg);  // validates and counts (NaN/Inf, unknown, old)
     return;
   }
-  // Lockstep: hold it until the clock tick that lists it (counting what could never be
-  // used: NaN/Inf, unknown sender, older than what is held).
-  if (follower_->Screen(msg) != RxResult::kAccepted) return;
+  // Lockstep: hold it until the clock tick that lists it. What can never be used
+  // (NaN/Inf, unknown sender) is dropped and counted now. A message older than the one
+  // applied is counted as old now but still held: the channel may have delivered it after
+  // a newer one (a delay model that lets messages overtake), and the tick that lists it
+  // must not wait for it in vain; applied, it changes nothing, as in shoal sim.
+  const RxResult r = follower_->Screen(msg);
+  if (r == RxResult::kUnknownSender || r == RxResult::kNonFinite) return;
   if (held_.size() >= kMaxHeldDeliveries) {
+    if (!held_.front().counted) ++counters_.unlisted_rx;
     held_.erase(held_.begin());
-    ++counters_.unlisted_rx;
   }
-  held_.push_back(msg);
+  held_.push_back(Held{msg, Digest64(data, size), r == RxResult::kOld});
   StepWhatIsDue();
 }
 
 void NodeApp::OnClock(const void* data, int size) {
   clock_tick_t c;
   if (!Decode(data, size, &c) || c.vehicle_id != kEmulatorId || c.tick < next_tick_ ||
-      c.tick > final_tick_ || c.period_us != period_us_ || c.utime != c.tick * period_us_ ||
-      due_.count(c.tick) != 0 || due_.size() >= kMaxDueTicks) {
+      c.tick >= next_tick_ + max_ticks_ahead_ || c.tick > final_tick_ ||
+      c.period_us != period_us_ || c.utime != c.tick * period_us_ || due_.count(c.tick) != 0) {
     ++counters_.bad_clock;
     return;
   }
   DueTick& d = due_[c.tick];
   d.final_tick = c.final_tick != 0;
   for (std::int32_t k = 0; k < c.n_deliveries; ++k) {
-    if (c.delivery_receiver[k] == id_) d.deliveries.emplace_back(c.delivery_sender[k], c.delivery_seq[k]);
+    if (c.delivery_receiver[k] == id_) {
+      d.deliveries.push_back({c.delivery_sender[k], c.delivery_seq[k], c.delivery_digest[k]});
+    }
   }
   StepWhatIsDue();
 }
@@ -95,15 +113,19 @@ void NodeApp::StepWhatIsDue() {
     // Every listed delivery must be here; apply them in the listed order, as shoal sim.
     std::vector<std::size_t> at;
     at.reserve(it->second.deliveries.size());
-    for (const auto& [sender, seq] : it->second.deliveries) {
+    for (const DueTick::Delivery& want : it->second.deliveries) {
       std::size_t k = 0;
-      while (k < held_.size() && (held_[k].vehicle_id != sender || held_[k].seq != seq)) ++k;
+      while (k < held_.size() &&
+             (held_[k].msg.vehicle_id != want.sender || held_[k].msg.seq != want.seq ||
+              held_[k].digest != want.digest || std::find(at.begin(), at.end(), k) != at.end())) {
+        ++k;
+      }
       if (k == held_.size()) {
         if (waiting_since_ns_ == 0) waiting_since_ns_ = MonotonicNs();
         if (!warned_waiting_ && MonotonicNs() - waiting_since_ns_ > kWaitWarningNs) {
           std::fprintf(stderr, "vehicle %d: tick %lld still waits for the delivery of %d's "
                        "state seq %d (a datagram lost on the bus?)\n", id_,
-                       static_cast<long long>(next_tick_), sender, seq);
+                       static_cast<long long>(next_tick_), want.sender, want.seq);
           warned_waiting_ = true;
         }
         return;
@@ -111,7 +133,9 @@ void NodeApp::StepWhatIsDue() {
       at.push_back(k);
     }
     if (follower_) {
-      for (std::size_t k : at) follower_->Receive(held_[k]);
+      for (std::size_t k : at) {
+        if (!held_[k].counted) follower_->Receive(held_[k].msg);  // counted: old, no effect
+      }
     }
     std::sort(at.begin(), at.end());
     for (auto k = at.rbegin(); k != at.rend(); ++k) held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(*k));
@@ -121,6 +145,17 @@ void NodeApp::StepWhatIsDue() {
     waiting_since_ns_ = 0;
     warned_waiting_ = false;
     Step(tick);
+    // What no later tick can list any more (sent longer ago than the largest delay, plus
+    // a period) is dropped; counted unless it was counted on arrival.
+    const Micros oldest_listable = tick * period_us_ - listable_us_;
+    for (std::size_t k = 0; k < held_.size();) {
+      if (held_[k].msg.utime < oldest_listable) {
+        if (!held_[k].counted) ++counters_.unlisted_rx;
+        held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(k));
+      } else {
+        ++k;
+      }
+    }
     if (final_tick || tick >= final_tick_) {
       done_ = true;
       return;

@@ -62,14 +62,26 @@ class NodeApp {
   std::unique_ptr<Leader> leader_;
   std::string state_channel_, health_channel_;
   std::int64_t next_tick_ = 0;  // lockstep: the clock tick expected next
-  // Lockstep: clock ticks received, by tick, with the deliveries (sender, seq) each lists
+  // Lockstep: clock ticks received, by tick, with the deliveries (sender, seq, digest) each lists
   // for this vehicle; and the deliveries received and not yet applied, in arrival order.
   struct DueTick {
     bool final_tick = false;
-    std::vector<std::pair<std::int32_t, std::int32_t>> deliveries;
+    struct Delivery {
+      std::int32_t sender;
+      std::int32_t seq;
+      std::int64_t digest;
+    };
+    std::vector<Delivery> deliveries;
   };
   std::map<std::int64_t, DueTick> due_;
-  std::vector<StateMsg> held_;
+  struct Held {
+    StateMsg msg;
+    std::int64_t digest = 0;  // Digest64 of the bytes received
+    bool counted = false;     // already counted (as old) on arrival
+  };
+  std::vector<Held> held_;
+  std::int64_t max_ticks_ahead_ = 1;  // clock ticks accepted: [next_tick_, + this)
+  Micros listable_us_ = 0;            // a delivery is listed within this of its send time
   std::int64_t waiting_since_ns_ = 0;  // when the tick expected next started to wait
   bool warned_waiting_ = false;
   bool done_ = false;

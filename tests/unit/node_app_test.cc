@@ -26,8 +26,15 @@ Scenario Example2() {
   return LoadScenario(std::string(SHOAL_SOURCE_DIR) + "/scenarios/paper_example2.toml");
 }
 
-clock_tick_t Tick(const Scenario& s, std::int64_t k,
-                  const std::vector<std::pair<int, int>>& deliveries) {  // (sender, seq)
+std::vector<unsigned char> Encode(const StateMsg& m) {
+  const vehicle_state_t v = ToLcm(m);
+  std::vector<unsigned char> b(static_cast<std::size_t>(v.getEncodedSize()));
+  v.encode(b.data(), 0, static_cast<int>(b.size()));
+  return b;
+}
+
+// Clock tick k listing `deliveries` for vehicle kId, as the emulator lists them.
+clock_tick_t Tick(const Scenario& s, std::int64_t k, const std::vector<StateMsg>& deliveries) {
   clock_tick_t c{};
   c.utime = k * s.period_us();
   c.vehicle_id = kEmulatorId;
@@ -35,10 +42,12 @@ clock_tick_t Tick(const Scenario& s, std::int64_t k,
   c.tick = k;
   c.period_us = s.period_us();
   c.final_tick = 0;
-  for (const auto& [sender, seq] : deliveries) {
+  for (const StateMsg& m : deliveries) {
+    const std::vector<unsigned char> b = Encode(m);
     c.delivery_receiver.push_back(kId);
-    c.delivery_sender.push_back(sender);
-    c.delivery_seq.push_back(seq);
+    c.delivery_sender.push_back(m.vehicle_id);
+    c.delivery_seq.push_back(m.seq);
+    c.delivery_digest.push_back(Digest64(b.data(), static_cast<int>(b.size())));
   }
   c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
   return c;
@@ -73,8 +82,8 @@ TEST(NodeAppLockstep, AppliesTheListedDeliveriesWhateverOrderTheyArriveIn) {
     r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[k - kLag]));
   };
   for (int k = 0; k < n; ++k) {
-    std::vector<std::pair<int, int>> list;
-    if (k >= kLag) list.emplace_back(0, r.sent[k - kLag].seq);
+    std::vector<StateMsg> list;
+    if (k >= kLag) list.push_back(r.sent[k - kLag]);
     if (k % 3 == 0) publish_rx(k);
     if (k % 3 == 1) publish_rx(k + 1);  // held a tick ahead: must not be used at tick k
     r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
@@ -124,9 +133,9 @@ TEST(NodeAppLockstep, AnUnlistedPlausibleMessageNeverReachesTheControlLaw) {
   forged.eta(0) += 500.0;
   r.bus.Publish(channels::Rx(kId), ToLcm(forged));
   for (int k = 0; k < n; ++k) {
-    std::vector<std::pair<int, int>> list;
+    std::vector<StateMsg> list;
     if (k >= kLag) {
-      list.emplace_back(0, r.sent[k - kLag].seq);
+      list.push_back(r.sent[k - kLag]);
       r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[k - kLag]));
       r.reference.Receive(r.sent[k - kLag]);
     }
@@ -153,6 +162,69 @@ TEST(NodeAppLockstep, InvalidDeliveriesAreCountedOnArrival) {
   r.Pump();
   EXPECT_EQ(r.node.follower()->counters().msgs_dropped_invalid, 2);
   EXPECT_EQ(r.node.counters().bad_rx, 1);
+}
+
+// A delay model that lets messages overtake (uniform jitter): a delivery older than the
+// one already applied is listed at its own tick; shoal sim counts it as old there. The
+// vehicle must step that tick (not wait for a message it dropped) and count it once.
+TEST(NodeAppLockstep, AnOvertakenDeliveryIsCountedOldAndDoesNotBlockItsTick) {
+  Rig r;
+  for (int k = 0; k < 8; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
+  for (int k = 0; k < 7; ++k) {
+    std::vector<StateMsg> list;
+    if (k == 3) list.push_back(r.sent[1]);  // tick 1's state at tick 3
+    if (k == 5) list.push_back(r.sent[0]);  // tick 0's state at tick 5: overtaken
+    for (const StateMsg& m : list) {
+      r.bus.Publish(channels::Rx(kId), ToLcm(m));
+      r.reference.Receive(m);
+    }
+    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
+    r.Pump();
+    r.reference.Tick(k * r.s.period_us());
+  }
+  EXPECT_EQ(r.ticks(), 7);
+  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_old, 1);
+  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_old,
+            r.reference.counters().msgs_dropped_old);
+  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
+}
+
+// A forged copy of an upcoming delivery (same sender and seq, other content) arriving
+// first is not the delivery: the tick's digest tells them apart.
+TEST(NodeAppLockstep, AForgedCopyOfAListedDeliveryIsNotApplied) {
+  Rig r;
+  for (int k = 0; k < 6; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
+  StateMsg forged = r.sent[1];
+  forged.eta(0) += 500.0;
+  r.bus.Publish(channels::Rx(kId), ToLcm(forged));
+  for (int k = 0; k < 5; ++k) {
+    std::vector<StateMsg> list;
+    if (k == 4) {
+      list.push_back(r.sent[1]);
+      r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[1]));
+      r.reference.Receive(r.sent[1]);
+    }
+    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
+    r.Pump();
+    r.reference.Tick(k * r.s.period_us());
+  }
+  ASSERT_EQ(r.ticks(), 5);
+  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
+  EXPECT_EQ(r.node.follower()->state().nu, r.reference.state().nu);
+}
+
+// Clock ticks further ahead than the channel's smallest delivery lag (3 ticks in
+// Example 2) cannot come from the clock master: refused and counted.
+TEST(NodeAppLockstep, AClockTickTooFarAheadIsRefused) {
+  Rig r;
+  r.bus.Publish(channels::Clock(), Tick(r.s, 3, {}));
+  r.Pump();
+  EXPECT_EQ(r.node.counters().bad_clock, 1);
+  for (int k = 0; k < 3; ++k) r.bus.Publish(channels::Clock(), Tick(r.s, k, {}));
+  r.bus.Publish(channels::Clock(), Tick(r.s, 3, {}));
+  r.Pump();
+  EXPECT_EQ(r.ticks(), 4);
+  EXPECT_EQ(r.node.counters().bad_clock, 1);
 }
 
 }  // namespace
