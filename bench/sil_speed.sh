@@ -17,14 +17,17 @@ median() { sort -g | awk '{a[NR]=$1} END {m=(NR%2)?a[(NR+1)/2]:(a[NR/2]+a[NR/2+1
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), load $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "lockstep: $shoal run $scenario --mode lockstep --duration $ls_dur --json"
 vals=()
+logged=()
 for ((i = 1; i <= runs; i++)); do
   j=$("$shoal" run "$scenario" --mode lockstep --duration "$ls_dur" --json --out "$dir/ls$i.lcmlog")
   vals+=("$(echo "$j" | num realtime_factor)")
+  logged+=("$(echo "$j" | num log_states)/$(echo "$j" | num log_states_expected)")
 done
 echo "  real-time factors: ${vals[*]}"
+echo "  states logged: ${logged[*]}"
 printf '  '; printf '%s\n' "${vals[@]}" | median
 
 echo "realtime: $shoal run $scenario --mode realtime --duration $rt_dur --json"
 j=$("$shoal" run "$scenario" --mode realtime --duration "$rt_dur" --json --out "$dir/rt.lcmlog")
-echo "  delay_error_p99_s $(echo "$j" | num delay_error_p99_s)  lateness_p99_s $(echo "$j" | num lateness_p99_s)  overruns $(echo "$j" | num overruns)  final_position_error_m $(echo "$j" | num final_position_error_m)"
+echo "  delay_error_p99_s $(echo "$j" | num delay_error_p99_s)  states logged $(echo "$j" | num log_states)/$(echo "$j" | num log_states_expected)  lateness_p99_s $(echo "$j" | num lateness_p99_s)  overruns $(echo "$j" | num overruns)  final_position_error_m $(echo "$j" | num final_position_error_m)"
 echo "  load after: $(cut -d' ' -f1-3 /proc/loadavg)"
