@@ -149,11 +149,15 @@ void EmulatorApp::PublishEvents(std::size_t at_most) {
   }
 }
 
-void EmulatorApp::FlushEvents() {
-  while (!event_backlog_.empty()) {
+void EmulatorApp::FlushEvents(bool paced) {
+  // Paced: a few per millisecond for the logger, for at most 200 ms; then (or when
+  // interrupted, where the launcher allows 2 s for the whole shutdown) all at once.
+  const std::int64_t deadline = MonotonicNs() + 200000000LL;
+  while (paced && !event_backlog_.empty() && MonotonicNs() < deadline) {
     PublishEvents(kEventsPerWait);
-    if (!event_backlog_.empty()) SleepUntilNs(MonotonicNs() + 1000000);  // the logger's pace
+    if (!event_backlog_.empty()) SleepUntilNs(MonotonicNs() + 1000000);
   }
+  PublishEvents(event_backlog_.size());
 }
 
 void EmulatorApp::ReleaseWindow() {
@@ -282,7 +286,7 @@ int EmulatorApp::RunLockstep() {
   bool lost_any = false;
   for (std::int64_t k = 0; k <= final_tick_; k += lookahead_) {
     if (StopRequested()) {
-      FlushEvents();
+      FlushEvents(false);
       PublishStatus("interrupted", "");
       return 1;
     }
@@ -300,7 +304,7 @@ int EmulatorApp::RunLockstep() {
       }
       if (all) break;
       if (StopRequested()) {
-        FlushEvents();
+        FlushEvents(false);
         PublishStatus("interrupted", "");
         return 1;
       }
@@ -341,7 +345,7 @@ int EmulatorApp::RunLockstep() {
       if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
     }
   }
-  FlushEvents();
+  FlushEvents(true);
   PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
   return lost_any ? 4 : 0;
 }
@@ -427,13 +431,15 @@ int EmulatorMain(int argc, char** argv) {
     // One bus object per distinct URL: vehicles that share a URL share a bus, and get one
     // clock tick listing all their deliveries (two bus objects on one address would each
     // send a tick of their own, with half the list).
-    std::map<std::string, Bus*> by_url = {{opt.lcm_url, &bus}};
+    // Keyed on the address (provider://group:port), not the options after '?'.
+    auto address = [](const std::string& u) { return u.substr(0, u.find('?')); };
+    std::map<std::string, Bus*> by_url = {{address(opt.lcm_url), &bus}};
     for (int id = 0; id <= s.followers; ++id) {
       const std::string& u = vehicle_urls.empty() ? opt.lcm_url : vehicle_urls[id];
-      auto found = by_url.find(u);
+      auto found = by_url.find(address(u));
       if (found == by_url.end()) {
         own.push_back(std::make_unique<LcmBus>(u));
-        found = by_url.emplace(u, own.back().get()).first;
+        found = by_url.emplace(address(u), own.back().get()).first;
       }
       vbus.push_back(found->second);
     }

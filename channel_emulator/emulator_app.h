@@ -56,7 +56,7 @@ class EmulatorApp {
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
   void ReleaseWindow();
   void PublishEvents(std::size_t at_most);
-  void FlushEvents();  // all of them, a few per millisecond
+  void FlushEvents(bool paced);  // all of them (paced: a few per ms, for at most 200 ms)
   clock_tick_t ClockTick(std::int64_t tick) const;
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);

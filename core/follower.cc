@@ -66,27 +66,31 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
   out_.seq = -1;
 }
 
-RxResult Follower::Screen(const StateMsg& m) {
+RxResult Follower::Check(const StateMsg& m) const {
   if (m.vehicle_id < 0 || m.vehicle_id >= static_cast<int>(slot_of_.size()) ||
       slot_of_[m.vehicle_id] < 0) {
-    ++counters_.msgs_dropped_invalid;
     return RxResult::kUnknownSender;
   }
-  if (!m.AllFinite()) {
-    ++counters_.msgs_dropped_invalid;
-    return RxResult::kNonFinite;
-  }
+  if (!m.AllFinite()) return RxResult::kNonFinite;
   const Slot& sl = slots_[slot_of_[m.vehicle_id]];
-  if (sl.have && (m.utime <= sl.msg.utime || m.seq <= sl.msg.seq)) {
-    ++counters_.msgs_dropped_old;
-    return RxResult::kOld;
-  }
+  if (sl.have && (m.utime <= sl.msg.utime || m.seq <= sl.msg.seq)) return RxResult::kOld;
   return RxResult::kAccepted;
 }
 
+void Follower::CountRejected(RxResult r) {
+  if (r == RxResult::kOld) {
+    ++counters_.msgs_dropped_old;
+  } else if (r != RxResult::kAccepted) {
+    ++counters_.msgs_dropped_invalid;
+  }
+}
+
 RxResult Follower::Receive(const StateMsg& m) {
-  const RxResult r = Screen(m);
-  if (r != RxResult::kAccepted) return r;
+  const RxResult r = Check(m);
+  if (r != RxResult::kAccepted) {
+    CountRejected(r);
+    return r;
+  }
   Slot& sl = slots_[slot_of_[m.vehicle_id]];
   sl.msg = m;
   sl.have = true;

@@ -42,10 +42,11 @@ class Follower {
   /// in-neighbour (or the leader, if pinned) that is newer than the one held is kept;
   /// everything else is counted and ignored. Never throws, never allocates.
   RxResult Receive(const StateMsg& m);
-  /// What Receive would do with `m` now, without keeping it: for a message held until
-  /// it is due (lockstep). A rejection is counted as Receive counts it; an acceptance is
-  /// not (Receive counts it when the message is applied).
-  RxResult Screen(const StateMsg& m);
+  /// What Receive would do with `m` now, without keeping or counting it (lockstep holds
+  /// messages until they are due).
+  RxResult Check(const StateMsg& m) const;
+  /// Counts a rejection as Receive would (unknown sender / non-finite / old).
+  void CountRejected(RxResult r);
 
   /// One control tick at `now`: records the current state, computes protocol (10) from
   /// the newest data of each live neighbour, feedback-linearises and saturates, returns

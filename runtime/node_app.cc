@@ -62,6 +62,7 @@ namespace {
 // window's deliveries and ticks), so that only forged traffic can reach them.
 constexpr std::size_t kMaxHeldDeliveries = 4096;
 constexpr std::int64_t kWaitWarningNs = 5000000000LL;
+constexpr std::int64_t kIdleExitNs = 30000000000LL;
 }  // namespace
 
 void NodeApp::OnRx(const void* data, int size) {
@@ -75,18 +76,19 @@ void NodeApp::OnRx(const void* data, int size) {
     follower_->Receive(msg);  // validates and counts (NaN/Inf, unknown, old)
     return;
   }
-  // Lockstep: hold it until the clock tick that lists it. What can never be used
-  // (NaN/Inf, unknown sender) is dropped and counted now. A message older than the one
-  // applied is counted as old now but still held: the channel may have delivered it after
-  // a newer one (a delay model that lets messages overtake), and the tick that lists it
-  // must not wait for it in vain; applied, it changes nothing, as in shoal sim.
-  const RxResult r = follower_->Screen(msg);
-  if (r == RxResult::kUnknownSender || r == RxResult::kNonFinite) return;
-  if (held_.size() >= kMaxHeldDeliveries) {
-    if (!held_.front().counted) ++counters_.unlisted_rx;
-    held_.erase(held_.begin());
+  // Lockstep: hold it until the clock tick that lists it, and apply it there (Receive
+  // counts it then, as shoal sim does at that tick -- an old one too: a delay model that
+  // lets messages overtake makes the channel deliver it after a newer one). What can never
+  // be used (NaN/Inf, unknown sender) is dropped and counted now.
+  const RxResult r = follower_->Check(msg);
+  if (r == RxResult::kUnknownSender || r == RxResult::kNonFinite) {
+    follower_->CountRejected(r);
+    return;
   }
-  held_.push_back(Held{msg, Digest64(data, size), r == RxResult::kOld});
+  if (held_.size() >= kMaxHeldDeliveries) {
+    DropHeld(0);
+  }
+  held_.push_back(Held{msg, Digest64(data, size)});
   StepWhatIsDue();
 }
 
@@ -106,6 +108,16 @@ void NodeApp::OnClock(const void* data, int size) {
     }
   }
   StepWhatIsDue();
+}
+
+void NodeApp::DropHeld(std::size_t k) {
+  // Never listed: old if older than what was applied (a replay), else unlisted.
+  if (follower_ && follower_->Check(held_[k].msg) == RxResult::kOld) {
+    follower_->CountRejected(RxResult::kOld);
+  } else {
+    ++counters_.unlisted_rx;
+  }
+  held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(k));
 }
 
 void NodeApp::StepWhatIsDue() {
@@ -133,9 +145,7 @@ void NodeApp::StepWhatIsDue() {
       at.push_back(k);
     }
     if (follower_) {
-      for (std::size_t k : at) {
-        if (!held_[k].counted) follower_->Receive(held_[k].msg);  // counted: old, no effect
-      }
+      for (std::size_t k : at) follower_->Receive(held_[k].msg);
     }
     std::sort(at.begin(), at.end());
     for (auto k = at.rbegin(); k != at.rend(); ++k) held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(*k));
@@ -146,12 +156,11 @@ void NodeApp::StepWhatIsDue() {
     warned_waiting_ = false;
     Step(tick);
     // What no later tick can list any more (sent longer ago than the largest delay, plus
-    // a period) is dropped; counted unless it was counted on arrival.
+    // a period) is dropped and counted (DropHeld).
     const Micros oldest_listable = tick * period_us_ - listable_us_;
     for (std::size_t k = 0; k < held_.size();) {
       if (held_[k].msg.utime < oldest_listable) {
-        if (!held_[k].counted) ++counters_.unlisted_rx;
-        held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(k));
+        DropHeld(k);
       } else {
         ++k;
       }
@@ -222,9 +231,17 @@ int NodeApp::RunLockstep() {
         return 3;
       }
     }
+    const std::int64_t stepped_before = next_tick_;
     const int handled = rx_bus_->Handle(50);
     if (handled < 0) return 1;
     if (handled == 0 && !due_.empty()) StepWhatIsDue();  // to say what it waits for
+    if (next_tick_ != stepped_before) last_step_ns_ = MonotonicNs();
+    if (next_tick_ > 0 && MonotonicNs() - last_step_ns_ > kIdleExitNs) {
+      std::cerr << "vehicle " << id_ << ": no tick could be stepped for "
+                << kIdleExitNs / 1000000000LL << " s after tick " << next_tick_ - 1
+                << " (the clock master is gone, or declared this vehicle lost); exiting\n";
+      return 3;
+    }
   }
   if (done_) PublishStatus("finished", "");
   return done_ ? 0 : 1;

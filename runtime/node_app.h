@@ -20,7 +20,7 @@ namespace shoal {
 struct NodeCounters {
   std::int64_t bad_rx = 0;     // undecodable / wrong fingerprint / truncated on SHOAL_RX
   std::int64_t bad_clock = 0;  // undecodable, duplicate, out-of-order or foreign clock ticks
-  std::int64_t unlisted_rx = 0;  // lockstep: held deliveries no tick listed, evicted
+  std::int64_t unlisted_rx = 0;  // lockstep: held messages no tick listed (not replays)
   std::int64_t overruns = 0;
 };
 
@@ -45,6 +45,8 @@ class NodeApp {
   void Step(std::int64_t tick);
   /// Lockstep: steps every tick whose clock tick and listed deliveries are all here.
   void StepWhatIsDue();
+  /// Lockstep: drops held message k, which no tick listed, counting it.
+  void DropHeld(std::size_t k);
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);
   int RunLockstep();
@@ -77,13 +79,13 @@ class NodeApp {
   struct Held {
     StateMsg msg;
     std::int64_t digest = 0;  // Digest64 of the bytes received
-    bool counted = false;     // already counted (as old) on arrival
   };
   std::vector<Held> held_;
   std::int64_t max_ticks_ahead_ = 1;  // clock ticks accepted: [next_tick_, + this)
   Micros listable_us_ = 0;            // a delivery is listed within this of its send time
   std::int64_t waiting_since_ns_ = 0;  // when the tick expected next started to wait
   bool warned_waiting_ = false;
+  std::int64_t last_step_ns_ = 0;  // lockstep: when a tick was last stepped
   bool done_ = false;
   std::int32_t health_seq_ = 0, status_seq_ = 0;
   NodeCounters counters_;

@@ -213,6 +213,36 @@ TEST(NodeAppLockstep, AForgedCopyOfAListedDeliveryIsNotApplied) {
   EXPECT_EQ(r.node.follower()->state().nu, r.reference.state().nu);
 }
 
+// A replay (an old state nobody lists) is counted as old once no tick can list it any
+// more; an unlisted one that is not old as invalid (unlisted). Neither is applied.
+TEST(NodeAppLockstep, UnlistedMessagesAreCountedWhenNoTickCanListThemAnyMore) {
+  Rig r;
+  const int n = 40;  // 0.8 s: past the largest delay (0.15 s) plus two periods
+  for (int k = 0; k < n; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
+  // A state of follower 3 (an in-neighbour of 1 from which this test delivers nothing):
+  // never old, never listed.
+  StateMsg forged = r.sent[5];
+  forged.vehicle_id = 3;
+  forged.seq = 7;
+  r.bus.Publish(channels::Rx(kId), ToLcm(forged));
+  for (int k = 0; k < n; ++k) {
+    std::vector<StateMsg> list;
+    if (k >= kLag) {
+      list.push_back(r.sent[k - kLag]);
+      r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[k - kLag]));
+      r.reference.Receive(r.sent[k - kLag]);
+    }
+    if (k == 10) r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[2]));  // a replay
+    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
+    r.Pump();
+    r.reference.Tick(k * r.s.period_us());
+  }
+  ASSERT_EQ(r.ticks(), n);
+  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_old, 1);
+  EXPECT_EQ(r.node.counters().unlisted_rx, 1);
+  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
+}
+
 // Clock ticks further ahead than the channel's smallest delivery lag (3 ticks in
 // Example 2) cannot come from the clock master: refused and counted.
 TEST(NodeAppLockstep, AClockTickTooFarAheadIsRefused) {
