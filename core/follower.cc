@@ -100,7 +100,8 @@ RxResult Follower::Receive(const StateMsg& m) {
 }
 
 const StateMsg& Follower::Tick(Micros now) {
-  const AttitudeTrig<double> trig(x_.eta);
+  if (trig_age_ == 0) trig_ = AttitudeTrig<double>(x_.eta);
+  const AttitudeTrig<double> trig = trig_;
   const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);
   history_.Push(HistorySample{now, x_.eta, eta_dot});
 
@@ -170,7 +171,8 @@ const StateMsg& Follower::Tick(Micros now) {
   out_.flags = (saturated ? StateMsg::kFlagSaturated : 0) |
                (any_stale ? StateMsg::kFlagStaleNeighbour : 0);
 
-  Integrate(model_, tau + tau_dist, current, period_s, substeps_, &x_, &trig);
+  Integrate(model_, tau + tau_dist, current, period_s, substeps_, &x_, &trig, &trig_);
+  trig_age_ = (trig_age_ + 1) % kTrigRefreshTicks;  // the heading's wrap below keeps sin, cos
   x_.eta(4) = WrapAngle(x_.eta(4));
   ++counters_.ticks;
   if (!x_.eta.allFinite() || !x_.nu.allFinite() || std::abs(x_.eta(3)) > 80.0 * kPi / 180.0) {

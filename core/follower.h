@@ -83,6 +83,12 @@ class Follower {
   FossenModel model_;
 
   PlantState x_;
+  // The attitude's sines and cosines at x_: carried from one tick's integration to the
+  // next (ShiftTrig, exact to rounding), computed afresh every kTrigRefreshTicks ticks so
+  // that rounding cannot accumulate.
+  static constexpr int kTrigRefreshTicks = 50;
+  AttitudeTrig<double> trig_{Vec5::Zero()};
+  int trig_age_ = 0;  // 0: compute afresh
   StateHistory history_;
   std::vector<Slot> slots_;
   std::vector<int> slot_of_;  // sender id -> slot index, -1 if not a neighbour

@@ -15,7 +15,7 @@ inline Deriv F(const FossenModel& model, const AttitudeTrig<double>& c, const Ve
 }  // namespace
 
 void Rk4Step(const FossenModel& model, const Vec5& tau, const Vec3& current_ned, double dt,
-             const AttitudeTrig<double>& trig, PlantState* x) {
+             const AttitudeTrig<double>& trig, PlantState* x, AttitudeTrig<double>* trig_out) {
   const Vec5 eta = x->eta, nu = x->nu;
   const Deriv k1 = F(model, trig, nu, tau, current_ned);
   const Vec5 eta2 = eta + 0.5 * dt * k1.eta_dot;
@@ -29,17 +29,19 @@ void Rk4Step(const FossenModel& model, const Vec5& tau, const Vec3& current_ned,
       F(model, ShiftTrig(trig, eta, eta4), nu + dt * k3.nu_dot, tau, current_ned);
   x->eta = eta + dt / 6.0 * (k1.eta_dot + 2.0 * k2.eta_dot + 2.0 * k3.eta_dot + k4.eta_dot);
   x->nu = nu + dt / 6.0 * (k1.nu_dot + 2.0 * k2.nu_dot + 2.0 * k3.nu_dot + k4.nu_dot);
+  if (trig_out != nullptr) *trig_out = ShiftTrig(trig, eta, x->eta);
 }
 
 void Integrate(const FossenModel& model, const Vec5& tau, const Vec3& current_ned,
                double period_s, int substeps, PlantState* x,
-               const AttitudeTrig<double>* trig) {
+               const AttitudeTrig<double>* trig, AttitudeTrig<double>* trig_out) {
   const double dt = period_s / substeps;
   for (int s = 0; s < substeps; ++s) {
+    AttitudeTrig<double>* out = s + 1 == substeps ? trig_out : nullptr;
     if (s == 0 && trig != nullptr) {
-      Rk4Step(model, tau, current_ned, dt, *trig, x);
+      Rk4Step(model, tau, current_ned, dt, *trig, x, out);
     } else {
-      Rk4Step(model, tau, current_ned, dt, AttitudeTrig<double>(x->eta), x);
+      Rk4Step(model, tau, current_ned, dt, AttitudeTrig<double>(x->eta), x, out);
     }
   }
 }

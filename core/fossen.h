@@ -320,12 +320,16 @@ inline Vec5 BodyCurrent(const Vec5& eta, const Vec3& v_c_ned) {
 /// Classic RK4 over [t, t + dt] with tau and the earth-frame current held constant.
 /// `trig` must be AttitudeTrig(x->eta); the stages' trig comes from it by ShiftTrig().
 void Rk4Step(const FossenModel& model, const Vec5& tau, const Vec3& current_ned, double dt,
-             const AttitudeTrig<double>& trig, PlantState* x);
+             const AttitudeTrig<double>& trig, PlantState* x,
+             AttitudeTrig<double>* trig_out = nullptr);
 
 /// Integrates over `period_s` in `substeps` equal RK4 steps. `trig`, if given, must be
 /// AttitudeTrig(x->eta) (the caller usually has it already).
+/// `trig_out`, if given, receives the trig of the final state, by ShiftTrig from the last
+/// step's (equal to AttitudeTrig(x->eta) to rounding).
 void Integrate(const FossenModel& model, const Vec5& tau, const Vec3& current_ned,
                double period_s, int substeps, PlantState* x,
-               const AttitudeTrig<double>* trig = nullptr);
+               const AttitudeTrig<double>* trig = nullptr,
+               AttitudeTrig<double>* trig_out = nullptr);
 
 }  // namespace shoal
