@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -67,6 +68,20 @@ struct Rig {
     }
   }
   std::int64_t ticks() const { return node.follower()->counters().ticks; }
+  // Tick k in order: the leader's state of tick k - kLag delivered and listed, then the
+  // clock tick; the reference steps alike. `extra` runs before the clock tick.
+  void InOrderTick(int k, const std::function<void()>& extra = nullptr) {
+    std::vector<StateMsg> list;
+    if (k >= kLag) {
+      list.push_back(sent[k - kLag]);
+      bus.Publish(channels::Rx(kId), ToLcm(sent[k - kLag]));
+      reference.Receive(sent[k - kLag]);
+    }
+    if (extra) extra();
+    bus.Publish(channels::Clock(), Tick(s, k, list));
+    Pump();
+    reference.Tick(k * s.period_us());
+  }
 };
 
 TEST(NodeAppLockstep, AppliesTheListedDeliveriesWhateverOrderTheyArriveIn) {
@@ -132,17 +147,7 @@ TEST(NodeAppLockstep, AnUnlistedPlausibleMessageNeverReachesTheControlLaw) {
   forged.utime = 0;
   forged.eta(0) += 500.0;
   r.bus.Publish(channels::Rx(kId), ToLcm(forged));
-  for (int k = 0; k < n; ++k) {
-    std::vector<StateMsg> list;
-    if (k >= kLag) {
-      list.push_back(r.sent[k - kLag]);
-      r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[k - kLag]));
-      r.reference.Receive(r.sent[k - kLag]);
-    }
-    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
-    r.Pump();
-    r.reference.Tick(k * r.s.period_us());
-  }
+  for (int k = 0; k < n; ++k) r.InOrderTick(k);
   ASSERT_EQ(r.ticks(), n);
   EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
   EXPECT_EQ(r.node.follower()->state().nu, r.reference.state().nu);
@@ -226,16 +231,9 @@ TEST(NodeAppLockstep, UnlistedMessagesAreCountedWhenNoTickCanListThemAnyMore) {
   forged.seq = 7;
   r.bus.Publish(channels::Rx(kId), ToLcm(forged));
   for (int k = 0; k < n; ++k) {
-    std::vector<StateMsg> list;
-    if (k >= kLag) {
-      list.push_back(r.sent[k - kLag]);
-      r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[k - kLag]));
-      r.reference.Receive(r.sent[k - kLag]);
-    }
-    if (k == 10) r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[2]));  // a replay
-    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
-    r.Pump();
-    r.reference.Tick(k * r.s.period_us());
+    r.InOrderTick(k, [&] {
+      if (k == 10) r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[2]));  // a replay
+    });
   }
   ASSERT_EQ(r.ticks(), n);
   EXPECT_EQ(r.node.follower()->counters().msgs_dropped_old, 1);
