@@ -112,6 +112,23 @@ struct Link {
 /// Each link's random stream depends only on (seed, from, to).
 std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo);
 
+/// Lookahead of a set of links (period > 0): no message is delivered fewer than this many
+/// ticks after its send tick, on any of them (1 without links).
+inline std::int64_t MinLagTicks(const std::vector<Link>& links, Micros period_us) {
+  std::int64_t lag = std::numeric_limits<std::int64_t>::max();
+  for (const Link& l : links) {
+    lag = std::min(lag, MinDeliveryLagTicks(MinDelaySeconds(l.delay), period_us));
+  }
+  return links.empty() ? 1 : lag;
+}
+
+/// The largest delay any of the links' models can give.
+inline double MaxDelaySeconds(const std::vector<Link>& links) {
+  double d = 0.0;
+  for (const Link& l : links) d = std::max(d, MaxDelaySeconds(l.delay));
+  return d;
+}
+
 /// When a message sent at send_utime with delay tau becomes usable. Time is whole
 /// microseconds: tau is rounded to the nearest microsecond first.
 ///   period_us > 0 (lockstep and shoal sim): at the first tick at or after send + tau, and
@@ -138,18 +155,15 @@ template <typename Payload>
 class Channel {
  public:
   Channel(std::vector<Link> links, Micros period_us, std::size_t max_pending = 1 << 20)
-      : links_(std::move(links)), period_us_(period_us), max_pending_(max_pending) {
-    for (const Link& l : links_) {
-      min_lag_ticks_ = std::min(min_lag_ticks_, MinDeliveryLagTicks(MinDelaySeconds(l.delay),
-                                                                    period_us_));
-    }
-    if (links_.empty()) min_lag_ticks_ = 1;
-    double max_delay_s = 0.0;
+      : links_(std::move(links)),
+        min_lag_ticks_(shoal::MinLagTicks(links_, period_us)),
+        period_us_(period_us),
+        max_pending_(max_pending) {
+    const double max_delay_s = MaxDelaySeconds(links_);
     for (std::size_t k = 0; k < links_.size(); ++k) {
       const int from = links_[k].from;
       if (from >= static_cast<int>(by_sender_.size())) by_sender_.resize(from + 1);
       by_sender_[from].push_back(k);
-      max_delay_s = std::max(max_delay_s, MaxDelaySeconds(links_[k].delay));
     }
     if (period_us_ > 0) {
       // Pending deliveries span at most max delay + 2 ticks ahead of the delivered tick.
@@ -313,7 +327,7 @@ class Channel {
   std::vector<int> refs_;
   std::vector<int> free_;
   std::vector<Link> links_;
-  std::int64_t min_lag_ticks_ = std::numeric_limits<std::int64_t>::max();
+  std::int64_t min_lag_ticks_;
   std::vector<std::vector<std::size_t>> by_sender_;  // sender id -> its links
   Micros period_us_;
   std::size_t max_pending_;

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstdio>
 #include <iostream>
 
@@ -36,14 +35,9 @@ NodeApp::NodeApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, doubl
   // Lockstep bounds from the links' delay models: the clock master never releases more
   // ticks ahead than the smallest delivery lag, and a message is delivered (listed) at
   // the latest one period after send time + the largest delay.
-  std::int64_t lag = std::numeric_limits<std::int64_t>::max();
-  double max_delay_s = 0.0;
-  for (const Link& l : BuildLinks(s, topo)) {
-    lag = std::min(lag, MinDeliveryLagTicks(MinDelaySeconds(l.delay), period_us_));
-    max_delay_s = std::max(max_delay_s, MaxDelaySeconds(l.delay));
-  }
-  max_ticks_ahead_ = lag == std::numeric_limits<std::int64_t>::max() ? 1 : lag;
-  listable_us_ = static_cast<Micros>(std::ceil(max_delay_s * 1e6)) + 2 * period_us_;
+  const std::vector<Link> links = BuildLinks(s, topo);
+  max_ticks_ahead_ = MinLagTicks(links, period_us_);
+  listable_us_ = static_cast<Micros>(std::ceil(MaxDelaySeconds(links) * 1e6)) + 2 * period_us_;
 }
 
 void NodeApp::Init() {
