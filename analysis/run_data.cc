@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include <shoal/channel_event_t.hpp>
+#include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
@@ -62,12 +63,17 @@ bool DecodeState(const std::uint8_t* p, int size, StateMsg* m) {
   return true;
 }
 
-bool DecodeChannelEvent(const std::uint8_t* p, int size, channel_event_t* e) {
-  static const std::int64_t hash = channel_event_t::getHash();
-  if (size < kChannelFixedBytes + 4 || I64(p) != hash) return false;
-  const std::int32_t len = I32(p + kChannelFixedBytes);  // reason, including its '\0'
-  if (len < 1 || len != size - kChannelFixedBytes - 4 || p[size - 1] != 0) return false;
-  p += 8;
+constexpr int kEventBodyBytes = kChannelFixedBytes - 8;  // an event without its hash
+constexpr int kBatchHeaderBytes = 8 + 8 + 4 + 4 + 4;
+
+/// One channel_event_t without its hash (as nested in a batch) at p, n bytes available:
+/// the bytes it takes, or 0 if damaged.
+int DecodeEventBody(const std::uint8_t* p, int n, channel_event_t* e) {
+  if (n < kEventBodyBytes + 4) return 0;
+  const std::int32_t len = I32(p + kEventBodyBytes);  // reason, including its '\0'
+  if (len < 1 || len > n - kEventBodyBytes - 4 || p[kEventBodyBytes + 4 + len - 1] != 0) {
+    return 0;
+  }
   e->utime = I64(p);
   e->vehicle_id = I32(p + 8);
   e->seq = I32(p + 12);
@@ -78,6 +84,42 @@ bool DecodeChannelEvent(const std::uint8_t* p, int size, channel_event_t* e) {
   e->delay_s = F64(p + 36);
   e->deliver_utime = I64(p + 44);
   e->status = static_cast<std::int8_t>(p[52]);
+  return kEventBodyBytes + 4 + len;
+}
+
+/// SHOAL_CHANNEL: a channel_events_t batch, or (logs written before batching) a single
+/// channel_event_t. All or nothing: false, with `out` empty, if anything is damaged.
+bool DecodeChannelEvents(const std::uint8_t* p, int size, std::vector<channel_event_t>* out) {
+  static const std::int64_t batch_hash = channel_events_t::getHash();
+  static const std::int64_t single_hash = channel_event_t::getHash();
+  out->clear();
+  if (size < 8) return false;
+  const std::int64_t hash = I64(p);
+  if (hash == single_hash) {
+    out->emplace_back();
+    if (DecodeEventBody(p + 8, size - 8, &out->back()) != size - 8) {
+      out->clear();
+      return false;
+    }
+    return true;
+  }
+  if (hash != batch_hash || size < kBatchHeaderBytes) return false;
+  const std::int32_t n = I32(p + 24);
+  if (n < 0 || n > (size - kBatchHeaderBytes) / (kEventBodyBytes + 5)) return false;
+  out->resize(static_cast<std::size_t>(n));
+  int at = kBatchHeaderBytes;
+  for (channel_event_t& e : *out) {
+    const int used = DecodeEventBody(p + at, size - at, &e);
+    if (used == 0) {
+      out->clear();
+      return false;
+    }
+    at += used;
+  }
+  if (at != size) {
+    out->clear();
+    return false;
+  }
   return true;
 }
 
@@ -150,26 +192,28 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
       ++d_->rejected;
     }
   } else if (rest == "CHANNEL") {
-    channel_event_t e{};
-    if (!DecodeChannelEvent(data, size, &e)) {
+    static thread_local std::vector<channel_event_t> events;
+    if (!DecodeChannelEvents(data, size, &events)) {
       ++d_->undecodable;
       return;
     }
     const int lim = IdLimit();
-    if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim || e.status < 0 ||
-        e.status > channel_event_t::STATUS_DROPPED_INVALID) {
-      ++d_->rejected;
-      return;
+    for (const channel_event_t& e : events) {
+      if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim ||
+          e.status < 0 || e.status > channel_event_t::STATUS_DROPPED_INVALID) {
+        ++d_->rejected;
+        continue;
+      }
+      ChannelEventRecord r;
+      r.send_utime = e.send_utime;
+      r.deliver_utime = e.deliver_utime;
+      r.delay_s = e.delay_s;
+      r.msg_seq = e.msg_seq;
+      r.sender = static_cast<std::int16_t>(e.sender);
+      r.receiver = static_cast<std::int16_t>(e.receiver);
+      r.status = e.status;
+      d_->channel_events.push_back(r);
     }
-    ChannelEventRecord r;
-    r.send_utime = e.send_utime;
-    r.deliver_utime = e.deliver_utime;
-    r.delay_s = e.delay_s;
-    r.msg_seq = e.msg_seq;
-    r.sender = static_cast<std::int16_t>(e.sender);
-    r.receiver = static_cast<std::int16_t>(e.receiver);
-    r.status = e.status;
-    d_->channel_events.push_back(r);
   } else if (StartsWith(rest, "HEALTH_") && ParseId(rest.substr(7), &id)) {
     health_t h{};
     if (!Decode(data, size, &h)) {

@@ -9,7 +9,8 @@
 //                     ParseScenario) unless LoadOptions::scenario is given
 //   SHOAL_STATE_<id>  every vehicle_state_t field, per vehicle, sorted by utime, one sample
 //                     per utime (a repeated utime keeps the last one recorded)
-//   SHOAL_CHANNEL     one compact record per channel decision (no reason string)
+//   SHOAL_CHANNEL     one compact record per channel decision (no reason string), from
+//                     channel_events_t batches (or single channel_event_t, older logs)
 //   SHOAL_HEALTH_<id> every health_t, in log order
 //   SHOAL_CLOCK       every tick
 //   SHOAL_RX_<id>     counted per receiver only (the same data as SHOAL_CHANNEL + states)

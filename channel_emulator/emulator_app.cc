@@ -17,7 +17,6 @@ namespace shoal {
 
 namespace {
 constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process is gone
-constexpr std::size_t kEventsPerWait = 6;  // lockstep: SHOAL_CHANNEL events per wait step
 }
 
 EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
@@ -134,30 +133,13 @@ void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utim
     } else {
       ++counters_.dropped;
     }
-    if (mode_ == Mode::kLockstep) {
-      event_backlog_.push_back(ToLcm(d, event_seq_++));
-    } else {
-      bus_->Publish(channels::ChannelEvents(), ToLcm(d, event_seq_++));
-    }
+    if (mode_ == Mode::kRealtime && events_.empty()) events_since_ns_ = MonotonicNs();
+    events_.Add(d);
   }
 }
 
-void EmulatorApp::PublishEvents(std::size_t at_most) {
-  for (; at_most > 0 && !event_backlog_.empty(); --at_most) {
-    bus_->Publish(channels::ChannelEvents(), event_backlog_.front());
-    event_backlog_.pop_front();
-  }
-}
-
-void EmulatorApp::FlushEvents(bool paced) {
-  // Paced: a few per millisecond for the logger, for at most 200 ms; then (or when
-  // interrupted, where the launcher allows 2 s for the whole shutdown) all at once.
-  const std::int64_t deadline = MonotonicNs() + 200000000LL;
-  while (paced && !event_backlog_.empty() && MonotonicNs() < deadline) {
-    PublishEvents(kEventsPerWait);
-    if (!event_backlog_.empty()) SleepUntilNs(MonotonicNs() + 1000000);
-  }
-  PublishEvents(event_backlog_.size());
+void EmulatorApp::PublishEvents() {
+  events_.Flush([&](const channel_events_t& b) { bus_->Publish(channels::ChannelEvents(), b); });
 }
 
 void EmulatorApp::ReleaseWindow() {
@@ -286,7 +268,7 @@ int EmulatorApp::RunLockstep() {
   bool lost_any = false;
   for (std::int64_t k = 0; k <= final_tick_; k += lookahead_) {
     if (StopRequested()) {
-      FlushEvents(false);
+      PublishEvents();
       PublishStatus("interrupted", "");
       return 1;
     }
@@ -304,7 +286,7 @@ int EmulatorApp::RunLockstep() {
       }
       if (all) break;
       if (StopRequested()) {
-        FlushEvents(false);
+        PublishEvents();
         PublishStatus("interrupted", "");
         return 1;
       }
@@ -328,11 +310,7 @@ int EmulatorApp::RunLockstep() {
         }
         break;
       }
-      // The SHOAL_CHANNEL events of the last window go out a few at a time while the
-      // vehicles compute: lcm-logger drops what exceeds its 30-message queue, and a
-      // window's events in one burst (lookahead x links) would exceed it.
-      PublishEvents(std::max<std::size_t>(kEventsPerWait, event_backlog_.size() / 4));
-      bus_->Handle(event_backlog_.empty() ? 10 : 1);
+      bus_->Handle(10);
     }
     // States enter the channel tick by tick, in id order (leader first), as in shoal sim.
     for (std::int64_t j = win_first_; j <= win_last_; ++j) {
@@ -344,8 +322,9 @@ int EmulatorApp::RunLockstep() {
       tick_ = j;
       if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
     }
+    // The window's decisions, in one SHOAL_CHANNEL message.
+    PublishEvents();
   }
-  FlushEvents(true);
   PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
   return lost_any ? 4 : 0;
 }
@@ -374,6 +353,8 @@ int EmulatorApp::RunRealtime() {
       });
       continue;
     }
+    // Decisions go out about once per control period, as one SHOAL_CHANNEL message.
+    if (!events_.empty() && now_ns - events_since_ns_ >= period_us_ * 1000) PublishEvents();
     if (now_ns >= next_health_ns) {
       tick_ = (now_ns - t0_ns_) / (period_us_ * 1000);
       PublishHealth(now_us);
@@ -390,6 +371,7 @@ int EmulatorApp::RunRealtime() {
       if (channel_.NextDue() == due) SleepUntilNs(wake_ns);
     }
   }
+  PublishEvents();
   PublishHealth((MonotonicNs() - t0_ns_) / 1000);
   PublishStatus(StopRequested() ? "interrupted" : "finished", "");
   return StopRequested() ? 1 : 0;

@@ -4,7 +4,6 @@
 // SHOAL_CHANNEL. In lockstep it is also the clock master.
 #pragma once
 
-#include <deque>
 #include <string>
 #include <vector>
 
@@ -55,8 +54,7 @@ class EmulatorApp {
   void OnStatus(const void* data, int size);
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
   void ReleaseWindow();
-  void PublishEvents(std::size_t at_most);
-  void FlushEvents(bool paced);  // all of them (paced: a few per ms, for at most 200 ms)
+  void PublishEvents();  // the decisions not yet published, on SHOAL_CHANNEL
   clock_tick_t ClockTick(std::int64_t tick) const;
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);
@@ -82,8 +80,9 @@ class EmulatorApp {
     std::int64_t tick;
     Datagram d;
   };
-  std::vector<std::vector<Outgoing>> outbox_;
-  std::deque<channel_event_t> event_backlog_;  // lockstep: decided, not yet published  // lockstep window, per receiving vehicle
+  std::vector<std::vector<Outgoing>> outbox_;  // lockstep window, per receiving vehicle
+  ChannelEventBatch events_;  // decided, not yet published
+  std::int64_t events_since_ns_ = 0;  // real time: when the oldest unpublished one was added
 
   // Per sender: newest accepted seq, and (lockstep) the states received for the ticks of
   // the current window [win_first_, win_last_], at slot (tick - win_first_) * (n + 1) + id.
@@ -97,7 +96,7 @@ class EmulatorApp {
   std::vector<bool> alive_;
   std::vector<bool> ready_;
   std::int64_t tick_ = -1;  // lockstep: current tick
-  std::int32_t event_seq_ = 0, clock_seq_ = 0, health_seq_ = 0, status_seq_ = 0;
+  std::int32_t clock_seq_ = 0, health_seq_ = 0, status_seq_ = 0;
   EmulatorCounters counters_;
   LatenessStats release_error_;  // realtime: release time - due time
 };

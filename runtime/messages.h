@@ -1,7 +1,11 @@
 // Translation between core structs and the LCM types (the only place that knows both).
 #pragma once
 
+#include <algorithm>
+#include <cstddef>
+
 #include <shoal/channel_event_t.hpp>
+#include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
@@ -71,6 +75,55 @@ inline channel_event_t ToLcm(const ChannelDecision& d, std::int32_t seq) {
   }
   return e;
 }
+
+/// SHOAL_CHANNEL batching: decisions are added one by one (each becomes a channel_event_t
+/// with the next event seq) and published together by Flush. One message per lockstep
+/// window or shoal sim tick instead of one per decision: lcm-logger pays a few thread
+/// wake-ups per message, and the decisions were most of the messages it had to log.
+class ChannelEventBatch {
+ public:
+  static constexpr int kMaxEvents = 1000;  // ~60 KB: one LCM fragment
+
+  void Add(const ChannelDecision& d) {
+    b_.events.push_back(ToLcm(d, event_seq_++));
+    newest_utime_ = std::max(newest_utime_, d.send_utime);
+  }
+  bool empty() const { return b_.events.empty(); }
+  std::size_t size() const { return b_.events.size(); }
+
+  /// Hands the collected events to publish(const channel_events_t&), at most kMaxEvents per
+  /// message, in decision order, and starts a new batch.
+  template <typename F>
+  void Flush(F&& publish) {
+    if (b_.events.empty()) return;
+    b_.utime = newest_utime_;
+    b_.vehicle_id = -1;
+    if (b_.events.size() <= static_cast<std::size_t>(kMaxEvents)) {
+      b_.seq = batch_seq_++;
+      b_.n_events = static_cast<std::int32_t>(b_.events.size());
+      publish(static_cast<const channel_events_t&>(b_));
+    } else {
+      channel_events_t part;
+      part.utime = b_.utime;
+      part.vehicle_id = -1;
+      for (std::size_t i = 0; i < b_.events.size(); i += kMaxEvents) {
+        const std::size_t end = std::min(b_.events.size(), i + kMaxEvents);
+        part.events.assign(b_.events.begin() + static_cast<std::ptrdiff_t>(i),
+                           b_.events.begin() + static_cast<std::ptrdiff_t>(end));
+        part.n_events = static_cast<std::int32_t>(part.events.size());
+        part.seq = batch_seq_++;
+        publish(static_cast<const channel_events_t&>(part));
+      }
+    }
+    b_.events.clear();
+  }
+
+ private:
+  channel_events_t b_{};
+  Micros newest_utime_ = 0;
+  std::int32_t event_seq_ = 0;
+  std::int32_t batch_seq_ = 0;
+};
 
 /// Health of a follower; lateness/overrun fields are the caller's (zero in sim/lockstep).
 inline health_t ToLcmHealth(Micros utime, const Follower& f, std::int32_t seq) {

@@ -33,6 +33,7 @@ class LogObserver : public SwarmObserver {
     }
   }
   void OnTick(std::int64_t tick, Micros utime, bool final_tick) override {
+    FlushChannel();  // the previous tick's decisions
     clock_tick_t c;
     c.utime = utime;
     c.vehicle_id = kEmulatorId;
@@ -50,8 +51,11 @@ class LogObserver : public SwarmObserver {
   void OnState(const StateMsg& m) override {
     log_->Write(Name(state_ch_, m.vehicle_id, channels::State), m.utime, ToLcm(m));
   }
-  void OnChannel(const ChannelDecision& d) override {
-    log_->Write(channels::ChannelEvents(), now_, ToLcm(d, channel_seq_++));
+  void OnChannel(const ChannelDecision& d) override { channel_.Add(d); }
+  /// Writes the decisions not yet written: one SHOAL_CHANNEL message per tick, as the
+  /// lockstep emulator publishes them per window.
+  void FlushChannel() {
+    channel_.Flush([&](const channel_events_t& b) { log_->Write(channels::ChannelEvents(), now_, b); });
   }
   void OnHealth(Micros utime, const Follower& f) override {
     log_->Write(Name(health_ch_, f.id(), channels::Health), utime,
@@ -70,7 +74,7 @@ class LogObserver : public SwarmObserver {
   }
   LogWriter* log_;
   Micros now_ = 0;
-  std::int32_t channel_seq_ = 0;
+  ChannelEventBatch channel_;
   std::int32_t health_seq_[256] = {};
   std::vector<std::string> state_ch_, rx_ch_, health_ch_;
 };
@@ -184,6 +188,7 @@ int RunSim(const SimOptions& opt) {
     detail << "follower " << swarm.diverged_id() << " diverged at t = " << sim_s << " s";
   }
   if (log) {
+    log_obs->FlushChannel();
     log->Write(channels::Status(), static_cast<Micros>(sim_s * 1e6),
                Status(s, static_cast<Micros>(sim_s * 1e6), 1, state, detail.str(), false));
     log->Close();

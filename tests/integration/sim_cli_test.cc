@@ -12,6 +12,7 @@
 #include <thread>
 
 #include <shoal/channel_event_t.hpp>
+#include <shoal/channel_events_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
 
@@ -149,13 +150,22 @@ TEST(SimCli, LogHasTheSilChannelsAndConsistentChannelTruth) {
   ASSERT_TRUE(log.good());
   std::map<std::string, int> count;
   std::map<std::pair<int, int>, std::int64_t> delivered_at;  // (receiver, msg utime) -> tick
-  int statuses = 0;
+  int statuses = 0, batches = 0, events = 0;
   std::string first_toml, last_state;
   while (const lcm::LogEvent* ev = log.readNextEvent()) {
     ++count[ev->channel];
     if (ev->channel == "SHOAL_CHANNEL") {
-      channel_event_t e;
-      ASSERT_GE(e.decode(ev->data, 0, ev->datalen), 0);
+      // One batch per tick: that tick's 10 decisions (one per directed link), the event
+      // seq numbers running on, the batch stamped with their send time.
+      channel_events_t b;
+      ASSERT_GE(b.decode(ev->data, 0, ev->datalen), 0);
+      ASSERT_EQ(b.n_events, 10);
+      EXPECT_EQ(b.seq, batches);
+      EXPECT_EQ(ev->timestamp, b.utime);
+      ++batches;
+      for (const channel_event_t& e : b.events) {
+      EXPECT_EQ(e.seq, events++);
+      EXPECT_EQ(e.send_utime, b.utime);
       ASSERT_EQ(e.status, 0);
       // tau = 0.1 + 0.05 cos(t): delivery at the first tick at or after send + tau.
       const double tau = 0.1 + 0.05 * std::cos(e.send_utime * 1e-6);
@@ -163,6 +173,7 @@ TEST(SimCli, LogHasTheSilChannelsAndConsistentChannelTruth) {
       EXPECT_GE(e.deliver_utime, e.send_utime + std::llround(tau * 1e6));
       EXPECT_LT(e.deliver_utime, e.send_utime + std::llround(tau * 1e6) + 20000);
       EXPECT_EQ(e.deliver_utime % 20000, 0);
+      }
     } else if (ev->channel == "SHOAL_STATUS") {
       run_status_t s;
       ASSERT_GE(s.decode(ev->data, 0, ev->datalen), 0);
@@ -183,7 +194,8 @@ TEST(SimCli, LogHasTheSilChannelsAndConsistentChannelTruth) {
     EXPECT_GT(count["SHOAL_RX_" + std::to_string(id)], 0);
     EXPECT_EQ(count["SHOAL_HEALTH_" + std::to_string(id)], 11);  // 1 Hz: t = 0..10
   }
-  EXPECT_EQ(count["SHOAL_CHANNEL"], 10 * ticks);  // 10 directed links
+  EXPECT_EQ(count["SHOAL_CHANNEL"], ticks);
+  EXPECT_EQ(events, 10 * ticks);  // 10 directed links
 }
 
 // Ctrl-C: the run stops, the log is closed and readable, the summary is printed, exit 130.
