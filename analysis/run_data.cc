@@ -246,7 +246,15 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
       ++d_->undecodable;
       return;
     }
-    d_->clock.push_back(ClockRecord{c.utime, c.tick, c.period_us, c.final_tick != 0});
+    // One record per tick covered (a lockstep clock message covers a window of ticks).
+    if (c.n_ticks < 1 || c.n_ticks > 1000000 || c.period_us <= 0) {
+      ++d_->rejected;
+      return;
+    }
+    for (std::int32_t k = 0; k < c.n_ticks; ++k) {
+      d_->clock.push_back(ClockRecord{c.utime + k * c.period_us, c.tick + k, c.period_us,
+                                      c.final_tick != 0 && k == c.n_ticks - 1});
+    }
   } else if (rest == "STATUS") {
     AddStatus(data, size);
   } else {

@@ -150,47 +150,48 @@ void EmulatorApp::ReleaseWindow() {
       outbox_[receiver].push_back(Outgoing{j, d});
     });
   }
-  // Bus by bus, the whole window in one burst: per tick the deliveries due to the bus's
-  // vehicles, then the clock tick that lists them. With a bus per vehicle a vehicle is
-  // woken once per window rather than once per message. Vehicles apply what a tick lists,
-  // whatever order the datagrams arrive in, so this order only matters for speed.
+  // Bus by bus, the whole window in one burst: the deliveries due to the bus's vehicles,
+  // tick by tick, then one clock message that covers the window's ticks and lists them.
+  // With a bus per vehicle a vehicle is woken once per window rather than once per
+  // message. Vehicles apply what the clock lists, whatever order the datagrams arrive in,
+  // so this order only matters for speed.
   std::vector<std::size_t> next(static_cast<std::size_t>(n_ + 1));
   for (const std::vector<int>& group : bus_groups_) {
     Bus* b = vbus_[group[0]];
     for (int id : group) next[id] = 0;
+    clock_tick_t c = WindowClock();
     for (std::int64_t j = win_first_; j <= win_last_; ++j) {
-      clock_tick_t c = ClockTick(j);
       for (int id : group) {
         const std::vector<Outgoing>& out = outbox_[id];
         for (; next[id] < out.size() && out[next[id]].tick == j; ++next[id]) {
           const Datagram& d = out[next[id]].d;
           b->PublishRaw(rx_channels_[id], d.raw.data(), static_cast<int>(d.raw.size()));
+          c.delivery_tick.push_back(j);
           c.delivery_receiver.push_back(id);
           c.delivery_sender.push_back(d.sender);
           c.delivery_seq.push_back(d.seq);
           c.delivery_digest.push_back(d.digest);
         }
       }
-      c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
-      b->Publish(channels::Clock(), c);
     }
+    c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
+    b->Publish(channels::Clock(), c);
   }
-  // The logger's copy when no vehicle shares its bus: the ticks, without the lists.
-  if (!shared_has_vehicles_) {
-    for (std::int64_t j = win_first_; j <= win_last_; ++j) bus_->Publish(channels::Clock(), ClockTick(j));
-  }
-  clock_seq_ += static_cast<std::int32_t>(win_last_ - win_first_ + 1);
+  // The logger's copy when no vehicle shares its bus: the window, without the lists.
+  if (!shared_has_vehicles_) bus_->Publish(channels::Clock(), WindowClock());
+  ++clock_seq_;
   tick_ = win_last_;
 }
 
-clock_tick_t EmulatorApp::ClockTick(std::int64_t tick) const {
+clock_tick_t EmulatorApp::WindowClock() const {
   clock_tick_t c;
-  c.utime = tick * period_us_;
+  c.utime = win_first_ * period_us_;
   c.vehicle_id = kEmulatorId;
-  c.seq = clock_seq_ + static_cast<std::int32_t>(tick - win_first_);
-  c.tick = tick;
+  c.seq = clock_seq_;
+  c.tick = win_first_;
+  c.n_ticks = static_cast<std::int32_t>(win_last_ - win_first_ + 1);
   c.period_us = period_us_;
-  c.final_tick = tick == final_tick_ ? 1 : 0;
+  c.final_tick = win_last_ == final_tick_ ? 1 : 0;
   c.n_deliveries = 0;
   return c;
 }

@@ -55,7 +55,7 @@ class EmulatorApp {
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
   void ReleaseWindow();
   void PublishEvents();  // the decisions not yet published, on SHOAL_CHANNEL
-  clock_tick_t ClockTick(std::int64_t tick) const;
+  clock_tick_t WindowClock() const;  // ticks [win_first_, win_last_], no deliveries listed
   void PublishHealth(Micros utime);
   void PublishStatus(const std::string& state, const std::string& message);
   int RunLockstep();

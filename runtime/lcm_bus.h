@@ -6,6 +6,9 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <shoal/channel_events_t.hpp>
+#include <shoal/clock_tick_t.hpp>
+
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -61,11 +64,42 @@ class LcmBus : public Bus {
   std::vector<std::unique_ptr<Sub>> subs_;
 };
 
-/// Decodes an LCM message; false (never an exception) on a truncated message, a wrong
-/// fingerprint or garbage.
+/// Whether the array counts a message declares fit its size. LCM 1.3.1's generated
+/// decoders size each variable array by the count read from the message, in an `int`,
+/// and resize the vector before checking that the bytes are there: a forged or damaged
+/// count overflows that product (and reads out of bounds) or allocates gigabytes. Every
+/// type with a variable array is checked here before it is decoded.
+template <typename Msg>
+bool ArrayCountsFit(const unsigned char* /*p*/, int /*size*/) {
+  return true;  // no variable arrays
+}
+inline std::int32_t ReadBigEndian32(const unsigned char* p) {
+  return static_cast<std::int32_t>((std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) |
+                                   (std::uint32_t{p[2]} << 8) | std::uint32_t{p[3]});
+}
+template <>
+inline bool ArrayCountsFit<clock_tick_t>(const unsigned char* p, int size) {
+  constexpr int kFixed = 8 + 8 + 4 + 4 + 8 + 4 + 8 + 1 + 4;  // hash .. n_deliveries
+  constexpr std::int64_t kPerDelivery = 8 + 4 + 4 + 4 + 8;
+  if (size < kFixed) return false;
+  const std::int64_t n = ReadBigEndian32(p + kFixed - 4);
+  return n >= 0 && size - kFixed == n * kPerDelivery;
+}
+template <>
+inline bool ArrayCountsFit<channel_events_t>(const unsigned char* p, int size) {
+  constexpr int kFixed = 8 + 8 + 4 + 4 + 4;  // hash .. n_events
+  constexpr int kMinEvent = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 1 + 4 + 1;  // reason ""
+  if (size < kFixed) return false;
+  const std::int64_t n = ReadBigEndian32(p + kFixed - 4);
+  return n >= 0 && n <= (size - kFixed) / kMinEvent;
+}
+
+/// Decodes an LCM message; false (never an exception, never an out-of-bounds read) on a
+/// truncated message, a wrong fingerprint, an array count that does not fit, or garbage.
 template <typename Msg>
 bool Decode(const void* data, int size, Msg* out) {
   if (data == nullptr || size < 8) return false;
+  if (!ArrayCountsFit<Msg>(static_cast<const unsigned char*>(data), size)) return false;
   // LCM's generated string decoder throws std::length_error on a string length <= 0
   // (a damaged or forged message): inside an LCM handler that would terminate the process.
   try {

@@ -87,18 +87,32 @@ void NodeApp::OnRx(const void* data, int size) {
 }
 
 void NodeApp::OnClock(const void* data, int size) {
+  // A clock message covers ticks [tick, last]: all of them must be ticks this vehicle can
+  // be given now (none stepped or announced yet, none further ahead than the channel's
+  // smallest delivery lag, none past the run's end), and every delivery it lists must be
+  // for one of them.
   clock_tick_t c;
-  if (!Decode(data, size, &c) || c.vehicle_id != kEmulatorId || c.tick < next_tick_ ||
-      c.tick >= next_tick_ + max_ticks_ahead_ || c.tick > final_tick_ ||
-      c.period_us != period_us_ || c.utime != c.tick * period_us_ || due_.count(c.tick) != 0) {
+  const bool decoded = Decode(data, size, &c);
+  const std::int64_t last = decoded ? c.tick + c.n_ticks - 1 : 0;
+  bool ok = decoded && c.vehicle_id == kEmulatorId && c.n_ticks >= 1 && c.tick >= next_tick_ &&
+            last < next_tick_ + max_ticks_ahead_ && last <= final_tick_ &&
+            c.period_us == period_us_ && c.utime == c.tick * period_us_ &&
+            due_.lower_bound(c.tick) == due_.upper_bound(last);
+  for (std::int32_t k = 0; ok && k < c.n_deliveries; ++k) {
+    ok = c.delivery_tick[k] >= c.tick && c.delivery_tick[k] <= last;
+  }
+  if (!ok) {
     ++counters_.bad_clock;
     return;
   }
-  DueTick& d = due_[c.tick];
-  d.final_tick = c.final_tick != 0;
+  for (std::int64_t j = c.tick; j <= last; ++j) {
+    DueTick& d = due_[j];
+    d.final_tick = j == last && c.final_tick != 0;
+  }
   for (std::int32_t k = 0; k < c.n_deliveries; ++k) {
     if (c.delivery_receiver[k] == id_) {
-      d.deliveries.push_back({c.delivery_sender[k], c.delivery_seq[k], c.delivery_digest[k]});
+      due_[c.delivery_tick[k]].deliveries.push_back(
+          {c.delivery_sender[k], c.delivery_seq[k], c.delivery_digest[k]});
     }
   }
   StepWhatIsDue();

@@ -39,6 +39,7 @@ class LogObserver : public SwarmObserver {
     c.vehicle_id = kEmulatorId;
     c.seq = static_cast<std::int32_t>(tick);
     c.tick = tick;
+    c.n_ticks = 1;
     c.period_us = period_us;
     c.final_tick = final_tick ? 1 : 0;
     c.n_deliveries = 0;  // shoal sim's deliveries are in SHOAL_CHANNEL

@@ -14,6 +14,7 @@
 #include <map>
 #include <thread>
 
+#include <shoal/clock_tick_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
 
@@ -344,6 +345,21 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
   unknown.vehicle_id = 9;
   unknown.seq = 1000002;
   const auto nan_b = encode(nan_msg), inf_b = encode(inf_msg), unk_b = encode(unknown);
+  // A clock message whose delivery count is forged (LCM's generated decoder would trust it:
+  // an int overflow and an out-of-bounds read).
+  clock_tick_t forged_clock{};
+  forged_clock.vehicle_id = -1;
+  forged_clock.n_ticks = 1;
+  forged_clock.period_us = 20000;
+  forged_clock.n_deliveries = 1;
+  forged_clock.delivery_tick = {0};
+  forged_clock.delivery_receiver = {2};
+  forged_clock.delivery_sender = {1};
+  forged_clock.delivery_seq = {0};
+  forged_clock.delivery_digest = {0};
+  std::vector<unsigned char> clock_b(forged_clock.getEncodedSize());
+  forged_clock.encode(clock_b.data(), 0, static_cast<int>(clock_b.size()));
+  clock_b[8 + 8 + 4 + 4 + 8 + 4 + 8 + 1] = 0x20;  // n_deliveries = 0x20000001
   int sent = 0;
   for (int round = 0; round < 20; ++round) {
     for (const char* ch : {"SHOAL_RX_2", "SHOAL_STATE_1", "SHOAL_CLOCK"}) {
@@ -352,6 +368,7 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
       bus.publish(ch, other_buf.data(), static_cast<unsigned>(other_buf.size()));    // fingerprint
       ++sent;
     }
+    bus.publish("SHOAL_CLOCK", clock_b.data(), static_cast<unsigned>(clock_b.size()));
     for (const char* ch : {"SHOAL_RX_2", "SHOAL_STATE_1"}) {
       bus.publish(ch, nan_b.data(), static_cast<unsigned>(nan_b.size()));
       bus.publish(ch, inf_b.data(), static_cast<unsigned>(inf_b.size()));
@@ -377,7 +394,7 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
       last[h.vehicle_id] = h;
     }
   }
-  EXPECT_GE(last[2].msgs_dropped_invalid, 20 * 3 + 20 * 3);  // RX_2 + clock junk
+  EXPECT_GE(last[2].msgs_dropped_invalid, 20 * 3 + 20 * 4);  // RX_2 + clock junk
   EXPECT_GE(last[2].msgs_dropped_old, 1);                     // the replay
   EXPECT_GE(last[-1].msgs_dropped_invalid, 20 * 6);           // emulator: STATE_1 junk
   EXPECT_GE(last[-1].msgs_dropped_old, 1);

@@ -101,8 +101,8 @@ StateMsg State(int id, Micros t, const Vec5& eta, const Vec5& eta_dot, int flags
   return m;
 }
 
-channel_event_t Event(int from, int to, Micros send, double delay_s, Micros deliver,
-                      std::int8_t status, std::int32_t seq) {
+ChannelDecision Decision(int from, int to, Micros send, double delay_s, Micros deliver,
+                         std::int8_t status) {
   ChannelDecision d;
   d.sender = from;
   d.receiver = to;
@@ -111,7 +111,12 @@ channel_event_t Event(int from, int to, Micros send, double delay_s, Micros deli
   d.delay_s = delay_s;
   d.deliver_utime = deliver;
   d.status = static_cast<ChannelDecision::Status>(status);
-  return ToLcm(d, seq);
+  return d;
+}
+
+channel_event_t Event(int from, int to, Micros send, double delay_s, Micros deliver,
+                      std::int8_t status, std::int32_t seq) {
+  return ToLcm(Decision(from, to, send, delay_s, deliver, status), seq);
 }
 
 health_t Health(Micros t, int id, double p99, std::int64_t overruns) {
@@ -230,30 +235,114 @@ TEST(Analysis, NotConvergedWhenTheLastSampleViolates) {
 
 // Leader -> 1: tau = 0.1 s, every 4th message lost, message 9 dropped by a full queue.
 // 1 -> 2: tau = 0.03 s, delivered at the next tick boundary, 0.04 s (tick quantisation).
-std::string WriteChannelLog(int ticks, bool with_states = true) {
-  const std::string path = Tmp("channel.lcmlog");
+// Written as the lockstep emulator writes it: one clock message and one SHOAL_CHANNEL batch
+// per window of 3 ticks; `legacy`: as logs before batching, one clock message per tick
+// and one channel_event_t per decision.
+std::string WriteChannelLog(int ticks, bool with_states = true, bool legacy = false) {
+  const std::string path = Tmp(legacy ? "channel_legacy.lcmlog" : "channel.lcmlog");
   LogWriter log(path);
   log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
+  const int window = legacy ? 1 : 3;
   std::int32_t seq = 0;
+  ChannelEventBatch batch;
   for (int k = 0; k < ticks; ++k) {
     const Micros t = k * kPeriod;
-    clock_tick_t c{};
-    c.utime = t;
-    c.vehicle_id = kEmulatorId;
-    c.tick = k;
-    c.period_us = kPeriod;
-    log.Write(channels::Clock(), t, c);
+    if (k % window == 0) {
+      clock_tick_t c{};
+      c.utime = t;
+      c.vehicle_id = kEmulatorId;
+      c.tick = k;
+      c.n_ticks = std::min(window, ticks - k);
+      c.period_us = kPeriod;
+      c.final_tick = k + c.n_ticks == ticks ? 1 : 0;
+      log.Write(channels::Clock(), t, c);
+    }
     if (with_states) {
       for (int id = 0; id <= 2; ++id) {
         log.Write(channels::State(id), t, ToLcm(State(id, t, Vec5::Zero(), Vec5::Zero())));
       }
     }
     const std::int8_t s01 = k == 9 ? 2 : (k % 4 == 3 ? 1 : 0);
-    log.Write(channels::ChannelEvents(), t,
-              Event(0, 1, t, 0.1, s01 == 0 ? t + 100000 : 0, s01, seq++));
-    log.Write(channels::ChannelEvents(), t, Event(1, 2, t, 0.03, t + 40000, 0, seq++));
+    const ChannelDecision d01 = Decision(0, 1, t, 0.1, s01 == 0 ? t + 100000 : 0, s01);
+    const ChannelDecision d12 = Decision(1, 2, t, 0.03, t + 40000, 0);
+    if (legacy) {
+      log.Write(channels::ChannelEvents(), t, ToLcm(d01, seq++));
+      log.Write(channels::ChannelEvents(), t, ToLcm(d12, seq++));
+    } else {
+      batch.Add(d01);
+      batch.Add(d12);
+      if (k % window == window - 1 || k == ticks - 1) {
+        batch.Flush([&](const channel_events_t& b) { log.Write(channels::ChannelEvents(), t, b); });
+      }
+    }
   }
   return path;
+}
+
+// Window clocks give one record per tick; batches one record per decision; a log written
+// before batching (single events, a clock message per tick) reads the same.
+TEST(RunData, WindowClocksAndEventBatchesReadLikeSingleOnes) {
+  const int ticks = 400;
+  const RunData batched = Load(WriteChannelLog(ticks));
+  const RunData legacy = Load(WriteChannelLog(ticks, true, true));
+  ASSERT_EQ(batched.clock.size(), static_cast<std::size_t>(ticks));
+  ASSERT_EQ(legacy.clock.size(), batched.clock.size());
+  for (int k = 0; k < ticks; ++k) {
+    EXPECT_EQ(batched.clock[k].tick, k);
+    EXPECT_EQ(batched.clock[k].utime, k * kPeriod);
+    EXPECT_EQ(batched.clock[k].final_tick, k == ticks - 1) << k;
+    EXPECT_EQ(legacy.clock[k].final_tick, batched.clock[k].final_tick) << k;
+  }
+  ASSERT_EQ(batched.channel_events.size(), 2u * ticks);
+  ASSERT_EQ(legacy.channel_events.size(), batched.channel_events.size());
+  for (std::size_t k = 0; k < batched.channel_events.size(); ++k) {
+    const ChannelEventRecord& a = batched.channel_events[k];
+    const ChannelEventRecord& b = legacy.channel_events[k];
+    EXPECT_EQ(a.send_utime, b.send_utime);
+    EXPECT_EQ(a.deliver_utime, b.deliver_utime);
+    EXPECT_EQ(a.delay_s, b.delay_s);
+    EXPECT_EQ(a.sender, b.sender);
+    EXPECT_EQ(a.receiver, b.receiver);
+    EXPECT_EQ(a.status, b.status);
+    EXPECT_EQ(a.msg_seq, b.msg_seq);
+  }
+  EXPECT_EQ(batched.undecodable + batched.rejected, 0);
+  EXPECT_EQ(AnalyseRun(batched).ticks, ticks);
+}
+
+// A damaged batch is refused whole and counted once; a window clock covering no tick too.
+TEST(RunData, DamagedBatchOrEmptyWindowIsCountedNotKept) {
+  const std::string path = Tmp("damaged_batch.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
+    ChannelEventBatch batch;
+    batch.Add(Decision(0, 1, 0, 0.1, 100000, 0));
+    batch.Add(Decision(1, 2, 0, 0.03, 40000, 0));
+    std::vector<unsigned char> bytes;
+    batch.Flush([&](const channel_events_t& b) {
+      bytes.resize(static_cast<std::size_t>(b.getEncodedSize()));
+      b.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    });
+    // The second event's reason length made too large: the batch no longer adds up.
+    std::vector<unsigned char> bad = bytes;
+    bad[bad.size() - 2] = 0x7f;
+    log.WriteRaw(channels::ChannelEvents(), 0, bad.data(), static_cast<int>(bad.size()));
+    // Truncated by one byte.
+    log.WriteRaw(channels::ChannelEvents(), 0, bytes.data(), static_cast<int>(bytes.size()) - 1);
+    // Intact.
+    log.WriteRaw(channels::ChannelEvents(), 0, bytes.data(), static_cast<int>(bytes.size()));
+    clock_tick_t c{};
+    c.vehicle_id = kEmulatorId;
+    c.period_us = kPeriod;
+    c.n_ticks = 0;
+    log.Write(channels::Clock(), 0, c);
+  }
+  const RunData run = Load(path);
+  EXPECT_EQ(run.channel_events.size(), 2u);
+  EXPECT_EQ(run.undecodable, 2);
+  EXPECT_EQ(run.rejected, 1);
+  EXPECT_TRUE(run.clock.empty());
 }
 
 TEST(Analysis, ChannelWithKnownDelayAndDropPattern) {
@@ -441,6 +530,7 @@ TEST(Analysis, ModeAndProblemsFromStatuses) {
   {
     LogWriter log(path);
     clock_tick_t c{};
+    c.n_ticks = 1;
     c.period_us = kPeriod;
     c.vehicle_id = kEmulatorId;
     log.Write(channels::Clock(), 0, c);
@@ -713,6 +803,44 @@ TEST(LogDamage, RandomByteFlips) {
 
 // A string length of 0 or less makes LCM's generated decoder throw std::length_error;
 // runtime's Decode() (used in the processes' LCM handlers) must refuse it instead.
+// LCM 1.3.1's generated decoders trust array counts (an int product that overflows, a
+// vector resized before the bytes are checked): a clock message or an event batch with a
+// forged count must be refused by Decode, not read out of bounds or allocate gigabytes.
+TEST(LogDamage, ForgedArrayCountsAreRefusedNotTrusted) {
+  clock_tick_t c{};
+  c.vehicle_id = kEmulatorId;
+  c.n_ticks = 1;
+  c.period_us = kPeriod;
+  c.n_deliveries = 1;
+  c.delivery_tick = {0};
+  c.delivery_receiver = {1};
+  c.delivery_sender = {0};
+  c.delivery_seq = {0};
+  c.delivery_digest = {0};
+  std::vector<std::uint8_t> b(c.getEncodedSize());
+  ASSERT_EQ(c.encode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
+  clock_tick_t out;
+  ASSERT_TRUE(Decode(b.data(), static_cast<int>(b.size()), &out));
+  const int at = 8 + 8 + 4 + 4 + 8 + 4 + 8 + 1;  // n_deliveries
+  for (std::uint32_t n : {0x7fffffffu, 0x20000000u, 0x10000001u, 0x80000000u, 2u, 0u}) {
+    for (int k = 0; k < 4; ++k) b[at + k] = static_cast<std::uint8_t>(n >> (24 - 8 * k));
+    EXPECT_FALSE(Decode(b.data(), static_cast<int>(b.size()), &out)) << n;
+  }
+  ChannelEventBatch batch;
+  batch.Add(Decision(0, 1, 0, 0.1, 100000, 0));
+  std::vector<std::uint8_t> e;
+  batch.Flush([&](const channel_events_t& m) {
+    e.resize(static_cast<std::size_t>(m.getEncodedSize()));
+    m.encode(e.data(), 0, static_cast<int>(e.size()));
+  });
+  channel_events_t events;
+  ASSERT_TRUE(Decode(e.data(), static_cast<int>(e.size()), &events));
+  for (std::uint32_t n : {0x7fffffffu, 0x04000000u, 0x80000000u, 2u}) {
+    for (int k = 0; k < 4; ++k) e[24 + k] = static_cast<std::uint8_t>(n >> (24 - 8 * k));
+    EXPECT_FALSE(Decode(e.data(), static_cast<int>(e.size()), &events)) << n;
+  }
+}
+
 TEST(LogDamage, DamagedStringLengthIsRefusedNotThrown) {
   run_status_t st = Status(0, 1, "ready", "");
   std::vector<std::uint8_t> b(st.getEncodedSize());
