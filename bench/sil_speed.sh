@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Benchmark: shoal run (SIL) — lockstep real-time factor, and real-time accuracy.
-# Usage: bench/sil_speed.sh [BUILD_DIR] [RUNS] [LOCKSTEP_DURATION_S] [REALTIME_DURATION_S]
+# Usage: bench/sil_speed.sh [BUILD_DIR] [RUNS] [LOCKSTEP_DURATION_S (600: the scenario's own)] [REALTIME_DURATION_S]
 set -euo pipefail
 build=${1:-build}
 runs=${2:-5}
-ls_dur=${3:-60}
+ls_dur=${3:-600}
 rt_dur=${4:-60}
 scenario=scenarios/paper_example2.toml
 shoal="$build/tools/shoal"

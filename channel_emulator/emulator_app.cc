@@ -17,6 +17,7 @@ namespace shoal {
 
 namespace {
 constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process is gone
+constexpr std::int64_t kRecorderWaitNs = 20000000LL;     // lockstep: most per window
 }
 
 EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
@@ -323,8 +324,17 @@ int EmulatorApp::RunLockstep() {
       tick_ = j;
       if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
     }
-    // The window's decisions, in one SHOAL_CHANNEL message.
+    // The recorder first catches up with the window (its states), then the window's
+    // decisions go out in one SHOAL_CHANNEL message, then the next window.
+    if (recorder_) recorder_->Wait(kRecorderWaitNs);
     PublishEvents();
+  }
+  if (recorder_ && recorder_->active()) {
+    std::cerr << "shoal_channel_emulator: waited for the recorder before "
+              << recorder_->waits() << " of " << (final_tick_ + lookahead_) / lookahead_
+              << " windows, " << recorder_->waited_ns() / 1000000 << " ms in all, "
+              << recorder_->timeouts() << " gave up after "
+              << kRecorderWaitNs / 1000000 << " ms\n";
   }
   PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
   return lost_any ? 4 : 0;
@@ -389,6 +399,12 @@ int EmulatorMain(int argc, char** argv) {
                  "delivery lag bounds it (1 = wait for every state after every tick)")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  pid_t recorder_pid = 0;
+  app.add_option("--recorder-pid", recorder_pid,
+                 "lockstep: the run's lcm-logger; before each window wait (at most 20 ms) "
+                 "until it has handled what it was sent, so that its 30-message queue "
+                 "never overflows (0 = do not wait)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--vehicle-urls", vehicle_urls,
                  "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
       ->delimiter(',');
@@ -432,6 +448,7 @@ int EmulatorMain(int argc, char** argv) {
       std::cerr << "shoal_channel_emulator: lockstep, " << app_.lookahead_ticks()
                 << " tick(s) per round trip\n";
     }
+    if (opt.parsed_mode() == Mode::kLockstep && recorder_pid > 0) app_.SetRecorder(recorder_pid);
     app_.Init();
     return app_.Run();
   } catch (const std::exception& e) {

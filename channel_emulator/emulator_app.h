@@ -4,6 +4,7 @@
 // SHOAL_CHANNEL. In lockstep it is also the clock master.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 #include "runtime/lcm_bus.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
+#include "runtime/recorder_gate.h"
 
 namespace shoal {
 
@@ -37,6 +39,9 @@ class EmulatorApp {
   /// answering (named on stderr and in SHOAL_STATUS); 1: interrupted; 3: start-up failed.
   int Run();
   const EmulatorCounters& counters() const { return counters_; }
+  /// Lockstep: before each window, wait (at most 20 ms) until this process -- the run's
+  /// lcm-logger -- has handled what it was sent (runtime/recorder_gate.h).
+  void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
   std::int64_t lookahead_ticks() const { return lookahead_; }
 
@@ -99,6 +104,7 @@ class EmulatorApp {
   std::int32_t clock_seq_ = 0, health_seq_ = 0, status_seq_ = 0;
   EmulatorCounters counters_;
   LatenessStats release_error_;  // realtime: release time - due time
+  std::unique_ptr<RecorderGate> recorder_;
 };
 
 int EmulatorMain(int argc, char** argv);

@@ -208,6 +208,7 @@ int RunRun(const RunOptions& opt) {
   const bool root = geteuid() == 0;
   start("lcm-logger", -100, {"/usr/bin/lcm-logger", "--lcm-url=" + url, "-f", "-q", out},
         root ? -10 : 0, "logger");
+  const pid_t logger_pid = kids.back().running ? kids.back().pid : 0;
   for (int i = 0; i < 100 && access(out.c_str(), F_OK) != 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
@@ -223,6 +224,10 @@ int RunRun(const RunOptions& opt) {
   std::string vlist;
   for (std::size_t i = 0; i < vurls.size(); ++i) vlist += (i ? "," : "") + vurls[i];
   std::vector<std::string> emulator_more = {"--max-lookahead", std::to_string(opt.max_lookahead)};
+  if (opt.mode == "lockstep" && logger_pid > 0) {
+    emulator_more.push_back("--recorder-pid");  // back-pressure: the log stays complete
+    emulator_more.push_back(std::to_string(logger_pid));
+  }
   if (!vurls.empty()) {
     emulator_more.push_back("--vehicle-urls");
     emulator_more.push_back(vlist);

@@ -1,0 +1,48 @@
+// Lockstep back-pressure from the run's recorder (lcm-logger). lcm-logger hands each
+// message from LCM's receive thread to its handler thread through LCM's subscription
+// queue, which holds 30 messages and drops beyond that; a lockstep run produces messages
+// as fast as the CPU allows, so whenever the handler thread waits for the CPU while the
+// receive thread runs, states are lost from the log. The clock master therefore waits,
+// before it releases the next window, until the recorder has handled what it was sent:
+// until every thread of the recorder is asleep. A datagram sent on loopback is queued to
+// every receiving socket, and its reader woken (made runnable), before the sender's
+// sendmsg returns; so once the clock master has received the window's last state, a
+// recorder with a thread still runnable has not yet handled it. Linux only (/proc).
+#pragma once
+
+#include <sys/types.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace shoal {
+
+class RecorderGate {
+ public:
+  /// pid <= 0: an open gate (Wait returns at once).
+  explicit RecorderGate(pid_t pid);
+  ~RecorderGate();
+  RecorderGate(const RecorderGate&) = delete;
+  RecorderGate& operator=(const RecorderGate&) = delete;
+
+  /// Returns once every thread of the recorder is asleep, or after max_wait_ns (counted
+  /// in timeouts()), or at once if the recorder is gone (the gate then stays open).
+  void Wait(std::int64_t max_wait_ns);
+
+  bool active() const { return pid_ > 0; }
+  std::int64_t waits() const { return waits_; }        // calls that had to wait
+  std::int64_t timeouts() const { return timeouts_; }  // calls that gave up
+  std::int64_t waited_ns() const { return waited_ns_; }
+
+ private:
+  /// 1: every thread asleep; 0: some thread runnable (or in uninterruptible wait);
+  /// -1: the recorder is gone.
+  int Idle();
+  bool Scan();  // (re)opens /proc/<pid>/task/<tid>/stat for every thread
+
+  pid_t pid_;
+  std::vector<int> fds_;
+  std::int64_t waits_ = 0, timeouts_ = 0, waited_ns_ = 0;
+};
+
+}  // namespace shoal
