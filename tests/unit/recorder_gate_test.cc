@@ -1,0 +1,117 @@
+// RecorderGate: the lockstep clock master's wait for lcm-logger. Against real processes:
+// a sleeping one lets it through at once, a busy one holds it until the time limit, a
+// multithreaded one is watched thread by thread, and a vanished one opens the gate.
+#include "runtime/recorder_gate.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <thread>
+
+#include "runtime/clock.h"
+
+namespace shoal {
+namespace {
+
+// A child process running `body` (then sleeping for ever); killed and reaped at the end.
+struct Child {
+  pid_t pid = -1;
+  explicit Child(const std::function<void()>& body) {
+    pid = fork();
+    if (pid == 0) {
+      body();
+      for (;;) pause();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));  // let it settle
+  }
+  explicit Child(bool spin)
+      : Child([spin] {
+          const volatile bool busy = spin;
+          while (busy) {
+          }
+        }) {}
+  ~Child() {
+    if (pid > 0) {
+      kill(pid, SIGKILL);
+      waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
+TEST(RecorderGate, ASleepingRecorderLetsTheWindowThroughAtOnce) {
+  Child c(false);
+  RecorderGate gate(c.pid);
+  ASSERT_TRUE(gate.active());
+  const std::int64_t t0 = MonotonicNs();
+  gate.Wait(1000000000LL);
+  EXPECT_LT(MonotonicNs() - t0, 100000000LL);
+  EXPECT_EQ(gate.waits(), 0);
+  EXPECT_EQ(gate.timeouts(), 0);
+}
+
+TEST(RecorderGate, ABusyRecorderHoldsTheWindowUntilTheLimit) {
+  Child c(true);
+  RecorderGate gate(c.pid);
+  ASSERT_TRUE(gate.active());
+  const std::int64_t t0 = MonotonicNs();
+  gate.Wait(30000000LL);
+  const std::int64_t waited = MonotonicNs() - t0;
+  EXPECT_GE(waited, 30000000LL);
+  EXPECT_LT(waited, 2000000000LL);
+  EXPECT_EQ(gate.waits(), 1);
+  EXPECT_EQ(gate.timeouts(), 1);
+  EXPECT_GE(gate.waited_ns(), 30000000LL);
+}
+
+// Every thread counts: a recorder whose main thread sleeps while another thread runs for
+// 150 ms, then sleeps too. The gate waits for the second thread, and no longer.
+TEST(RecorderGate, ARunnableThreadOfTheRecorderIsEnoughToWaitAndItsSleepEndsTheWait) {
+  const std::int64_t start = MonotonicNs();
+  Child c([start] {
+    std::thread worker([start] {
+      while (MonotonicNs() - start < 150000000LL) {  // a clock read: not optimised away
+      }
+      for (;;) pause();
+    });
+    for (;;) pause();
+  });
+  RecorderGate gate(c.pid);
+  ASSERT_TRUE(gate.active());
+  gate.Wait(5000000000LL);
+  const std::int64_t done = MonotonicNs() - start;
+  EXPECT_EQ(gate.waits(), 1);
+  EXPECT_EQ(gate.timeouts(), 0);
+  EXPECT_GE(done, 150000000LL);
+  EXPECT_LT(done, 2000000000LL);
+}
+
+TEST(RecorderGate, AVanishedRecorderOpensTheGate) {
+  pid_t pid;
+  {
+    Child c(false);
+    pid = c.pid;
+  }
+  RecorderGate gone(pid);
+  EXPECT_FALSE(gone.active());
+  Child c(true);
+  RecorderGate gate(c.pid);
+  ASSERT_TRUE(gate.active());
+  kill(c.pid, SIGKILL);
+  waitpid(c.pid, nullptr, 0);
+  c.pid = -1;
+  const std::int64_t t0 = MonotonicNs();
+  gate.Wait(5000000000LL);
+  EXPECT_LT(MonotonicNs() - t0, 1000000000LL);
+  EXPECT_FALSE(gate.active());
+  RecorderGate none(0);
+  EXPECT_FALSE(none.active());
+  none.Wait(5000000000LL);
+}
+
+}  // namespace
+}  // namespace shoal
