@@ -1,12 +1,15 @@
 #include "runtime/process.h"
 
+#include <fcntl.h>
 #include <sched.h>
 #include <signal.h>
-
-#include <cstdlib>
-#include <cstring>
 #include <sys/prctl.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
 
 #include <CLI/CLI.hpp>
 
@@ -70,6 +73,26 @@ std::string EnableBatchScheduling() {
   sp.sched_priority = 0;
   if (sched_setscheduler(0, SCHED_BATCH, &sp) == 0) return "SCHED_BATCH";
   return std::string("SCHED_OTHER (SCHED_BATCH refused: ") + std::strerror(errno) + ")";
+}
+
+CpuLatencyRequest::CpuLatencyRequest() {
+  fd_ = open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+  if (fd_ < 0) {
+    note_ = std::string("no CPU latency request (/dev/cpu_dma_latency: ") + std::strerror(errno) + ")";
+    return;
+  }
+  const std::int32_t zero_us = 0;
+  if (write(fd_, &zero_us, sizeof(zero_us)) != static_cast<ssize_t>(sizeof(zero_us))) {
+    note_ = std::string("no CPU latency request (write: ") + std::strerror(errno) + ")";
+    close(fd_);
+    fd_ = -1;
+    return;
+  }
+  note_ = "CPU latency request 0 us held (idle CPUs poll)";
+}
+
+CpuLatencyRequest::~CpuLatencyRequest() {
+  if (fd_ >= 0) close(fd_);
 }
 
 }  // namespace shoal

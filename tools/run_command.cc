@@ -17,6 +17,7 @@
 #include <iostream>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -27,6 +28,7 @@
 #include "runtime/channels.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/process.h"
 #include "runtime/log_tail.h"
 #include "runtime/messages.h"
 #include "runtime/scenario_loader.h"
@@ -185,6 +187,10 @@ int RunRun(const RunOptions& opt) {
   sigaction(SIGCHLD, &sc, nullptr);
   g_interrupted = 0;
 
+  // Held until shoal run exits (after every child has stopped).
+  std::unique_ptr<CpuLatencyRequest> latency;
+  if (!opt.deep_idle) latency = std::make_unique<CpuLatencyRequest>();
+
   std::vector<Child> kids;
   auto start = [&](const std::string& name, int id, const std::vector<std::string>& argv,
                    int nice_inc, const std::string& tag) {
@@ -232,7 +238,9 @@ int RunRun(const RunOptions& opt) {
     emulator_more.push_back("--vehicle-urls");
     emulator_more.push_back(vlist);
   }
-  start("channel emulator", kEmulatorId, with({emulator_exe}, emulator_more), run_nice,
+  // The clock master is every window's critical path (it waits for the last state, then
+  // releases the next window): in lockstep it runs at nice 0, above the vehicles' +5.
+  start("channel emulator", kEmulatorId, with({emulator_exe}, emulator_more), 0,
         "emulator");
   start("leader", 0,
         with({leader_exe}, vurls.empty() ? std::vector<std::string>{}
@@ -424,7 +432,8 @@ int RunRun(const RunOptions& opt) {
         .Str("log", out)
         .Int("log_states", sum.states)
         .Int("log_states_expected", expected_states)
-        .Str("lcm_url", url);
+        .Str("lcm_url", url)
+        .Bool("cpu_latency_request", latency && latency->held());
     std::cout << j.Done() << "\n";
   } else {
     std::printf("shoal run: %s (%s, %d followers, %.0f Hz)\n", s.name.c_str(), opt.mode.c_str(),
@@ -432,6 +441,8 @@ int RunRun(const RunOptions& opt) {
     std::printf("  simulated %.1f s in %.2f s wall (%.1fx real time)%s\n", sum.sim_time_s,
                 wall_s, wall_s > 0 ? sum.sim_time_s / wall_s : 0.0,
                 g_interrupted ? "  -- interrupted" : "");
+    std::printf("  %s\n", latency ? latency->note().c_str()
+                                   : "no CPU latency request (--deep-idle)");
     if (converged) {
       std::printf("  converged: yes, at %.2f s\n", sum.convergence_time_s);
     } else {

@@ -13,6 +13,7 @@ struct RunOptions {
   bool per_vehicle_urls = false;  // explicit; the default with the private URL anyway
   bool shared_url = false;        // everything on one group (vehicles hear all traffic)
   long long max_lookahead = 50;  // lockstep: most ticks the clock master releases at once
+  bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
   bool json = false;
   bool quiet = false;
 };

@@ -48,6 +48,9 @@ int main(int argc, char** argv) {
                       "lag of the channel bounds it; 1 = a round trip every tick)")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  run_cmd->add_flag("--deep-idle", run.deep_idle,
+                    "Let idle CPUs halt during the run (by default, as root, shoal run holds "
+                    "a 0 us CPU latency request: idle CPUs poll, wake-ups are cheaper)");
   run_cmd->add_flag("--json", run.json, "Print one JSON object instead of the summary");
   run_cmd->add_flag("--quiet", run.quiet, "No progress line");
 
