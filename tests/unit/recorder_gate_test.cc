@@ -3,6 +3,8 @@
 // multithreaded one is watched thread by thread, and a vanished one opens the gate.
 #include "runtime/recorder_gate.h"
 
+#include <fcntl.h>
+
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -14,6 +16,7 @@
 #include <thread>
 
 #include "runtime/clock.h"
+#include "runtime/process.h"
 
 namespace shoal {
 namespace {
@@ -111,6 +114,32 @@ TEST(RecorderGate, AVanishedRecorderOpensTheGate) {
   RecorderGate none(0);
   EXPECT_FALSE(none.active());
   none.Wait(5000000000LL);
+}
+
+// The other lockstep helper of runtime/process.h: the 0 us CPU latency request is in force
+// (the device reads back the aggregate request) while held, and gone after.
+std::int32_t CurrentCpuLatencyUs() {
+  const int fd = open("/dev/cpu_dma_latency", O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return -1;
+  std::int32_t v = -1;
+  if (read(fd, &v, sizeof(v)) != static_cast<ssize_t>(sizeof(v))) v = -1;
+  close(fd);
+  return v;
+}
+
+TEST(CpuLatencyRequest, HeldWhileItLivesAsRootElseSaysWhy) {
+  const std::int32_t before = CurrentCpuLatencyUs();
+  {
+    CpuLatencyRequest req;
+    if (geteuid() != 0 || before < 0) {
+      EXPECT_FALSE(req.held());
+      EXPECT_NE(req.note().find("no CPU latency request"), std::string::npos) << req.note();
+      GTEST_SKIP() << "not root or no /dev/cpu_dma_latency: " << req.note();
+    }
+    ASSERT_TRUE(req.held()) << req.note();
+    EXPECT_EQ(CurrentCpuLatencyUs(), 0);
+  }
+  EXPECT_EQ(CurrentCpuLatencyUs(), before);
 }
 
 }  // namespace
