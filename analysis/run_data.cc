@@ -7,6 +7,7 @@
 #include <shoal/channel_event_t.hpp>
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
+#include <shoal/clock_tick_v1_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
@@ -97,7 +98,8 @@ bool DecodeChannelEvents(const std::uint8_t* p, int size, std::vector<channel_ev
   const std::int64_t hash = I64(p);
   if (hash == single_hash) {
     out->emplace_back();
-    if (DecodeEventBody(p + 8, size - 8, &out->back()) != size - 8) {
+    const int used = DecodeEventBody(p + 8, size - 8, &out->back());
+    if (used == 0 || used != size - 8) {
       out->clear();
       return false;
     }
@@ -121,6 +123,27 @@ bool DecodeChannelEvents(const std::uint8_t* p, int size, std::vector<channel_ev
     return false;
   }
   return true;
+}
+
+/// SHOAL_CLOCK: a clock_tick_t, or (logs written before session 4) a clock_tick_v1_t,
+/// one tick per message, read as n_ticks = 1 (only its fixed fields are used).
+bool DecodeClock(const std::uint8_t* p, int size, clock_tick_t* c) {
+  static const std::int64_t v1_hash = clock_tick_v1_t::getHash();
+  constexpr int kV1Fixed = 8 + 8 + 4 + 4 + 8 + 8 + 1 + 4;  // hash .. n_deliveries
+  if (size >= kV1Fixed && I64(p) == v1_hash) {
+    const std::int64_t n = I32(p + kV1Fixed - 4);
+    if (n < 0 || size - kV1Fixed != n * (4 + 4 + 4 + 8)) return false;
+    c->utime = I64(p + 8);
+    c->vehicle_id = I32(p + 16);
+    c->seq = I32(p + 20);
+    c->tick = I64(p + 24);
+    c->n_ticks = 1;
+    c->period_us = I64(p + 32);
+    c->final_tick = static_cast<std::int8_t>(p[40]);
+    c->n_deliveries = 0;
+    return true;
+  }
+  return Decode(p, size, c);
 }
 
 /// "123" or "-1" (whole string) -> id; false otherwise.
@@ -242,12 +265,15 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
     d_->health.push_back(r);
   } else if (rest == "CLOCK") {
     clock_tick_t c{};
-    if (!Decode(data, size, &c)) {
+    if (!DecodeClock(data, size, &c)) {
       ++d_->undecodable;
       return;
     }
-    // One record per tick covered (a lockstep clock message covers a window of ticks).
-    if (c.n_ticks < 1 || c.n_ticks > 1000000 || c.period_us <= 0) {
+    // One record per tick covered (a lockstep clock message covers a window of ticks; at
+    // most --max-lookahead's 100000). Checked before any arithmetic on the fields.
+    constexpr std::int64_t kMaxTick = std::int64_t{1} << 40;
+    if (c.n_ticks < 1 || c.n_ticks > 100000 || c.period_us <= 0 || c.period_us > 1000000000 ||
+        c.tick < 0 || c.tick > kMaxTick || c.utime != c.tick * c.period_us) {
       ++d_->rejected;
       return;
     }

@@ -82,11 +82,13 @@ inline channel_event_t ToLcm(const ChannelDecision& d, std::int32_t seq) {
 /// wake-ups per message, and the decisions were most of the messages it had to log.
 class ChannelEventBatch {
  public:
-  static constexpr int kMaxEvents = 1000;  // ~60 KB: one LCM fragment
+  // At most 76 bytes an event (a drop's reason included): 800 stay under LCM's 65,499
+  // bytes for a message sent in one datagram.
+  static constexpr int kMaxEvents = 800;
 
   void Add(const ChannelDecision& d) {
+    newest_utime_ = b_.events.empty() ? d.send_utime : std::max(newest_utime_, d.send_utime);
     b_.events.push_back(ToLcm(d, event_seq_++));
-    newest_utime_ = std::max(newest_utime_, d.send_utime);
   }
   bool empty() const { return b_.events.empty(); }
   std::size_t size() const { return b_.events.size(); }
@@ -116,6 +118,7 @@ class ChannelEventBatch {
       }
     }
     b_.events.clear();
+    newest_utime_ = 0;
   }
 
  private:

@@ -91,13 +91,15 @@ void NodeApp::OnClock(const void* data, int size) {
   // be given now (none stepped or announced yet, none further ahead than the channel's
   // smallest delivery lag, none past the run's end), and every delivery it lists must be
   // for one of them.
+  // The ranges are checked before any arithmetic on the fields (a forged tick or count
+  // must not overflow).
   clock_tick_t c;
-  const bool decoded = Decode(data, size, &c);
-  const std::int64_t last = decoded ? c.tick + c.n_ticks - 1 : 0;
-  bool ok = decoded && c.vehicle_id == kEmulatorId && c.n_ticks >= 1 && c.tick >= next_tick_ &&
-            last < next_tick_ + max_ticks_ahead_ && last <= final_tick_ &&
-            c.period_us == period_us_ && c.utime == c.tick * period_us_ &&
-            due_.lower_bound(c.tick) == due_.upper_bound(last);
+  bool ok = Decode(data, size, &c) && c.vehicle_id == kEmulatorId && c.n_ticks >= 1 &&
+            c.n_ticks <= max_ticks_ahead_ && c.tick >= next_tick_ && c.tick <= final_tick_ &&
+            c.period_us == period_us_;
+  const std::int64_t last = ok ? c.tick + c.n_ticks - 1 : 0;
+  ok = ok && last < next_tick_ + max_ticks_ahead_ && last <= final_tick_ &&
+       c.utime == c.tick * period_us_ && due_.lower_bound(c.tick) == due_.upper_bound(last);
   for (std::int32_t k = 0; ok && k < c.n_deliveries; ++k) {
     ok = c.delivery_tick[k] >= c.tick && c.delivery_tick[k] <= last;
   }

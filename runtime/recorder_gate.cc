@@ -19,11 +19,41 @@ RecorderGate::RecorderGate(pid_t pid) : pid_(pid) {
 
 RecorderGate::~RecorderGate() {
   for (int fd : fds_) close(fd);
+  if (process_fd_ >= 0) close(process_fd_);
 }
+
+namespace {
+// The state letter of a /proc stat line ("pid (comm) S ..."; comm may hold anything) and,
+// when `threads` is given, field 20 (num_threads). False if the line does not parse.
+bool ParseStat(int fd, char* state, long* threads) {
+  char buf[1024];
+  const ssize_t n = pread(fd, buf, sizeof(buf) - 1, 0);
+  if (n <= 0) return false;
+  buf[n] = '\0';
+  const char* p = std::strrchr(buf, ')');
+  if (p == nullptr || p[1] != ' ' || p[2] == '\0') return false;
+  *state = p[2];
+  if (threads == nullptr) return true;
+  // Fields 3 (state) .. 20 (num_threads): skip 17 separators after the state.
+  p += 2;
+  for (int k = 0; k < 17; ++k) {
+    p = std::strchr(p, ' ');
+    if (p == nullptr) return false;
+    ++p;
+  }
+  char* end = nullptr;
+  *threads = std::strtol(p, &end, 10);
+  return end != p;
+}
+}  // namespace
 
 bool RecorderGate::Scan() {
   for (int fd : fds_) close(fd);
   fds_.clear();
+  if (process_fd_ < 0) {
+    process_fd_ = open(("/proc/" + std::to_string(pid_) + "/stat").c_str(), O_RDONLY | O_CLOEXEC);
+    if (process_fd_ < 0) return false;
+  }
   const std::string dir = "/proc/" + std::to_string(pid_) + "/task";
   DIR* d = opendir(dir.c_str());
   if (d == nullptr) return false;
@@ -37,15 +67,12 @@ bool RecorderGate::Scan() {
 }
 
 int RecorderGate::Idle() {
-  char buf[512];
+  char state = 0;
+  long threads = 0;
+  if (!ParseStat(process_fd_, &state, &threads) || state == 'Z' || state == 'X') return -1;
+  if (threads != static_cast<long>(fds_.size()) && !Scan()) return -1;
   for (int fd : fds_) {
-    const ssize_t n = pread(fd, buf, sizeof(buf) - 1, 0);
-    if (n <= 0) return -1;  // the thread (or the whole recorder) is gone
-    buf[n] = '\0';
-    // "tid (comm) S ...": the state follows the last ')' (comm may contain anything).
-    const char* close_paren = std::strrchr(buf, ')');
-    if (close_paren == nullptr || close_paren[1] != ' ') return -1;
-    const char state = close_paren[2];
+    if (!ParseStat(fd, &state, nullptr)) return -1;  // a thread ended: list them again
     if (state != 'S') return 0;
   }
   return 1;

@@ -36,12 +36,16 @@ class RecorderGate {
 
  private:
   /// 1: every thread asleep; 0: some thread runnable (or in uninterruptible wait);
-  /// -1: the recorder is gone.
+  /// -1: the recorder is gone (or a zombie).
   int Idle();
-  bool Scan();  // (re)opens /proc/<pid>/task/<tid>/stat for every thread
+  /// (Re)opens /proc/<pid>/task/<tid>/stat for every thread. Also done whenever the
+  /// process's thread count changes: lcm-logger starts its writer and LCM's receive
+  /// thread after it creates the log file, and the gate may be set up in between.
+  bool Scan();
 
   pid_t pid_;
-  std::vector<int> fds_;
+  int process_fd_ = -1;   // /proc/<pid>/stat: state and thread count
+  std::vector<int> fds_;  // one per thread
   std::int64_t waits_ = 0, timeouts_ = 0, waited_ns_ = 0;
 };
 

@@ -1,15 +1,16 @@
 #include "tools/run_command.h"
 
-#include <sched.h>
-#include <time.h>
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -352,7 +353,9 @@ int RunRun(const RunOptions& opt) {
         for (Child& c : kids) {
           if (c.running && (c.id == -100) == logger) {
             kill(c.pid, SIGKILL);
-            waitpid(c.pid, &c.status, 0);
+            // SIGCHLD has a handler without SA_RESTART: an exit elsewhere interrupts this.
+            while (waitpid(c.pid, &c.status, 0) < 0 && errno == EINTR) {
+            }
             c.running = false;
             problems.push_back(c.name + " did not stop within 2 s and was killed");
           }

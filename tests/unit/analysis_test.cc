@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include <shoal/clock_tick_v1_t.hpp>
+
 #include "analysis/analysis.h"
 #include "analysis/csv.h"
 #include "analysis/log_reader.h"
@@ -247,7 +249,15 @@ std::string WriteChannelLog(int ticks, bool with_states = true, bool legacy = fa
   ChannelEventBatch batch;
   for (int k = 0; k < ticks; ++k) {
     const Micros t = k * kPeriod;
-    if (k % window == 0) {
+    if (legacy) {  // the clock type of those logs: one tick per message, no n_ticks
+      clock_tick_v1_t c{};
+      c.utime = t;
+      c.vehicle_id = kEmulatorId;
+      c.tick = k;
+      c.period_us = kPeriod;
+      c.final_tick = k == ticks - 1 ? 1 : 0;
+      log.Write(channels::Clock(), t, c);
+    } else if (k % window == 0) {
       clock_tick_t c{};
       c.utime = t;
       c.vehicle_id = kEmulatorId;
@@ -307,7 +317,9 @@ TEST(RunData, WindowClocksAndEventBatchesReadLikeSingleOnes) {
     EXPECT_EQ(a.msg_seq, b.msg_seq);
   }
   EXPECT_EQ(batched.undecodable + batched.rejected, 0);
+  EXPECT_EQ(legacy.undecodable + legacy.rejected, 0);
   EXPECT_EQ(AnalyseRun(batched).ticks, ticks);
+  EXPECT_EQ(AnalyseRun(legacy).ticks, ticks);
 }
 
 // A damaged batch is refused whole and counted once; a window clock covering no tick too.
@@ -330,6 +342,11 @@ TEST(RunData, DamagedBatchOrEmptyWindowIsCountedNotKept) {
     log.WriteRaw(channels::ChannelEvents(), 0, bad.data(), static_cast<int>(bad.size()));
     // Truncated by one byte.
     log.WriteRaw(channels::ChannelEvents(), 0, bytes.data(), static_cast<int>(bytes.size()) - 1);
+    // A single (pre-batching) event's fingerprint and nothing else.
+    const channel_event_t single = Event(0, 1, 0, 0.1, 100000, 0, 0);
+    std::vector<unsigned char> one(static_cast<std::size_t>(single.getEncodedSize()));
+    single.encode(one.data(), 0, static_cast<int>(one.size()));
+    log.WriteRaw(channels::ChannelEvents(), 0, one.data(), 8);
     // Intact.
     log.WriteRaw(channels::ChannelEvents(), 0, bytes.data(), static_cast<int>(bytes.size()));
     clock_tick_t c{};
@@ -340,7 +357,7 @@ TEST(RunData, DamagedBatchOrEmptyWindowIsCountedNotKept) {
   }
   const RunData run = Load(path);
   EXPECT_EQ(run.channel_events.size(), 2u);
-  EXPECT_EQ(run.undecodable, 2);
+  EXPECT_EQ(run.undecodable, 3);
   EXPECT_EQ(run.rejected, 1);
   EXPECT_TRUE(run.clock.empty());
 }
@@ -801,8 +818,6 @@ TEST(LogDamage, RandomByteFlips) {
   EXPECT_GT(loaded, 250);  // a few flips damage a few events, not the whole log
 }
 
-// A string length of 0 or less makes LCM's generated decoder throw std::length_error;
-// runtime's Decode() (used in the processes' LCM handlers) must refuse it instead.
 // LCM 1.3.1's generated decoders trust array counts (an int product that overflows, a
 // vector resized before the bytes are checked): a clock message or an event batch with a
 // forged count must be refused by Decode, not read out of bounds or allocate gigabytes.
@@ -841,6 +856,8 @@ TEST(LogDamage, ForgedArrayCountsAreRefusedNotTrusted) {
   }
 }
 
+// A string length of 0 or less makes LCM's generated decoder throw std::length_error;
+// runtime's Decode() (used in the processes' LCM handlers) must refuse it instead.
 TEST(LogDamage, DamagedStringLengthIsRefusedNotThrown) {
   run_status_t st = Status(0, 1, "ready", "");
   std::vector<std::uint8_t> b(st.getEncodedSize());

@@ -93,6 +93,44 @@ TEST(RecorderGate, ARunnableThreadOfTheRecorderIsEnoughToWaitAndItsSleepEndsTheW
   EXPECT_LT(done, 2000000000LL);
 }
 
+// lcm-logger creates its log file before its writer and LCM's receive thread: a gate set
+// up in between must notice the threads that start later.
+TEST(RecorderGate, ThreadsStartedAfterTheGateAreWatchedToo) {
+  const std::int64_t start = MonotonicNs();
+  Child c([start] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(60));
+    std::thread worker([start] {
+      while (MonotonicNs() - start < 250000000LL) {
+      }
+      for (;;) pause();
+    });
+    for (;;) pause();
+  });
+  RecorderGate gate(c.pid);  // the child has one thread now
+  ASSERT_TRUE(gate.active());
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // now two, one spinning
+  gate.Wait(5000000000LL);
+  const std::int64_t done = MonotonicNs() - start;
+  EXPECT_EQ(gate.waits(), 1);
+  EXPECT_EQ(gate.timeouts(), 0);
+  EXPECT_GE(done, 250000000LL);
+  EXPECT_LT(done, 3000000000LL);
+}
+
+// A recorder that exited but is not reaped yet (a zombie) is gone: no waiting for it.
+TEST(RecorderGate, AZombieRecorderOpensTheGate) {
+  const pid_t pid = fork();
+  if (pid == 0) _exit(0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  RecorderGate gate(pid);
+  const std::int64_t t0 = MonotonicNs();
+  gate.Wait(1000000000LL);
+  EXPECT_LT(MonotonicNs() - t0, 100000000LL);
+  EXPECT_FALSE(gate.active());
+  EXPECT_EQ(gate.timeouts(), 0);
+  waitpid(pid, nullptr, 0);
+}
+
 TEST(RecorderGate, AVanishedRecorderOpensTheGate) {
   pid_t pid;
   {
