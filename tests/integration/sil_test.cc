@@ -66,10 +66,16 @@ TEST(Sil, LockstepRunEqualsShoalSim) {
   EXPECT_LE(JsonNumber(cmp.out, "max_position_diff_m"), 1e-9) << cmp.out;
   EXPECT_LE(JsonNumber(cmp.out, "max_velocity_diff_mps"), 1e-9) << cmp.out;
   // lcm-logger drops what exceeds its LCM subscription queue (30 messages) when it waits
-  // for the CPU. As root, lockstep runs it under SCHED_FIFO and it must record at least
-  // 99 % (seen: all in 60 s runs, 99.4 % in a 600 s one); otherwise at least 90 % (seen:
-  // up to 6 % lost with another build running). Everything it recorded must match. The
-  // run reports the figure.
+  // for the CPU. In lockstep the clock master waits for it before every window (the
+  // emulator says so on exit: shoal run gave it the logger's pid); on this shared bus a
+  // window still holds ~50 messages for it (the deliveries too), so that bounds the loss
+  // without excluding it. As root at least 99 % (seen: all), otherwise at least 90 %
+  // (seen: up to 6 % lost with another build running, before the wait existed).
+  // Everything it recorded must match. The run reports the figure.
+  const std::string emulator_out =
+      ReadFile(run_log.substr(0, run_log.rfind('/') + 1) + ".sil_eq_run.lcmlog.emulator.txt");
+  EXPECT_NE(emulator_out.find("waited for the recorder before"), std::string::npos)
+      << emulator_out;
   if (geteuid() == 0) {
     EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.99 * 6.0 * (20 * 50 + 1)) << cmp.out;
   } else {
