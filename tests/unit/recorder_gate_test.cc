@@ -12,7 +12,9 @@
 
 #include <atomic>
 #include <chrono>
+#include <fstream>
 #include <functional>
+#include <string>
 #include <thread>
 
 #include "runtime/clock.h"
@@ -32,12 +34,7 @@ struct Child {
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(30));  // let it settle
   }
-  explicit Child(bool spin)
-      : Child([spin] {
-          const volatile bool busy = spin;
-          while (busy) {
-          }
-        }) {}
+
   ~Child() {
     if (pid > 0) {
       kill(pid, SIGKILL);
@@ -46,8 +43,37 @@ struct Child {
   }
 };
 
+void Nothing() {}
+void SpinForever() {
+  const volatile bool busy = true;
+  while (busy) {
+  }
+}
+
+// Waits (at most 5 s) until process `pid` has `n` threads; false if it never does.
+bool WaitForThreads(pid_t pid, int n) {
+  const std::string path = "/proc/" + std::to_string(pid) + "/status";
+  for (int i = 0; i < 500; ++i) {
+    std::ifstream f(path);
+    std::string line;
+    while (std::getline(f, line)) {
+      if (line.rfind("Threads:", 0) == 0 && std::stoi(line.substr(8)) == n) return true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
+}
+
+// A thread that spins for 200 ms from its own start, then sleeps for ever.
+void SpinThenSleep() {
+  const std::int64_t t0 = MonotonicNs();
+  while (MonotonicNs() - t0 < 200000000LL) {  // a clock read: not optimised away
+  }
+  for (;;) pause();
+}
+
 TEST(RecorderGate, ASleepingRecorderLetsTheWindowThroughAtOnce) {
-  Child c(false);
+  Child c(Nothing);
   RecorderGate gate(c.pid);
   ASSERT_TRUE(gate.active());
   const std::int64_t t0 = MonotonicNs();
@@ -58,7 +84,7 @@ TEST(RecorderGate, ASleepingRecorderLetsTheWindowThroughAtOnce) {
 }
 
 TEST(RecorderGate, ABusyRecorderHoldsTheWindowUntilTheLimit) {
-  Child c(true);
+  Child c(SpinForever);
   RecorderGate gate(c.pid);
   ASSERT_TRUE(gate.active());
   const std::int64_t t0 = MonotonicNs();
@@ -72,49 +98,46 @@ TEST(RecorderGate, ABusyRecorderHoldsTheWindowUntilTheLimit) {
 }
 
 // Every thread counts: a recorder whose main thread sleeps while another thread runs for
-// 150 ms, then sleeps too. The gate waits for the second thread, and no longer.
+// 200 ms, then sleeps too. The gate waits for the second thread, and no longer.
 TEST(RecorderGate, ARunnableThreadOfTheRecorderIsEnoughToWaitAndItsSleepEndsTheWait) {
-  const std::int64_t start = MonotonicNs();
-  Child c([start] {
-    std::thread worker([start] {
-      while (MonotonicNs() - start < 150000000LL) {  // a clock read: not optimised away
-      }
-      for (;;) pause();
-    });
+  Child c([] {
+    std::thread worker(SpinThenSleep);
     for (;;) pause();
   });
+  ASSERT_TRUE(WaitForThreads(c.pid, 2));
   RecorderGate gate(c.pid);
   ASSERT_TRUE(gate.active());
+  const std::int64_t t0 = MonotonicNs();
   gate.Wait(5000000000LL);
-  const std::int64_t done = MonotonicNs() - start;
+  const std::int64_t waited = MonotonicNs() - t0;
   EXPECT_EQ(gate.waits(), 1);
   EXPECT_EQ(gate.timeouts(), 0);
-  EXPECT_GE(done, 150000000LL);
-  EXPECT_LT(done, 2000000000LL);
+  EXPECT_GT(waited, 0);
+  EXPECT_LT(waited, 3000000000LL);
 }
 
 // lcm-logger creates its log file before its writer and LCM's receive thread: a gate set
 // up in between must notice the threads that start later.
 TEST(RecorderGate, ThreadsStartedAfterTheGateAreWatchedToo) {
-  const std::int64_t start = MonotonicNs();
-  Child c([start] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(60));
-    std::thread worker([start] {
-      while (MonotonicNs() - start < 250000000LL) {
-      }
-      for (;;) pause();
-    });
+  int go[2];
+  ASSERT_EQ(pipe(go), 0);
+  Child c([&go] {
+    char byte;
+    while (read(go[0], &byte, 1) != 1) {
+    }
+    std::thread worker(SpinThenSleep);
     for (;;) pause();
   });
-  RecorderGate gate(c.pid);  // the child has one thread now
+  ASSERT_TRUE(WaitForThreads(c.pid, 1));
+  RecorderGate gate(c.pid);  // the child has one thread, blocked in read()
   ASSERT_TRUE(gate.active());
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // now two, one spinning
+  ASSERT_EQ(write(go[1], "x", 1), 1);
+  ASSERT_TRUE(WaitForThreads(c.pid, 2));  // now two, one spinning for 200 ms
   gate.Wait(5000000000LL);
-  const std::int64_t done = MonotonicNs() - start;
   EXPECT_EQ(gate.waits(), 1);
   EXPECT_EQ(gate.timeouts(), 0);
-  EXPECT_GE(done, 250000000LL);
-  EXPECT_LT(done, 3000000000LL);
+  close(go[0]);
+  close(go[1]);
 }
 
 // A recorder that exited but is not reaped yet (a zombie) is gone: no waiting for it.
@@ -134,12 +157,12 @@ TEST(RecorderGate, AZombieRecorderOpensTheGate) {
 TEST(RecorderGate, AVanishedRecorderOpensTheGate) {
   pid_t pid;
   {
-    Child c(false);
+    Child c(Nothing);
     pid = c.pid;
   }
   RecorderGate gone(pid);
   EXPECT_FALSE(gone.active());
-  Child c(true);
+  Child c(SpinForever);
   RecorderGate gate(c.pid);
   ASSERT_TRUE(gate.active());
   kill(c.pid, SIGKILL);
