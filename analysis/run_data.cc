@@ -20,22 +20,14 @@
 namespace shoal {
 namespace {
 
-// Big-endian readers for the hot message types (states and channel events): the generated
-// decoders are correct but allocate the channel event's reason string and throw on a
-// damaged string length (std::length_error for a length <= 0).
-std::uint64_t U64(const std::uint8_t* p) {
-  std::uint64_t v;
-  std::memcpy(&v, p, 8);
-  return __builtin_bswap64(v);
-}
-std::int64_t I64(const std::uint8_t* p) { return static_cast<std::int64_t>(U64(p)); }
-std::int32_t I32(const std::uint8_t* p) {
-  std::uint32_t v;
-  std::memcpy(&v, p, 4);
-  return static_cast<std::int32_t>(__builtin_bswap32(v));
-}
+// Hand-written readers for the hot message types (states and channel events), on
+// runtime's big-endian readers: the generated decoders are correct but allocate the
+// channel event's reason string and throw on a damaged string length (std::length_error
+// for a length <= 0).
+constexpr auto I64 = BigEndianI64;
+constexpr auto I32 = BigEndianI32;
 double F64(const std::uint8_t* p) {
-  const std::uint64_t u = U64(p);
+  const std::uint64_t u = BigEndianU64(p);
   double d;
   std::memcpy(&d, &u, 8);
   return d;

@@ -10,6 +10,7 @@
 #include <shoal/clock_tick_t.hpp>
 
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <string>
@@ -64,6 +65,21 @@ class LcmBus : public Bus {
   std::vector<std::unique_ptr<Sub>> subs_;
 };
 
+/// LCM's wire integers (big-endian), read from unaligned bytes.
+inline std::uint64_t BigEndianU64(const unsigned char* p) {
+  std::uint64_t v;
+  std::memcpy(&v, p, 8);
+  return __builtin_bswap64(v);
+}
+inline std::int64_t BigEndianI64(const unsigned char* p) {
+  return static_cast<std::int64_t>(BigEndianU64(p));
+}
+inline std::int32_t BigEndianI32(const unsigned char* p) {
+  std::uint32_t v;
+  std::memcpy(&v, p, 4);
+  return static_cast<std::int32_t>(__builtin_bswap32(v));
+}
+
 /// Whether the array counts a message declares fit its size. LCM 1.3.1's generated
 /// decoders size each variable array by the count read from the message, in an `int`,
 /// and resize the vector before checking that the bytes are there: a forged or damaged
@@ -73,16 +89,12 @@ template <typename Msg>
 bool ArrayCountsFit(const unsigned char* /*p*/, int /*size*/) {
   return true;  // no variable arrays
 }
-inline std::int32_t ReadBigEndian32(const unsigned char* p) {
-  return static_cast<std::int32_t>((std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) |
-                                   (std::uint32_t{p[2]} << 8) | std::uint32_t{p[3]});
-}
 template <>
 inline bool ArrayCountsFit<clock_tick_t>(const unsigned char* p, int size) {
   constexpr int kFixed = 8 + 8 + 4 + 4 + 8 + 4 + 8 + 1 + 4;  // hash .. n_deliveries
   constexpr std::int64_t kPerDelivery = 8 + 4 + 4 + 4 + 8;
   if (size < kFixed) return false;
-  const std::int64_t n = ReadBigEndian32(p + kFixed - 4);
+  const std::int64_t n = BigEndianI32(p + kFixed - 4);
   return n >= 0 && size - kFixed == n * kPerDelivery;
 }
 template <>
@@ -90,7 +102,7 @@ inline bool ArrayCountsFit<channel_events_t>(const unsigned char* p, int size) {
   constexpr int kFixed = 8 + 8 + 4 + 4 + 4;  // hash .. n_events
   constexpr int kMinEvent = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 1 + 4 + 1;  // reason ""
   if (size < kFixed) return false;
-  const std::int64_t n = ReadBigEndian32(p + kFixed - 4);
+  const std::int64_t n = BigEndianI32(p + kFixed - 4);
   return n >= 0 && n <= (size - kFixed) / kMinEvent;
 }
 

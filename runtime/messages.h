@@ -86,10 +86,7 @@ class ChannelEventBatch {
   // bytes for a message sent in one datagram.
   static constexpr int kMaxEvents = 800;
 
-  void Add(const ChannelDecision& d) {
-    newest_utime_ = b_.events.empty() ? d.send_utime : std::max(newest_utime_, d.send_utime);
-    b_.events.push_back(ToLcm(d, event_seq_++));
-  }
+  void Add(const ChannelDecision& d) { b_.events.push_back(ToLcm(d, event_seq_++)); }
   bool empty() const { return b_.events.empty(); }
   std::size_t size() const { return b_.events.size(); }
 
@@ -97,33 +94,33 @@ class ChannelEventBatch {
   /// message, in decision order, and starts a new batch.
   template <typename F>
   void Flush(F&& publish) {
-    if (b_.events.empty()) return;
-    b_.utime = newest_utime_;
-    b_.vehicle_id = -1;
+    // Stamps a message: its seq, its count, and the newest decision it holds as its time.
+    const auto stamp = [this](channel_events_t* m) {
+      m->vehicle_id = -1;
+      m->seq = batch_seq_++;
+      m->n_events = static_cast<std::int32_t>(m->events.size());
+      m->utime = 0;
+      for (const channel_event_t& e : m->events) m->utime = std::max(m->utime, e.utime);
+    };
     if (b_.events.size() <= static_cast<std::size_t>(kMaxEvents)) {
-      b_.seq = batch_seq_++;
-      b_.n_events = static_cast<std::int32_t>(b_.events.size());
+      if (b_.events.empty()) return;
+      stamp(&b_);
       publish(static_cast<const channel_events_t&>(b_));
     } else {
       channel_events_t part;
-      part.utime = b_.utime;
-      part.vehicle_id = -1;
       for (std::size_t i = 0; i < b_.events.size(); i += kMaxEvents) {
         const std::size_t end = std::min(b_.events.size(), i + kMaxEvents);
         part.events.assign(b_.events.begin() + static_cast<std::ptrdiff_t>(i),
                            b_.events.begin() + static_cast<std::ptrdiff_t>(end));
-        part.n_events = static_cast<std::int32_t>(part.events.size());
-        part.seq = batch_seq_++;
+        stamp(&part);
         publish(static_cast<const channel_events_t&>(part));
       }
     }
     b_.events.clear();
-    newest_utime_ = 0;
   }
 
  private:
   channel_events_t b_{};
-  Micros newest_utime_ = 0;
   std::int32_t event_seq_ = 0;
   std::int32_t batch_seq_ = 0;
 };
