@@ -15,7 +15,7 @@
 #include "analysis/log_reader.h"
 #include "analysis/memory.h"
 #include "runtime/lcm_bus.h"  // Decode: the generated decoder, made safe
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 namespace {

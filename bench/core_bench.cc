@@ -7,7 +7,7 @@
 #include "core/channel_model.h"
 #include "core/control.h"
 #include "core/swarm.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 namespace {

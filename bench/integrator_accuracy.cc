@@ -6,7 +6,7 @@
 #include <exception>
 
 #include "core/swarm.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 int main(int argc, char** argv) {
   if (argc != 3) {

@@ -11,7 +11,7 @@
 
 #include "runtime/channels.h"
 #include "runtime/messages.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 

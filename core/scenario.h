@@ -1,5 +1,5 @@
 // The scenario: one plain struct per concern, with defaults. Loading and validation of
-// the TOML file live in runtime/scenario_loader; this header is pure data so that core/
+// the TOML file live in scenario/loader; this header is pure data so that core/
 // stays free of I/O. Every key is documented in docs/scenario.md.
 #pragma once
 

@@ -10,7 +10,7 @@
 #include "core/channel_model.h"
 #include "runtime/channels.h"
 #include "runtime/messages.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 

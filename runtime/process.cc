@@ -13,7 +13,7 @@
 
 #include <CLI/CLI.hpp>
 
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 namespace {

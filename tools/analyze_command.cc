@@ -17,7 +17,7 @@
 #include "analysis/csv.h"
 #include "analysis/run_data.h"
 #include "runtime/lcm_bus.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 #include "tools/json.h"
 
 namespace shoal {

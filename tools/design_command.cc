@@ -18,7 +18,7 @@
 #include "design/theorem3.h"
 #include "design/tune.h"
 #include "design/verdict.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 #include "tools/json.h"
 
 namespace shoal {

@@ -18,7 +18,7 @@
 #include "core/channel_model.h"
 #include "render/figure.h"
 #include "render/shoal_figures.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 namespace {

@@ -32,7 +32,7 @@
 #include "runtime/process.h"
 #include "runtime/log_tail.h"
 #include "runtime/messages.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 #include "tools/json.h"
 
 namespace shoal {

@@ -13,7 +13,7 @@
 #include "runtime/channels.h"
 #include "runtime/log_writer.h"
 #include "runtime/messages.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 #include "tools/json.h"
 
 namespace shoal {

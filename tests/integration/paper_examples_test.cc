@@ -2,7 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "core/swarm.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 namespace {

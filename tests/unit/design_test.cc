@@ -9,7 +9,7 @@
 #include "design/sim_eval.h"
 #include "design/tune.h"
 #include "design/verdict.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 namespace design {

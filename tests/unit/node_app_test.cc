@@ -15,7 +15,7 @@
 #include "core/topology.h"
 #include "runtime/channels.h"
 #include "runtime/messages.h"
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 namespace shoal {
 namespace {

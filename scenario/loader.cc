@@ -3,7 +3,7 @@
 // The whole file is validated before anything runs; the first problem found is thrown as
 // a ScenarioError that names the file, the line, the dotted key, what is wrong, the value
 // that was given and how to fix it. Unknown keys are errors at every level.
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 #include <iostream>
 

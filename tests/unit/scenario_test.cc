@@ -1,7 +1,7 @@
-// Tests of runtime/scenario_loader: a complete scenario round-trips, defaults apply, every
+// Tests of scenario/loader: a complete scenario round-trips, defaults apply, every
 // validation rule rejects what it should with a located message, and every file in
 // tests/data/bad_scenarios/ fails with the message its first line announces.
-#include "runtime/scenario_loader.h"
+#include "scenario/loader.h"
 
 #include <gtest/gtest.h>
 
