@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Benchmark: shoal analyze of a one-hour log of 6 vehicles at 50 Hz (paper Example 2, the
 # leader and 5 followers, 10 links: about 1.1 M vehicle states, 1.8 M channel decisions and
-# 4.9 M events in all). Target (issue 4): <= 3 s and <= 500 MB peak RSS.
+# 4.9 M events in all). Target: <= 3 s and <= 500 MB peak RSS.
 # Usage: bench/analyze_bench.sh [BUILD_DIR] [RUNS] [LOG]
 # Writes the log with shoal sim first if LOG does not exist (kept for later runs), then
 # runs `shoal analyze LOG --json` RUNS times under /usr/bin/time -v (after one warm-up
