@@ -49,7 +49,8 @@ class LogObserver : public SwarmObserver {
   /// Writes the decisions not yet written: one SHOAL_CHANNEL message per tick, as the
   /// lockstep emulator publishes them per window.
   void FlushChannel() {
-    channel_.Flush([&](const channel_events_t& b) { log_->Write(channels::ChannelEvents(), now_, b); });
+    channel_.Flush(
+        [&](const channel_events_t& b) { log_->Write(channels::ChannelEvents(), now_, b); });
   }
   void OnHealth(Micros utime, const Follower& f) override {
     log_->Write(Name(health_ch_, f.id(), channels::Health), utime,
@@ -84,7 +85,9 @@ class ProgressObserver : public SwarmObserver {
       if (now - last_ > std::chrono::milliseconds(250)) {
         last_ = now;
         const double wall = std::chrono::duration<double>(now - start_).count();
-        std::fprintf(stderr, "\r  t = %8.1f / %.1f s  (%.0fx real time)  worst position error %.2f m   ",
+        std::fprintf(stderr,
+                     "\r  t = %8.1f / %.1f s  (%.0fx real time)  "
+                     "worst position error %.2f m   ",
                      ToSeconds(utime), ToSeconds(swarm_->final_tick() * swarm_->period_us()),
                      ToSeconds(utime) / wall, swarm_->metrics().current_worst_position_m());
         shown_ = true;
@@ -266,7 +269,9 @@ void PrintSimReport(const SimReport& r, std::FILE* out) {
     std::fprintf(out, "  converged: NO (position tol %.3g m, velocity tol %.3g m/s)\n",
                  r.position_tol_m, r.velocity_tol_mps);
   }
-  std::fprintf(out, "  final errors, worst follower: position %.4f m, velocity %.4f m/s, attitude %.4f rad\n",
+  std::fprintf(out,
+               "  final errors, worst follower: position %.4f m, velocity %.4f m/s, "
+               "attitude %.4f rad\n",
                r.final_worst.position_m, r.final_worst.velocity_mps, r.final_worst.attitude_rad);
   std::fprintf(out, "  %-9s %12s %14s %14s %11s %9s\n", "follower", "position[m]",
                "velocity[m/s]", "attitude[rad]", "saturated", "timeouts");

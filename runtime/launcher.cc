@@ -303,7 +303,9 @@ void Launch::StartAll() {
   }
   if (!vehicle_urls_.empty()) {
     std::string list;
-    for (std::size_t i = 0; i < vehicle_urls_.size(); ++i) list += (i ? "," : "") + vehicle_urls_[i];
+    for (std::size_t i = 0; i < vehicle_urls_.size(); ++i) {
+      list += (i ? "," : "") + vehicle_urls_[i];
+    }
     emulator_more.push_back("--vehicle-urls");
     emulator_more.push_back(list);
   }

@@ -86,7 +86,9 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   } else {
     std::fprintf(out, "  converged: NO\n");
   }
-  std::fprintf(out, "  final errors, worst follower: position %.4f m, velocity %.4f m/s, attitude %.4f rad\n",
+  std::fprintf(out,
+               "  final errors, worst follower: position %.4f m, velocity %.4f m/s, "
+               "attitude %.4f rad\n",
                sum.final_worst.position_m, sum.final_worst.velocity_mps,
                sum.final_worst.attitude_rad);
   std::fprintf(out, "  channel (as recorded in the log): %lld delivered, %lld dropped",

@@ -197,7 +197,7 @@ int RunAnalyze(const AnalyzeOptions& opt) {
               << ")\n";
     return kExitBadInput;
   }
-  if (!opt.csv_dir.empty()) {  // before a long live session, not after it
+  if (!opt.csv_dir.empty()) {  // before listening for a long time, not after it
     struct stat st {};
     if (mkdir(opt.csv_dir.c_str(), 0755) != 0 && errno != EEXIST) {
       std::cerr << who << opt.csv_dir << ": cannot create the CSV directory ("

@@ -18,7 +18,9 @@ int RunRun(const RunOptions& opt) {
   LaunchCallbacks cb;
   if (show) {
     cb.progress = [](const LaunchProgress& p) {
-      std::fprintf(stderr, "\r  t = %7.1f / %.0f s  (%.1fx real time)  worst position error %.2f m  processes alive %d/%d   ",
+      std::fprintf(stderr,
+                   "\r  t = %7.1f / %.0f s  (%.1fx real time)  worst position error %.2f m  "
+                   "processes alive %d/%d   ",
                    p.sim_time_s, p.duration_s, p.realtime_factor, p.worst_position_error_m,
                    p.alive, p.processes);
     };
