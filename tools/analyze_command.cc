@@ -8,23 +8,21 @@
 
 #include <chrono>
 #include <cmath>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 
 #include "analysis/analysis.h"
+#include "analysis/analysis_json.h"
 #include "analysis/csv.h"
 #include "analysis/run_data.h"
+#include "analysis/verdict.h"
 #include "runtime/lcm_bus.h"
 #include "scenario/loader.h"
-#include "tools/json.h"
+#include "runtime/stop_signals.h"
 
 namespace shoal {
 namespace {
-
-volatile std::sig_atomic_t g_stop = 0;
-extern "C" void OnAnalyzeSignal(int) { g_stop = 1; }
 
 std::int64_t WallMicros() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -61,21 +59,15 @@ bool ReadLive(const AnalyzeOptions& opt, const LoadOptions& lo, RunData* run, st
     }
   });
 
-  struct sigaction sa = {};
-  sa.sa_handler = OnAnalyzeSignal;
-  sigemptyset(&sa.sa_mask);
-  struct sigaction old_int, old_term;
-  sigaction(SIGINT, &sa, &old_int);
-  sigaction(SIGTERM, &sa, &old_term);
-  g_stop = 0;
+  const StopSignals signals;  // Ctrl-C ends the listening, not the analysis
   const bool show = !opt.quiet && !opt.json && isatty(2);
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
   auto last_show = t0;
   Clock::time_point end_at = Clock::time_point::max();
-  while (!g_stop) {
+  while (!StopSignals::Requested()) {
     if (bus->Handle(50) < 0) {
-      if (g_stop || errno == EINTR) continue;  // Ctrl-C interrupts the wait: not an error
+      if (StopSignals::Requested() || errno == EINTR) continue;  // Ctrl-C interrupts the wait: not an error
       *error = "LCM receive error on " + run->source + " (" + std::strerror(errno) + ")";
       break;
     }
@@ -96,8 +88,6 @@ bool ReadLive(const AnalyzeOptions& opt, const LoadOptions& lo, RunData* run, st
     }
   }
   if (show) std::fprintf(stderr, "\r%100s\r", "");
-  sigaction(SIGINT, &old_int, nullptr);
-  sigaction(SIGTERM, &old_term, nullptr);
   b.Finish();
   if (!error->empty()) return false;
   const bool any = run->state_messages() > 0 || !run->channel_events.empty() ||
@@ -109,169 +99,6 @@ bool ReadLive(const AnalyzeOptions& opt, const LoadOptions& lo, RunData* run, st
     return false;
   }
   return true;
-}
-
-std::string QuantileJson(const Quantiles& q) {
-  JsonWriter j;
-  j.Int("count", q.count).Num("p50", q.p50).Num("p99", q.p99).Num("max", q.max).Num("min", q.min)
-      .Num("mean", q.mean);
-  return j.Done();
-}
-
-std::string Vec3Json(const Vec3& v) {
-  char buf[128];
-  if (!v.allFinite()) return "null";
-  std::snprintf(buf, sizeof(buf), "[%.10g,%.10g,%.10g]", v(0), v(1), v(2));
-  return buf;
-}
-
-std::string StrList(const std::vector<std::string>& v) {
-  std::vector<std::string> quoted;
-  for (const std::string& x : v) quoted.push_back(JsonWriter::Quote(x));
-  return JsonWriter::List(quoted);
-}
-
-/// Last health report of process `id`, or null.
-const HealthRecord* LastHealth(const RunAnalysis& a, int id) {
-  for (const ProcessAnalysis& p : a.processes) {
-    if (p.id == id) return &p.last;
-  }
-  return nullptr;
-}
-
-void PrintJson(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis& a) {
-  const RunSummary& s = a.summary;
-  const bool f = a.has_formation;
-  const bool conv = f && s.converged && a.diverged_follower == 0;
-  const ChannelAnalysis& c = a.channel;
-  JsonWriter ch;
-  ch.Int("delivered", c.delivered)
-      .Int("dropped", c.dropped)
-      .Num("delay_error_p99_s", c.release_error_p99_s)
-      .Int("sent", c.sent)
-      .Int("dropped_loss", c.dropped_loss)
-      .Int("dropped_queue", c.dropped_queue)
-      .Int("dropped_invalid", c.dropped_invalid)
-      .Num("realised_delay_error_p50_s", c.delay_error_s.p50)
-      .Num("realised_delay_error_p99_s", c.delay_error_s.p99)
-      .Num("realised_delay_error_max_s", c.delay_error_s.max)
-      .Num("realised_delay_error_min_s", c.delay_error_s.min)
-      .Num("realised_delay_p50_s", c.realised_delay_s.p50)
-      .Num("realised_delay_max_s", c.realised_delay_s.max)
-      .Num("message_age_p50_s", c.age_at_use_s.p50)
-      .Num("message_age_p99_s", c.age_at_use_s.p99)
-      .Num("message_age_max_s", c.age_at_use_s.max)
-      .Int("model_mismatches", c.model_mismatches)
-      .Int("unknown_link_events", c.unknown_links);
-  std::vector<std::string> links;
-  for (const LinkAnalysis& l : c.links) {
-    JsonWriter lj;
-    lj.Int("from", l.from)
-        .Int("to", l.to)
-        .Bool("in_scenario", l.in_scenario)
-        .Int("sent", l.sent)
-        .Int("delivered", l.delivered)
-        .Int("dropped_loss", l.dropped_loss)
-        .Int("dropped_queue", l.dropped_queue)
-        .Int("dropped_invalid", l.dropped_invalid)
-        .Raw("realised_delay_s", QuantileJson(l.realised_delay_s))
-        .Raw("realised_delay_error_s", QuantileJson(l.delay_error_s))
-        .Raw("message_age_s", QuantileJson(l.age_at_use_s))
-        .Int("stale_ticks", l.ticks_stale)
-        .Int("ticks_before_first_message", l.ticks_before_first);
-    links.push_back(lj.Done());
-  }
-  ch.Raw("links", JsonWriter::List(links));
-
-  JsonWriter loop;
-  loop.Num("lateness_p99_s", s.lateness_p99_s).Int("overruns", s.overruns);
-  std::vector<std::string> procs;
-  for (const ProcessAnalysis& p : a.processes) {
-    const HealthRecord& h = p.last;
-    JsonWriter pj;
-    pj.Int("id", p.id)
-        .Int("reports", p.reports)
-        .Int("ticks", h.ticks)
-        .Num("lateness_p50_s", h.lateness_p50_s)
-        .Num("lateness_p99_s", h.lateness_p99_s)
-        .Num("lateness_max_s", h.lateness_max_s)
-        .Int("overruns", h.overruns)
-        .Num("saturation_fraction", h.saturation_fraction)
-        .Int("neighbour_timeouts", h.neighbour_timeouts)
-        .Int("msgs_received", h.msgs_received)
-        .Int("msgs_dropped_invalid", h.msgs_dropped_invalid)
-        .Int("msgs_dropped_old", h.msgs_dropped_old);
-    procs.push_back(pj.Done());
-  }
-  loop.Raw("processes", JsonWriter::List(procs));
-
-  std::vector<std::string> per_follower;
-  for (std::size_t i = 0; i < a.followers.size(); ++i) {
-    const FollowerAnalysis& fa = a.followers[i];
-    const FormationErrors e = i < a.final_errors.size() ? a.final_errors[i]
-                                                        : FormationErrors{kNaN, kNaN, kNaN};
-    const HealthRecord* h = LastHealth(a, fa.id);
-    JsonWriter fj;
-    fj.Int("id", fa.id)
-        .Num("final_position_error_m", e.position_m)
-        .Num("final_velocity_error_mps", e.velocity_mps)
-        .Num("final_attitude_error_rad", e.attitude_rad)
-        .Num("saturation_fraction", fa.saturation_fraction)
-        .Num("neighbour_timeouts", h ? static_cast<double>(h->neighbour_timeouts) : kNaN)
-        .Num("msgs_received", h ? static_cast<double>(h->msgs_received) : kNaN)
-        .Bool("converged", fa.converged)
-        .Num("convergence_time_s", fa.convergence_time_s)
-        .Num("max_position_error_m", fa.max_position_error_m)
-        .Int("samples", fa.samples)
-        .Int("compared_samples", fa.compared)
-        .Int("stale_ticks", fa.stale_ticks)
-        .Int("stale_events", fa.stale_events);
-    per_follower.push_back(fj.Done());
-  }
-  const std::string per = JsonWriter::List(per_follower);
-
-  JsonWriter lead;
-  lead.Num("path_length_m", a.leader_path_length_m)
-      .Raw("start_m", Vec3Json(a.leader_start_m))
-      .Raw("end_m", Vec3Json(a.leader_end_m));
-
-  JsonWriter j;
-  if (run.scenario_name.empty()) {
-    j.Raw("scenario", "null");
-  } else {
-    j.Str("scenario", run.scenario_name);
-  }
-  j.Raw("scenario_source", run.scenario_origin.empty() ? "null" : JsonWriter::Quote(run.scenario_origin))
-      .Str("mode", a.mode)
-      .Bool("converged", conv)
-      .Num("convergence_time_s", conv ? s.convergence_time_s : kNaN)
-      .Num("final_position_error_m", f ? s.final_worst.position_m : kNaN)
-      .Num("final_velocity_error_mps", f ? s.final_worst.velocity_mps : kNaN)
-      .Num("final_attitude_error_rad", f ? s.final_worst.attitude_rad : kNaN)
-      .Num("max_position_error_m", f ? s.max_position_error_m : kNaN)
-      .Num("sim_time_s", s.sim_time_s)
-      .Num("wall_time_s", a.wall_time_s)
-      .Num("realtime_factor", a.wall_time_s > 0 ? s.sim_time_s / a.wall_time_s : kNaN)
-      .Int("ticks", a.ticks)
-      .Int("channel_delivered", c.delivered)
-      .Int("channel_dropped", c.dropped)
-      .Bool("interrupted", a.interrupted)
-      .Int("diverged_follower", a.diverged_follower)
-      .Raw("followers", per)
-      .Raw("channel", ch.Done())
-      .Raw("loop", loop.Done())
-      .Bool("all_processes_ok", a.problems.empty() && !a.interrupted)
-      .Raw("problems", StrList(a.problems))
-      .Raw("log", opt.live ? "null" : JsonWriter::Quote(opt.log))
-      .Int("log_events", run.events)
-      .Int("log_states", s.states)
-      .Int("log_states_expected", a.states_expected)
-      .Raw("lcm_url", opt.live ? JsonWriter::Quote(run.source) : "null")
-      .Int("complete_samples", a.complete_samples)
-      .Raw("leader", lead.Done())
-      .Bool("damaged", run.damaged)
-      .Raw("warnings", StrList(run.warnings));
-  std::cout << j.Done() << "\n";
 }
 
 void PrintText(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis& a) {
@@ -289,7 +116,7 @@ void PrintText(const AnalyzeOptions& opt, const RunData& run, const RunAnalysis&
                 run.has_scenario ? "no leader states in the log"
                                  : "no scenario in the log; give --scenario FILE");
   } else {
-    if (s.converged && a.diverged_follower == 0) {
+    if (FormationConverged(a)) {
       std::printf("  converged: yes, at %.2f s (position tol %.3g m, velocity tol %.3g m/s)\n",
                   s.convergence_time_s, run.scenario.metrics.position_tol_m,
                   run.scenario.metrics.velocity_tol_mps);
@@ -359,33 +186,33 @@ int RunAnalyze(const AnalyzeOptions& opt) {
               << (opt.live ? "give either a LOG or --live, not both"
                            : "give a LOG to analyse, or --live to listen on an LCM URL")
               << "\n";
-    return 2;
+    return kExitBadInput;
   }
   if (!opt.live && (!std::isnan(opt.duration_s) || !opt.lcm_url.empty())) {
     std::cerr << who << "--duration and --lcm-url go with --live\n";
-    return 2;
+    return kExitBadInput;
   }
   if (opt.live && !std::isnan(opt.duration_s) && !(opt.duration_s > 0 && std::isfinite(opt.duration_s))) {
     std::cerr << who << "--duration must be a positive number of seconds (got " << opt.duration_s
               << ")\n";
-    return 2;
+    return kExitBadInput;
   }
-  if (!opt.csv_dir.empty()) {  // before a long live session, not after it
+  if (!opt.csv_dir.empty()) {  // before listening for a long time, not after it
     struct stat st {};
     if (mkdir(opt.csv_dir.c_str(), 0755) != 0 && errno != EEXIST) {
       std::cerr << who << opt.csv_dir << ": cannot create the CSV directory ("
                 << std::strerror(errno) << ")\n";
-      return 2;
+      return kExitBadInput;
     }
     if (stat(opt.csv_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
       std::cerr << who << opt.csv_dir << ": exists and is not a directory; give --csv a directory\n";
-      return 2;
+      return kExitBadInput;
     }
   }
   Scenario scenario;
   LoadOptions lo;
   if (!opt.scenario.empty()) {
-    if (!LoadScenarioOrReport("shoal analyze", opt.scenario, &scenario)) return 2;
+    if (!LoadScenarioOrReport("shoal analyze", opt.scenario, &scenario)) return kExitBadInput;
     lo.scenario = &scenario;
   }
 
@@ -394,7 +221,7 @@ int RunAnalyze(const AnalyzeOptions& opt) {
   const bool ok = opt.live ? ReadLive(opt, lo, &run, &error) : LoadRunLog(opt.log, lo, &run, &error);
   if (!ok) {
     std::cerr << who << error << "\n";
-    return 2;
+    return kExitBadInput;
   }
   for (const std::string& w : run.warnings) std::cerr << who << "warning: " << w << "\n";
   if (!run.has_scenario) {
@@ -408,17 +235,20 @@ int RunAnalyze(const AnalyzeOptions& opt) {
     std::vector<std::string> files;
     if (!WriteRunCsv(run, a, opt.csv_dir, &files, &error)) {
       std::cerr << who << error << "\n";
-      return 2;
+      return kExitBadInput;
     }
     if (!opt.json) std::fprintf(stderr, "shoal analyze: wrote %zu CSV files to %s\n", files.size(),
                                 opt.csv_dir.c_str());
   }
   if (opt.json) {
-    PrintJson(opt, run, a);
+    AnalysisSource source;
+    source.live = opt.live;
+    source.log = opt.log;
+    std::cout << AnalysisJson(run, a, source).dump() << "\n";
   } else {
     PrintText(opt, run, a);
   }
-  return 0;
+  return kExitOk;
 }
 
 }  // namespace shoal

@@ -3,14 +3,17 @@
 #include <lcm/lcm-cpp.hpp>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <map>
 #include <utility>
 
+#include <nlohmann/json.hpp>
+
+#include "analysis/verdict.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/messages.h"
-#include "tools/json.h"
 
 namespace shoal {
 namespace {
@@ -50,11 +53,15 @@ bool ReadStates(const std::string& path, std::map<Key, Sample>* out, std::string
 }  // namespace
 
 int RunCompare(const CompareOptions& opt) {
+  if (!(opt.position_tol_m >= 0) || !(opt.velocity_tol_mps >= 0)) {
+    std::cerr << "shoal compare: --position-tol-m and --velocity-tol-mps must be >= 0\n";
+    return kExitBadInput;
+  }
   std::map<Key, Sample> a, b;
   std::string err;
   if (!ReadStates(opt.a, &a, &err) || !ReadStates(opt.b, &b, &err)) {
     std::cerr << "shoal compare: " << err << "\n";
-    return 2;
+    return kExitBadInput;
   }
   double max_pos = 0.0, max_vel = 0.0;
   std::int64_t samples = 0;
@@ -65,21 +72,31 @@ int RunCompare(const CompareOptions& opt) {
     max_pos = std::max(max_pos, (sa.eta.head<3>() - it->second.eta.head<3>()).norm());
     max_vel = std::max(max_vel, (sa.eta_dot - it->second.eta_dot).norm());
   }
+  // NaN differences (a non-finite state on one side) are beyond any tolerance.
+  const bool within = samples > 0 && max_pos <= opt.position_tol_m &&
+                      max_vel <= opt.velocity_tol_mps;
   if (opt.json) {
-    JsonWriter j;
-    j.Num("max_position_diff_m", samples ? max_pos : NAN)
-        .Num("max_velocity_diff_mps", samples ? max_vel : NAN)
-        .Int("samples", samples)
-        .Int("states_a", static_cast<long long>(a.size()))
-        .Int("states_b", static_cast<long long>(b.size()));
-    std::cout << j.Done() << "\n";
+    nlohmann::ordered_json j;
+    j["max_position_diff_m"] = samples ? max_pos : NAN;
+    j["max_velocity_diff_mps"] = samples ? max_vel : NAN;
+    j["samples"] = samples;
+    j["states_a"] = a.size();
+    j["states_b"] = b.size();
+    j["position_tol_m"] = opt.position_tol_m;
+    j["velocity_tol_mps"] = opt.velocity_tol_mps;
+    j["within_tolerance"] = within;
+    std::cout << j.dump() << "\n";
   } else {
     std::printf("shoal compare: %lld matching vehicle states (of %zu and %zu)\n",
                 static_cast<long long>(samples), a.size(), b.size());
     std::printf("  max position difference %.3e m, max velocity difference %.3e m/s\n",
                 max_pos, max_vel);
+    std::printf("  %s (tolerances %.3g m, %.3g m/s)\n",
+                within ? "within tolerance"
+                       : (samples ? "BEYOND TOLERANCE" : "NO matching states"),
+                opt.position_tol_m, opt.velocity_tol_mps);
   }
-  return samples > 0 ? 0 : 1;
+  return within ? kExitOk : kExitFailed;
 }
 
 }  // namespace shoal

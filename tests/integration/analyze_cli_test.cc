@@ -7,7 +7,6 @@
 #include <cstdlib>
 #include <fstream>
 #include <limits>
-#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -18,8 +17,7 @@ namespace shoal {
 namespace {
 
 using shoal::testing::ReadFile;
-using shoal::testing::JsonNumber;
-using shoal::testing::JsonRaw;
+using shoal::testing::ParseJson;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::TmpPath;
@@ -43,57 +41,64 @@ TEST(AnalyzeCli, AgreesWithShoalSimOnEveryFigureItPrints) {
   ASSERT_EQ(sim.status, 0) << sim.err;
   const auto ana = RunShoal("analyze " + SimLog() + " --json", "analyze_cli_ana");
   ASSERT_EQ(ana.status, 0) << ana.err;
+  const auto sj = ParseJson(sim.out), aj = ParseJson(ana.out);
   for (const char* key : {"scenario", "converged", "convergence_time_s", "final_position_error_m",
                           "final_velocity_error_mps", "final_attitude_error_rad",
                           "max_position_error_m", "sim_time_s", "ticks", "channel_delivered",
                           "channel_dropped", "interrupted", "diverged_follower"}) {
-    EXPECT_EQ(JsonRaw(ana.out, key), JsonRaw(sim.out, key)) << key;
+    ASSERT_TRUE(sj.contains(key)) << key;
+    EXPECT_EQ(aj[key], sj[key]) << key;  // numbers to the last bit
   }
-  EXPECT_EQ(JsonRaw(ana.out, "convergence_time_s"), "53.02");
-  // Per follower: shoal sim's objects, key for key and digit for digit, start analyze's.
-  const std::regex follower(R"(\{"id":[0-9]+,[^{}]*\})");
-  int n = 0;
-  for (std::sregex_iterator it(sim.out.begin(), sim.out.end(), follower), end; it != end; ++it) {
-    std::string obj = it->str();
-    obj.pop_back();  // the closing brace: analyze adds keys after these
-    EXPECT_NE(ana.out.find(obj + ","), std::string::npos) << obj;
-    ++n;
+  EXPECT_NEAR(aj["convergence_time_s"].get<double>(), 53.02, 1e-9);
+  // Per follower: shoal sim's keys, value for value to the last bit, in the same order,
+  // start analyze's objects.
+  ASSERT_EQ(sj["followers"].size(), 5u) << sim.out;
+  ASSERT_EQ(aj["followers"].size(), 5u) << ana.out;
+  for (std::size_t i = 0; i < 5; ++i) {
+    const auto& sf = sj["followers"][i];
+    const auto& af = aj["followers"][i];
+    ASSERT_EQ(sf.size(), 7u) << sf;
+    auto ai = af.items().begin();
+    for (const auto& [key, value] : sf.items()) {
+      ASSERT_NE(ai, af.items().end()) << af;
+      EXPECT_EQ(ai.key(), key) << af;
+      EXPECT_EQ(ai.value(), value) << key << " of follower " << sf["id"];
+      ++ai;
+    }
   }
-  EXPECT_EQ(n, 5);
-  EXPECT_EQ(JsonRaw(ana.out, "mode"), "\"sim\"");
-  EXPECT_EQ(JsonRaw(ana.out, "scenario_source"), "\"log\"");
-  EXPECT_EQ(JsonRaw(ana.out, "log_states"), std::to_string(6 * 3001));
-  EXPECT_EQ(JsonRaw(ana.out, "log_states_expected"), std::to_string(6 * 3001));
-  EXPECT_EQ(JsonRaw(ana.out, "damaged"), "false");
+  EXPECT_EQ(aj["mode"], "sim");
+  EXPECT_EQ(aj["scenario_source"], "log");
+  EXPECT_EQ(aj["log_states"], 6 * 3001);
+  EXPECT_EQ(aj["log_states_expected"], 6 * 3001);
+  EXPECT_EQ(aj["damaged"], false);
 }
 
 TEST(AnalyzeCli, JsonHasEveryKeyOfShoalRun) {
   const auto ana = RunShoal("analyze " + SimLog() + " --json", "analyze_cli_keys");
   ASSERT_EQ(ana.status, 0) << ana.err;
-  // The keys of `shoal run --json` (tools/run_command.cc, docs/run.md).
+  const auto j = ParseJson(ana.out);
+  // The keys of `shoal run --json` (runtime/run_report.cc, docs/run.md), but the launcher's
+  // own (process_output_dir, cpu_latency_request).
   for (const char* key : {"scenario", "mode", "converged", "convergence_time_s",
                           "final_position_error_m", "final_velocity_error_mps",
                           "final_attitude_error_rad", "sim_time_s", "wall_time_s",
-                          "realtime_factor", "channel", "loop", "all_processes_ok", "problems",
-                          "interrupted", "log", "log_states", "log_states_expected", "lcm_url"}) {
-    EXPECT_NE(JsonRaw(ana.out, key), "<missing>") << key;
+                          "realtime_factor", "diverged_follower", "channel", "loop",
+                          "all_processes_ok", "problems", "interrupted", "log", "log_states",
+                          "log_states_expected", "lcm_url"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
   }
-  const auto ch = ana.out.find("\"channel\":{");
-  ASSERT_NE(ch, std::string::npos);
   for (const char* key : {"delivered", "dropped", "delay_error_p99_s"}) {
-    EXPECT_NE(ana.out.find("\"" + std::string(key) + "\":", ch), std::string::npos) << key;
+    EXPECT_TRUE(j["channel"][key].is_number()) << key;
   }
-  const auto loop = ana.out.find("\"loop\":{");
-  ASSERT_NE(loop, std::string::npos);
   for (const char* key : {"lateness_p99_s", "overruns"}) {
-    EXPECT_NE(ana.out.find("\"" + std::string(key) + "\":", loop), std::string::npos) << key;
+    EXPECT_TRUE(j["loop"][key].is_number()) << key;
   }
   // A shoal sim log: the channel's tick quantisation is below one period, never negative
   // beyond the microsecond rounding of tau.
-  const double p99 = std::atof(JsonRaw(ana.out, "realised_delay_error_p99_s").c_str());
+  const double p99 = j["channel"]["realised_delay_error_p99_s"].get<double>();
   EXPECT_GT(p99, 0.0);
   EXPECT_LT(p99, 0.02);
-  EXPECT_GE(std::atof(JsonRaw(ana.out, "realised_delay_error_min_s").c_str()), -0.5e-6);
+  EXPECT_GE(j["channel"]["realised_delay_error_min_s"].get<double>(), -0.5e-6);
 }
 
 bool IsNumber(const std::string& s) {
@@ -148,8 +153,9 @@ TEST(AnalyzeCli, TruncatedLogIsAnalysedUpToTheDamageWithAWarning) {
   EXPECT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.err.find("warning"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("truncated"), std::string::npos) << r.err;
-  EXPECT_EQ(JsonRaw(r.out, "damaged"), "true");
-  const double t = std::atof(JsonRaw(r.out, "sim_time_s").c_str());
+  const auto j = ParseJson(r.out);
+  EXPECT_EQ(j["damaged"], true);
+  const double t = j["sim_time_s"].get<double>();
   EXPECT_GT(t, 20.0);
   EXPECT_LT(t, 40.0);
 }
@@ -188,10 +194,11 @@ TEST(AnalyzeCli, ScenarioFileReplacesTheLogs) {
   const auto r = RunShoal("analyze " + SimLog() + " --json --scenario " +
                               SourcePath("scenarios/paper_example1.toml"), "analyze_cli_scn");
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_EQ(JsonRaw(r.out, "scenario_source"), "\"file\"");
-  EXPECT_EQ(JsonRaw(r.out, "scenario"), "\"paper_example1\"");
+  const auto j = ParseJson(r.out);
+  EXPECT_EQ(j["scenario_source"], "file");
+  EXPECT_EQ(j["scenario"], "paper_example1");
   // Example 1 has no delay: every event of the Example 2 log drew another tau.
-  EXPECT_EQ(JsonRaw(r.out, "model_mismatches"), std::to_string(3001 * 10));
+  EXPECT_EQ(j["channel"]["model_mismatches"], 3001 * 10);
 }
 
 }  // namespace

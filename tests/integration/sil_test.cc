@@ -25,8 +25,7 @@ namespace shoal {
 namespace {
 
 using shoal::testing::ReadFile;
-using shoal::testing::JsonNumber;
-using shoal::testing::JsonRaw;
+using shoal::testing::ParseJson;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::StartShoal;
@@ -58,13 +57,23 @@ TEST(Sil, LockstepRunEqualsShoalSim) {
   const std::string run_log = TmpPath("sil_eq_run.lcmlog"), sim_log = TmpPath("sil_eq_sim.lcmlog");
   const auto run = RunShoal("run " + kExample2 + " --duration 20 --json --out " + run_log +
                                 " --lcm-url '" + Url(31101) + "'", "sil_eq_run");
-  ASSERT_EQ(run.status, 0) << run.out << run.err;  // every process ran to the end
-  EXPECT_NE(run.out.find("\"all_processes_ok\":true"), std::string::npos) << run.out;
+  // Exit status 1, as shoal sim's below: not converged within 20 s; every process ran
+  // to the end.
+  ASSERT_EQ(run.status, 1) << run.out << run.err;
+  const auto rj = ParseJson(run.out);
+  EXPECT_EQ(rj["all_processes_ok"], true) << run.out;
+  EXPECT_EQ(rj["converged"], false) << run.out;
+  EXPECT_EQ(rj["diverged_follower"], 0) << run.out;
+  // Lockstep reads no wall clock: no lateness and no overruns are measured.
+  EXPECT_EQ(rj["loop"]["lateness_p99_s"].get<double>(), 0.0) << run.out;
+  EXPECT_EQ(rj["loop"]["overruns"], 0) << run.out;
   ASSERT_EQ(RunShoal("sim " + kExample2 + " --duration 20 --out " + sim_log, "sil_eq_sim").status, 1);
+  // The default tolerances of shoal compare (1e-9) hold.
   const auto cmp = RunShoal("compare " + run_log + " " + sim_log + " --json", "sil_eq_cmp");
-  ASSERT_EQ(cmp.status, 0) << cmp.err;
-  EXPECT_LE(JsonNumber(cmp.out, "max_position_diff_m"), 1e-9) << cmp.out;
-  EXPECT_LE(JsonNumber(cmp.out, "max_velocity_diff_mps"), 1e-9) << cmp.out;
+  ASSERT_EQ(cmp.status, 0) << cmp.out << cmp.err;
+  const auto cj = ParseJson(cmp.out);
+  EXPECT_LE(cj["max_position_diff_m"].get<double>(), 1e-9) << cmp.out;
+  EXPECT_LE(cj["max_velocity_diff_mps"].get<double>(), 1e-9) << cmp.out;
   // lcm-logger drops what exceeds its LCM subscription queue (30 messages) when it waits
   // for the CPU. In lockstep the clock master waits for it before every window (the
   // emulator says so on exit: shoal run gave it the logger's pid); on this shared bus a
@@ -72,19 +81,20 @@ TEST(Sil, LockstepRunEqualsShoalSim) {
   // without excluding it. As root at least 99 % (seen: all), otherwise at least 90 %
   // (seen: up to 6 % lost with another build running, before the wait existed).
   // Everything it recorded must match. The run reports the figure.
-  const std::string emulator_out =
-      ReadFile(run_log.substr(0, run_log.rfind('/') + 1) + ".sil_eq_run.lcmlog.emulator.txt");
+  EXPECT_EQ(rj["process_output_dir"], run_log + ".d") << run.out;
+  const std::string emulator_out = ReadFile(run_log + ".d/emulator.txt");
   EXPECT_NE(emulator_out.find("waited for the recorder before"), std::string::npos)
       << emulator_out;
   if (geteuid() == 0) {
-    EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.99 * 6.0 * (20 * 50 + 1)) << cmp.out;
+    EXPECT_GE(cj["samples"].get<double>(), 0.99 * 6.0 * (20 * 50 + 1)) << cmp.out;
   } else {
-    EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * (20 * 50 + 1)) << cmp.out;
+    EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * (20 * 50 + 1)) << cmp.out;
   }
-  EXPECT_EQ(JsonNumber(run.out, "log_states"), JsonNumber(cmp.out, "states_a")) << run.out;
-  EXPECT_EQ(JsonNumber(run.out, "final_position_error_m"),
-            JsonNumber(RunShoal("sim " + kExample2 + " --duration 20 --json", "sil_eq_j").out,
-                       "final_position_error_m"));
+  EXPECT_EQ(rj["log_states"], cj["states_a"]) << run.out;
+  // Bit for bit (the JSON keeps every digit).
+  EXPECT_EQ(rj["final_position_error_m"].get<double>(),
+            ParseJson(RunShoal("sim " + kExample2 + " --duration 20 --json", "sil_eq_j").out)
+                ["final_position_error_m"].get<double>());
 }
 
 // Uniform delay jitter lets a message overtake an earlier one on its link: the vehicle
@@ -109,11 +119,13 @@ TEST(Sil, LockstepWithOvertakingDeliveriesEqualsShoalSim) {
     const std::string run_log = TmpPath("sil_uniform_run.lcmlog");
     const auto run = RunShoal("run " + scenario + " --duration 10 --json --out " + run_log + bus,
                               "sil_uniform_run");
-    ASSERT_EQ(run.status, 0) << bus << run.out << run.err;
+    ASSERT_EQ(run.status, 1) << bus << run.out << run.err;  // as shoal sim's
+    EXPECT_EQ(ParseJson(run.out)["all_processes_ok"], true) << bus << run.out;
     const auto cmp = RunShoal("compare " + run_log + " " + sim_log + " --json", "sil_uniform_cmp");
-    EXPECT_EQ(JsonNumber(cmp.out, "max_position_diff_m"), 0.0) << bus << cmp.out;
-    EXPECT_EQ(JsonNumber(cmp.out, "max_velocity_diff_mps"), 0.0) << bus << cmp.out;
-    EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * (10 * 50 + 1)) << bus << cmp.out;
+    const auto cj = ParseJson(cmp.out);
+    EXPECT_EQ(cj["max_position_diff_m"].get<double>(), 0.0) << bus << cmp.out;
+    EXPECT_EQ(cj["max_velocity_diff_mps"].get<double>(), 0.0) << bus << cmp.out;
+    EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * (10 * 50 + 1)) << bus << cmp.out;
   }
 }
 
@@ -121,18 +133,21 @@ TEST(Sil, TwoLockstepRunsGiveIdenticalStates) {
   const std::string a = TmpPath("sil_twice_a.lcmlog"), b = TmpPath("sil_twice_b.lcmlog");
   // a: one shared group, a round trip every tick; b: a group per vehicle, the clock
   // master releasing as many ticks as the channel's smallest delay allows (3 here).
+  // Exit status 1: not converged within 10 s (a failed process would also give 1: the
+  // comparison below finds that).
   ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 10 --quiet --out " + a +
-                         " --max-lookahead 1 --lcm-url '" + Url(31111) + "'", "sil_twice_a").status, 0);
+                         " --max-lookahead 1 --lcm-url '" + Url(31111) + "'", "sil_twice_a").status, 1);
   ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 10 --quiet --out " + b +
                          " --lcm-url '" + Url(31113) + "' --per-vehicle-urls", "sil_twice_b").status, 2)
       << "--per-vehicle-urls with an explicit URL must be refused";
   ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 10 --quiet --per-vehicle-urls --out " + b,
-                     "sil_twice_b2").status, 0);
+                     "sil_twice_b2").status, 1);
   const auto cmp = RunShoal("compare " + a + " " + b + " --json", "sil_twice_cmp");
-  ASSERT_EQ(cmp.status, 0) << cmp.err;
-  EXPECT_EQ(JsonNumber(cmp.out, "max_position_diff_m"), 0.0) << cmp.out;
-  EXPECT_EQ(JsonNumber(cmp.out, "max_velocity_diff_mps"), 0.0) << cmp.out;
-  EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * (10 * 50 + 1)) << cmp.out;
+  ASSERT_EQ(cmp.status, 0) << cmp.out << cmp.err;
+  const auto cj = ParseJson(cmp.out);
+  EXPECT_EQ(cj["max_position_diff_m"].get<double>(), 0.0) << cmp.out;
+  EXPECT_EQ(cj["max_velocity_diff_mps"].get<double>(), 0.0) << cmp.out;
+  EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * (10 * 50 + 1)) << cmp.out;
 }
 
 // Real time: fixed-rate loops on the wall clock and the emulator releasing each message at
@@ -143,23 +158,39 @@ TEST(Sil, RealtimeRunFollowsTheLockstepRun) {
   const std::string rt_log = TmpPath("sil_rt.lcmlog"), ls_log = TmpPath("sil_rt_ls.lcmlog");
   const auto rt = RunShoal("run " + kExample2 + " --mode realtime --duration 8 --json --out " +
                                rt_log, "sil_rt");
-  ASSERT_EQ(rt.status, 0) << rt.out << rt.err;
-  EXPECT_NE(rt.out.find("\"mode\":\"realtime\""), std::string::npos) << rt.out;
-  EXPECT_NE(rt.out.find("\"all_processes_ok\":true"), std::string::npos) << rt.out;
+  // Exit status 1: not converged within 8 s; every process ran to the end.
+  ASSERT_EQ(rt.status, 1) << rt.out << rt.err;
+  const auto rj = ParseJson(rt.out);
+  EXPECT_EQ(rj["mode"], "realtime") << rt.out;
+  EXPECT_EQ(rj["all_processes_ok"], true) << rt.out;
   // 10 links x 401 ticks, no loss model: every state is delivered on every link.
-  EXPECT_GE(JsonNumber(rt.out, "delivered"), 0.95 * 10 * 401) << rt.out;
-  EXPECT_EQ(JsonNumber(rt.out, "dropped"), 0.0) << rt.out;
-  EXPECT_LT(JsonNumber(rt.out, "delay_error_p99_s"), 0.02) << rt.out;
-  EXPECT_GE(JsonNumber(rt.out, "lateness_p99_s"), 0.0) << rt.out;  // measured, not 0 by definition
-  EXPECT_GE(JsonNumber(rt.out, "overruns"), 0.0) << rt.out;
+  EXPECT_GE(rj["channel"]["delivered"].get<double>(), 0.95 * 10 * 401) << rt.out;
+  EXPECT_EQ(rj["channel"]["dropped"], 0) << rt.out;
+  EXPECT_LT(rj["channel"]["delay_error_p99_s"].get<double>(), 0.02) << rt.out;
+  // The loops are paced by the wall clock and measure it: a wake-up is never exactly on
+  // its deadline (lateness > 0), and on this 2-core machine, even loaded, the worst
+  // process's p99 stays below one control period (20 ms). A tick overruns only when its
+  // process lost the CPU for most of a period: at most 1 % of the 6 x 401 loop ticks.
+  const double lateness_p99 = rj["loop"]["lateness_p99_s"].get<double>();
+  EXPECT_GT(lateness_p99, 0.0) << rt.out;
+  EXPECT_LT(lateness_p99, 0.02) << rt.out;
+  EXPECT_LE(rj["loop"]["overruns"].get<double>(), 0.01 * 6 * 401) << rt.out;
   // Real time advances with the wall clock: 8 s of run take at least 8 s.
-  EXPECT_GE(JsonNumber(rt.out, "wall_time_s"), 8.0) << rt.out;
-  ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 8 --quiet --out " + ls_log, "sil_rt_ls").status, 0);
-  const auto cmp = RunShoal("compare " + rt_log + " " + ls_log + " --json", "sil_rt_cmp");
-  ASSERT_EQ(cmp.status, 0) << cmp.err;
-  EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * 401) << cmp.out;
-  EXPECT_LE(JsonNumber(cmp.out, "max_position_diff_m"), 0.1) << cmp.out;  // seen: 2.4e-3
-  EXPECT_GT(JsonNumber(cmp.out, "max_position_diff_m"), 0.0)
+  EXPECT_GE(rj["wall_time_s"].get<double>(), 8.0) << rt.out;
+  ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 8 --quiet --out " + ls_log, "sil_rt_ls").status, 1);
+  // Beyond the default tolerance (exit 1), within one of 0.1 m (exit 0).
+  const auto beyond = RunShoal("compare " + rt_log + " " + ls_log, "sil_rt_cmp_default");
+  EXPECT_EQ(beyond.status, 1) << beyond.out << beyond.err;
+  EXPECT_NE(beyond.out.find("BEYOND TOLERANCE"), std::string::npos) << beyond.out;
+  const auto cmp = RunShoal("compare " + rt_log + " " + ls_log +
+                                " --position-tol-m 0.1 --velocity-tol-mps 1e9 --json",
+                            "sil_rt_cmp");
+  ASSERT_EQ(cmp.status, 0) << cmp.out << cmp.err;
+  const auto cj = ParseJson(cmp.out);
+  EXPECT_EQ(cj["within_tolerance"], true) << cmp.out;
+  EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * 401) << cmp.out;
+  EXPECT_LE(cj["max_position_diff_m"].get<double>(), 0.1) << cmp.out;  // seen: 2.4e-3
+  EXPECT_GT(cj["max_position_diff_m"].get<double>(), 0.0)
       << "a real-time run cannot be bit-identical to lockstep; the modes were not both run";
 }
 
@@ -383,12 +414,15 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  EXPECT_EQ(WaitExit(pid, 120, nullptr), 0) << ReadFile(out);
+  // The same exit status as shoal sim's of the same run (every process ran to the end).
   const std::string sim_log = TmpPath("sil_bad_sim.lcmlog");
-  RunShoal("sim " + kExample2 + " --duration 40 --out " + sim_log, "sil_bad_sim");
+  const int sim_status = RunShoal("sim " + kExample2 + " --duration 40 --out " + sim_log,
+                                  "sil_bad_sim").status;
+  EXPECT_EQ(WaitExit(pid, 120, nullptr), sim_status) << ReadFile(out);
   const auto cmp = RunShoal("compare " + log + " " + sim_log + " --json", "sil_bad_cmp");
-  EXPECT_EQ(JsonNumber(cmp.out, "max_position_diff_m"), 0.0) << cmp.out;
-  EXPECT_GE(JsonNumber(cmp.out, "samples"), 0.9 * 6.0 * (40 * 50 + 1)) << cmp.out;
+  const auto cj = ParseJson(cmp.out);
+  EXPECT_EQ(cj["max_position_diff_m"].get<double>(), 0.0) << cmp.out;
+  EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * (40 * 50 + 1)) << cmp.out;
   // The counters saw them.
   lcm::LogFile lf(log, "r");
   ASSERT_TRUE(lf.good());

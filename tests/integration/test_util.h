@@ -14,6 +14,9 @@
 #include <sstream>
 #include <string>
 
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
 namespace shoal::testing {
 
 inline std::string ShoalBinary() { return std::string(SHOAL_BINARY_DIR) + "/tools/shoal"; }
@@ -21,8 +24,20 @@ inline std::string SourcePath(const std::string& rel) {
   return std::string(SHOAL_SOURCE_DIR) + "/" + rel;
 }
 
-/// The raw JSON text of the first value of "key" in a flat or nested JSON text (number,
-/// bool, null or string), "<missing>" if absent.
+/// A command's --json output, parsed. An output that is not one JSON object fails the
+/// test (and gives an empty object). Read numbers with .get<double>(): it throws, and so
+/// fails the test, where a number is null or missing.
+inline nlohmann::ordered_json ParseJson(const std::string& text) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object()) {
+    ADD_FAILURE() << "not a JSON object: " << text;
+    return nlohmann::ordered_json::object();
+  }
+  return j;
+}
+
+/// Text search for the first "key": in a JSON text (also in part of one), for tests that
+/// look into fragments; "<missing>" if absent. Prefer ParseJson.
 inline std::string JsonRaw(const std::string& json, const std::string& key) {
   const std::string k = "\"" + key + "\":";
   const auto p = json.find(k);
@@ -31,7 +46,8 @@ inline std::string JsonRaw(const std::string& json, const std::string& key) {
   return json.substr(b, json.find_first_of(",}]", b) - b);
 }
 
-/// The number after the first "key": (NaN if absent, null or not a number).
+/// The number after the first "key": (NaN if absent, null or not a number). Prefer
+/// ParseJson.
 inline double JsonNumber(const std::string& json, const std::string& key) {
   const std::string v = JsonRaw(json, key);
   char* end = nullptr;

@@ -1,0 +1,163 @@
+#include "analysis/analysis_json.h"
+
+#include "analysis/verdict.h"
+
+namespace shoal {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+Json QuantileJson(const Quantiles& q) {
+  return Json{{"count", q.count}, {"p50", q.p50}, {"p99", q.p99},
+              {"max", q.max},     {"min", q.min}, {"mean", q.mean}};
+}
+
+Json Vec3Json(const Vec3& v) {
+  if (!v.allFinite()) return nullptr;
+  return Json::array({v(0), v(1), v(2)});
+}
+
+/// A string, or null when empty.
+Json StringOrNull(const std::string& s) { return s.empty() ? Json(nullptr) : Json(s); }
+
+/// Last health report of process `id`, or null.
+const HealthRecord* LastHealth(const RunAnalysis& a, int id) {
+  for (const ProcessAnalysis& p : a.processes) {
+    if (p.id == id) return &p.last;
+  }
+  return nullptr;
+}
+
+Json LinkJson(const LinkAnalysis& l) {
+  return Json{{"from", l.from},
+              {"to", l.to},
+              {"in_scenario", l.in_scenario},
+              {"sent", l.sent},
+              {"delivered", l.delivered},
+              {"dropped_loss", l.dropped_loss},
+              {"dropped_queue", l.dropped_queue},
+              {"dropped_invalid", l.dropped_invalid},
+              {"realised_delay_s", QuantileJson(l.realised_delay_s)},
+              {"realised_delay_error_s", QuantileJson(l.delay_error_s)},
+              {"message_age_s", QuantileJson(l.age_at_use_s)},
+              {"stale_ticks", l.ticks_stale},
+              {"ticks_before_first_message", l.ticks_before_first}};
+}
+
+Json ChannelJson(const ChannelAnalysis& c) {
+  Json links = Json::array();
+  for (const LinkAnalysis& l : c.links) links.push_back(LinkJson(l));
+  return Json{{"delivered", c.delivered},
+              {"dropped", c.dropped},
+              {"delay_error_p99_s", c.release_error_p99_s},
+              {"sent", c.sent},
+              {"dropped_loss", c.dropped_loss},
+              {"dropped_queue", c.dropped_queue},
+              {"dropped_invalid", c.dropped_invalid},
+              {"realised_delay_error_p50_s", c.delay_error_s.p50},
+              {"realised_delay_error_p99_s", c.delay_error_s.p99},
+              {"realised_delay_error_max_s", c.delay_error_s.max},
+              {"realised_delay_error_min_s", c.delay_error_s.min},
+              {"realised_delay_p50_s", c.realised_delay_s.p50},
+              {"realised_delay_max_s", c.realised_delay_s.max},
+              {"message_age_p50_s", c.age_at_use_s.p50},
+              {"message_age_p99_s", c.age_at_use_s.p99},
+              {"message_age_max_s", c.age_at_use_s.max},
+              {"model_mismatches", c.model_mismatches},
+              {"unknown_link_events", c.unknown_links},
+              {"links", links}};
+}
+
+Json LoopJson(const RunAnalysis& a) {
+  Json procs = Json::array();
+  for (const ProcessAnalysis& p : a.processes) {
+    const HealthRecord& h = p.last;
+    procs.push_back(Json{{"id", p.id},
+                         {"reports", p.reports},
+                         {"ticks", h.ticks},
+                         {"lateness_p50_s", h.lateness_p50_s},
+                         {"lateness_p99_s", h.lateness_p99_s},
+                         {"lateness_max_s", h.lateness_max_s},
+                         {"overruns", h.overruns},
+                         {"saturation_fraction", h.saturation_fraction},
+                         {"neighbour_timeouts", h.neighbour_timeouts},
+                         {"msgs_received", h.msgs_received},
+                         {"msgs_dropped_invalid", h.msgs_dropped_invalid},
+                         {"msgs_dropped_old", h.msgs_dropped_old}});
+  }
+  return Json{{"lateness_p99_s", a.summary.lateness_p99_s},
+              {"overruns", a.summary.overruns},
+              {"processes", procs}};
+}
+
+/// Per follower: shoal sim's keys first (same values for a shoal sim log), then the
+/// analysis' own.
+Json FollowersJson(const RunAnalysis& a) {
+  Json per = Json::array();
+  for (std::size_t i = 0; i < a.followers.size(); ++i) {
+    const FollowerAnalysis& fa = a.followers[i];
+    const FormationErrors e = i < a.final_errors.size() ? a.final_errors[i]
+                                                        : FormationErrors{kNaN, kNaN, kNaN};
+    const HealthRecord* h = LastHealth(a, fa.id);
+    per.push_back(Json{{"id", fa.id},
+                       {"final_position_error_m", e.position_m},
+                       {"final_velocity_error_mps", e.velocity_mps},
+                       {"final_attitude_error_rad", e.attitude_rad},
+                       {"saturation_fraction", fa.saturation_fraction},
+                       {"neighbour_timeouts", h ? Json(h->neighbour_timeouts) : Json(nullptr)},
+                       {"msgs_received", h ? Json(h->msgs_received) : Json(nullptr)},
+                       {"converged", fa.converged},
+                       {"convergence_time_s", fa.convergence_time_s},
+                       {"max_position_error_m", fa.max_position_error_m},
+                       {"samples", fa.samples},
+                       {"compared_samples", fa.compared},
+                       {"stale_ticks", fa.stale_ticks},
+                       {"stale_events", fa.stale_events}});
+  }
+  return per;
+}
+
+}  // namespace
+
+Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource& source) {
+  const RunSummary& s = a.summary;
+  const bool f = a.has_formation;
+  const bool conv = FormationConverged(a);
+  Json j;
+  j["scenario"] = StringOrNull(run.scenario_name);
+  j["scenario_source"] = StringOrNull(run.scenario_origin);
+  j["mode"] = a.mode;
+  j["converged"] = conv;
+  j["convergence_time_s"] = conv ? s.convergence_time_s : kNaN;
+  j["final_position_error_m"] = f ? s.final_worst.position_m : kNaN;
+  j["final_velocity_error_mps"] = f ? s.final_worst.velocity_mps : kNaN;
+  j["final_attitude_error_rad"] = f ? s.final_worst.attitude_rad : kNaN;
+  j["max_position_error_m"] = f ? s.max_position_error_m : kNaN;
+  j["sim_time_s"] = s.sim_time_s;
+  j["wall_time_s"] = a.wall_time_s;
+  j["realtime_factor"] = a.wall_time_s > 0 ? s.sim_time_s / a.wall_time_s : kNaN;
+  j["ticks"] = a.ticks;
+  j["channel_delivered"] = a.channel.delivered;
+  j["channel_dropped"] = a.channel.dropped;
+  j["interrupted"] = a.interrupted;
+  j["diverged_follower"] = a.diverged_follower;
+  j["followers"] = FollowersJson(a);
+  j["channel"] = ChannelJson(a.channel);
+  j["loop"] = LoopJson(a);
+  j["all_processes_ok"] = a.problems.empty() && !a.interrupted;
+  j["problems"] = a.problems;
+  j["log"] = source.live ? Json(nullptr) : Json(source.log);
+  j["log_events"] = run.events;
+  j["log_states"] = s.states;
+  j["log_states_expected"] = a.states_expected;
+  j["lcm_url"] = source.live ? Json(run.source) : Json(nullptr);
+  j["complete_samples"] = a.complete_samples;
+  j["leader"] = Json{{"path_length_m", a.leader_path_length_m},
+                     {"start_m", Vec3Json(a.leader_start_m)},
+                     {"end_m", Vec3Json(a.leader_end_m)}};
+  j["damaged"] = run.damaged;
+  j["warnings"] = run.warnings;
+  return j;
+}
+
+}  // namespace shoal

@@ -1,0 +1,456 @@
+#include "runtime/launcher.h"
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <thread>
+
+#include "core/metrics.h"
+#include "runtime/channels.h"
+#include "runtime/clock.h"
+#include "runtime/lcm_bus.h"
+#include "runtime/log_tail.h"
+#include "runtime/messages.h"
+#include "runtime/process.h"
+#include "runtime/stop_signals.h"
+
+namespace shoal {
+namespace {
+
+constexpr int kLoggerId = -100;  // Child::id of lcm-logger (not a vehicle or the emulator)
+
+struct Child {
+  std::string name;  // "vehicle 3", "leader", "channel emulator", "lcm-logger"
+  int id = kLoggerId;  // vehicle id, kEmulatorId, or kLoggerId
+  pid_t pid = -1;
+  bool running = false;
+  int status = 0;  // raw waitpid status once exited
+};
+
+std::string ExeDir() {
+  char buf[4096];
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  if (n <= 0) return ".";
+  buf[n] = 0;
+  std::string p(buf);
+  return p.substr(0, p.rfind('/'));
+}
+
+/// Finds a sibling executable of the build tree (tools/../vehicle/shoal_vehicle) or of an
+/// installation (same directory).
+std::string FindExe(const std::string& subdir, const std::string& name) {
+  const std::string dir = ExeDir();
+  for (const std::string& c : {dir + "/../" + subdir + "/" + name, dir + "/" + name}) {
+    if (access(c.c_str(), X_OK) == 0) return c;
+  }
+  return "";
+}
+
+std::string Describe(int status) {
+  if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) {
+    return std::string("killed by signal ") + std::to_string(WTERMSIG(status)) + " (" +
+           strsignal(WTERMSIG(status)) + ")";
+  }
+  return "stopped";
+}
+
+std::string Failure(const Child& c) {
+  return c.name + " (pid " + std::to_string(c.pid) + ") " + Describe(c.status);
+}
+
+pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::string& output) {
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid != 0) return pid;
+  // Child: its own process group (a terminal Ctrl-C reaches only shoal run, which shuts
+  // the run down in order), dies with shoal run, output to a per-process file.
+  setpgid(0, 0);
+  prctl(PR_SET_PDEATHSIG, SIGKILL);
+  if (getppid() != parent) _exit(127);
+  if (nice_inc != 0) setpriority(PRIO_PROCESS, 0, nice_inc);
+  const int fd = open(output.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd >= 0) {
+    dup2(fd, 1);
+    dup2(fd, 2);
+    close(fd);
+  }
+  const int devnull = open("/dev/null", O_RDONLY);
+  if (devnull >= 0) dup2(devnull, 0);
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  execv(args[0], args.data());
+  std::fprintf(stderr, "cannot exec %s: %s\n", args[0], std::strerror(errno));
+  _exit(127);
+}
+
+/// Creates <log>.d/ and removes the output files a previous run left there, so that the
+/// folder holds this run's processes only.
+bool PrepareOutputDir(const std::string& dir, std::string* error) {
+  if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST) {
+    *error = dir + ": cannot create the process output folder (" + std::strerror(errno) + ")";
+    return false;
+  }
+  struct stat st {};
+  if (stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    *error = dir + ": exists and is not a folder (shoal run keeps each process's output there)";
+    return false;
+  }
+  if (DIR* d = opendir(dir.c_str())) {
+    while (const dirent* e = readdir(d)) {
+      const std::string n = e->d_name;
+      const bool ours = n == "logger.txt" || n == "emulator.txt" || n == "leader.txt" ||
+                        (n.rfind("vehicle", 0) == 0 && n.size() > 4 &&
+                         n.compare(n.size() - 4, 4, ".txt") == 0);
+      if (ours) unlink((dir + "/" + n).c_str());
+    }
+    closedir(d);
+  }
+  return true;
+}
+
+/// Follows the log as lcm-logger writes it, for the progress line: the newest tick and the
+/// worst formation error, each follower's newest error against the leader's state at the
+/// same time (the log interleaves ticks, so the leader's recent states are kept).
+class ProgressTracker {
+ public:
+  ProgressTracker(const Scenario& s, const std::string& log)
+      : s_(s), tail_(log), follower_error_(s.followers + 1, 0.0) {}
+  void Poll() {
+    tail_.Poll([this](const std::string& ch, const void* d, int n) { OnEvent(ch, d, n); });
+  }
+  double sim_time_s() const { return ToSeconds(last_tick_utime_); }
+  double worst_error() const {
+    return *std::max_element(follower_error_.begin(), follower_error_.end());
+  }
+
+ private:
+  void OnEvent(const std::string& ch, const void* d, int n) {
+    if (ch.rfind("SHOAL_STATE_", 0) != 0) return;
+    vehicle_state_t m{};
+    if (!Decode(d, n, &m) || m.vehicle_id < 0 || m.vehicle_id > s_.followers) return;
+    const StateMsg st = FromLcm(m);
+    last_tick_utime_ = std::max<std::int64_t>(last_tick_utime_, m.utime);
+    if (m.vehicle_id == 0) {
+      leader_states_[st.utime] = st;
+      while (leader_states_.size() > 256) leader_states_.erase(leader_states_.begin());
+      return;
+    }
+    const auto l = leader_states_.find(st.utime);
+    if (l != leader_states_.end()) {
+      follower_error_[m.vehicle_id] =
+          ErrorsOf(st, s_.offsets_m[m.vehicle_id - 1], l->second).position_m;
+    }
+  }
+  const Scenario& s_;
+  LogTail tail_;
+  std::int64_t last_tick_utime_ = 0;
+  std::map<Micros, StateMsg> leader_states_;  // recent ones only
+  std::vector<double> follower_error_;
+};
+
+/// One run: prepared (checks, nothing started), started, supervised, shut down.
+class Launch {
+ public:
+  Launch(const Scenario& s, const LaunchOptions& opt, LaunchResult* r)
+      : s_(s), opt_(opt), r_(r) {}
+  bool Prepare(std::string* error);
+  void StartAll();
+  void Supervise(const LaunchCallbacks& cb);
+  void Shutdown();
+
+ private:
+  bool ChooseUrls(std::string* error);
+  void Start(const std::string& name, int id, const std::vector<std::string>& argv,
+             int nice_inc, const std::string& tag);
+  std::vector<std::string> ProcessArgs(const std::string& exe,
+                                       const std::vector<std::string>& more) const;
+  /// Waits (polling waitpid) up to `limit` for the children selected by `which` to exit.
+  /// Returns true if all did.
+  bool WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit);
+  void Stop(bool logger);
+  double WallSeconds(std::chrono::steady_clock::time_point wall0) const;
+
+  const Scenario& s_;
+  const LaunchOptions& opt_;
+  LaunchResult* r_;
+  std::vector<std::string> vehicle_urls_;  // per-vehicle groups; empty: one shared bus
+  std::string vehicle_exe_, leader_exe_, emulator_exe_;
+  std::vector<Child> kids_;
+  std::int64_t t0_ns_ = 0;
+};
+
+bool Launch::Prepare(std::string* error) {
+  if (opt_.mode != "lockstep" && opt_.mode != "realtime") {
+    *error = "--mode must be lockstep or realtime (got " + opt_.mode + ")";
+    return false;
+  }
+  if (opt_.duration_s == 0 || (opt_.duration_s < 0 && opt_.duration_s != -1)) {
+    *error = "--duration must be a positive number of seconds";
+    return false;
+  }
+  r_->mode = opt_.mode;
+  r_->duration_s = opt_.duration_s > 0 ? opt_.duration_s : s_.duration_s;
+  r_->log = opt_.out.empty() ? s_.name + ".lcmlog" : opt_.out;
+  r_->process_output_dir = r_->log + ".d";
+  {  // The log must be writable before anything starts.
+    const int fd = open(r_->log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) {
+      *error = r_->log + ": cannot open log for writing (" + std::strerror(errno) + ")";
+      return false;
+    }
+    close(fd);
+    unlink(r_->log.c_str());
+  }
+  if (!PrepareOutputDir(r_->process_output_dir, error)) return false;
+  vehicle_exe_ = FindExe("vehicle", "shoal_vehicle");
+  leader_exe_ = FindExe("leader", "shoal_leader");
+  emulator_exe_ = FindExe("channel_emulator", "shoal_channel_emulator");
+  if (vehicle_exe_.empty() || leader_exe_.empty() || emulator_exe_.empty()) {
+    *error = "cannot find shoal_vehicle, shoal_leader or shoal_channel_emulator next to " +
+             ExeDir();
+    return false;
+  }
+  if (std::system("command -v lcm-logger >/dev/null 2>&1") != 0) {
+    *error = "lcm-logger not found (Debian package liblcm-bin)";
+    return false;
+  }
+  return ChooseUrls(error);
+}
+
+bool Launch::ChooseUrls(std::string* error) {
+  std::string url = opt_.lcm_url;
+  int port = 0;
+  if ((url.empty() || url.rfind("udpm://", 0) == 0) && !EnsureLoopbackMulticast(error)) {
+    return false;
+  }
+  if (url.empty()) {
+    port = RandomPrivatePort(s_.followers);
+    url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
+  }
+  r_->lcm_url = url;
+  // Each vehicle receives on its own group unless asked otherwise: on one shared group
+  // every vehicle's socket would receive -- and wake up for -- every message of the run.
+  if (opt_.per_vehicle_urls && opt_.shared_url) {
+    *error = "--per-vehicle-urls and --shared-url exclude each other";
+    return false;
+  }
+  if (opt_.per_vehicle_urls || (port != 0 && !opt_.shared_url)) {
+    if (port == 0) {
+      *error = "--per-vehicle-urls needs the default private URL";
+      return false;
+    }
+    vehicle_urls_ = PerVehicleLcmUrls(port, s_.followers);
+  }
+  return true;
+}
+
+void Launch::Start(const std::string& name, int id, const std::vector<std::string>& argv,
+                   int nice_inc, const std::string& tag) {
+  Child c;
+  c.name = name;
+  c.id = id;
+  c.pid = Spawn(argv, nice_inc, r_->process_output_dir + "/" + tag + ".txt");
+  c.running = c.pid > 0;
+  kids_.push_back(c);
+}
+
+std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
+                                             const std::vector<std::string>& more) const {
+  std::vector<std::string> a = {exe, "--scenario", opt_.scenario, "--lcm-url", r_->lcm_url,
+                                "--mode", opt_.mode, "--t0-ns", std::to_string(t0_ns_),
+                                "--duration", std::to_string(r_->duration_s)};
+  a.insert(a.end(), more.begin(), more.end());
+  return a;
+}
+
+void Launch::StartAll() {
+  // The logger first. lcm-logger's subscription queue holds 30 messages and drops beyond
+  // that (LCM's default; lcm-logger has no option for it): the logger must not wait long
+  // for the CPU while the run saturates it. As root it runs at nice -10 against the run's
+  // +5 (CFS weight 9548 against 335), else at 0. Not SCHED_FIFO: a real-time logger
+  // preempts the run at every message, and with SHOAL_CHANNEL batched it loses no fewer
+  // states (README "The SIL runtime": 600 s runs, 36-39x against 50-56x).
+  const bool root = geteuid() == 0;
+  Start("lcm-logger", kLoggerId,
+        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url, "-f", "-q", r_->log},
+        root ? -10 : 0, "logger");
+  const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
+  for (int i = 0; i < 100 && access(r_->log.c_str(), F_OK) != 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  t0_ns_ = MonotonicNs() + 4000000000LL;  // real time: start margin
+  std::vector<std::string> emulator_more = {"--max-lookahead", std::to_string(opt_.max_lookahead)};
+  if (opt_.mode == "lockstep" && logger_pid > 0) {
+    emulator_more.push_back("--recorder-pid");  // back-pressure: the log stays complete
+    emulator_more.push_back(std::to_string(logger_pid));
+  }
+  if (!vehicle_urls_.empty()) {
+    std::string list;
+    for (std::size_t i = 0; i < vehicle_urls_.size(); ++i) {
+      list += (i ? "," : "") + vehicle_urls_[i];
+    }
+    emulator_more.push_back("--vehicle-urls");
+    emulator_more.push_back(list);
+  }
+  // Lockstep saturates the CPU: its processes run at a lower priority than the logger,
+  // under SCHED_BATCH (they set it themselves: a woken process does not preempt the one
+  // sending it a burst). Real time is paced by the clock. The clock master is every
+  // window's critical path (it waits for the last state, then releases the next window):
+  // in lockstep it runs at nice 0, above the vehicles' +5.
+  const int run_nice = opt_.mode == "lockstep" ? 5 : 0;
+  Start("channel emulator", kEmulatorId, ProcessArgs(emulator_exe_, emulator_more), 0,
+        "emulator");
+  auto rx = [&](int id) {
+    return vehicle_urls_.empty() ? std::vector<std::string>{}
+                                 : std::vector<std::string>{"--rx-url", vehicle_urls_[id]};
+  };
+  Start("leader", 0, ProcessArgs(leader_exe_, rx(0)), run_nice, "leader");
+  for (int id = 1; id <= s_.followers; ++id) {
+    std::vector<std::string> more = {"--id", std::to_string(id)};
+    const std::vector<std::string> r = rx(id);
+    more.insert(more.end(), r.begin(), r.end());
+    Start("vehicle " + std::to_string(id), id, ProcessArgs(vehicle_exe_, more), run_nice,
+          "vehicle" + std::to_string(id));
+  }
+}
+
+double Launch::WallSeconds(std::chrono::steady_clock::time_point wall0) const {
+  // Real time: from the common start time t0 (the start margin before it is not the run's).
+  if (opt_.mode == "realtime") return (MonotonicNs() - t0_ns_) * 1e-9;
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+}
+
+void Launch::Supervise(const LaunchCallbacks& cb) {
+  // Progress from the log as lcm-logger writes it (not from the bus: a listener on the
+  // run's group would receive, and wake up for, every message of the run), process deaths
+  // from waitpid.
+  std::unique_ptr<ProgressTracker> tracker;
+  if (cb.progress) tracker = std::make_unique<ProgressTracker>(s_, r_->log);
+  const auto wall0 = std::chrono::steady_clock::now();
+  auto last_show = wall0;
+  bool emulator_done = false;
+  while (!emulator_done && !StopSignals::Requested()) {
+    const timespec poll = {0, 50000000};
+    nanosleep(&poll, nullptr);  // returns early when a child exits (SIGCHLD)
+    for (Child& c : kids_) {
+      if (!c.running || waitpid(c.pid, &c.status, WNOHANG) != c.pid) continue;
+      c.running = false;
+      if (c.id == kEmulatorId) {
+        emulator_done = true;
+      } else if (!(WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) {
+        r_->problems.push_back(Failure(c));
+        if (cb.problem) cb.problem(r_->problems.back());
+      }
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (tracker && now - last_show > std::chrono::milliseconds(500)) {
+      last_show = now;
+      tracker->Poll();
+      LaunchProgress p;
+      for (const Child& c : kids_) p.alive += c.running && c.id != kLoggerId;
+      p.processes = s_.followers + 2;
+      p.sim_time_s = tracker->sim_time_s();
+      p.duration_s = r_->duration_s;
+      p.realtime_factor = p.sim_time_s / std::max(1e-9, WallSeconds(wall0));
+      p.worst_position_error_m = tracker->worst_error();
+      cb.progress(p);
+    }
+  }
+  r_->wall_time_s = std::max(0.0, WallSeconds(wall0));
+}
+
+bool Launch::WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit) {
+  const auto t = std::chrono::steady_clock::now();
+  for (;;) {
+    bool any = false;
+    for (Child& c : kids_) {
+      if (!c.running || !which(c)) continue;
+      if (waitpid(c.pid, &c.status, WNOHANG) == c.pid) {
+        c.running = false;
+      } else {
+        any = true;
+      }
+    }
+    if (!any) return true;
+    if (std::chrono::steady_clock::now() - t > limit) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+}
+
+bool IsLogger(const Child& c) { return c.id == kLoggerId; }
+bool IsRunProcess(const Child& c) { return c.id != kLoggerId; }
+
+/// SIGTERM to the run's processes (SIGINT to the logger, which then flushes and closes
+/// the log), SIGKILL to whoever has not stopped 2 s later.
+void Launch::Stop(bool logger) {
+  for (Child& c : kids_) {
+    if (c.running && IsLogger(c) == logger) kill(c.pid, logger ? SIGINT : SIGTERM);
+  }
+  if (WaitFor(logger ? IsLogger : IsRunProcess, std::chrono::seconds(2))) return;
+  for (Child& c : kids_) {
+    if (!c.running || IsLogger(c) != logger) continue;
+    kill(c.pid, SIGKILL);
+    // SIGCHLD has a handler without SA_RESTART: an exit elsewhere interrupts this.
+    while (waitpid(c.pid, &c.status, 0) < 0 && errno == EINTR) {
+    }
+    c.running = false;
+    r_->problems.push_back(c.name + " did not stop within 2 s and was killed");
+  }
+}
+
+void Launch::Shutdown() {
+  // Normal end: give the vehicles a moment to finish their last tick on their own.
+  if (!StopSignals::Requested()) WaitFor(IsRunProcess, std::chrono::seconds(2));
+  // The run's processes first, the logger last so that it records everything they
+  // published.
+  Stop(false);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // logger drains its socket
+  Stop(true);
+  r_->interrupted = StopSignals::Requested();
+  if (r_->interrupted) return;  // the children were stopped: their statuses say nothing
+  for (const Child& c : kids_) {
+    if (IsLogger(c) || (WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) continue;
+    const std::string msg = Failure(c);
+    if (std::find(r_->problems.begin(), r_->problems.end(), msg) == r_->problems.end()) {
+      r_->problems.push_back(msg);
+    }
+  }
+}
+
+}  // namespace
+
+bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallbacks& callbacks,
+               LaunchResult* result, std::string* error) {
+  *result = LaunchResult();
+  Launch launch(s, opt, result);
+  if (!launch.Prepare(error)) return false;
+  const StopSignals signals({/*hangup=*/true, /*wake_on_child=*/true});
+  // Held until every child has stopped.
+  std::unique_ptr<CpuLatencyRequest> latency;
+  if (!opt.deep_idle) latency = std::make_unique<CpuLatencyRequest>();
+  result->cpu_latency_request = latency && latency->held();
+  result->cpu_latency_note = latency ? latency->note() : "no CPU latency request (--deep-idle)";
+  launch.StartAll();
+  launch.Supervise(callbacks);
+  launch.Shutdown();
+  return true;
+}
+
+}  // namespace shoal

@@ -1,0 +1,63 @@
+// shoal run's launcher and supervisor: starts lcm-logger, the channel emulator, the leader
+// and one process per vehicle, watches them until the run ends or a stop signal arrives,
+// and shuts them down in order (docs/run.md). What the run achieved is read afterwards
+// from its log (runtime/run_report.h).
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/scenario.h"
+
+namespace shoal {
+
+struct LaunchOptions {
+  std::string scenario;  // scenario file, passed on to every process
+  std::string mode = "lockstep";  // or "realtime"
+  double duration_s = -1;    // simulated seconds; -1: the scenario's
+  std::string out;           // log path; default <scenario name>.lcmlog
+  std::string lcm_url;       // default: a private udpm URL (random port, ttl=0)
+  bool per_vehicle_urls = false;  // explicit; the default with the private URL anyway
+  bool shared_url = false;        // everything on one group (vehicles hear all traffic)
+  long long max_lookahead = 50;   // lockstep: most ticks the clock master releases at once
+  bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
+};
+
+/// The processes' side of a run.
+struct LaunchResult {
+  std::string mode;
+  std::string log;                 // the LCM log lcm-logger wrote
+  std::string process_output_dir;  // <log>.d/: each process's stdout and stderr, <name>.txt
+  std::string lcm_url;
+  double duration_s = 0.0;         // simulated seconds asked for
+  double wall_time_s = 0.0;        // real time: from the common start time t0
+  bool interrupted = false;        // SIGINT/SIGTERM/SIGHUP stopped the run
+  std::vector<std::string> problems;  // processes that failed, or had to be killed
+  bool cpu_latency_request = false;   // the 0 us CPU latency request was held
+  std::string cpu_latency_note;       // what was done about CPU latency, for the summary
+};
+
+/// Shown while the run goes on.
+struct LaunchProgress {
+  double sim_time_s = 0.0, duration_s = 0.0;
+  double realtime_factor = 0.0;
+  double worst_position_error_m = 0.0;  // each follower's newest error, worst of them
+  int alive = 0, processes = 0;         // run processes (the logger not counted)
+};
+
+struct LaunchCallbacks {
+  /// Every 0.5 s wall; when empty the log is not followed during the run.
+  std::function<void(const LaunchProgress&)> progress;
+  /// A process died before the end (the others keep running).
+  std::function<void(const std::string& problem)> problem;
+};
+
+/// Runs scenario `s` (loaded from opt.scenario) as separate processes. Returns false with
+/// *error if the run cannot start (bad options, unwritable log, missing executables): then
+/// nothing was started. Installs stop-signal handlers (SIGINT, SIGTERM, SIGHUP) for its
+/// duration. Holds the CPU latency request until every child has stopped.
+bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallbacks& callbacks,
+               LaunchResult* result, std::string* error);
+
+}  // namespace shoal

@@ -1,0 +1,42 @@
+// What shoal run reports: the launcher's side of the run (runtime/launcher.h) and what the
+// run's log says, analysed with the code of shoal analyze (analysis/), with the verdict of
+// shoal sim and shoal analyze (analysis/verdict.h).
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "analysis/analysis.h"
+#include "runtime/launcher.h"
+
+namespace shoal {
+
+struct RunReport {
+  std::string scenario;
+  int followers = 0;
+  double control_rate_hz = 0.0;
+  LaunchResult launch;
+  bool log_readable = false;  // false: the log could not be opened (a problem)
+  RunSummary summary;         // from the log; all zero without Shoal data in it
+  int diverged_follower = 0;  // first follower that diverged, 0 if none
+  bool converged = false;     // FormationConverged (analysis/verdict.h)
+  std::int64_t log_states_expected = 0;  // (final tick + 1) * (followers + 1)
+  std::vector<std::string> problems;     // the launch's, and an unreadable log
+  bool all_processes_ok() const { return problems.empty() && !launch.interrupted; }
+};
+
+/// Reads the run's log (launch.log) and builds the report.
+RunReport MakeRunReport(const Scenario& s, LaunchResult launch);
+
+/// The report as shoal run --json prints it (docs/run.md).
+nlohmann::ordered_json RunReportJson(const RunReport& r);
+/// The readable summary.
+void PrintRunReport(const RunReport& r, std::FILE* out);
+/// 130 interrupted; 1 a process failed, the log is unreadable, or the formation did not
+/// converge or diverged; else 0 (docs/cli.md).
+int RunExitStatus(const RunReport& r);
+
+}  // namespace shoal
