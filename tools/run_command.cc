@@ -30,7 +30,7 @@
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/process.h"
-#include "runtime/log_tail.h"
+#include "runtime/log_reader.h"
 #include "runtime/messages.h"
 #include "scenario/loader.h"
 #include "tools/json.h"
