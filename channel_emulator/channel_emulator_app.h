@@ -18,7 +18,7 @@
 #include "runtime/lcm_bus.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
-#include "runtime/recorder_gate.h"
+#include "channel_emulator/recorder_gate.h"
 
 namespace shoal {
 
@@ -45,7 +45,7 @@ class ChannelEmulatorApp {
   int Run();
   const EmulatorCounters& counters() const { return counters_; }
   /// Lockstep: before each window, wait (at most 20 ms) until this process -- the run's
-  /// lcm-logger -- has handled what it was sent (runtime/recorder_gate.h).
+  /// lcm-logger -- has handled what it was sent (channel_emulator/recorder_gate.h).
   void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
   std::int64_t lookahead_ticks() const { return lookahead_; }
