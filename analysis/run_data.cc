@@ -7,55 +7,30 @@
 #include <shoal/channel_event_t.hpp>
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
-#include <shoal/clock_tick_v1_t.hpp>
+#include <shoal/clock_window_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
 
-#include "analysis/log_reader.h"
 #include "analysis/memory.h"
+#include "lcmtypes/wire.h"
+#include "runtime/channels.h"
 #include "runtime/lcm_bus.h"  // Decode: the generated decoder, made safe
+#include "runtime/log_reader.h"
+#include "runtime/messages.h"
 #include "scenario/loader.h"
 
 namespace shoal {
 namespace {
 
-// Hand-written readers for the hot message types (states and channel events), on
-// runtime's big-endian readers: the generated decoders are correct but allocate the
-// channel event's reason string and throw on a damaged string length (std::length_error
-// for a length <= 0).
-constexpr auto I64 = BigEndianI64;
-constexpr auto I32 = BigEndianI32;
-double F64(const std::uint8_t* p) {
-  const std::uint64_t u = BigEndianU64(p);
-  double d;
-  std::memcpy(&d, &u, 8);
-  return d;
-}
-void Load5(const std::uint8_t* p, Vec5* v) {
-  for (int k = 0; k < 5; ++k) (*v)(k) = F64(p + 8 * k);
-}
+// A hand-written reader for the channel events, the most numerous messages, on the
+// LCM wire readers: the generated decoder is correct but allocates each event's reason
+// string and throws on a damaged string length (std::length_error for a length <= 0).
+using wire::F64;
+using wire::I32;
+using wire::I64;
 
-constexpr int kStateBytes = 8 + 8 + 4 + 4 + 25 * 8 + 4;
 constexpr int kChannelFixedBytes = 8 + 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 1;
-
-bool DecodeState(const std::uint8_t* p, int size, StateMsg* m) {
-  static const std::int64_t hash = vehicle_state_t::getHash();
-  if (size != kStateBytes || I64(p) != hash) return false;
-  p += 8;
-  m->utime = I64(p);
-  m->vehicle_id = I32(p + 8);
-  m->seq = I32(p + 12);
-  p += 16;
-  Load5(p, &m->eta);
-  Load5(p + 40, &m->nu);
-  Load5(p + 80, &m->eta_dot);
-  Load5(p + 120, &m->accel_cmd);
-  Load5(p + 160, &m->tau);
-  m->flags = I32(p + 200);
-  return true;
-}
-
 constexpr int kEventBodyBytes = kChannelFixedBytes - 8;  // an event without its hash
 constexpr int kBatchHeaderBytes = 8 + 8 + 4 + 4 + 4;
 
@@ -117,45 +92,24 @@ bool DecodeChannelEvents(const std::uint8_t* p, int size, std::vector<channel_ev
   return true;
 }
 
-/// SHOAL_CLOCK: a clock_tick_t, or (logs written before session 4) a clock_tick_v1_t,
-/// one tick per message, read as n_ticks = 1 (only its fixed fields are used).
-bool DecodeClock(const std::uint8_t* p, int size, clock_tick_t* c) {
-  static const std::int64_t v1_hash = clock_tick_v1_t::getHash();
-  constexpr int kV1Fixed = 8 + 8 + 4 + 4 + 8 + 8 + 1 + 4;  // hash .. n_deliveries
-  if (size >= kV1Fixed && I64(p) == v1_hash) {
-    const std::int64_t n = I32(p + kV1Fixed - 4);
-    if (n < 0 || size - kV1Fixed != n * (4 + 4 + 4 + 8)) return false;
-    c->utime = I64(p + 8);
-    c->vehicle_id = I32(p + 16);
-    c->seq = I32(p + 20);
-    c->tick = I64(p + 24);
+/// SHOAL_CLOCK: a clock_window_t, or (older logs) a clock_tick_t, one tick per message,
+/// read as a window of one tick (only its fixed fields are used).
+bool DecodeClock(const std::uint8_t* p, int size, clock_window_t* c) {
+  static const std::int64_t tick_hash = clock_tick_t::getHash();
+  if (size >= 8 && I64(p) == tick_hash) {
+    clock_tick_t t;
+    if (!Decode(p, size, &t)) return false;
+    c->utime = t.utime;
+    c->vehicle_id = t.vehicle_id;
+    c->seq = t.seq;
+    c->tick = t.tick;
     c->n_ticks = 1;
-    c->period_us = I64(p + 32);
-    c->final_tick = static_cast<std::int8_t>(p[40]);
+    c->period_us = t.period_us;
+    c->final_tick = t.final_tick;
     c->n_deliveries = 0;
     return true;
   }
   return Decode(p, size, c);
-}
-
-/// "123" or "-1" (whole string) -> id; false otherwise.
-bool ParseId(std::string_view s, int* id) {
-  if (s.empty() || s.size() > 7) return false;
-  std::size_t i = 0;
-  const bool neg = s[0] == '-';
-  if (neg) i = 1;
-  if (i == s.size()) return false;
-  int v = 0;
-  for (; i < s.size(); ++i) {
-    if (s[i] < '0' || s[i] > '9') return false;
-    v = v * 10 + (s[i] - '0');
-  }
-  *id = neg ? -v : v;
-  return true;
-}
-
-bool StartsWith(std::string_view s, std::string_view p) {
-  return s.size() >= p.size() && std::memcmp(s.data(), p.data(), p.size()) == 0;
 }
 
 }  // namespace
@@ -192,100 +146,116 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
     have_time_ = true;
   }
   d_->last_timestamp = timestamp;
-  if (!StartsWith(ch, "SHOAL_")) {
-    ++d_->other_events;
+  const channels::Parsed c = channels::Parse(ch);
+  switch (c.kind) {
+    case channels::Kind::kState:
+      AddState(c.id, data, size);
+      break;
+    case channels::Kind::kRx:
+      if (c.id >= 0 && c.id <= IdLimit()) {
+        ++d_->rx_messages[c.id];
+      } else {
+        ++d_->rejected;
+      }
+      break;
+    case channels::Kind::kChannelEvents:
+      AddChannelEvents(data, size);
+      break;
+    case channels::Kind::kHealth:
+      AddHealth(c.id, data, size);
+      break;
+    case channels::Kind::kClock:
+      AddClock(data, size);
+      break;
+    case channels::Kind::kStatus:
+      AddStatus(data, size);
+      break;
+    case channels::Kind::kOther:
+      ++d_->other_events;
+      break;
+  }
+}
+
+void RunDataBuilder::AddChannelEvents(const std::uint8_t* data, int size) {
+  static thread_local std::vector<channel_event_t> events;
+  if (!DecodeChannelEvents(data, size, &events)) {
+    ++d_->undecodable;
     return;
   }
-  const std::string_view rest = ch.substr(6);
-  int id = 0;
-  if (StartsWith(rest, "STATE_") && ParseId(rest.substr(6), &id)) {
-    AddState(id, data, size);
-  } else if (StartsWith(rest, "RX_") && ParseId(rest.substr(3), &id)) {
-    if (id >= 0 && id <= IdLimit()) {
-      ++d_->rx_messages[id];
-    } else {
+  const int lim = IdLimit();
+  for (const channel_event_t& e : events) {
+    if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim || e.status < 0 ||
+        e.status > channel_event_t::STATUS_DROPPED_INVALID) {
       ++d_->rejected;
+      continue;
     }
-  } else if (rest == "CHANNEL") {
-    static thread_local std::vector<channel_event_t> events;
-    if (!DecodeChannelEvents(data, size, &events)) {
-      ++d_->undecodable;
-      return;
-    }
-    const int lim = IdLimit();
-    for (const channel_event_t& e : events) {
-      if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim ||
-          e.status < 0 || e.status > channel_event_t::STATUS_DROPPED_INVALID) {
-        ++d_->rejected;
-        continue;
-      }
-      ChannelEventRecord r;
-      r.send_utime = e.send_utime;
-      r.deliver_utime = e.deliver_utime;
-      r.delay_s = e.delay_s;
-      r.msg_seq = e.msg_seq;
-      r.sender = static_cast<std::int16_t>(e.sender);
-      r.receiver = static_cast<std::int16_t>(e.receiver);
-      r.status = e.status;
-      d_->channel_events.push_back(r);
-    }
-  } else if (StartsWith(rest, "HEALTH_") && ParseId(rest.substr(7), &id)) {
-    health_t h{};
-    if (!Decode(data, size, &h)) {
-      ++d_->undecodable;
-      return;
-    }
-    if (h.vehicle_id != id || id < -1 || id > IdLimit()) {
-      ++d_->rejected;
-      return;
-    }
-    HealthRecord r;
-    r.utime = h.utime;
-    r.process_id = h.vehicle_id;
-    r.ticks = h.ticks;
-    r.lateness_p50_s = h.lateness_p50_s;
-    r.lateness_p99_s = h.lateness_p99_s;
-    r.lateness_max_s = h.lateness_max_s;
-    r.overruns = h.overruns;
-    r.msgs_received = h.msgs_received;
-    r.msgs_dropped_invalid = h.msgs_dropped_invalid;
-    r.msgs_dropped_old = h.msgs_dropped_old;
-    r.neighbour_timeouts = h.neighbour_timeouts;
-    r.active_neighbours = h.active_neighbours;
-    r.saturated_ticks = h.saturated_ticks;
-    r.saturation_fraction = h.saturation_fraction;
-    d_->health.push_back(r);
-  } else if (rest == "CLOCK") {
-    clock_tick_t c{};
-    if (!DecodeClock(data, size, &c)) {
-      ++d_->undecodable;
-      return;
-    }
-    // One record per tick covered (a lockstep clock message covers a window of ticks; at
-    // most --max-lookahead's 100000). Checked before any arithmetic on the fields.
-    constexpr std::int64_t kMaxTick = std::int64_t{1} << 40;
-    if (c.n_ticks < 1 || c.n_ticks > 100000 || c.period_us <= 0 || c.period_us > 1000000000 ||
-        c.tick < 0 || c.tick > kMaxTick || c.utime != c.tick * c.period_us) {
-      ++d_->rejected;
-      return;
-    }
-    for (std::int32_t k = 0; k < c.n_ticks; ++k) {
-      d_->clock.push_back(ClockRecord{c.utime + k * c.period_us, c.tick + k, c.period_us,
-                                      c.final_tick != 0 && k == c.n_ticks - 1});
-    }
-  } else if (rest == "STATUS") {
-    AddStatus(data, size);
-  } else {
-    ++d_->other_events;
+    ChannelEventRecord r;
+    r.send_utime = e.send_utime;
+    r.deliver_utime = e.deliver_utime;
+    r.delay_s = e.delay_s;
+    r.msg_seq = e.msg_seq;
+    r.sender = static_cast<std::int16_t>(e.sender);
+    r.receiver = static_cast<std::int16_t>(e.receiver);
+    r.status = e.status;
+    d_->channel_events.push_back(r);
+  }
+}
+
+void RunDataBuilder::AddHealth(int id, const std::uint8_t* data, int size) {
+  health_t h{};
+  if (!Decode(data, size, &h)) {
+    ++d_->undecodable;
+    return;
+  }
+  if (h.vehicle_id != id || id < -1 || id > IdLimit()) {
+    ++d_->rejected;
+    return;
+  }
+  HealthRecord r;
+  r.utime = h.utime;
+  r.process_id = h.vehicle_id;
+  r.ticks = h.ticks;
+  r.lateness_p50_s = h.lateness_p50_s;
+  r.lateness_p99_s = h.lateness_p99_s;
+  r.lateness_max_s = h.lateness_max_s;
+  r.overruns = h.overruns;
+  r.msgs_received = h.msgs_received;
+  r.msgs_dropped_invalid = h.msgs_dropped_invalid;
+  r.msgs_dropped_old = h.msgs_dropped_old;
+  r.neighbour_timeouts = h.neighbour_timeouts;
+  r.active_neighbours = h.active_neighbours;
+  r.saturated_ticks = h.saturated_ticks;
+  r.saturation_fraction = h.saturation_fraction;
+  d_->health.push_back(r);
+}
+
+void RunDataBuilder::AddClock(const std::uint8_t* data, int size) {
+  clock_window_t c{};
+  if (!DecodeClock(data, size, &c)) {
+    ++d_->undecodable;
+    return;
+  }
+  // One record per tick covered (a lockstep clock message covers a window of ticks; at
+  // most --max-lookahead's 100000). Checked before any arithmetic on the fields.
+  constexpr std::int64_t kMaxTick = std::int64_t{1} << 40;
+  if (c.n_ticks < 1 || c.n_ticks > 100000 || c.period_us <= 0 || c.period_us > 1000000000 ||
+      c.tick < 0 || c.tick > kMaxTick || c.utime != c.tick * c.period_us) {
+    ++d_->rejected;
+    return;
+  }
+  for (std::int32_t k = 0; k < c.n_ticks; ++k) {
+    d_->clock.push_back(ClockRecord{c.utime + k * c.period_us, c.tick + k, c.period_us,
+                                    c.final_tick != 0 && k == c.n_ticks - 1});
   }
 }
 
 void RunDataBuilder::AddState(int id, const std::uint8_t* data, int size) {
-  StateMsg m;
-  if (!DecodeState(data, size, &m)) {
+  vehicle_state_t v;
+  if (!Decode(data, size, &v)) {
     ++d_->undecodable;
     return;
   }
+  const StateMsg m = FromLcm(v);
   if (m.vehicle_id != id || id < 0 || id > IdLimit()) {
     ++d_->rejected;
     return;

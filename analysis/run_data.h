@@ -65,7 +65,7 @@ struct ClockRecord {
 struct StatusRecord {
   Micros utime = 0;
   int vehicle_id = 0;  // publisher: vehicle id, -1 emulator, -2 launcher / shoal sim
-  std::string state;   // "starting", "ready", "running", "finished", "failed", "interrupted", "vehicle_lost"
+  std::string state;   // RunStateName (runtime/messages.h), as the log says it
   std::string scenario_name;
   std::int64_t seed = 0;
   int followers = 0;
@@ -139,6 +139,9 @@ class RunDataBuilder {
 
  private:
   void AddState(int channel_id, const std::uint8_t* data, int size);
+  void AddChannelEvents(const std::uint8_t* data, int size);
+  void AddHealth(int channel_id, const std::uint8_t* data, int size);
+  void AddClock(const std::uint8_t* data, int size);
   void AddStatus(const std::uint8_t* data, int size);
   int IdLimit() const;
   VehicleTrack* Track(int id);

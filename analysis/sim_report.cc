@@ -27,7 +27,7 @@ class LogObserver : public SwarmObserver {
   }
   void OnTick(std::int64_t tick, Micros utime, bool final_tick) override {
     FlushChannel();  // the previous tick's decisions
-    clock_tick_t c;
+    clock_window_t c;
     c.utime = utime;
     c.vehicle_id = kEmulatorId;
     c.seq = static_cast<std::int32_t>(tick);

@@ -1,4 +1,4 @@
-// shoal_channel_emulator: thin main; the app is emulator_app.
-#include "channel_emulator/emulator_app.h"
+// shoal_channel_emulator: thin main; the app is channel_emulator/channel_emulator_app.
+#include "channel_emulator/channel_emulator_app.h"
 
-int main(int argc, char** argv) { return shoal::EmulatorMain(argc, argv); }
+int main(int argc, char** argv) { return shoal::ChannelEmulatorMain(argc, argv); }

@@ -99,6 +99,19 @@ struct ChannelDecision {
       kDelivered;
 };
 
+/// Why a decision dropped its message, as channel_event_t.reason says it ("" delivered).
+inline const char* DropReason(ChannelDecision::Status s) {
+  switch (s) {
+    case ChannelDecision::kDroppedLoss:
+      return "loss model";
+    case ChannelDecision::kDroppedQueue:
+      return "pending queue full";
+    case ChannelDecision::kDelivered:
+      break;
+  }
+  return "";
+}
+
 /// A directed link with its resolved models and its own random stream.
 struct Link {
   int from = 0;

@@ -24,7 +24,7 @@
 #include "runtime/channels.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
-#include "runtime/log_tail.h"
+#include "runtime/log_reader.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
 #include "runtime/stop_signals.h"

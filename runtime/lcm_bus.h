@@ -8,13 +8,15 @@
 
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
+#include <shoal/clock_window_t.hpp>
 
 #include <cstdint>
-#include <cstring>
 #include <functional>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include "lcmtypes/wire.h"
 
 namespace shoal {
 
@@ -65,21 +67,6 @@ class LcmBus : public Bus {
   std::vector<std::unique_ptr<Sub>> subs_;
 };
 
-/// LCM's wire integers (big-endian), read from unaligned bytes.
-inline std::uint64_t BigEndianU64(const unsigned char* p) {
-  std::uint64_t v;
-  std::memcpy(&v, p, 8);
-  return __builtin_bswap64(v);
-}
-inline std::int64_t BigEndianI64(const unsigned char* p) {
-  return static_cast<std::int64_t>(BigEndianU64(p));
-}
-inline std::int32_t BigEndianI32(const unsigned char* p) {
-  std::uint32_t v;
-  std::memcpy(&v, p, 4);
-  return static_cast<std::int32_t>(__builtin_bswap32(v));
-}
-
 /// Whether the array counts a message declares fit its size. LCM 1.3.1's generated
 /// decoders size each variable array by the count read from the message, in an `int`,
 /// and resize the vector before checking that the bytes are there: a forged or damaged
@@ -90,11 +77,19 @@ bool ArrayCountsFit(const unsigned char* /*p*/, int /*size*/) {
   return true;  // no variable arrays
 }
 template <>
-inline bool ArrayCountsFit<clock_tick_t>(const unsigned char* p, int size) {
+inline bool ArrayCountsFit<clock_window_t>(const unsigned char* p, int size) {
   constexpr int kFixed = 8 + 8 + 4 + 4 + 8 + 4 + 8 + 1 + 4;  // hash .. n_deliveries
   constexpr std::int64_t kPerDelivery = 8 + 4 + 4 + 4 + 8;
   if (size < kFixed) return false;
-  const std::int64_t n = BigEndianI32(p + kFixed - 4);
+  const std::int64_t n = wire::I32(p + kFixed - 4);
+  return n >= 0 && size - kFixed == n * kPerDelivery;
+}
+template <>
+inline bool ArrayCountsFit<clock_tick_t>(const unsigned char* p, int size) {
+  constexpr int kFixed = 8 + 8 + 4 + 4 + 8 + 8 + 1 + 4;  // hash .. n_deliveries
+  constexpr std::int64_t kPerDelivery = 4 + 4 + 4 + 8;
+  if (size < kFixed) return false;
+  const std::int64_t n = wire::I32(p + kFixed - 4);
   return n >= 0 && size - kFixed == n * kPerDelivery;
 }
 template <>
@@ -102,7 +97,7 @@ inline bool ArrayCountsFit<channel_events_t>(const unsigned char* p, int size) {
   constexpr int kFixed = 8 + 8 + 4 + 4 + 4;  // hash .. n_events
   constexpr int kMinEvent = 8 + 4 + 4 + 4 + 4 + 4 + 8 + 8 + 8 + 1 + 4 + 1;  // reason ""
   if (size < kFixed) return false;
-  const std::int64_t n = BigEndianI32(p + kFixed - 4);
+  const std::int64_t n = wire::I32(p + kFixed - 4);
   return n >= 0 && n <= (size - kFixed) / kMinEvent;
 }
 

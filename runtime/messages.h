@@ -3,10 +3,12 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <optional>
+#include <string_view>
 
 #include <shoal/channel_event_t.hpp>
 #include <shoal/channel_events_t.hpp>
-#include <shoal/clock_tick_t.hpp>
+#include <shoal/clock_window_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
@@ -16,6 +18,40 @@
 #include "core/state_msg.h"
 
 namespace shoal {
+
+/// run_status_t.state: what a process (or the run) is doing, as its status says it.
+enum class RunState {
+  kStarting,     // the launcher is starting the processes
+  kReady,        // lockstep: a vehicle waits for the first clock window
+  kRunning,
+  kFinished,
+  kFailed,       // did not start or could not go on
+  kInterrupted,  // stopped by a signal
+  kVehicleLost,  // lockstep: a vehicle stopped answering (the run goes on without it)
+};
+
+inline const char* RunStateName(RunState s) {
+  switch (s) {
+    case RunState::kStarting: return "starting";
+    case RunState::kReady: return "ready";
+    case RunState::kRunning: return "running";
+    case RunState::kFinished: return "finished";
+    case RunState::kFailed: return "failed";
+    case RunState::kInterrupted: return "interrupted";
+    case RunState::kVehicleLost: return "vehicle_lost";
+  }
+  return "";
+}
+
+/// The state a run_status_t.state names; nullopt for any other text.
+inline std::optional<RunState> ParseRunState(std::string_view name) {
+  for (RunState s : {RunState::kStarting, RunState::kReady, RunState::kRunning,
+                     RunState::kFinished, RunState::kFailed, RunState::kInterrupted,
+                     RunState::kVehicleLost}) {
+    if (name == RunStateName(s)) return s;
+  }
+  return std::nullopt;
+}
 
 inline void Copy5(const Vec5& v, double* out) {
   for (int k = 0; k < 5; ++k) out[k] = v(k);
@@ -62,17 +98,7 @@ inline channel_event_t ToLcm(const ChannelDecision& d, std::int32_t seq) {
   e.delay_s = d.delay_s;
   e.deliver_utime = d.deliver_utime;
   e.status = d.status;
-  switch (d.status) {
-    case ChannelDecision::kDelivered:
-      e.reason = "";
-      break;
-    case ChannelDecision::kDroppedLoss:
-      e.reason = "loss model";
-      break;
-    case ChannelDecision::kDroppedQueue:
-      e.reason = "pending queue full";
-      break;
-  }
+  e.reason = DropReason(d.status);
   return e;
 }
 

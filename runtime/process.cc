@@ -27,7 +27,7 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
   app->add_option("--rx-url", opt->rx_url,
                   "LCM URL on which this process receives (default: --lcm-url)");
   app->add_option("--mode", opt->mode, "lockstep or realtime")
-      ->check(CLI::IsMember({"lockstep", "realtime"}));
+      ->check(CLI::IsMember({ModeName(Mode::kLockstep), ModeName(Mode::kRealtime)}));
   app->add_option("--t0-ns", opt->t0_ns, "realtime: CLOCK_MONOTONIC ns of tick 0");
   app->add_option("--duration", opt->duration_s, "Simulated seconds (default: the scenario's)");
 }

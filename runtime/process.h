@@ -3,7 +3,9 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 
 namespace CLI {
 class App;
@@ -13,14 +15,22 @@ namespace shoal {
 
 enum class Mode { kLockstep, kRealtime };
 
+/// A mode's name on command lines ("lockstep", "realtime"), and back.
+inline const char* ModeName(Mode m) { return m == Mode::kRealtime ? "realtime" : "lockstep"; }
+inline std::optional<Mode> ParseMode(std::string_view name) {
+  if (name == ModeName(Mode::kLockstep)) return Mode::kLockstep;
+  if (name == ModeName(Mode::kRealtime)) return Mode::kRealtime;
+  return std::nullopt;
+}
+
 struct ProcessOptions {
   std::string scenario;
   std::string lcm_url;       // the run's shared bus
   std::string rx_url;        // where this process receives (lockstep clock, SHOAL_RX_<id>); "" = lcm_url
-  std::string mode = "lockstep";
+  std::string mode = ModeName(Mode::kLockstep);
   std::int64_t t0_ns = 0;    // realtime: CLOCK_MONOTONIC time of tick 0
   double duration_s = -1.0;  // < 0: the scenario's
-  Mode parsed_mode() const { return mode == "realtime" ? Mode::kRealtime : Mode::kLockstep; }
+  Mode parsed_mode() const { return ParseMode(mode).value_or(Mode::kLockstep); }
 };
 
 /// Adds the common options to a CLI11 app.

@@ -1,4 +1,4 @@
-// shoal_vehicle: one follower UUV process. Thin main; the app is runtime/node_app.
-#include "runtime/node_app.h"
+// shoal_vehicle: one follower UUV process. Thin main; the app is vehicle/vehicle_app.
+#include "vehicle/vehicle_app.h"
 
-int main(int argc, char** argv) { return shoal::NodeMain(argc, argv, /*leader=*/false); }
+int main(int argc, char** argv) { return shoal::VehicleMain(argc, argv); }

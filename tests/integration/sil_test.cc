@@ -14,7 +14,7 @@
 #include <map>
 #include <thread>
 
-#include <shoal/clock_tick_t.hpp>
+#include <shoal/clock_window_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
 
@@ -384,7 +384,7 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
   const auto nan_b = encode(nan_msg), inf_b = encode(inf_msg), unk_b = encode(unknown);
   // A clock message whose delivery count is forged (LCM's generated decoder would trust it:
   // an int overflow and an out-of-bounds read).
-  clock_tick_t forged_clock{};
+  clock_window_t forged_clock{};
   forged_clock.vehicle_id = -1;
   forged_clock.n_ticks = 1;
   forged_clock.period_us = 20000;

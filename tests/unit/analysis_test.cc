@@ -5,19 +5,21 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include <shoal/clock_tick_v1_t.hpp>
+#include <shoal/clock_tick_t.hpp>
+#include <shoal/clock_window_t.hpp>
 
 #include "analysis/analysis.h"
 #include "analysis/csv.h"
-#include "analysis/log_reader.h"
 #include "analysis/run_data.h"
 #include "runtime/channels.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/log_reader.h"
 #include "runtime/log_writer.h"
 #include "runtime/messages.h"
 
@@ -250,7 +252,7 @@ std::string WriteChannelLog(int ticks, bool with_states = true, bool legacy = fa
   for (int k = 0; k < ticks; ++k) {
     const Micros t = k * kPeriod;
     if (legacy) {  // the clock type of those logs: one tick per message, no n_ticks
-      clock_tick_v1_t c{};
+      clock_tick_t c{};
       c.utime = t;
       c.vehicle_id = kEmulatorId;
       c.tick = k;
@@ -258,7 +260,7 @@ std::string WriteChannelLog(int ticks, bool with_states = true, bool legacy = fa
       c.final_tick = k == ticks - 1 ? 1 : 0;
       log.Write(channels::Clock(), t, c);
     } else if (k % window == 0) {
-      clock_tick_t c{};
+      clock_window_t c{};
       c.utime = t;
       c.vehicle_id = kEmulatorId;
       c.tick = k;
@@ -349,7 +351,7 @@ TEST(RunData, DamagedBatchOrEmptyWindowIsCountedNotKept) {
     log.WriteRaw(channels::ChannelEvents(), 0, one.data(), 8);
     // Intact.
     log.WriteRaw(channels::ChannelEvents(), 0, bytes.data(), static_cast<int>(bytes.size()));
-    clock_tick_t c{};
+    clock_window_t c{};
     c.vehicle_id = kEmulatorId;
     c.period_us = kPeriod;
     c.n_ticks = 0;
@@ -546,7 +548,7 @@ TEST(Analysis, ModeAndProblemsFromStatuses) {
   const std::string path = Tmp("lockstep.lcmlog");
   {
     LogWriter log(path);
-    clock_tick_t c{};
+    clock_window_t c{};
     c.n_ticks = 1;
     c.period_us = kPeriod;
     c.vehicle_id = kEmulatorId;
@@ -822,7 +824,7 @@ TEST(LogDamage, RandomByteFlips) {
 // vector resized before the bytes are checked): a clock message or an event batch with a
 // forged count must be refused by Decode, not read out of bounds or allocate gigabytes.
 TEST(LogDamage, ForgedArrayCountsAreRefusedNotTrusted) {
-  clock_tick_t c{};
+  clock_window_t c{};
   c.vehicle_id = kEmulatorId;
   c.n_ticks = 1;
   c.period_us = kPeriod;
@@ -834,7 +836,7 @@ TEST(LogDamage, ForgedArrayCountsAreRefusedNotTrusted) {
   c.delivery_digest = {0};
   std::vector<std::uint8_t> b(c.getEncodedSize());
   ASSERT_EQ(c.encode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
-  clock_tick_t out;
+  clock_window_t out;
   ASSERT_TRUE(Decode(b.data(), static_cast<int>(b.size()), &out));
   const int at = 8 + 8 + 4 + 4 + 8 + 4 + 8 + 1;  // n_deliveries
   for (std::uint32_t n : {0x7fffffffu, 0x20000000u, 0x10000001u, 0x80000000u, 2u, 0u}) {
@@ -896,6 +898,47 @@ TEST(LogReader, ReadsEveryEventOfALargeLogAcrossBufferRefills) {
   RunData run = Load(path);
   ASSERT_EQ(run.vehicles[0].samples.size(), static_cast<std::size_t>(n));
   EXPECT_EQ(run.vehicles[0].samples.back().eta(0), n - 1);
+}
+
+// shoal run follows the log lcm-logger is writing: every complete event once, in order;
+// an event cut short waits for its rest; damage stops the reading for good.
+TEST(LogReader, FollowsALogThatIsStillBeingWritten) {
+  const std::string source = Tmp("follow_source.lcmlog");
+  const int n = 50;
+  {
+    LogWriter log(source);
+    for (int k = 0; k < n; ++k) {
+      log.Write(channels::State(1), k, ToLcm(State(1, k * kPeriod, Vec5::Constant(k), Vec5::Zero())));
+    }
+  }
+  std::ifstream in(source, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string path = Tmp("follow.lcmlog");
+  std::remove(path.c_str());
+  LogTail tail(path);
+  std::vector<double> seen;
+  const LogTail::Handler on = [&](const std::string& ch, const void* d, int size) {
+    EXPECT_EQ(ch, channels::State(1));
+    vehicle_state_t m;
+    ASSERT_TRUE(Decode(d, size, &m));
+    seen.push_back(m.eta[0]);
+  };
+  EXPECT_EQ(tail.Poll(on), 0);  // not created yet
+  std::ofstream out(path, std::ios::binary);
+  for (std::size_t at = 0; at < bytes.size(); at += 37) {  // events cut anywhere
+    out.write(bytes.data() + at, static_cast<std::streamsize>(std::min<std::size_t>(37, bytes.size() - at)));
+    out.flush();
+    ASSERT_GE(tail.Poll(on), 0) << at;
+  }
+  ASSERT_EQ(seen.size(), static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) EXPECT_EQ(seen[k], k);
+  EXPECT_EQ(tail.events(), n);
+  out << "not an LCM event header, not at all";
+  out.flush();
+  EXPECT_EQ(tail.Poll(on), -1);
+  EXPECT_TRUE(tail.damaged());
+  EXPECT_EQ(tail.Poll(on), -1);
+  EXPECT_EQ(seen.size(), static_cast<std::size_t>(n));
 }
 
 // ---- Summary shared with shoal run -------------------------------------------------------

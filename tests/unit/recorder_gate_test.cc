@@ -1,7 +1,7 @@
 // RecorderGate: the lockstep clock master's wait for lcm-logger. Against real processes:
 // a sleeping one lets it through at once, a busy one holds it until the time limit, a
 // multithreaded one is watched thread by thread, and a vanished one opens the gate.
-#include "runtime/recorder_gate.h"
+#include "channel_emulator/recorder_gate.h"
 
 #include <fcntl.h>
 

@@ -2,6 +2,10 @@
 // it applies the scenario's delay and loss models (core Channel) and delivers each
 // message, unchanged, on SHOAL_RX_<receiver>; every decision is published on
 // SHOAL_CHANNEL. In lockstep it is also the clock master.
+//
+// LCM handlers only copy the message into an inbox and return; HandleBus() then applies
+// the inbox in arrival order (the channel's decisions are taken there, outside any
+// handler).
 #pragma once
 
 #include <memory>
@@ -14,7 +18,7 @@
 #include "runtime/lcm_bus.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
-#include "runtime/recorder_gate.h"
+#include "channel_emulator/recorder_gate.h"
 
 namespace shoal {
 
@@ -26,21 +30,22 @@ struct EmulatorCounters {
   std::int64_t dropped = 0;
 };
 
-class EmulatorApp {
+class ChannelEmulatorApp {
  public:
   /// `vehicle_buses[id]` is where vehicle id receives (its SHOAL_RX and, in lockstep, the
   /// clock); entries may all be `bus`.
   /// `max_lookahead_ticks` (lockstep): how many ticks the clock master may release before
   /// it waits for the states; the channel's minimum delivery lag bounds it (see Run).
-  EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s, Bus* bus,
-              std::vector<Bus*> vehicle_buses, std::int64_t max_lookahead_ticks = 50);
+  ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
+                     Bus* bus, std::vector<Bus*> vehicle_buses,
+                     std::int64_t max_lookahead_ticks = 50);
   void Init();
   /// 0: ran to the end with every process; 4: ran to the end, some process stopped
   /// answering (named on stderr and in SHOAL_STATUS); 1: interrupted; 3: start-up failed.
   int Run();
   const EmulatorCounters& counters() const { return counters_; }
   /// Lockstep: before each window, wait (at most 20 ms) until this process -- the run's
-  /// lcm-logger -- has handled what it was sent (runtime/recorder_gate.h).
+  /// lcm-logger -- has handled what it was sent (channel_emulator/recorder_gate.h).
   void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
   std::int64_t lookahead_ticks() const { return lookahead_; }
@@ -55,15 +60,36 @@ class EmulatorApp {
     std::int64_t digest = 0;  // Digest64(raw)
     Bytes raw;
   };
-  void OnState(const std::string& channel, const void* data, int size);
-  void OnStatus(const void* data, int size);
+  /// A message as its handler copied it: SHOAL_STATUS, or a state on `channel`.
+  struct Inbound {
+    bool status = false;
+    std::string channel;
+    Bytes bytes;
+  };
+  void Enqueue(bool status, const std::string& channel, const void* data, int size);
+  /// Dispatches what the shared bus has (waiting at most timeout_ms for the first
+  /// message), then applies it in arrival order. Returns bus_->Handle's result.
+  int HandleBus(int timeout_ms);
+  void OnState(const std::string& channel, const unsigned char* data, int size);
+  void OnStatus(const unsigned char* data, int size);
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
   void ReleaseWindow();
   void PublishEvents();  // the decisions not yet published, on SHOAL_CHANNEL
-  clock_tick_t WindowClock() const;  // ticks [win_first_, win_last_], no deliveries listed
+  clock_window_t WindowClock() const;  // ticks [win_first_, win_last_], no deliveries listed
   void PublishHealth(Micros utime);
-  void PublishStatus(const std::string& state, const std::string& message);
+  void PublishStatus(RunState state, const std::string& message);
   int RunLockstep();
+  /// Lockstep: waits until every process has announced itself. Returns -1 then, else the
+  /// exit code: 1 stopped, 3 (reported) nobody came within 60 s.
+  int WaitForReady();
+  enum class WindowWait { kComplete, kStopped, kTimedOut };
+  /// Lockstep: waits for the state of every live process for every tick of the window.
+  WindowWait WaitForWindow();
+  /// Lockstep: marks every live process that sent no state for some tick of the window
+  /// as lost, saying so on stderr and on SHOAL_STATUS.
+  void DeclareSilentLost();
+  /// Lockstep: the window's states enter the channel (tick by tick, in id order).
+  void SubmitWindow();
   int RunRealtime();
 
   const Scenario& s_;
@@ -105,8 +131,12 @@ class EmulatorApp {
   EmulatorCounters counters_;
   LatenessStats release_error_;  // realtime: release time - due time
   std::unique_ptr<RecorderGate> recorder_;
+  std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
+  std::size_t inbox_size_ = 0;
+  bool lost_any_ = false;  // lockstep: some process stopped answering
 };
 
-int EmulatorMain(int argc, char** argv);
+/// The whole main() of shoal_channel_emulator: parse flags, load, open the buses, run.
+int ChannelEmulatorMain(int argc, char** argv);
 
 }  // namespace shoal

@@ -1,4 +1,4 @@
-#include "runtime/recorder_gate.h"
+#include "channel_emulator/recorder_gate.h"
 
 #include <dirent.h>
 #include <fcntl.h>

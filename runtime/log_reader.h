@@ -1,6 +1,10 @@
-// A robust reader of LCM event logs (the format of lcm-logger, lcm-logplayer and
+// The reader of LCM event logs (the format of lcm-logger, lcm-logplayer and
 // runtime/log_writer): big buffered reads, no per-event allocation, and damage reported
-// instead of fatal.
+// instead of fatal. It reads a finished log (Open, Next: shoal analyze, compare, render)
+// or follows one that another process is still appending to (LogTail: shoal run takes its
+// progress from the log this way instead of listening on the bus, so that watching a run
+// adds no receiver to its multicast group -- every receiver costs every message a copy
+// and two thread wake-ups).
 //
 // Event layout (all big-endian), LCM's eventlog format:
 //   uint32 sync = 0xEDA1DA01, int64 event number, int64 timestamp [us],
@@ -15,9 +19,12 @@
 //     with a warning ("stopped");
 //   - an event cut short by the end of the file (truncated log): the reader stops with a
 //     warning that names the offset.
+// A followed log is written as it is read: an event cut short by the end of the file is
+// not complete yet, and damage stops the reading (no resynchronisation).
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -54,6 +61,17 @@ class LcmLogReader {
 
   /// The next event; false at the end of the file or at damage it cannot read past.
   bool Next(LogEventView* ev);
+
+  /// Follows `path`, a log another process is still appending to. False if it cannot be
+  /// opened (yet): not an error, it may not have been created yet.
+  bool OpenToFollow(const std::string& path);
+  using EventHandler =
+      std::function<void(std::string_view channel, const std::uint8_t* data, int size)>;
+  /// Following: calls `on` for every complete event appended since the last call, in
+  /// order; an event not complete yet waits for the next call. Returns the number of
+  /// events handled, or -1 once the log is found damaged (a bad sync word or impossible
+  /// lengths; a warning says where), after which it reads no more.
+  int ReadAppended(const EventHandler& on);
 
   /// Damage found so far, one user-facing sentence each.
   const std::vector<std::string>& warnings() const { return warnings_; }
@@ -93,6 +111,30 @@ class LcmLogReader {
   std::int64_t skipped_bytes_ = 0;
   std::int64_t damaged_regions_ = 0;
   std::vector<std::string> warnings_;
+};
+
+/// Follows the LCM log at `path` while another process (lcm-logger) appends to it: each
+/// Poll() hands over the complete events written since the last one.
+class LogTail {
+ public:
+  using Handler = std::function<void(const std::string& channel, const void* data, int size)>;
+
+  explicit LogTail(std::string path) : path_(std::move(path)) {}
+
+  /// Calls `on` for every complete event appended since the last call. Returns the number
+  /// of events handled (0 while the file does not exist); -1 once the file is found
+  /// damaged, after which it stops reading.
+  int Poll(const Handler& on);
+
+  std::int64_t events() const { return reader_.events(); }
+  bool damaged() const { return damaged_; }
+
+ private:
+  std::string path_;
+  LcmLogReader reader_;
+  bool open_ = false;
+  bool damaged_ = false;
+  std::string channel_;  // the current event's channel, for Handler
 };
 
 }  // namespace shoal

@@ -1,8 +1,9 @@
-// The vehicle process's lockstep logic, in process (memq://): a tick is stepped only once
-// its clock tick and every delivery it lists are here, whatever order they arrive in, and
-// only the listed deliveries reach the control law. UDP keeps no order between datagrams,
+// The vehicle process's lockstep logic (VehicleApp on runtime's ClockedNode), in process
+// (memq://): a tick is stepped only once its clock tick and every delivery it lists are
+// here, whatever order they arrive in, and only the listed deliveries reach the control
+// law. UDP keeps no order between datagrams,
 // so this is what makes a lockstep run equal shoal sim on a loaded machine.
-#include "runtime/node_app.h"
+#include "vehicle/vehicle_app.h"
 
 #include <gtest/gtest.h>
 
@@ -35,8 +36,8 @@ std::vector<unsigned char> Encode(const StateMsg& m) {
 }
 
 // Clock tick k listing `deliveries` for vehicle kId, as the emulator lists them.
-clock_tick_t Tick(const Scenario& s, std::int64_t k, const std::vector<StateMsg>& deliveries) {
-  clock_tick_t c{};
+clock_window_t Tick(const Scenario& s, std::int64_t k, const std::vector<StateMsg>& deliveries) {
+  clock_window_t c{};
   c.utime = k * s.period_us();
   c.vehicle_id = kEmulatorId;
   c.seq = static_cast<std::int32_t>(k);
@@ -59,17 +60,17 @@ clock_tick_t Tick(const Scenario& s, std::int64_t k, const std::vector<StateMsg>
 struct Rig {
   Scenario s = Example2();
   LcmBus bus{"memq://"};
-  NodeApp node{s, kId, Mode::kLockstep, 0, 10.0, &bus, &bus};
+  VehicleApp node{s, kId, Mode::kLockstep, 0, 10.0, &bus, &bus};
   Follower reference{s, Topology::Build(s.followers, s.edges, s.leader_links), kId};
   Leader leader{s};
   std::vector<StateMsg> sent;  // leader states, by tick
 
   Rig() { node.Init(); }
   void Pump() {
-    while (bus.Handle(0) > 0) {
+    while (node.HandleBus(0) > 0) {
     }
   }
-  std::int64_t ticks() const { return node.follower()->counters().ticks; }
+  std::int64_t ticks() const { return node.follower().counters().ticks; }
   // Tick k in order: the leader's state of tick k - kLag delivered and listed, then the
   // clock tick; the reference steps alike. `extra` runs before the clock tick.
   void InOrderTick(int k, const std::function<void()>& extra = nullptr) {
@@ -86,7 +87,7 @@ struct Rig {
   }
 };
 
-TEST(NodeAppLockstep, AppliesTheListedDeliveriesWhateverOrderTheyArriveIn) {
+TEST(VehicleAppLockstep, AppliesTheListedDeliveriesWhateverOrderTheyArriveIn) {
   Rig r;
   const int n = 60;
   for (int k = 0; k < n; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
@@ -114,13 +115,25 @@ TEST(NodeAppLockstep, AppliesTheListedDeliveriesWhateverOrderTheyArriveIn) {
     // The reference: shoal sim's order, delivery first, then the tick.
     if (k >= kLag) r.reference.Receive(r.sent[k - kLag]);
     r.reference.Tick(k * r.s.period_us());
-    ASSERT_EQ(r.node.follower()->state().eta, r.reference.state().eta) << "tick " << k;
-    ASSERT_EQ(r.node.follower()->state().nu, r.reference.state().nu) << "tick " << k;
+    ASSERT_EQ(r.node.follower().state().eta, r.reference.state().eta) << "tick " << k;
+    ASSERT_EQ(r.node.follower().state().nu, r.reference.state().nu) << "tick " << k;
   }
-  EXPECT_EQ(r.node.follower()->counters().msgs_received, n - kLag);
+  EXPECT_EQ(r.node.follower().counters().msgs_received, n - kLag);
 }
 
-TEST(NodeAppLockstep, AClockTickArrivingEarlyWaitsForTheTicksBeforeIt) {
+// LCM handlers copy the message and return: the bus's own dispatch steps nothing; the
+// app's HandleBus applies what was copied, outside the handlers, and steps.
+TEST(VehicleAppLockstep, HandlersOnlyCopyTheStepHappensAfterDispatch) {
+  Rig r;
+  r.bus.Publish(channels::Clock(), Tick(r.s, 0, {}));
+  ASSERT_EQ(r.bus.Handle(0), 1);  // the handler ran: the message is copied, not applied
+  EXPECT_EQ(r.ticks(), 0);
+  EXPECT_EQ(r.node.HandleBus(0), 0);  // nothing new on the bus; the copy is applied now
+  EXPECT_EQ(r.ticks(), 1);
+  EXPECT_EQ(r.node.counters().bad_clock, 0);
+}
+
+TEST(VehicleAppLockstep, AClockTickArrivingEarlyWaitsForTheTicksBeforeIt) {
   Rig r;
   for (int k = 0; k < 4; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
   r.bus.Publish(channels::Clock(), Tick(r.s, 2, {}));
@@ -139,7 +152,7 @@ TEST(NodeAppLockstep, AClockTickArrivingEarlyWaitsForTheTicksBeforeIt) {
   EXPECT_EQ(r.node.counters().bad_clock, 2);
 }
 
-TEST(NodeAppLockstep, AnUnlistedPlausibleMessageNeverReachesTheControlLaw) {
+TEST(VehicleAppLockstep, AnUnlistedPlausibleMessageNeverReachesTheControlLaw) {
   Rig r;
   const int n = 20;
   for (int k = 0; k < n; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
@@ -151,11 +164,11 @@ TEST(NodeAppLockstep, AnUnlistedPlausibleMessageNeverReachesTheControlLaw) {
   r.bus.Publish(channels::Rx(kId), ToLcm(forged));
   for (int k = 0; k < n; ++k) r.InOrderTick(k);
   ASSERT_EQ(r.ticks(), n);
-  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
-  EXPECT_EQ(r.node.follower()->state().nu, r.reference.state().nu);
+  EXPECT_EQ(r.node.follower().state().eta, r.reference.state().eta);
+  EXPECT_EQ(r.node.follower().state().nu, r.reference.state().nu);
 }
 
-TEST(NodeAppLockstep, InvalidDeliveriesAreCountedOnArrival) {
+TEST(VehicleAppLockstep, InvalidDeliveriesAreCountedOnArrival) {
   Rig r;
   StateMsg m = r.leader.Tick(0);
   StateMsg nan = m;
@@ -167,14 +180,14 @@ TEST(NodeAppLockstep, InvalidDeliveriesAreCountedOnArrival) {
   const unsigned char garbage[16] = {1, 2, 3};
   r.bus.PublishRaw(channels::Rx(kId), garbage, sizeof(garbage));
   r.Pump();
-  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_invalid, 2);
-  EXPECT_EQ(r.node.counters().bad_rx, 1);
+  EXPECT_EQ(r.node.follower().counters().msgs_dropped_invalid, 2);
+  EXPECT_EQ(r.node.rx_counters().bad_rx, 1);
 }
 
 // A delay model that lets messages overtake (uniform jitter): a delivery older than the
 // one already applied is listed at its own tick; shoal sim counts it as old there. The
 // vehicle must step that tick (not wait for a message it dropped) and count it once.
-TEST(NodeAppLockstep, AnOvertakenDeliveryIsCountedOldAndDoesNotBlockItsTick) {
+TEST(VehicleAppLockstep, AnOvertakenDeliveryIsCountedOldAndDoesNotBlockItsTick) {
   Rig r;
   for (int k = 0; k < 8; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
   for (int k = 0; k < 7; ++k) {
@@ -190,15 +203,15 @@ TEST(NodeAppLockstep, AnOvertakenDeliveryIsCountedOldAndDoesNotBlockItsTick) {
     r.reference.Tick(k * r.s.period_us());
   }
   EXPECT_EQ(r.ticks(), 7);
-  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_old, 1);
-  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_old,
+  EXPECT_EQ(r.node.follower().counters().msgs_dropped_old, 1);
+  EXPECT_EQ(r.node.follower().counters().msgs_dropped_old,
             r.reference.counters().msgs_dropped_old);
-  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
+  EXPECT_EQ(r.node.follower().state().eta, r.reference.state().eta);
 }
 
 // A forged copy of an upcoming delivery (same sender and seq, other content) arriving
 // first is not the delivery: the tick's digest tells them apart.
-TEST(NodeAppLockstep, AForgedCopyOfAListedDeliveryIsNotApplied) {
+TEST(VehicleAppLockstep, AForgedCopyOfAListedDeliveryIsNotApplied) {
   Rig r;
   for (int k = 0; k < 6; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
   StateMsg forged = r.sent[1];
@@ -216,13 +229,13 @@ TEST(NodeAppLockstep, AForgedCopyOfAListedDeliveryIsNotApplied) {
     r.reference.Tick(k * r.s.period_us());
   }
   ASSERT_EQ(r.ticks(), 5);
-  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
-  EXPECT_EQ(r.node.follower()->state().nu, r.reference.state().nu);
+  EXPECT_EQ(r.node.follower().state().eta, r.reference.state().eta);
+  EXPECT_EQ(r.node.follower().state().nu, r.reference.state().nu);
 }
 
 // A replay (an old state nobody lists) is counted as old once no tick can list it any
 // more; an unlisted one that is not old as invalid (unlisted). Neither is applied.
-TEST(NodeAppLockstep, UnlistedMessagesAreCountedWhenNoTickCanListThemAnyMore) {
+TEST(VehicleAppLockstep, UnlistedMessagesAreCountedWhenNoTickCanListThemAnyMore) {
   Rig r;
   const int n = 40;  // 0.8 s: past the largest delay (0.15 s) plus two periods
   for (int k = 0; k < n; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
@@ -238,14 +251,14 @@ TEST(NodeAppLockstep, UnlistedMessagesAreCountedWhenNoTickCanListThemAnyMore) {
     });
   }
   ASSERT_EQ(r.ticks(), n);
-  EXPECT_EQ(r.node.follower()->counters().msgs_dropped_old, 1);
-  EXPECT_EQ(r.node.counters().unlisted_rx, 1);
-  EXPECT_EQ(r.node.follower()->state().eta, r.reference.state().eta);
+  EXPECT_EQ(r.node.follower().counters().msgs_dropped_old, 1);
+  EXPECT_EQ(r.node.rx_counters().unlisted_rx, 1);
+  EXPECT_EQ(r.node.follower().state().eta, r.reference.state().eta);
 }
 
 // Clock ticks further ahead than the channel's smallest delivery lag (3 ticks in
 // Example 2) cannot come from the clock master: refused and counted.
-TEST(NodeAppLockstep, AClockTickTooFarAheadIsRefused) {
+TEST(VehicleAppLockstep, AClockTickTooFarAheadIsRefused) {
   Rig r;
   r.bus.Publish(channels::Clock(), Tick(r.s, 3, {}));
   r.Pump();
@@ -260,12 +273,12 @@ TEST(NodeAppLockstep, AClockTickTooFarAheadIsRefused) {
 // The clock master releases a window of ticks in one clock message (as many as the
 // channel's smallest delivery lag allows): each tick is stepped with the deliveries listed
 // for it, in order, exactly as with one message per tick.
-clock_tick_t Window(const Scenario& s, std::int64_t first, int n,
+clock_window_t Window(const Scenario& s, std::int64_t first, int n,
                     const std::map<std::int64_t, std::vector<StateMsg>>& deliveries) {
-  clock_tick_t c = Tick(s, first, {});
+  clock_window_t c = Tick(s, first, {});
   c.n_ticks = n;
   for (const auto& [tick, list] : deliveries) {
-    const clock_tick_t one = Tick(s, tick, list);
+    const clock_window_t one = Tick(s, tick, list);
     c.delivery_tick.insert(c.delivery_tick.end(), one.delivery_tick.begin(), one.delivery_tick.end());
     c.delivery_receiver.insert(c.delivery_receiver.end(), one.delivery_receiver.begin(),
                                one.delivery_receiver.end());
@@ -279,7 +292,7 @@ clock_tick_t Window(const Scenario& s, std::int64_t first, int n,
   return c;
 }
 
-TEST(NodeAppLockstep, AWindowClockStepsEachTickWithItsOwnDeliveries) {
+TEST(VehicleAppLockstep, AWindowClockStepsEachTickWithItsOwnDeliveries) {
   Rig r;
   const int n = 30;
   for (int k = 0; k < n; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
@@ -304,17 +317,17 @@ TEST(NodeAppLockstep, AWindowClockStepsEachTickWithItsOwnDeliveries) {
       if (k >= kLag) r.reference.Receive(r.sent[k - kLag]);
       r.reference.Tick(k * r.s.period_us());
     }
-    ASSERT_EQ(r.node.follower()->state().eta, r.reference.state().eta) << "window " << first;
-    ASSERT_EQ(r.node.follower()->state().nu, r.reference.state().nu) << "window " << first;
+    ASSERT_EQ(r.node.follower().state().eta, r.reference.state().eta) << "window " << first;
+    ASSERT_EQ(r.node.follower().state().nu, r.reference.state().nu) << "window " << first;
   }
-  EXPECT_EQ(r.node.follower()->counters().msgs_received, n - kLag);
+  EXPECT_EQ(r.node.follower().counters().msgs_received, n - kLag);
   EXPECT_EQ(r.node.counters().bad_clock, 0);
 }
 
-TEST(NodeAppLockstep, AMalformedWindowIsRefused) {
+TEST(VehicleAppLockstep, AMalformedWindowIsRefused) {
   Rig r;
   for (int k = 0; k < 4; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
-  clock_tick_t none = Window(r.s, 0, 1, {});
+  clock_window_t none = Window(r.s, 0, 1, {});
   none.n_ticks = 0;
   r.bus.Publish(channels::Clock(), none);
   r.bus.Publish(channels::Clock(), Window(r.s, 0, kLag + 1, {}));  // past the lookahead

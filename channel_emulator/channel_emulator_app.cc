@@ -1,4 +1,4 @@
-#include "channel_emulator/emulator_app.h"
+#include "channel_emulator/channel_emulator_app.h"
 
 #include <CLI/CLI.hpp>
 
@@ -20,9 +20,10 @@ constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process 
 constexpr std::int64_t kRecorderWaitNs = 20000000LL;     // lockstep: most per window
 }
 
-EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
-                         Bus* bus, std::vector<Bus*> vehicle_buses,
-                         std::int64_t max_lookahead_ticks)
+ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns,
+                                       double duration_s, Bus* bus,
+                                       std::vector<Bus*> vehicle_buses,
+                                       std::int64_t max_lookahead_ticks)
     : s_(s),
       mode_(mode),
       t0_ns_(t0_ns),
@@ -59,30 +60,53 @@ EmulatorApp::EmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, doubl
   outbox_.resize(static_cast<std::size_t>(n_ + 1));
 }
 
-void EmulatorApp::Init() {
-  bus_->Subscribe("SHOAL_STATE_[0-9]+", [this](const std::string& ch, const void* d, int n) {
-    OnState(ch, d, n);
+void ChannelEmulatorApp::Init() {
+  bus_->Subscribe(channels::kStatePattern, [this](const std::string& ch, const void* d, int n) {
+    Enqueue(false, ch, d, n);
   });
-  bus_->Subscribe(channels::Status(),
-                  [this](const std::string&, const void* d, int n) { OnStatus(d, n); });
+  bus_->Subscribe(channels::Status(), [this](const std::string& ch, const void* d, int n) {
+    Enqueue(true, ch, d, n);
+  });
 }
 
-void EmulatorApp::OnStatus(const void* data, int size) {
+void ChannelEmulatorApp::Enqueue(bool status, const std::string& channel, const void* data,
+                                 int size) {
+  if (inbox_size_ == inbox_.size()) inbox_.emplace_back();
+  Inbound& in = inbox_[inbox_size_++];
+  in.status = status;
+  in.channel = channel;
+  const auto* p = static_cast<const unsigned char*>(data);
+  in.bytes.assign(p, p + (size > 0 && p != nullptr ? size : 0));
+}
+
+int ChannelEmulatorApp::HandleBus(int timeout_ms) {
+  const int handled = bus_->Handle(timeout_ms);
+  for (std::size_t k = 0; k < inbox_size_; ++k) {
+    const Inbound& in = inbox_[k];
+    const unsigned char* data = in.bytes.empty() ? nullptr : in.bytes.data();
+    const int size = static_cast<int>(in.bytes.size());
+    if (in.status) {
+      OnStatus(data, size);
+    } else {
+      OnState(in.channel, data, size);
+    }
+  }
+  inbox_size_ = 0;
+  return handled;
+}
+
+void ChannelEmulatorApp::OnStatus(const unsigned char* data, int size) {
   run_status_t st;
   if (!Decode(data, size, &st)) return;
-  if (st.state == "ready" && st.vehicle_id >= 0 && st.vehicle_id <= n_) {
+  if (ParseRunState(st.state) == RunState::kReady && st.vehicle_id >= 0 && st.vehicle_id <= n_) {
     ready_[st.vehicle_id] = true;
   }
 }
 
-void EmulatorApp::OnState(const std::string& channel, const void* data, int size) {
+void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char* data,
+                                 int size) {
   vehicle_state_t m{};
-  int id = -1;
-  try {
-    id = std::stoi(channel.substr(std::string("SHOAL_STATE_").size()));
-  } catch (...) {
-    id = -1;
-  }
+  const int id = channels::ParseStateId(channel).value_or(-1);
   if (id < 0 || id > n_ || !Decode(data, size, &m) || m.vehicle_id != id ||
       !FromLcm(m).AllFinite()) {
     ++counters_.states_invalid;
@@ -104,8 +128,7 @@ void EmulatorApp::OnState(const std::string& channel, const void* data, int size
       return;
     }
     got_tick_[slot] = true;
-    tick_state_[slot].assign(static_cast<const unsigned char*>(data),
-                             static_cast<const unsigned char*>(data) + size);
+    tick_state_[slot].assign(data, data + size);
     tick_seq_[slot] = m.seq;
   } else {
     // Real time: a state must be about now (forged or replayed times are refused).
@@ -114,16 +137,14 @@ void EmulatorApp::OnState(const std::string& channel, const void* data, int size
       ++counters_.states_old;
       return;
     }
-    Submit(id, Bytes(static_cast<const unsigned char*>(data),
-                     static_cast<const unsigned char*>(data) + size),
-           m.seq, m.utime);
+    Submit(id, Bytes(data, data + size), m.seq, m.utime);
   }
   have_seq_[id] = true;
   last_seq_[id] = m.seq;
   ++counters_.states_accepted;
 }
 
-void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime) {
+void ChannelEmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime) {
   decisions_.clear();
   const std::int64_t digest =
       mode_ == Mode::kLockstep ? Digest64(raw.data(), static_cast<int>(raw.size())) : 0;
@@ -139,11 +160,11 @@ void EmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utim
   }
 }
 
-void EmulatorApp::PublishEvents() {
+void ChannelEmulatorApp::PublishEvents() {
   events_.Flush([&](const channel_events_t& b) { bus_->Publish(channels::ChannelEvents(), b); });
 }
 
-void EmulatorApp::ReleaseWindow() {
+void ChannelEmulatorApp::ReleaseWindow() {
   // The window's deliveries, per receiver, in delivery order.
   for (auto& o : outbox_) o.clear();
   for (std::int64_t j = win_first_; j <= win_last_; ++j) {
@@ -160,7 +181,7 @@ void EmulatorApp::ReleaseWindow() {
   for (const std::vector<int>& group : bus_groups_) {
     Bus* b = vbus_[group[0]];
     for (int id : group) next[id] = 0;
-    clock_tick_t c = WindowClock();
+    clock_window_t c = WindowClock();
     for (std::int64_t j = win_first_; j <= win_last_; ++j) {
       for (int id : group) {
         const std::vector<Outgoing>& out = outbox_[id];
@@ -184,8 +205,8 @@ void EmulatorApp::ReleaseWindow() {
   tick_ = win_last_;
 }
 
-clock_tick_t EmulatorApp::WindowClock() const {
-  clock_tick_t c;
+clock_window_t ChannelEmulatorApp::WindowClock() const {
+  clock_window_t c;
   c.utime = win_first_ * period_us_;
   c.vehicle_id = kEmulatorId;
   c.seq = clock_seq_;
@@ -197,7 +218,7 @@ clock_tick_t EmulatorApp::WindowClock() const {
   return c;
 }
 
-void EmulatorApp::PublishHealth(Micros utime) {
+void ChannelEmulatorApp::PublishHealth(Micros utime) {
   health_t h;
   h.utime = utime;
   h.vehicle_id = kEmulatorId;
@@ -219,7 +240,7 @@ void EmulatorApp::PublishHealth(Micros utime) {
   bus_->Publish(channels::Health(kEmulatorId), h);
 }
 
-void EmulatorApp::PublishStatus(const std::string& state, const std::string& message) {
+void ChannelEmulatorApp::PublishStatus(RunState state, const std::string& message) {
   run_status_t st;
   st.utime = std::max<std::int64_t>(tick_, 0) * period_us_;
   st.vehicle_id = kEmulatorId;
@@ -227,7 +248,7 @@ void EmulatorApp::PublishStatus(const std::string& state, const std::string& mes
   // (as shoal sim's does); shoal analyze and shoal render read it from there.
   st.scenario_toml = status_seq_ == 0 ? s_.source_text : "";
   st.seq = status_seq_++;
-  st.state = state;
+  st.state = RunStateName(state);
   st.scenario_name = s_.name;
   st.seed = static_cast<std::int64_t>(s_.seed);
   st.followers = n_;
@@ -235,15 +256,16 @@ void EmulatorApp::PublishStatus(const std::string& state, const std::string& mes
   bus_->Publish(channels::Status(), st);
 }
 
-int EmulatorApp::Run() { return mode_ == Mode::kLockstep ? RunLockstep() : RunRealtime(); }
+int ChannelEmulatorApp::Run() {
+  return mode_ == Mode::kLockstep ? RunLockstep() : RunRealtime();
+}
 
-int EmulatorApp::RunLockstep() {
-  // Wait until every process has announced itself.
+int ChannelEmulatorApp::WaitForReady() {
   const std::int64_t start = MonotonicNs();
   for (;;) {
     bool all = true;
     for (bool r : ready_) all = all && r;
-    if (all) break;
+    if (all) return -1;
     if (StopRequested()) return 1;
     if (MonotonicNs() - start > 60000000000LL) {
       std::ostringstream missing;
@@ -252,12 +274,17 @@ int EmulatorApp::RunLockstep() {
       }
       std::cerr << "shoal_channel_emulator: no ready status from vehicle(s)" << missing.str()
                 << " within 60 s\n";
-      PublishStatus("failed", "not ready:" + missing.str());
+      PublishStatus(RunState::kFailed, "not ready:" + missing.str());
       return 3;
     }
-    bus_->Handle(20);
+    HandleBus(20);
   }
-  PublishStatus("running", "");
+}
+
+int ChannelEmulatorApp::RunLockstep() {
+  const int not_started = WaitForReady();
+  if (not_started >= 0) return not_started;
+  PublishStatus(RunState::kRunning, "");
 
   // Conservative lookahead (as in conservative parallel discrete-event simulation): a
   // state sent at tick s is delivered at tick s + lookahead_ at the earliest, so every
@@ -267,63 +294,24 @@ int EmulatorApp::RunLockstep() {
   // Each vehicle still applies each tick's deliveries (those the tick lists) and steps the
   // ticks one by one in order, so every process computes exactly what it computes with one
   // round trip per tick (and what shoal sim does).
-  bool lost_any = false;
   for (std::int64_t k = 0; k <= final_tick_; k += lookahead_) {
     if (StopRequested()) {
       PublishEvents();
-      PublishStatus("interrupted", "");
+      PublishStatus(RunState::kInterrupted, "");
       return 1;
     }
     win_first_ = k;
     win_last_ = std::min(k + lookahead_ - 1, final_tick_);
     std::fill(got_tick_.begin(), got_tick_.end(), false);
     ReleaseWindow();
-    // Wait for the state of every live process for every tick of the window.
-    const std::int64_t asked = MonotonicNs();
-    const std::size_t used = static_cast<std::size_t>((win_last_ - win_first_ + 1) * (n_ + 1));
-    for (;;) {
-      bool all = true;
-      for (std::size_t slot = 0; slot < used && all; ++slot) {
-        all = !alive_[slot % (n_ + 1)] || got_tick_[slot];
-      }
-      if (all) break;
-      if (StopRequested()) {
-        PublishEvents();
-        PublishStatus("interrupted", "");
-        return 1;
-      }
-      if (MonotonicNs() - asked > kAnswerTimeoutNs) {
-        for (int id = 0; id <= n_; ++id) {
-          if (!alive_[id]) continue;
-          std::int64_t missing = -1;  // first tick of the window without its state
-          for (std::int64_t j = win_first_; j <= win_last_ && missing < 0; ++j) {
-            if (!got_tick_[static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id)]) {
-              missing = j;
-            }
-          }
-          if (missing < 0) continue;
-          alive_[id] = false;
-          lost_any = true;
-          std::ostringstream msg;
-          msg << "vehicle " << id << " stopped answering at t = "
-              << ToSeconds(missing * period_us_) << " s";
-          std::cerr << "shoal_channel_emulator: " << msg.str() << "\n";
-          PublishStatus("vehicle_lost", msg.str());
-        }
-        break;
-      }
-      bus_->Handle(10);
+    const WindowWait w = WaitForWindow();
+    if (w == WindowWait::kStopped) {
+      PublishEvents();
+      PublishStatus(RunState::kInterrupted, "");
+      return 1;
     }
-    // States enter the channel tick by tick, in id order (leader first), as in shoal sim.
-    for (std::int64_t j = win_first_; j <= win_last_; ++j) {
-      const Micros now = j * period_us_;
-      for (int id = 0; id <= n_; ++id) {
-        const auto slot = static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id);
-        if (got_tick_[slot]) Submit(id, tick_state_[slot], tick_seq_[slot], now);
-      }
-      tick_ = j;
-      if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
-    }
+    if (w == WindowWait::kTimedOut) DeclareSilentLost();
+    SubmitWindow();
     // The recorder first catches up with the window (its states), then the window's
     // decisions go out in one SHOAL_CHANNEL message, then the next window.
     if (recorder_) recorder_->Wait(kRecorderWaitNs);
@@ -336,12 +324,58 @@ int EmulatorApp::RunLockstep() {
               << recorder_->timeouts() << " gave up after "
               << kRecorderWaitNs / 1000000 << " ms\n";
   }
-  PublishStatus("finished", lost_any ? "some vehicles were lost" : "");
-  return lost_any ? 4 : 0;
+  PublishStatus(RunState::kFinished, lost_any_ ? "some vehicles were lost" : "");
+  return lost_any_ ? 4 : 0;
 }
 
-int EmulatorApp::RunRealtime() {
-  PublishStatus("running", "");
+ChannelEmulatorApp::WindowWait ChannelEmulatorApp::WaitForWindow() {
+  const std::int64_t asked = MonotonicNs();
+  const std::size_t used = static_cast<std::size_t>((win_last_ - win_first_ + 1) * (n_ + 1));
+  for (;;) {
+    bool all = true;
+    for (std::size_t slot = 0; slot < used && all; ++slot) {
+      all = !alive_[slot % (n_ + 1)] || got_tick_[slot];
+    }
+    if (all) return WindowWait::kComplete;
+    if (StopRequested()) return WindowWait::kStopped;
+    if (MonotonicNs() - asked > kAnswerTimeoutNs) return WindowWait::kTimedOut;
+    HandleBus(10);
+  }
+}
+
+void ChannelEmulatorApp::DeclareSilentLost() {
+  for (int id = 0; id <= n_; ++id) {
+    if (!alive_[id]) continue;
+    std::int64_t missing = -1;  // first tick of the window without its state
+    for (std::int64_t j = win_first_; j <= win_last_ && missing < 0; ++j) {
+      if (!got_tick_[static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id)]) missing = j;
+    }
+    if (missing < 0) continue;
+    alive_[id] = false;
+    lost_any_ = true;
+    std::ostringstream msg;
+    msg << "vehicle " << id << " stopped answering at t = " << ToSeconds(missing * period_us_)
+        << " s";
+    std::cerr << "shoal_channel_emulator: " << msg.str() << "\n";
+    PublishStatus(RunState::kVehicleLost, msg.str());
+  }
+}
+
+void ChannelEmulatorApp::SubmitWindow() {
+  // States enter the channel tick by tick, in id order (leader first), as in shoal sim.
+  for (std::int64_t j = win_first_; j <= win_last_; ++j) {
+    const Micros now = j * period_us_;
+    for (int id = 0; id <= n_; ++id) {
+      const auto slot = static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id);
+      if (got_tick_[slot]) Submit(id, tick_state_[slot], tick_seq_[slot], now);
+    }
+    tick_ = j;
+    if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);
+  }
+}
+
+int ChannelEmulatorApp::RunRealtime() {
+  PublishStatus(RunState::kRunning, "");
   double max_delay = MaxDelaySeconds(s_.delay);
   for (const LinkOverride& o : s_.links) {
     if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
@@ -376,19 +410,19 @@ int EmulatorApp::RunRealtime() {
     if (due >= 0) wake_ns = std::min(wake_ns, t0_ns_ + due * 1000);
     const std::int64_t wait_ns = wake_ns - MonotonicNs();
     if (wait_ns > 2000000) {
-      bus_->Handle(static_cast<int>(std::min<std::int64_t>((wait_ns - 1000000) / 1000000, 20)));
+      HandleBus(static_cast<int>(std::min<std::int64_t>((wait_ns - 1000000) / 1000000, 20)));
     } else if (wait_ns > 0) {
-      bus_->Handle(0);
+      HandleBus(0);
       if (channel_.NextDue() == due) SleepUntilNs(wake_ns);
     }
   }
   PublishEvents();
   PublishHealth((MonotonicNs() - t0_ns_) / 1000);
-  PublishStatus(StopRequested() ? "interrupted" : "finished", "");
+  PublishStatus(StopRequested() ? RunState::kInterrupted : RunState::kFinished, "");
   return StopRequested() ? 1 : 0;
 }
 
-int EmulatorMain(int argc, char** argv) {
+int ChannelEmulatorMain(int argc, char** argv) {
   CLI::App app{"Shoal channel emulator: the only path between vehicles (delay, loss, clock)"};
   ProcessOptions opt;
   std::vector<std::string> vehicle_urls;
@@ -442,8 +476,8 @@ int EmulatorMain(int argc, char** argv) {
       }
       vbus.push_back(found->second);
     }
-    EmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus,
-                     max_lookahead);
+    ChannelEmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus,
+                            max_lookahead);
     if (opt.parsed_mode() == Mode::kLockstep) {
       std::cerr << "shoal_channel_emulator: lockstep, " << app_.lookahead_ticks()
                 << " tick(s) per round trip\n";

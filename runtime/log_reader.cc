@@ -1,4 +1,4 @@
-#include "analysis/log_reader.h"
+#include "runtime/log_reader.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -240,6 +240,58 @@ bool LcmLogReader::Next(LogEventView* ev) {
     return false;
   }
   return false;
+}
+
+bool LcmLogReader::OpenToFollow(const std::string& path) {
+  path_ = path;
+  fd_ = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  return fd_ >= 0;
+}
+
+int LcmLogReader::ReadAppended(const EventHandler& on) {
+  if (done_ || fd_ < 0) return done_ ? -1 : 0;
+  struct stat st {};
+  if (fstat(fd_, &st) == 0) file_size_ = st.st_size;
+  eof_ = false;  // read what was appended since the last call
+  int handled = 0;
+  while (Ensure(kHeaderBytes)) {
+    const std::uint8_t* h = buf_.data() + pos_;
+    const std::int32_t cl = I32(h + 20), dl = I32(h + 24);
+    if (U32(h) != kSync || cl < 1 || cl > kMaxChannel || dl < 0 || dl > kMaxData) {
+      Warn("damaged at byte " + Num(FileOffset()) + " (" +
+           (U32(h) != kSync ? "no sync word" : "an implausible event header") +
+           "); stopped following the log there");
+      done_ = true;
+      stopped_early_ = true;
+      return -1;
+    }
+    const std::size_t total =
+        kHeaderBytes + static_cast<std::size_t>(cl) + static_cast<std::size_t>(dl);
+    if (!Ensure(total)) break;  // not completely written yet
+    h = buf_.data() + pos_;     // Ensure may have moved the buffer
+    on(std::string_view(reinterpret_cast<const char*>(h + kHeaderBytes),
+                        static_cast<std::size_t>(cl)),
+       h + kHeaderBytes + cl, dl);
+    pos_ += total;
+    ++events_;
+    ++handled;
+  }
+  return handled;
+}
+
+int LogTail::Poll(const Handler& on) {
+  if (damaged_) return -1;
+  if (!open_) {
+    open_ = reader_.OpenToFollow(path_);
+    if (!open_) return 0;  // not created yet
+  }
+  const int handled =
+      reader_.ReadAppended([&](std::string_view ch, const std::uint8_t* data, int size) {
+        channel_.assign(ch.data(), ch.size());
+        on(channel_, data, size);
+      });
+  damaged_ = handled < 0;
+  return handled;
 }
 
 }  // namespace shoal

@@ -1,0 +1,273 @@
+#include "runtime/clocked_node.h"
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <shoal/run_status_t.hpp>
+
+#include "core/channel_model.h"
+#include "core/topology.h"
+#include "runtime/channels.h"
+#include "runtime/messages.h"
+
+namespace shoal {
+
+namespace {
+constexpr std::int64_t kWaitWarningNs = 5000000000LL;
+constexpr std::int64_t kIdleExitNs = 30000000000LL;
+constexpr std::int64_t kReadyEveryNs = 100000000LL;
+constexpr std::int64_t kNoClockExitNs = 60000000000LL;
+
+std::int64_t LockstepTicksAhead(const Scenario& s) {
+  const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
+  return MinLagTicks(BuildLinks(s, topo), s.period_us());
+}
+}  // namespace
+
+ClockedNode::ClockedNode(const Scenario& s, int id, Mode mode, std::int64_t t0_ns,
+                         double duration_s, Bus* bus, Bus* rx_bus)
+    : s_(s),
+      id_(id),
+      mode_(mode),
+      t0_ns_(t0_ns),
+      period_us_(s.period_us()),
+      final_tick_(s.final_tick(duration_s)),
+      bus_(bus),
+      rx_bus_(rx_bus),
+      max_ticks_ahead_(LockstepTicksAhead(s)),
+      state_channel_(channels::State(id)),
+      health_channel_(channels::Health(id)) {}
+
+void ClockedNode::Init() {
+  SubscribeInputs();
+  if (mode_ == Mode::kLockstep) SubscribeInput(channels::Clock(), kClockKind);
+}
+
+void ClockedNode::SubscribeInput(const std::string& channel, int kind) {
+  rx_bus_->Subscribe(
+      channel, [this, kind](const std::string&, const void* d, int n) { Enqueue(kind, d, n); });
+}
+
+void ClockedNode::Enqueue(int kind, const void* data, int size) {
+  if (inbox_size_ == inbox_.size()) inbox_.emplace_back();
+  Inbound& in = inbox_[inbox_size_++];
+  in.kind = kind;
+  const auto* p = static_cast<const unsigned char*>(data);
+  in.bytes.assign(p, p + (size > 0 && p != nullptr ? size : 0));
+}
+
+int ClockedNode::HandleBus(int timeout_ms) {
+  const int handled = rx_bus_->Handle(timeout_ms);
+  // Applied in arrival order, each as its handler would have done it: entries stay in
+  // place (their buffers are reused) and the inbox is empty again at the end.
+  for (std::size_t k = 0; k < inbox_size_; ++k) {
+    const Inbound& in = inbox_[k];
+    const auto* data = in.bytes.empty() ? nullptr : in.bytes.data();
+    const int size = static_cast<int>(in.bytes.size());
+    if (in.kind == kClockKind) {
+      OnClock(data, size);
+    } else if (OnInput(in.kind, data, size) && mode_ == Mode::kLockstep) {
+      StepWhatIsDue();
+    }
+  }
+  inbox_size_ = 0;
+  return handled;
+}
+
+bool ClockedNode::OnInput(int /*kind*/, const unsigned char* /*data*/, int /*size*/) {
+  return false;
+}
+
+const ClockedNode::Delivery* ClockedNode::ApplyListed(const std::vector<Delivery>& listed) {
+  return listed.empty() ? nullptr : &listed.front();  // nothing is ever delivered here
+}
+
+bool ClockedNode::AcceptableWindow(const clock_window_t& c) const {
+  // All its ticks must be ticks this process can be given now (none stepped or announced
+  // yet, none further ahead than the channel's smallest delivery lag, none past the run's
+  // end), and every delivery it lists must be for one of them. The ranges are checked
+  // before any arithmetic on the fields (a forged tick or count must not overflow).
+  bool ok = c.vehicle_id == kEmulatorId && c.n_ticks >= 1 && c.n_ticks <= max_ticks_ahead_ &&
+            c.tick >= next_tick_ && c.tick <= final_tick_ && c.period_us == period_us_;
+  const std::int64_t last = ok ? c.tick + c.n_ticks - 1 : 0;
+  ok = ok && last < next_tick_ + max_ticks_ahead_ && last <= final_tick_ &&
+       c.utime == c.tick * period_us_ && due_.lower_bound(c.tick) == due_.upper_bound(last);
+  for (std::int32_t k = 0; ok && k < c.n_deliveries; ++k) {
+    ok = c.delivery_tick[k] >= c.tick && c.delivery_tick[k] <= last;
+  }
+  return ok;
+}
+
+void ClockedNode::OnClock(const unsigned char* data, int size) {
+  clock_window_t c;
+  if (!Decode(data, size, &c) || !AcceptableWindow(c)) {
+    ++counters_.bad_clock;
+    return;
+  }
+  const std::int64_t last = c.tick + c.n_ticks - 1;
+  for (std::int64_t j = c.tick; j <= last; ++j) {
+    due_[j].final_tick = j == last && c.final_tick != 0;
+  }
+  for (std::int32_t k = 0; k < c.n_deliveries; ++k) {
+    if (c.delivery_receiver[k] == id_) {
+      due_[c.delivery_tick[k]].deliveries.push_back(
+          {c.delivery_sender[k], c.delivery_seq[k], c.delivery_digest[k]});
+    }
+  }
+  StepWhatIsDue();
+}
+
+void ClockedNode::StepWhatIsDue() {
+  for (auto it = due_.find(next_tick_); it != due_.end(); it = due_.find(next_tick_)) {
+    const Delivery* missing = ApplyListed(it->second.deliveries);
+    if (missing != nullptr) {
+      NoteWaiting(*missing);
+      return;
+    }
+    const bool final_tick = it->second.final_tick;
+    const std::int64_t tick = it->first;
+    due_.erase(it);
+    waiting_since_ns_ = 0;
+    warned_waiting_ = false;
+    Step(tick);
+    AfterLockstepStep(tick);
+    if (final_tick || tick >= final_tick_) {
+      done_ = true;
+      return;
+    }
+  }
+}
+
+void ClockedNode::NoteWaiting(const Delivery& missing) {
+  if (waiting_since_ns_ == 0) waiting_since_ns_ = MonotonicNs();
+  if (!warned_waiting_ && MonotonicNs() - waiting_since_ns_ > kWaitWarningNs) {
+    std::fprintf(stderr,
+                 "vehicle %d: tick %lld still waits for the delivery of %d's "
+                 "state seq %d (a datagram lost on the bus?)\n",
+                 id_, static_cast<long long>(next_tick_), missing.sender, missing.seq);
+    warned_waiting_ = true;
+  }
+}
+
+void ClockedNode::Step(std::int64_t tick) {
+  const Micros now = tick * period_us_;
+  bus_->Publish(state_channel_, ToLcm(StepAt(now)));
+  next_tick_ = tick + 1;
+  if (now % 1000000 < period_us_ || tick == final_tick_) PublishHealth(now);
+}
+
+void ClockedNode::PublishHealth(Micros utime) {
+  health_t h = Health(utime);
+  h.seq = health_seq_++;
+  h.lateness_p50_s = lateness_.Quantile(0.5);
+  h.lateness_p99_s = lateness_.Quantile(0.99);
+  h.lateness_max_s = lateness_.max();
+  h.overruns = counters_.overruns;
+  bus_->Publish(health_channel_, h);
+}
+
+void ClockedNode::PublishStatus(const std::string& state) {
+  run_status_t st;
+  st.utime = next_tick_ * period_us_;
+  st.vehicle_id = id_;
+  st.seq = status_seq_++;
+  st.state = state;
+  st.scenario_name = s_.name;
+  st.scenario_toml = "";
+  st.seed = static_cast<std::int64_t>(s_.seed);
+  st.followers = s_.followers;
+  st.message = "";
+  bus_->Publish(channels::Status(), st);
+}
+
+int ClockedNode::Run() { return mode_ == Mode::kLockstep ? RunLockstep() : RunRealtime(); }
+
+bool ClockedNode::AnnounceReady(std::int64_t start_ns, std::int64_t* last_ready_ns) {
+  const std::int64_t now = MonotonicNs();
+  if (now - *last_ready_ns > kReadyEveryNs) {
+    PublishStatus(RunStateName(RunState::kReady));
+    *last_ready_ns = now;
+  }
+  if (now - start_ns > kNoClockExitNs) {
+    std::cerr << "vehicle " << id_ << ": no clock tick within 60 s; exiting\n";
+    return false;
+  }
+  return true;
+}
+
+int ClockedNode::RunLockstep() {
+  // Announce readiness until the clock master starts the run.
+  std::int64_t last_ready = 0;
+  const std::int64_t start = MonotonicNs();
+  while (!done_ && !StopRequested()) {
+    if (next_tick_ == 0 && !AnnounceReady(start, &last_ready)) return 3;
+    const std::int64_t stepped_before = next_tick_;
+    const int handled = HandleBus(50);
+    if (handled < 0) return 1;
+    if (handled == 0 && !due_.empty()) StepWhatIsDue();  // to say what it waits for
+    if (next_tick_ != stepped_before) last_step_ns_ = MonotonicNs();
+    if (next_tick_ > 0 && MonotonicNs() - last_step_ns_ > kIdleExitNs) {
+      std::cerr << "vehicle " << id_ << ": no tick could be stepped for "
+                << kIdleExitNs / 1000000000LL << " s after tick " << next_tick_ - 1
+                << " (the clock master is gone, or declared this vehicle lost); exiting\n";
+      return 3;
+    }
+  }
+  if (done_) PublishStatus(RunStateName(RunState::kFinished));
+  return done_ ? 0 : 1;
+}
+
+int ClockedNode::RunRealtime() {
+  const std::int64_t period_ns = period_us_ * 1000;
+  for (std::int64_t k = 0; k <= final_tick_ && !StopRequested(); ++k) {
+    const std::int64_t deadline = t0_ns_ + k * period_ns;
+    SleepUntilNs(deadline);
+    if (StopRequested()) break;
+    lateness_.Add(static_cast<double>(MonotonicNs() - deadline) * 1e-9);
+    HandleBus(0);  // everything delivered so far
+    Step(k);
+    if (MonotonicNs() > deadline + period_ns) ++counters_.overruns;
+  }
+  const bool finished = next_tick_ > final_tick_;
+  std::fprintf(stderr,
+               "vehicle %d: %lld ticks, lateness p50 %.3f ms p99 %.3f ms max %.3f ms, "
+               "%lld overruns\n",
+               id_, static_cast<long long>(next_tick_), lateness_.Quantile(0.5) * 1e3,
+               lateness_.Quantile(0.99) * 1e3, lateness_.max() * 1e3,
+               static_cast<long long>(counters_.overruns));
+  PublishStatus(RunStateName(finished ? RunState::kFinished : RunState::kInterrupted));
+  return finished ? 0 : 1;
+}
+
+int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& name,
+                    const std::function<bool(const Scenario&)>& valid,
+                    const std::function<std::unique_ptr<ClockedNode>(const NodeContext&)>& make) {
+  ProcessOptions opt;
+  AddProcessOptions(app, &opt);
+  Scenario s;
+  const int started = StartProcess(app, argc, argv, name, opt, &s);
+  if (started >= 0) return started;
+  if (!valid(s)) return 2;
+  // Before LCM starts its receive thread, so that the thread inherits the policy.
+  if (opt.parsed_mode() == Mode::kRealtime) {
+    std::cerr << name << ": " << EnableRealtimeScheduling(40) << "\n";
+  } else {
+    std::cerr << name << ": " << EnableBatchScheduling() << "\n";
+  }
+  try {
+    LcmBus bus(opt.lcm_url);
+    std::unique_ptr<LcmBus> rx;
+    if (!opt.rx_url.empty() && opt.rx_url != opt.lcm_url) rx = std::make_unique<LcmBus>(opt.rx_url);
+    const NodeContext c{s,         opt.parsed_mode(),
+                        opt.t0_ns, opt.duration_s,
+                        &bus,      rx ? static_cast<Bus*>(rx.get()) : &bus};
+    std::unique_ptr<ClockedNode> node = make(c);
+    node->Init();
+    return node->Run();
+  } catch (const std::exception& e) {
+    std::cerr << name << ": " << e.what() << "\n";
+    return 2;
+  }
+}
+
+}  // namespace shoal

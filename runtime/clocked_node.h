@@ -1,0 +1,161 @@
+// What the leader and vehicle processes share: a life of construct (no I/O) -> Init
+// (subscribe) -> Run -> exit code, following the lockstep clock master (one step per
+// tick of a SHOAL_CLOCK window, held until the tick's listed deliveries are here, with an
+// exit when the master is gone) or a fixed-rate loop on absolute deadlines (realtime),
+// and publishing the process's state, health and status. What a tick computes is the
+// derived app's (vehicle/vehicle_app.h, leader/leader_app.h).
+//
+// LCM handlers only copy the message into an inbox and return; HandleBus() then decodes
+// and applies the inbox in arrival order, stepping whatever became due after each
+// message, outside any handler.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <shoal/clock_window_t.hpp>
+#include <shoal/health_t.hpp>
+#include <string>
+#include <vector>
+
+#include "core/scenario.h"
+#include "core/state_msg.h"
+#include "runtime/clock.h"
+#include "runtime/lcm_bus.h"
+#include "runtime/process.h"
+
+namespace shoal {
+
+struct ClockCounters {
+  std::int64_t bad_clock = 0;  // undecodable, duplicate, out-of-order or foreign clock windows
+  std::int64_t overruns = 0;   // realtime: ticks whose work outlasted their period
+};
+
+class ClockedNode {
+ public:
+  /// `bus` is the shared bus (state, health, status), `rx_bus` the one this process
+  /// receives on (may be the same object).
+  ClockedNode(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, double duration_s, Bus* bus,
+              Bus* rx_bus);
+  virtual ~ClockedNode() = default;
+  ClockedNode(const ClockedNode&) = delete;
+  ClockedNode& operator=(const ClockedNode&) = delete;
+
+  /// Subscribes the app's inputs, then (lockstep) the clock.
+  void Init();
+  /// Runs to the end of the scenario or until StopRequested(). Returns the exit code:
+  /// 0 finished, 1 stopped early, 3 no clock came or it stopped coming (lockstep).
+  int Run();
+  /// Dispatches what the receive bus has (waiting at most timeout_ms for the first
+  /// message), then applies it in arrival order, stepping (lockstep) what became due after
+  /// each message. Returns the number of messages handled, -1 on a bus error.
+  int HandleBus(int timeout_ms);
+
+  const ClockCounters& counters() const { return counters_; }
+  int id() const { return id_; }
+
+ protected:
+  /// One delivery a clock window lists for this process at a tick.
+  struct Delivery {
+    std::int32_t sender;
+    std::int32_t seq;
+    std::int64_t digest;  // Digest64 of the delivered bytes
+  };
+  /// Inbox kinds: the clock, and the derived app's own (from kFirstInputKind on).
+  static constexpr int kClockKind = 0;
+  static constexpr int kFirstInputKind = 1;
+
+  /// Subscribes `channel` on the receive bus; its messages reach OnInput as `kind`.
+  void SubscribeInput(const std::string& channel, int kind);
+
+  /// The app's own subscriptions (SubscribeInput), made by Init before the clock's.
+  virtual void SubscribeInputs() {}
+  /// Applies one message of the inbox (kind >= kFirstInputKind), outside any handler.
+  /// Returns whether it may have completed a lockstep tick (then due ticks are stepped).
+  virtual bool OnInput(int kind, const unsigned char* data, int size);
+  /// Lockstep: applies exactly `listed`, in order, if every one of them is here, and
+  /// returns nullptr; else applies nothing and returns the first one missing.
+  virtual const Delivery* ApplyListed(const std::vector<Delivery>& listed);
+  /// Lockstep: after tick `tick` was stepped (drops what no later tick can list).
+  virtual void AfterLockstepStep(std::int64_t /*tick*/) {}
+  /// The control step at time `now`: the state to publish.
+  virtual const StateMsg& StepAt(Micros now) = 0;
+  /// The app's part of its health report at `utime` (seq, lateness and overruns are set
+  /// by the caller).
+  virtual health_t Health(Micros utime) const = 0;
+
+  Micros period_us() const { return period_us_; }
+  std::int64_t next_tick() const { return next_tick_; }
+  Mode mode() const { return mode_; }
+
+ private:
+  struct DueTick {
+    bool final_tick = false;
+    std::vector<Delivery> deliveries;
+  };
+  struct Inbound {
+    int kind = 0;
+    std::vector<unsigned char> bytes;
+  };
+  void Enqueue(int kind, const void* data, int size);
+  /// A clock window: checked completely, then its ticks and this process's deliveries
+  /// become due. Refused (counted) if any part is not a window this process can be given.
+  void OnClock(const unsigned char* data, int size);
+  bool AcceptableWindow(const clock_window_t& c) const;
+  /// Lockstep: steps every tick whose clock tick and listed deliveries are all here.
+  void StepWhatIsDue();
+  /// Lockstep: says (once per tick, after a while) what the tick waits for.
+  void NoteWaiting(const Delivery& missing);
+  void Step(std::int64_t tick);
+  void PublishHealth(Micros utime);
+  void PublishStatus(const std::string& state);
+  int RunLockstep();
+  /// Lockstep: announces readiness until the first tick; false once it waited too long.
+  bool AnnounceReady(std::int64_t start_ns, std::int64_t* last_ready_ns);
+  int RunRealtime();
+
+  const Scenario& s_;
+  const int id_;
+  const Mode mode_;
+  const std::int64_t t0_ns_;
+  const Micros period_us_;
+  const std::int64_t final_tick_;
+  Bus* const bus_;
+  Bus* const rx_bus_;
+  // Lockstep: clock windows accepted reach at most this many ticks beyond the next one to
+  // step (the channel's smallest delivery lag, which bounds the clock master's windows).
+  const std::int64_t max_ticks_ahead_;
+  const std::string state_channel_, health_channel_;
+  std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
+  std::size_t inbox_size_ = 0;
+  std::int64_t next_tick_ = 0;           // the tick to step next
+  std::map<std::int64_t, DueTick> due_;  // lockstep: ticks announced, not yet stepped
+  std::int64_t waiting_since_ns_ = 0;    // when the tick expected next started to wait
+  bool warned_waiting_ = false;
+  std::int64_t last_step_ns_ = 0;  // lockstep: when a tick was last stepped
+  bool done_ = false;
+  std::int32_t health_seq_ = 0, status_seq_ = 0;
+  ClockCounters counters_;
+  LatenessStats lateness_;
+};
+
+/// What a clocked process's app is built from.
+struct NodeContext {
+  const Scenario& scenario;
+  Mode mode;
+  std::int64_t t0_ns;
+  double duration_s;
+  Bus* bus;
+  Bus* rx_bus;
+};
+
+/// The main() of a clocked process (shoal_leader, shoal_vehicle) after its own options are
+/// added to `app`: parses the command line, loads the scenario, checks it with `valid`
+/// (which says why on stderr if not: exit 2), sets the scheduling policy, opens the
+/// buses, builds the app with `make`, and runs it. Returns the exit code.
+int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& name,
+                    const std::function<bool(const Scenario&)>& valid,
+                    const std::function<std::unique_ptr<ClockedNode>(const NodeContext&)>& make);
+
+}  // namespace shoal

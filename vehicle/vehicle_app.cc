@@ -1,0 +1,128 @@
+#include "vehicle/vehicle_app.h"
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <shoal/vehicle_state_t.hpp>
+
+#include "core/channel_model.h"
+#include "core/topology.h"
+#include "runtime/channels.h"
+#include "runtime/messages.h"
+
+namespace shoal {
+
+namespace {
+// Lockstep bound on what a vehicle holds: far more than a run ever has in flight (a
+// window's deliveries), so that only forged traffic can reach it.
+constexpr std::size_t kMaxHeldDeliveries = 4096;
+
+Topology TopologyOf(const Scenario& s) {
+  return Topology::Build(s.followers, s.edges, s.leader_links);
+}
+}  // namespace
+
+VehicleApp::VehicleApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, double duration_s,
+                       Bus* bus, Bus* rx_bus)
+    : ClockedNode(s, id, mode, t0_ns, duration_s, bus, rx_bus), follower_(s, TopologyOf(s), id) {
+  // Lockstep: a message is delivered (listed) at the latest one period after send time +
+  // the largest delay of the links' delay models.
+  const std::vector<Link> links = BuildLinks(s, TopologyOf(s));
+  listable_us_ = static_cast<Micros>(std::ceil(MaxDelaySeconds(links) * 1e6)) + 2 * period_us();
+}
+
+void VehicleApp::SubscribeInputs() { SubscribeInput(channels::Rx(id()), kRxKind); }
+
+bool VehicleApp::OnInput(int /*kind*/, const unsigned char* data, int size) {
+  vehicle_state_t m{};
+  if (!Decode(data, size, &m)) {
+    ++rx_counters_.bad_rx;
+    return false;
+  }
+  const StateMsg msg = FromLcm(m);
+  if (mode() != Mode::kLockstep) {
+    follower_.Receive(msg);  // validates and counts (NaN/Inf, unknown, old)
+    return false;
+  }
+  // Lockstep: hold it until the clock tick that lists it, and apply it there (Receive
+  // counts it then, as shoal sim does at that tick -- an old one too: a delay model that
+  // lets messages overtake makes the channel deliver it after a newer one). What can never
+  // be used (NaN/Inf, unknown sender) is dropped and counted now.
+  const RxResult r = follower_.Check(msg);
+  if (r == RxResult::kUnknownSender || r == RxResult::kNonFinite) {
+    follower_.CountRejected(r);
+    return false;
+  }
+  if (held_.size() >= kMaxHeldDeliveries) DropHeld(0);
+  held_.push_back(Held{msg, Digest64(data, size)});
+  return true;
+}
+
+const ClockedNode::Delivery* VehicleApp::ApplyListed(const std::vector<Delivery>& listed) {
+  // Every listed delivery must be here; apply them in the listed order, as shoal sim.
+  std::vector<std::size_t>& at = listed_at_;
+  at.clear();
+  for (const Delivery& want : listed) {
+    std::size_t k = 0;
+    while (k < held_.size() &&
+           (held_[k].msg.vehicle_id != want.sender || held_[k].msg.seq != want.seq ||
+            held_[k].digest != want.digest || std::find(at.begin(), at.end(), k) != at.end())) {
+      ++k;
+    }
+    if (k == held_.size()) return &want;
+    at.push_back(k);
+  }
+  for (std::size_t k : at) follower_.Receive(held_[k].msg);
+  std::sort(at.begin(), at.end());
+  for (auto k = at.rbegin(); k != at.rend(); ++k) {
+    held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(*k));
+  }
+  return nullptr;
+}
+
+void VehicleApp::AfterLockstepStep(std::int64_t tick) {
+  // What no later tick can list any more (sent longer ago than the largest delay, plus a
+  // period) is dropped and counted.
+  const Micros oldest_listable = tick * period_us() - listable_us_;
+  for (std::size_t k = 0; k < held_.size();) {
+    if (held_[k].msg.utime < oldest_listable) {
+      DropHeld(k);
+    } else {
+      ++k;
+    }
+  }
+}
+
+void VehicleApp::DropHeld(std::size_t k) {
+  // Never listed: old if older than what was applied (a replay), else unlisted.
+  if (follower_.Check(held_[k].msg) == RxResult::kOld) {
+    follower_.CountRejected(RxResult::kOld);
+  } else {
+    ++rx_counters_.unlisted_rx;
+  }
+  held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(k));
+}
+
+health_t VehicleApp::Health(Micros utime) const {
+  health_t h = ToLcmHealth(utime, follower_, 0);
+  h.msgs_dropped_invalid += rx_counters_.bad_rx + counters().bad_clock + rx_counters_.unlisted_rx;
+  return h;
+}
+
+int VehicleMain(int argc, char** argv) {
+  CLI::App app{"Shoal vehicle process: one follower UUV running protocol (10)"};
+  int id = 0;
+  app.add_option("--id", id, "Follower id (1..n)")->required();
+  const auto valid_id = [&](const Scenario& s) {
+    if (id >= 1 && id <= s.followers) return true;
+    std::cerr << "shoal_vehicle: --id must be in 1.." << s.followers << " (got " << id << ")\n";
+    return false;
+  };
+  return ClockedNodeMain(&app, argc, argv, "shoal_vehicle", valid_id, [&](const NodeContext& c) {
+    return std::make_unique<VehicleApp>(c.scenario, id, c.mode, c.t0_ns, c.duration_s, c.bus,
+                                        c.rx_bus);
+  });
+}
+
+}  // namespace shoal

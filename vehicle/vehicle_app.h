@@ -1,0 +1,55 @@
+// The follower process (ids 1..n): protocol (10) on the core's Follower, fed with what the
+// channel emulator delivers on SHOAL_RX_<id>. In lockstep a delivery is held until the
+// clock window lists it for a tick, and applied at that tick (runtime/clocked_node.h).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/follower.h"
+#include "runtime/clocked_node.h"
+
+namespace shoal {
+
+struct VehicleRxCounters {
+  std::int64_t bad_rx = 0;       // undecodable / wrong fingerprint / truncated on SHOAL_RX
+  std::int64_t unlisted_rx = 0;  // lockstep: held messages no tick listed (not replays)
+};
+
+class VehicleApp : public ClockedNode {
+ public:
+  /// `id` in 1..followers; buses as ClockedNode.
+  VehicleApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, double duration_s, Bus* bus,
+             Bus* rx_bus);
+
+  const VehicleRxCounters& rx_counters() const { return rx_counters_; }
+  const Follower& follower() const { return follower_; }
+
+ private:
+  static constexpr int kRxKind = kFirstInputKind;
+  struct Held {
+    StateMsg msg;
+    std::int64_t digest = 0;  // Digest64 of the bytes received
+  };
+
+  void SubscribeInputs() override;
+  bool OnInput(int kind, const unsigned char* data, int size) override;
+  const Delivery* ApplyListed(const std::vector<Delivery>& listed) override;
+  void AfterLockstepStep(std::int64_t tick) override;
+  const StateMsg& StepAt(Micros now) override { return follower_.Tick(now); }
+  health_t Health(Micros utime) const override;
+  /// Lockstep: drops held message k, which no tick listed, counting it.
+  void DropHeld(std::size_t k);
+
+  Follower follower_;
+  std::vector<Held> held_;              // lockstep: received, not yet listed, in arrival order
+  std::vector<std::size_t> listed_at_;  // ApplyListed's scratch: held_ index per listed one
+  Micros listable_us_ = 0;  // lockstep: a delivery is listed within this of its send time
+  VehicleRxCounters rx_counters_;
+};
+
+/// The whole main() of shoal_vehicle: parse flags, load, run.
+int VehicleMain(int argc, char** argv);
+
+}  // namespace shoal
