@@ -96,6 +96,7 @@ std::vector<LinkSeries> LinkSeriesOf(const RunData& run) {
     if (e.status == 0) {
       l.sent_s.push_back(ToSeconds(e.send_utime));
       l.delay_s.push_back(ToSeconds(e.deliver_utime - e.send_utime));
+      l.model_delay_s.push_back(e.delay_s);
     } else {
       l.dropped_s.push_back(ToSeconds(e.send_utime));
     }

@@ -340,12 +340,12 @@ Panel ZoomPanel(const std::vector<const LinkSeries*>& links, const ChannelOption
 
 // What realised minus configured delay means in this run's mode.
 std::string DelayErrorNote(const ChannelOptions& o) {
-  char period[48] = "one control period";
+  char period[48] = "one control period)";
   if (o.control_period_s > 0) {
-    std::snprintf(period, sizeof period, "one control period (%g ms)", o.control_period_s * 1e3);
+    std::snprintf(period, sizeof period, "%g ms), one control period", o.control_period_s * 1e3);
   }
   const std::string quantised = std::string("deliveries wait for the next control tick, so ") +
-                                "delay \xE2\x88\x92 \xCF\x84 lies in [0, " + period + ")";
+                                "delay \xE2\x88\x92 \xCF\x84 lies in [0, " + period;
   const std::string release = "delay \xE2\x88\x92 \xCF\x84 is the emulator's release error";
   if (o.mode == "sim" || o.mode == "lockstep") return o.mode + " run: " + quantised;
   if (o.mode == "realtime") return "real-time run: " + release;
@@ -368,12 +368,19 @@ std::array<double, 5> Quantiles(std::vector<double> v) {
 // range as a thin line, the middle 90 % as a thick bar, the median as a black tick.
 Panel DelayErrorPanel(const std::vector<const LinkSeries*>& links, const ChannelOptions& o,
                       const TauCurve& tau) {
+  // The reference: each message's drawn delay where the links know it, else tau(t).
+  bool have_ref = tau.valid();
+  if (!have_ref) {
+    have_ref = true;
+    for (const LinkSeries* l : links)
+      have_ref = have_ref && l->model_delay_s.size() == l->delay_s.size();
+  }
   Panel p;
-  p.title = tau.valid() ? "realised minus configured delay per link, whole run"
+  p.title = have_ref ? "realised minus configured delay per link, whole run"
                         : "realised delay per link, whole run";
-  p.note = (tau.valid() ? DelayErrorNote(o) + ". " : std::string()) +
+  p.note = (have_ref ? DelayErrorNote(o) + ". " : std::string()) +
            "Thin line: min to max; bar: 5 to 95 %; black tick: median.";
-  SetAxis(&p.x, tau.valid() ? "delay \xE2\x88\x92 \xCF\x84" : "delay", "ms");
+  SetAxis(&p.x, have_ref ? "delay \xE2\x88\x92 \xCF\x84" : "delay", "ms");
   SetAxis(&p.y, "link", "");
   p.y.ticks = LinkTicks(links);
   p.legend = LegendPlacement::kNone;
@@ -387,8 +394,10 @@ Panel DelayErrorPanel(const std::vector<const LinkSeries*>& links, const Channel
     if (l.sent_s.empty()) continue;
     std::vector<double> d(l.delay_s);
     std::size_t hint = 0;
+    const bool drawn = l.model_delay_s.size() == d.size();
     for (std::size_t i = 0; i < d.size(); ++i) {
-      d[i] = 1e3 * (tau.valid() ? d[i] - tau.At(l.sent_s[i], &hint) : d[i]);
+      const double ref = drawn ? l.model_delay_s[i] : tau.At(l.sent_s[i], &hint);
+      d[i] = 1e3 * (have_ref ? d[i] - ref : d[i]);
     }
     const std::array<double, 5> q = Quantiles(std::move(d));
     const double row = LinkRow(k, links.size());
@@ -406,7 +415,7 @@ Panel DelayErrorPanel(const std::vector<const LinkSeries*>& links, const Channel
     medians.y.push_back(row);
   }
   if (!medians.x.empty()) p.series.push_back(std::move(medians));
-  if (tau.valid() && o.control_period_s > 0 && o.mode != "realtime") {
+  if (have_ref && o.control_period_s > 0 && o.mode != "realtime") {
     for (double v : {0.0, 1e3 * o.control_period_s})
       p.vlines.push_back({v, Color{0.45f, 0.45f, 0.45f, 1.0f}, LineStyle::kDashed, 1.2f, ""});
   }

@@ -29,10 +29,14 @@ struct ErrorSeries {
 };
 
 /// One directed link's channel ground truth: delivered messages (send time, realised
-/// delay) and dropped ones (send time).
+/// delay and, if known, the delay the link's model drew for the message) and dropped ones
+/// (send time).
 struct LinkSeries {
   int from = 0, to = 1;
   std::vector<double> sent_s, delay_s;
+  /// Empty, or as long as delay_s: then the delay error is taken against it rather than
+  /// against ChannelOptions' tau(t) (right for per-link and random delay models too).
+  std::vector<double> model_delay_s;
   std::vector<double> dropped_s;
 };
 

@@ -629,7 +629,7 @@ TEST(RenderFigures, ChannelGivesEachLinkARowAndSaysWhatTheDelayErrorMeans) {
     EXPECT_EQ(medians.y[k], p.y.ticks[k].value);
   }
   // and a note that in a sim run the difference lies within one control period.
-  EXPECT_NE(p.note.find("[0, one control period (20 ms))"), std::string::npos) << p.note;
+  EXPECT_NE(p.note.find("[0, 20 ms), one control period"), std::string::npos) << p.note;
   o.mode = "realtime";
   EXPECT_NE(ChannelFigure(links, o).panels[1].note.find("release error"), std::string::npos);
   Image img;
@@ -650,7 +650,9 @@ TEST(RenderFigures, StatesDrawDepthDownwardsLikeThe3DFigure) {
   EXPECT_TRUE(t.z_down);
   EXPECT_NE(t.z_label.find("down"), std::string::npos) << t.z_label;
   for (std::size_t k = 0; k < f.panels.size(); ++k) {
-    if (k != 4) EXPECT_FALSE(f.panels[k].y.reversed) << "panel " << k;
+    if (k != 4) {
+      EXPECT_FALSE(f.panels[k].y.reversed) << "panel " << k;
+    }
   }
 }
 
