@@ -442,6 +442,7 @@ Panel DropPanel(const std::vector<const LinkSeries*>& links, double t_start, dou
     s.color.a = DensityAlpha(s.x.size(), 0.05f);
     if (!s.x.empty()) drops.series.push_back(std::move(s));
   }
+  if (drops.series.empty()) drops.note = "no message was dropped";
   drops.x.min = t_start;
   drops.x.max = t_end > t_start ? t_end : t_start + 1.0;
   return drops;
