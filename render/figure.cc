@@ -49,13 +49,17 @@ Color VehicleColor(int id) {
   // darker mustard that stays visible on white.
   static const std::uint32_t kOkabeIto[7] = {0x0072B2, 0xD55E00, 0x009E73, 0xCC79A7,
                                              0xE69F00, 0x56B4E9, 0xB8A000};
-  // Paul Tol's "muted" qualitative scheme.
-  static const std::uint32_t kTolMuted[9] = {0x332288, 0x88CCEE, 0x44AA99, 0x117733, 0x999933,
-                                             0xDDCC77, 0xCC6677, 0x882255, 0xAA4499};
+  // Then nine of Kelly's (1965) colours of maximum contrast and of the ColorBrewer
+  // "Paired"/"Dark2" sets, chosen greedily to be as far as possible (CIELAB) from the seven
+  // above and from each other, at lightness 30-75 so that they show on white and differ
+  // from the leader's near black. Every pair of the 16 is at least 20 Delta-E apart
+  // (render_test checks it); Paul Tol's muted set, used before, had pairs 14 apart.
+  static const std::uint32_t kMore[9] = {0x654522, 0xBE0032, 0xC2B280, 0x6A3D9A, 0x225555,
+                                         0x66A61E, 0xF99379, 0x225522, 0x882255};
   if (id < 0) return Hex(0x888888);
   if (id == 0) return Hex(0x222222);
   const int k = (id - 1) % 16;
-  return k < 7 ? Hex(kOkabeIto[k]) : Hex(kTolMuted[k - 7]);
+  return k < 7 ? Hex(kOkabeIto[k]) : Hex(kMore[k - 7]);
 }
 
 std::string VehicleName(int id) { return id == 0 ? "leader" : "follower " + std::to_string(id); }

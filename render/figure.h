@@ -41,8 +41,9 @@ Color Hex(std::uint32_t rgb, float alpha = 1.0f);
 
 /// One fixed colour per vehicle id, the same in every figure: the leader (id 0) is near
 /// black; followers 1..7 take the Okabe-Ito colour-blind-safe set (blue, vermillion,
-/// bluish green, reddish purple, orange, sky blue, dark yellow); ids 8..16 Paul Tol's
-/// "muted" set; beyond that the sequence repeats. Negative ids get mid grey.
+/// bluish green, reddish purple, orange, sky blue, dark yellow); ids 8..16 brown, red,
+/// buff, purple, dark teal, green, salmon, dark green, wine (16 colours pairwise at least
+/// 20 CIELAB Delta-E apart); beyond that the sequence repeats. Negative ids: mid grey.
 Color VehicleColor(int vehicle_id);
 
 /// "leader" for id 0, "follower <id>" otherwise.
@@ -50,7 +51,8 @@ std::string VehicleName(int vehicle_id);
 
 enum class LineStyle { kSolid, kDashed, kDotted, kNone };
 
-enum class Marker { kNone, kCircle, kSquare, kDiamond, kTriangle, kCross, kPlus, kVBar };
+/// kRing: a hollow circle.
+enum class Marker { kNone, kCircle, kRing, kSquare, kDiamond, kTriangle, kCross, kPlus, kVBar };
 
 /// Where a panel's legend goes.
 ///   kAuto: the inside corner (or top/bottom centre) that hides the fewest data points;
@@ -108,10 +110,16 @@ struct Axis {
                             // for time series, padded for curves and markers)
   double max = kAutoRange;
   std::vector<Tick> ticks;  // explicit ticks; empty: automatic 1-2-5 ticks
+  /// Values grow leftwards (x) or downwards (y), e.g. a depth drawn as it is in the sea.
+  bool reversed = false;
 };
 
 struct Panel {
   std::string title;
+  /// A short explanation in smaller grey text on a line under the title (e.g. what the
+  /// plotted quantity means in this run); empty: none. Kept to one line: long text is
+  /// shrunk to fit the plot's width.
+  std::string note;
   Axis x, y;
   std::vector<Series> series;
   std::vector<RefLine> hlines, vlines;
@@ -145,8 +153,8 @@ struct Polyline3D {
   Color color;
   LineStyle line = LineStyle::kSolid;
   float line_width_px = 2.5f;
-  bool mark_start = true;  // hollow circle at the first point
-  bool mark_end = true;    // filled circle at the last point
+  bool mark_start = true;  // hollow circle (Marker::kRing) around the first point
+  bool mark_end = true;    // filled square (Marker::kSquare) at the last point
 };
 
 /// The formation at one instant: a marker at each vehicle's position and segments
@@ -174,12 +182,15 @@ struct Figure3D {
   /// Axis labels for the data's first, second and third coordinates, and their unit.
   std::string x_label = "x (north)";
   std::string y_label = "y (east)";
-  std::string z_label = "depth";
+  std::string z_label = "z (down)";
   std::string unit = "m";
   /// The data is NED (x north, y east, z down): the third coordinate is drawn pointing
   /// down the screen (up is up) and the picture stays right-handed (not mirrored). Its
   /// tick labels are the data's values (depth grows downwards). false: z is up.
   bool z_down = true;
+  /// With z_down: the sea surface, the plane z = 0, drawn light and translucent when it
+  /// lies inside the box (the box is not enlarged to reach it).
+  bool sea_surface = true;
   /// Camera: bearing (degrees from +x towards +y; for NED data the compass bearing) of the
   /// camera seen from the centre of the data, and its elevation above the horizontal
   /// (degrees). NaN azimuth (default): 300 degrees, unless the data's horizontal extent has
@@ -190,7 +201,8 @@ struct Figure3D {
   double elevation_deg = 22.0;
   /// true: one metre is as long on every axis, except that an axis whose range is less
   /// than a quarter of the largest is stretched to a quarter (so a flat run is not a
-  /// line). false: the box is a cube.
+  /// line). false: the box is a cube. A stretched axis says so in its title, e.g.
+  /// "z (down) [m], stretched ×10" (the factor relative to the longest axis).
   bool equal_aspect = true;
   bool floor_shadows = true;  // light grey projections of the lines onto the floor
   float scale = 0.0f;         // 0: from the figure size

@@ -208,6 +208,9 @@ void AddMarker(Vec2 c, float z, Marker marker, float size, const Color& color, M
     case Marker::kCircle:
       AddDisc(c, z, r, color, mesh);
       return;
+    case Marker::kRing:
+      AddRing(c, z, r - std::max(1.5f, size / 4.5f), r, color, mesh);
+      return;
     case Marker::kSquare: {
       const float s = r * 0.85f;
       const Vec2 q[4] = {

@@ -214,6 +214,10 @@ void GlCanvas::Draw(const Mesh& mesh, Depth depth, bool once_per_pixel) {
     case Depth::kOff:
       glDisable(GL_DEPTH_TEST);
       break;
+    case Depth::kTest:
+      glEnable(GL_DEPTH_TEST);
+      glDepthMask(GL_FALSE);
+      break;
     case Depth::kTestAndWrite:
       glEnable(GL_DEPTH_TEST);
       glDepthMask(GL_TRUE);

@@ -18,7 +18,9 @@ namespace shoal::render {
 
 class GlCanvas {
  public:
-  enum class Depth { kOff, kTestAndWrite };
+  /// kTest: hidden behind what is drawn, but hides nothing drawn later (translucent
+  /// surfaces).
+  enum class Depth { kOff, kTest, kTestAndWrite };
 
   GlCanvas() = default;
   ~GlCanvas();

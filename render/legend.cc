@@ -75,7 +75,9 @@ void DrawLegendSample(const LegendEntry& e, float cx, float cy, float length, fl
     const Vec2 p[2] = {{cx - 0.5f * len, cy}, {cx + 0.5f * len, cy}};
     StrokePolyline(p, nullptr, 2, w, e.line, e.color, mesh);
   }
-  if (e.marker != Marker::kNone) AddMarker({cx, cy}, 0.0f, e.marker, 8.0f * scale, e.color, mesh);
+  // A marker without a line is the whole sample: drawn larger, so that a ring reads as one.
+  const float size = (e.line == LineStyle::kNone ? 11.0f : 8.0f) * scale;
+  if (e.marker != Marker::kNone) AddMarker({cx, cy}, 0.0f, e.marker, size, e.color, mesh);
 }
 
 void LegendBox::DrawShapes(float x, float y, Mesh* mesh) const {

@@ -26,6 +26,11 @@ bool Inside(Marker m, float size, float dx, float dy) {
       return false;
     case Marker::kCircle:
       return dx * dx + dy * dy <= r * r;
+    case Marker::kRing: {
+      const float r_in = r - std::max(1.5f, size / 4.5f);
+      const float d2 = dx * dx + dy * dy;
+      return d2 <= r * r && d2 >= r_in * r_in;
+    }
     case Marker::kSquare: {
       const float s = 0.85f * r;
       return std::fabs(dx) <= s && std::fabs(dy) <= s;

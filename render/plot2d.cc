@@ -23,6 +23,7 @@ const Color kFrameColor{0.42f, 0.42f, 0.42f, 1.0f};
 const Color kGridColor{0.88f, 0.88f, 0.88f, 1.0f};
 const Color kMinorGridColor{0.95f, 0.95f, 0.95f, 1.0f};
 const Color kNoDataColor{0.55f, 0.55f, 0.55f, 1.0f};
+const Color kNoteColor{0.30f, 0.30f, 0.30f, 1.0f};
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -215,15 +216,87 @@ void AddExplicitTicks(const Axis& a, Range* r) {
   }
 }
 
+// Decimated line runs of one series (tx, ty: transformed data values).
+void BuildLines(const PanelState& ps, const std::vector<double>& tx, const std::vector<double>& ty,
+                SeriesGeometry* g) {
+  const std::size_t n = tx.size();
+  const double W = ps.plot.w();
+  const auto sx = [&](double t) {
+    return static_cast<float>(std::clamp(ps.xm.MapT(t), -1e5, 1e5));
+  };
+  const auto sy = [&](double t) {
+    return static_cast<float>(std::clamp(ps.ym.MapT(t), -1e5, 1e5));
+  };
+  IndexRuns runs;
+  if (IsSortedX(tx.data(), n) && ps.xm.p1 > ps.xm.p0) {
+    const double px_per_x = W / (ps.xm.hi - ps.xm.lo);
+    runs = DecimateMinMax(tx.data(), ty.data(), n, ps.xm.lo, px_per_x,
+                          static_cast<int>(std::ceil(W)));
+  } else {
+    std::vector<double> px(n), py(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      px[i] = std::isfinite(tx[i]) && std::isfinite(ty[i]) ? ps.xm.MapT(tx[i]) : kNaN;
+      py[i] = std::isfinite(tx[i]) && std::isfinite(ty[i]) ? ps.ym.MapT(ty[i]) : kNaN;
+    }
+    runs = DecimateByDistance(px.data(), py.data(), n, 0.5);
+  }
+  std::vector<float> lx, ly;
+  for (std::size_t r = 0; r < runs.runs(); ++r) {
+    lx.clear();
+    ly.clear();
+    for (std::size_t j = 0; j < runs.run_size(r); ++j) {
+      const std::uint32_t i = runs.index[runs.start[r] + j];
+      lx.push_back(sx(tx[i]));
+      ly.push_back(sy(ty[i]));
+    }
+    // Fewer, longer segments where the line is straight to within a fifth of a pixel.
+    SimplifyPolyline(&lx, &ly, 0.2f);
+    std::vector<Vec2> line(lx.size());
+    for (std::size_t j = 0; j < lx.size(); ++j) line[j] = {lx[j], ly[j]};
+    g->lines.push_back(std::move(line));
+  }
+}
+
+// Decimated markers of one series. Pixel coordinates are shifted by r so that markers
+// overlapping the plot's edge are kept; a translucent series gets the opacity of all the
+// markers that fell on a pixel.
+void BuildMarkers(const PanelState& ps, const Series& s, float scale,
+                  const std::vector<double>& tx, const std::vector<double>& ty,
+                  SeriesGeometry* g) {
+  const std::size_t n = tx.size();
+  const double r = 0.5 * s.marker_size_px * scale;
+  std::vector<double> px(n), py(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool ok = std::isfinite(tx[i]) && std::isfinite(ty[i]);
+    px[i] = ok ? ps.xm.MapT(tx[i]) - ps.plot.x0 + r : kNaN;
+    py[i] = ok ? ps.ym.MapT(ty[i]) - ps.plot.y0 + r : kNaN;
+  }
+  std::vector<std::uint32_t> counts;
+  // Opaque markers: one per third of a marker (dense clouds look the same, with far
+  // fewer stamps); translucent ones: one per pixel, with the count.
+  const bool translucent = s.color.a < 1.0f;
+  const double cell = translucent ? 1.0 : std::max(1.0, s.marker_size_px * scale / 3.0);
+  const auto kept = DecimateScatter(px.data(), py.data(), n, ps.plot.w() + 2 * r,
+                                    ps.plot.h() + 2 * r, cell, translucent ? &counts : nullptr);
+  g->markers.reserve(kept.size());
+  for (std::size_t j = 0; j < kept.size(); ++j) {
+    const std::uint32_t i = kept[j];
+    g->markers.push_back({static_cast<float>(px[i] - r + ps.plot.x0),
+                          static_cast<float>(py[i] - r + ps.plot.y0)});
+    if (!counts.empty()) {
+      // k translucent markers on one pixel: 1 - (1 - a)^k.
+      g->marker_alpha.push_back(1.0f - std::pow(1.0f - s.color.a, static_cast<float>(counts[j])));
+    }
+  }
+}
+
 // Builds the decimated screen geometry of every series of a panel.
 void BuildGeometry(PanelState* ps, float scale) {
   const Panel& p = *ps->panel;
   ps->geom.assign(p.series.size(), {});
-  const double W = ps->plot.w(), H = ps->plot.h();
   std::vector<double> tx, ty;
   for (std::size_t k = 0; k < p.series.size(); ++k) {
     const Series& s = p.series[k];
-    SeriesGeometry& g = ps->geom[k];
     const std::size_t n = s.x.size();
     tx.resize(n);
     ty.resize(n);
@@ -231,71 +304,8 @@ void BuildGeometry(PanelState* ps, float scale) {
       tx[i] = ps->xm.T(s.x[i]);
       ty[i] = ps->ym.T(s.y[i]);
     }
-    const auto sx = [&](double t) {
-      return static_cast<float>(std::clamp(ps->xm.MapT(t), -1e5, 1e5));
-    };
-    const auto sy = [&](double t) {
-      return static_cast<float>(std::clamp(ps->ym.MapT(t), -1e5, 1e5));
-    };
-    if (s.line != LineStyle::kNone) {
-      IndexRuns runs;
-      if (IsSortedX(tx.data(), n)) {
-        const double px_per_x = W / (ps->xm.hi - ps->xm.lo);
-        runs = DecimateMinMax(tx.data(), ty.data(), n, ps->xm.lo, px_per_x,
-                              static_cast<int>(std::ceil(W)));
-      } else {
-        std::vector<double> px(n), py(n);
-        for (std::size_t i = 0; i < n; ++i) {
-          px[i] = std::isfinite(tx[i]) && std::isfinite(ty[i]) ? ps->xm.MapT(tx[i]) : kNaN;
-          py[i] = std::isfinite(tx[i]) && std::isfinite(ty[i]) ? ps->ym.MapT(ty[i]) : kNaN;
-        }
-        runs = DecimateByDistance(px.data(), py.data(), n, 0.5);
-      }
-      std::vector<float> lx, ly;
-      for (std::size_t r = 0; r < runs.runs(); ++r) {
-        lx.clear();
-        ly.clear();
-        for (std::size_t j = 0; j < runs.run_size(r); ++j) {
-          const std::uint32_t i = runs.index[runs.start[r] + j];
-          lx.push_back(sx(tx[i]));
-          ly.push_back(sy(ty[i]));
-        }
-        // Fewer, longer segments where the line is straight to within a fifth of a pixel.
-        SimplifyPolyline(&lx, &ly, 0.2f);
-        std::vector<Vec2> line(lx.size());
-        for (std::size_t j = 0; j < lx.size(); ++j) line[j] = {lx[j], ly[j]};
-        g.lines.push_back(std::move(line));
-      }
-    }
-    if (s.marker != Marker::kNone) {
-      // Pixel coordinates shifted by r so that markers overlapping the plot's edge are kept;
-      // a translucent series gets the opacity of all the markers that fell on a pixel.
-      const double r = 0.5 * s.marker_size_px * scale;
-      std::vector<double> px(n), py(n);
-      for (std::size_t i = 0; i < n; ++i) {
-        const bool ok = std::isfinite(tx[i]) && std::isfinite(ty[i]);
-        px[i] = ok ? ps->xm.MapT(tx[i]) - ps->plot.x0 + r : kNaN;
-        py[i] = ok ? ps->ym.MapT(ty[i]) - ps->plot.y0 + r : kNaN;
-      }
-      std::vector<std::uint32_t> counts;
-      // Opaque markers: one per third of a marker (dense clouds look the same, with far
-      // fewer stamps); translucent ones: one per pixel, with the count.
-      const bool translucent = s.color.a < 1.0f;
-      const double cell = translucent ? 1.0 : std::max(1.0, s.marker_size_px * scale / 3.0);
-      const auto kept = DecimateScatter(px.data(), py.data(), n, W + 2 * r, H + 2 * r, cell,
-                                        translucent ? &counts : nullptr);
-      g.markers.reserve(kept.size());
-      for (std::size_t j = 0; j < kept.size(); ++j) {
-        const std::uint32_t i = kept[j];
-        g.markers.push_back({static_cast<float>(px[i] - r + ps->plot.x0),
-                             static_cast<float>(py[i] - r + ps->plot.y0)});
-        if (!counts.empty()) {
-          // k translucent markers on one pixel: 1 - (1 - a)^k.
-          g.marker_alpha.push_back(1.0f -
-                                   std::pow(1.0f - s.color.a, static_cast<float>(counts[j])));
-        }
-      }
-    }
+    if (s.line != LineStyle::kNone) BuildLines(*ps, tx, ty, &ps->geom[k]);
+    if (s.marker != Marker::kNone) BuildMarkers(*ps, s, scale, tx, ty, &ps->geom[k]);
   }
 }
 
@@ -352,6 +362,13 @@ class Plot2D {
  private:
   void ComputeRanges();
   void Layout(const std::vector<float>& outside_legend_w);
+  void PlaceCells(const Rect& grid);
+  void CollectLegendEntries();
+  void PlaceLegends();
+  void DrawGrid(const PanelState& ps, GlCanvas* gl);
+  void DrawSeries(const PanelState& ps, GlCanvas* gl);
+  void DrawFrame(const PanelState& ps, GlCanvas* gl);
+  float NotePx() const { return 12.5f * z_.s; }
   void DrawGeometry(GlCanvas* gl);
   void DrawText(Image* img);
 
@@ -422,6 +439,65 @@ void Plot2D::ComputeRanges() {
   }
 }
 
+// The densest y ticks (at most 9) at least 2.2 lines apart on a plot ph pixels high; if
+// those are fewer than 3, the sparsest of at least 3 that are 1.5 lines apart.
+AxisTicks ChooseYTicks(const Axis& ya, const Range& yr, float ph, const TextRenderer& text,
+                       float tick_px) {
+  if (!ya.ticks.empty()) return MakeTicks(ya, yr.lo, yr.hi, 2, text, tick_px);
+  const float tick_lh = text.LineHeight(tick_px);
+  const double tlo = ya.log ? std::log10(yr.lo) : yr.lo;
+  const double thi = ya.log ? std::log10(yr.hi) : yr.hi;
+  std::vector<AxisTicks> sets;
+  std::vector<double> gaps;
+  for (int n = 9; n >= 2; --n) {
+    sets.push_back(MakeTicks(ya, yr.lo, yr.hi, n, text, tick_px));
+    double gap = INFINITY;
+    const auto& v = sets.back().values;
+    for (std::size_t k = 1; k < v.size(); ++k) {
+      const double a = ya.log ? std::log10(v[k - 1]) : v[k - 1];
+      const double b = ya.log ? std::log10(v[k]) : v[k];
+      gap = std::min(gap, (b - a) / (thi - tlo) * ph);
+    }
+    gaps.push_back(gap);
+  }
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    if (gaps[k] >= 2.2 * tick_lh && sets[k].values.size() >= 3) return sets[k];
+  }
+  for (std::size_t k = sets.size(); k-- > 0;) {
+    if (gaps[k] >= 1.5 * tick_lh && sets[k].values.size() >= 3) return sets[k];
+  }
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    if (gaps[k] >= 1.5 * tick_lh) return sets[k];
+  }
+  return sets.back();
+}
+
+// The densest x ticks whose labels do not touch on a plot pw pixels wide.
+AxisTicks ChooseXTicks(const Axis& xa, const Range& xr, float pw, const TextRenderer& text,
+                       float tick_px, float s) {
+  int n = std::clamp(static_cast<int>(pw / (45.0f * s)) + 1, 2, 14);
+  for (;; --n) {
+    AxisTicks t = MakeTicks(xa, xr.lo, xr.hi, n, text, tick_px);
+    if (n <= 2 || !xa.ticks.empty()) return t;
+    AxisMap m{xa.log ? std::log10(xr.lo) : xr.lo, xa.log ? std::log10(xr.hi) : xr.hi, 0, pw,
+              xa.log};
+    bool fits = true;
+    for (std::size_t k = 1; k < t.values.size() && fits; ++k) {
+      const double gap = m.Map(t.values[k]) - m.Map(t.values[k - 1]);
+      const float wk =
+          0.5f * (text.Width(t.labels[k], tick_px) + text.Width(t.labels[k - 1], tick_px));
+      fits = gap >= wk + 12.0f * s;
+    }
+    if (fits) return t;
+  }
+}
+
+// Pixels of the axis range [lo, hi] from p_lo to p_hi (swapped on a reversed axis).
+AxisMap MakeMap(const Axis& a, const Range& r, float p_lo, float p_hi) {
+  if (a.reversed) std::swap(p_lo, p_hi);
+  return {a.log ? std::log10(r.lo) : r.lo, a.log ? std::log10(r.hi) : r.hi, p_lo, p_hi, a.log};
+}
+
 void Plot2D::Layout(const std::vector<float>& outside_w) {
   const float W = static_cast<float>(f_.width_px), H = static_cast<float>(f_.height_px);
   float y = z_.margin;
@@ -434,89 +510,15 @@ void Plot2D::Layout(const std::vector<float>& outside_w) {
     legend_row_y_ = y;
     y += legend_row_.height() + 4.0f * z_.s;
   }
-  const float gx0 = z_.margin, gx1 = W - z_.margin, gy0 = y, gy1 = H - z_.margin;
-  const float hgap = 20.0f * z_.s, vgap = 8.0f * z_.s;
-  const float cw = (gx1 - gx0 - hgap * static_cast<float>(cols_ - 1)) / static_cast<float>(cols_);
-  const float ch = (gy1 - gy0 - vgap * static_cast<float>(rows_ - 1)) / static_cast<float>(rows_);
-
-  const float tick_lh = text_->LineHeight(z_.tick_px);
-  const float label_lh = text_->LineHeight(z_.label_px);
-  const float title_lh = text_->LineHeight(z_.panel_title_px, true);
-
-  // Vertical insets (fonts only), aligned per row.
-  std::vector<float> row_top(static_cast<std::size_t>(rows_), 0.0f);
-  std::vector<float> row_bottom(static_cast<std::size_t>(rows_), 0.0f);
-  for (std::size_t i = 0; i < ps_.size(); ++i) {
-    PanelState& ps = ps_[i];
-    ps.cell = {gx0 + static_cast<float>(ps.col) * (cw + hgap),
-               gy0 + static_cast<float>(ps.row) * (ch + vgap),
-               gx0 + static_cast<float>(ps.col) * (cw + hgap) + cw,
-               gy0 + static_cast<float>(ps.row) * (ch + vgap) + ch};
-    const bool below = i + static_cast<std::size_t>(cols_) < ps_.size();
-    ps.show_x_ticklabels = !f_.link_x || !below;
-    ps.show_x_label = ps.show_x_ticklabels && !AxisTitle(ps.panel->x).empty();
-    const bool needs_title_row = !ps.panel->title.empty();
-    ps.top = needs_title_row ? title_lh + 3.0f * z_.s : 0.5f * tick_lh + z_.pad;
-    ps.bottom = z_.tick_len + z_.pad;
-    if (ps.show_x_ticklabels) ps.bottom += tick_lh;
-    if (ps.show_x_label) ps.bottom += label_lh + z_.pad;
-    if (!ps.show_x_ticklabels) ps.bottom = std::max(ps.bottom, 0.5f * tick_lh + z_.pad);
-    auto r = static_cast<std::size_t>(ps.row);
-    row_top[r] = std::max(row_top[r], ps.top);
-    row_bottom[r] = std::max(row_bottom[r], ps.bottom);
-  }
+  PlaceCells(Rect{z_.margin, y, W - z_.margin, H - z_.margin});
   // y ticks from the plot heights, then left insets aligned per column.
+  const float label_lh = text_->LineHeight(z_.label_px);
   std::vector<float> col_left(static_cast<std::size_t>(cols_), 0.0f);
   for (PanelState& ps : ps_) {
-    ps.top = row_top[static_cast<std::size_t>(ps.row)];
-    ps.bottom = row_bottom[static_cast<std::size_t>(ps.row)];
     const float ph = ps.cell.h() - ps.top - ps.bottom;
-    // The densest ticks (at most 9) at least 2.2 lines apart; if those are fewer than 3,
-    // the sparsest of at least 3 that are 1.5 lines apart.
-    const Axis& ya = ps.panel->y;
-    if (!ya.ticks.empty()) {
-      ps.yt = MakeTicks(ya, ps.yr.lo, ps.yr.hi, 2, *text_, z_.tick_px);
-    } else {
-      const double tlo = ya.log ? std::log10(ps.yr.lo) : ps.yr.lo;
-      const double thi = ya.log ? std::log10(ps.yr.hi) : ps.yr.hi;
-      std::vector<AxisTicks> sets;
-      std::vector<double> gaps;
-      for (int n = 9; n >= 2; --n) {
-        sets.push_back(MakeTicks(ya, ps.yr.lo, ps.yr.hi, n, *text_, z_.tick_px));
-        double gap = INFINITY;
-        const auto& v = sets.back().values;
-        for (std::size_t k = 1; k < v.size(); ++k) {
-          const double a = ya.log ? std::log10(v[k - 1]) : v[k - 1];
-          const double b = ya.log ? std::log10(v[k]) : v[k];
-          gap = std::min(gap, (b - a) / (thi - tlo) * ph);
-        }
-        gaps.push_back(gap);
-      }
-      std::size_t pick = sets.size() - 1;
-      bool found = false;
-      for (std::size_t k = 0; k < sets.size() && !found; ++k) {
-        if (gaps[k] >= 2.2 * tick_lh && sets[k].values.size() >= 3) {
-          pick = k;
-          found = true;
-        }
-      }
-      for (std::size_t k = sets.size(); k-- > 0 && !found;) {
-        if (gaps[k] >= 1.5 * tick_lh && sets[k].values.size() >= 3) {
-          pick = k;
-          found = true;
-        }
-      }
-      for (std::size_t k = 0; k < sets.size() && !found; ++k) {
-        if (gaps[k] >= 1.5 * tick_lh) {
-          pick = k;
-          found = true;
-        }
-      }
-      ps.yt = sets[pick];
-    }
+    ps.yt = ChooseYTicks(ps.panel->y, ps.yr, ph, *text_, z_.tick_px);
     float left = ps.yt.max_label_w + z_.tick_len + z_.pad + 2.0f * z_.s;
     if (!AxisTitle(ps.panel->y).empty()) left += label_lh + z_.pad;
-    ps.left = left;
     auto c = static_cast<std::size_t>(ps.col);
     col_left[c] = std::max(col_left[c], left);
   }
@@ -528,32 +530,15 @@ void Plot2D::Layout(const std::vector<float>& outside_w) {
     float right = 8.0f * z_.s + outside_w[i];
     const float pw = ps.cell.w() - ps.left - right;
     const Axis& xa = ps.panel->x;
-    // The densest ticks whose labels do not touch.
-    int n = std::clamp(static_cast<int>(pw / (45.0f * z_.s)) + 1, 2, 14);
-    for (;; --n) {
-      ps.xt = MakeTicks(xa, ps.xr.lo, ps.xr.hi, n, *text_, z_.tick_px);
-      if (n <= 2 || !xa.ticks.empty()) break;
-      AxisMap m{xa.log ? std::log10(ps.xr.lo) : ps.xr.lo, xa.log ? std::log10(ps.xr.hi) : ps.xr.hi,
-                0, pw, xa.log};
-      bool fits = true;
-      for (std::size_t k = 1; k < ps.xt.values.size() && fits; ++k) {
-        const double gap = m.Map(ps.xt.values[k]) - m.Map(ps.xt.values[k - 1]);
-        const float wk = 0.5f * (text_->Width(ps.xt.labels[k], z_.tick_px) +
-                                 text_->Width(ps.xt.labels[k - 1], z_.tick_px));
-        fits = gap >= wk + 12.0f * z_.s;
-      }
-      if (fits) break;
-    }
-    // Half of the last label may stick out to the right of the plot.
+    ps.xt = ChooseXTicks(xa, ps.xr, pw, *text_, z_.tick_px, z_.s);
+    // Half of the last (rightmost) label may stick out to the right of the plot.
     if (ps.show_x_ticklabels && !ps.xt.values.empty() && outside_w[i] == 0.0f) {
-      const double t = xa.log ? std::log10(ps.xt.values.back()) : ps.xt.values.back();
-      const double hi = xa.log ? std::log10(ps.xr.hi) : ps.xr.hi;
-      const double lo = xa.log ? std::log10(ps.xr.lo) : ps.xr.lo;
-      const float from_right = static_cast<float>((hi - t) / (hi - lo)) * pw;
-      const float half = 0.5f * text_->Width(ps.xt.labels.back(), z_.tick_px);
-      right = std::max(right, half - from_right + 2.0f * z_.s);
+      const double v = xa.reversed ? ps.xt.values.front() : ps.xt.values.back();
+      const AxisMap m = MakeMap(xa, ps.xr, 0.0f, pw);
+      const float from_right = pw - static_cast<float>(m.Map(v));
+      const std::string& l = xa.reversed ? ps.xt.labels.front() : ps.xt.labels.back();
+      right = std::max(right, 0.5f * text_->Width(l, z_.tick_px) - from_right + 2.0f * z_.s);
     }
-    ps.right = right;
     auto c = static_cast<std::size_t>(ps.col);
     col_right[c] = std::max(col_right[c], right);
   }
@@ -563,12 +548,45 @@ void Plot2D::Layout(const std::vector<float>& outside_w) {
                std::round(ps.cell.x1 - ps.right), std::round(ps.cell.y1 - ps.bottom)};
     if (ps.plot.x1 < ps.plot.x0 + 10) ps.plot.x1 = ps.plot.x0 + 10;
     if (ps.plot.y1 < ps.plot.y0 + 10) ps.plot.y1 = ps.plot.y0 + 10;
-    const Axis& xa = ps.panel->x;
-    const Axis& ya = ps.panel->y;
-    ps.xm = {xa.log ? std::log10(ps.xr.lo) : ps.xr.lo, xa.log ? std::log10(ps.xr.hi) : ps.xr.hi,
-             ps.plot.x0, ps.plot.x1, xa.log};
-    ps.ym = {ya.log ? std::log10(ps.yr.lo) : ps.yr.lo, ya.log ? std::log10(ps.yr.hi) : ps.yr.hi,
-             ps.plot.y1, ps.plot.y0, ya.log};
+    ps.xm = MakeMap(ps.panel->x, ps.xr, ps.plot.x0, ps.plot.x1);
+    ps.ym = MakeMap(ps.panel->y, ps.yr, ps.plot.y1, ps.plot.y0);
+  }
+}
+
+// Cells of the grid in `grid`, and the vertical insets of their plots (fonts only),
+// aligned per row.
+void Plot2D::PlaceCells(const Rect& grid) {
+  const float hgap = 20.0f * z_.s, vgap = 8.0f * z_.s;
+  const float cw = (grid.w() - hgap * static_cast<float>(cols_ - 1)) / static_cast<float>(cols_);
+  const float ch = (grid.h() - vgap * static_cast<float>(rows_ - 1)) / static_cast<float>(rows_);
+  const float tick_lh = text_->LineHeight(z_.tick_px);
+  const float label_lh = text_->LineHeight(z_.label_px);
+  const float title_lh = text_->LineHeight(z_.panel_title_px, true);
+  const float note_lh = text_->LineHeight(NotePx());
+  std::vector<float> row_top(static_cast<std::size_t>(rows_), 0.0f);
+  std::vector<float> row_bottom(static_cast<std::size_t>(rows_), 0.0f);
+  for (std::size_t i = 0; i < ps_.size(); ++i) {
+    PanelState& ps = ps_[i];
+    const float x0 = grid.x0 + static_cast<float>(ps.col) * (cw + hgap);
+    const float y0 = grid.y0 + static_cast<float>(ps.row) * (ch + vgap);
+    ps.cell = {x0, y0, x0 + cw, y0 + ch};
+    const bool below = i + static_cast<std::size_t>(cols_) < ps_.size();
+    ps.show_x_ticklabels = !f_.link_x || !below;
+    ps.show_x_label = ps.show_x_ticklabels && !AxisTitle(ps.panel->x).empty();
+    const bool needs_title_row = !ps.panel->title.empty();
+    ps.top = needs_title_row ? title_lh + 3.0f * z_.s : 0.5f * tick_lh + z_.pad;
+    if (!ps.panel->note.empty()) ps.top += note_lh + 2.0f * z_.s;
+    ps.bottom = z_.tick_len + z_.pad;
+    if (ps.show_x_ticklabels) ps.bottom += tick_lh;
+    if (ps.show_x_label) ps.bottom += label_lh + z_.pad;
+    if (!ps.show_x_ticklabels) ps.bottom = std::max(ps.bottom, 0.5f * tick_lh + z_.pad);
+    auto r = static_cast<std::size_t>(ps.row);
+    row_top[r] = std::max(row_top[r], ps.top);
+    row_bottom[r] = std::max(row_bottom[r], ps.bottom);
+  }
+  for (PanelState& ps : ps_) {
+    ps.top = row_top[static_cast<std::size_t>(ps.row)];
+    ps.bottom = row_bottom[static_cast<std::size_t>(ps.row)];
   }
 }
 
@@ -590,8 +608,19 @@ bool Plot2D::Render(Image* out, std::string* err) {
     ps_[i].col = static_cast<int>(i) % cols_;
   }
   ComputeRanges();
+  CollectLegendEntries();
+  PlaceLegends();
 
-  // Legends: entries, then inside or outside (which changes the layout once).
+  GlCanvas gl;
+  if (!gl.Init(f_.width_px, f_.height_px, err)) return false;
+  gl.Clear(Color{1, 1, 1, 1});
+  DrawGeometry(&gl);
+  if (!gl.Read(out, err)) return false;
+  DrawText(out);
+  return true;
+}
+
+void Plot2D::CollectLegendEntries() {
   for (PanelState& ps : ps_) {
     const Panel& p = *ps.panel;
     if (p.legend == LegendPlacement::kNone) continue;
@@ -600,17 +629,19 @@ bool Plot2D::Render(Image* out, std::string* err) {
         ps.legend_entries.push_back({se.label, se.color, se.line, se.marker, se.line_width_px});
       }
     }
-    for (const RefLine& r : p.hlines) {
-      if (!r.label.empty()) {
-        ps.legend_entries.push_back({r.label, r.color, r.line, Marker::kNone, r.line_width_px});
-      }
-    }
-    for (const RefLine& r : p.vlines) {
-      if (!r.label.empty()) {
-        ps.legend_entries.push_back({r.label, r.color, r.line, Marker::kNone, r.line_width_px});
+    for (const std::vector<RefLine>* lines : {&p.hlines, &p.vlines}) {
+      for (const RefLine& r : *lines) {
+        if (!r.label.empty()) {
+          ps.legend_entries.push_back({r.label, r.color, r.line, Marker::kNone, r.line_width_px});
+        }
       }
     }
   }
+}
+
+// Lays the figure out, then puts each panel's legend inside or outside (which changes
+// the layout once) and builds the geometry of the final layout.
+void Plot2D::PlaceLegends() {
   std::vector<float> outside(ps_.size(), 0.0f);
   Layout(outside);
   bool any_outside = false;
@@ -633,17 +664,16 @@ bool Plot2D::Render(Image* out, std::string* err) {
       // Outside only if the plot keeps most of its width.
       if (go_outside && ps.legend.width() + 12.0f * z_.s > 0.45f * ps.cell.w()) go_outside = false;
     }
-    if (go_outside) {
-      // As few columns as fit the plot's height.
-      int columns_out = 1;
-      ps.legend = LegendBox(ps.legend_entries, lm_, *text_, 1);
-      while (ps.legend.height() > ps.plot.h() && columns_out < 8) {
-        ps.legend = LegendBox(ps.legend_entries, lm_, *text_, ++columns_out);
-      }
-      outside[i] = ps.legend.width() + 12.0f * z_.s;
-      ps.legend_outside = true;
-      any_outside = true;
+    if (!go_outside) continue;
+    // As few columns as fit the plot's height.
+    int columns_out = 1;
+    ps.legend = LegendBox(ps.legend_entries, lm_, *text_, 1);
+    while (ps.legend.height() > ps.plot.h() && columns_out < 8) {
+      ps.legend = LegendBox(ps.legend_entries, lm_, *text_, ++columns_out);
     }
+    outside[i] = ps.legend.width() + 12.0f * z_.s;
+    ps.legend_outside = true;
+    any_outside = true;
   }
   if (any_outside) {
     // The whole column makes room, so that its plots stay aligned.
@@ -667,122 +697,123 @@ bool Plot2D::Render(Image* out, std::string* err) {
       PlaceInside(&ps, inset);
     }
   }
-
-  GlCanvas gl;
-  if (!gl.Init(f_.width_px, f_.height_px, err)) return false;
-  gl.Clear(Color{1, 1, 1, 1});
-  DrawGeometry(&gl);
-  if (!gl.Read(out, err)) return false;
-  DrawText(out);
-  return true;
 }
 
 // A crisp 1-pixel line position: the centre of the pixel containing v.
 float Snap(float v) { return std::floor(v) + 0.5f; }
 
 void Plot2D::DrawGeometry(GlCanvas* gl) {
-  Mesh mesh;
-  const float grid_w = std::max(1.0f, std::round(z_.s));
-  const float frame_w = std::max(1.0f, std::round(z_.s));
   if (!legend_row_.empty()) {
+    Mesh mesh;
     legend_row_.DrawShapes(legend_row_y_, &mesh);
     gl->Draw(mesh);
-    mesh.clear();
   }
   for (const PanelState& ps : ps_) {
-    const Rect& p = ps.plot;
-    const Panel& panel = *ps.panel;
-    // Grid.
-    for (double v : ps.xt.minor) {
-      const float x = Snap(static_cast<float>(ps.xm.Map(v)));
-      AddRect(x - 0.5f * grid_w, p.y0, x + 0.5f * grid_w, p.y1, 0, kMinorGridColor, &mesh);
+    DrawGrid(ps, gl);
+    DrawSeries(ps, gl);
+    DrawFrame(ps, gl);
+  }
+}
+
+// Grid and reference lines, under the data, clipped to the plot (the clip stays set).
+void Plot2D::DrawGrid(const PanelState& ps, GlCanvas* gl) {
+  Mesh mesh;
+  const Rect& p = ps.plot;
+  const float grid_w = std::max(1.0f, std::round(z_.s));
+  const auto vline = [&](double v, const Color& c) {
+    const float x = Snap(static_cast<float>(ps.xm.Map(v)));
+    AddRect(x - 0.5f * grid_w, p.y0, x + 0.5f * grid_w, p.y1, 0, c, &mesh);
+  };
+  const auto hline = [&](double v, const Color& c) {
+    const float y = Snap(static_cast<float>(ps.ym.Map(v)));
+    AddRect(p.x0, y - 0.5f * grid_w, p.x1, y + 0.5f * grid_w, 0, c, &mesh);
+  };
+  for (double v : ps.xt.minor) vline(v, kMinorGridColor);
+  for (double v : ps.yt.minor) hline(v, kMinorGridColor);
+  for (double v : ps.xt.values) vline(v, kGridColor);
+  for (double v : ps.yt.values) hline(v, kGridColor);
+  gl->SetClip(p.x0, p.y0, p.x1, p.y1);
+  gl->Draw(mesh);
+  mesh.clear();
+  for (const RefLine& h : ps.panel->hlines) {
+    const double y = ps.ym.Map(h.value);
+    if (!std::isfinite(y)) continue;
+    const Vec2 l[2] = {{p.x0, static_cast<float>(y)}, {p.x1, static_cast<float>(y)}};
+    StrokePolyline(l, nullptr, 2, h.line_width_px * z_.s, h.line, h.color, &mesh);
+  }
+  for (const RefLine& v : ps.panel->vlines) {
+    const double x = ps.xm.Map(v.value);
+    if (!std::isfinite(x)) continue;
+    const Vec2 l[2] = {{static_cast<float>(x), p.y0}, {static_cast<float>(x), p.y1}};
+    StrokePolyline(l, nullptr, 2, v.line_width_px * z_.s, v.line, v.color, &mesh);
+  }
+  gl->Draw(mesh);
+}
+
+// Series, in order (later ones on top), lines blended once per pixel; markers are stamped
+// on the CPU into a layer shared by consecutive marker-only series. Clears the clip.
+void Plot2D::DrawSeries(const PanelState& ps, GlCanvas* gl) {
+  Mesh mesh;
+  const Rect& p = ps.plot;
+  const Panel& panel = *ps.panel;
+  const int lw = static_cast<int>(p.w()), lh = static_cast<int>(p.h());
+  std::unique_ptr<MarkerLayer> layer;
+  const auto flush_layer = [&] {
+    if (layer && !layer->empty()) {
+      gl->DrawLayer(static_cast<int>(p.x0), static_cast<int>(p.y0), lw, lh, layer->ToBytes());
     }
-    for (double v : ps.yt.minor) {
-      const float y = Snap(static_cast<float>(ps.ym.Map(v)));
-      AddRect(p.x0, y - 0.5f * grid_w, p.x1, y + 0.5f * grid_w, 0, kMinorGridColor, &mesh);
-    }
-    for (double v : ps.xt.values) {
-      const float x = Snap(static_cast<float>(ps.xm.Map(v)));
-      AddRect(x - 0.5f * grid_w, p.y0, x + 0.5f * grid_w, p.y1, 0, kGridColor, &mesh);
-    }
-    for (double v : ps.yt.values) {
-      const float y = Snap(static_cast<float>(ps.ym.Map(v)));
-      AddRect(p.x0, y - 0.5f * grid_w, p.x1, y + 0.5f * grid_w, 0, kGridColor, &mesh);
-    }
-    gl->SetClip(p.x0, p.y0, p.x1, p.y1);
-    gl->Draw(mesh);
-    mesh.clear();
-    // Reference lines under the data.
-    for (const RefLine& h : panel.hlines) {
-      const double y = ps.ym.Map(h.value);
-      if (!std::isfinite(y)) continue;
-      const Vec2 l[2] = {{p.x0, static_cast<float>(y)}, {p.x1, static_cast<float>(y)}};
-      StrokePolyline(l, nullptr, 2, h.line_width_px * z_.s, h.line, h.color, &mesh);
-    }
-    for (const RefLine& v : panel.vlines) {
-      const double x = ps.xm.Map(v.value);
-      if (!std::isfinite(x)) continue;
-      const Vec2 l[2] = {{static_cast<float>(x), p.y0}, {static_cast<float>(x), p.y1}};
-      StrokePolyline(l, nullptr, 2, v.line_width_px * z_.s, v.line, v.color, &mesh);
-    }
-    gl->Draw(mesh);
-    mesh.clear();
-    // Series, in order (later ones on top), lines blended once per pixel; markers are
-    // stamped on the CPU into a layer shared by consecutive marker-only series.
-    const int lw = static_cast<int>(p.w()), lh = static_cast<int>(p.h());
-    std::unique_ptr<MarkerLayer> layer;
-    const auto flush_layer = [&] {
-      if (layer && !layer->empty()) {
-        gl->DrawLayer(static_cast<int>(p.x0), static_cast<int>(p.y0), lw, lh, layer->ToBytes());
+    layer.reset();
+  };
+  for (std::size_t k = 0; k < panel.series.size(); ++k) {
+    const Series& s = panel.series[k];
+    const SeriesGeometry& g = ps.geom[k];
+    if (!g.lines.empty()) {
+      flush_layer();
+      for (const auto& line : g.lines) {
+        float phase = 0.0f;
+        StrokePolyline(line.data(), nullptr, line.size(), s.line_width_px * z_.s, s.line, s.color,
+                       &mesh, &phase);
       }
-      layer.reset();
-    };
-    for (std::size_t k = 0; k < panel.series.size(); ++k) {
-      const Series& s = panel.series[k];
-      const SeriesGeometry& g = ps.geom[k];
-      if (!g.lines.empty()) {
-        flush_layer();
-        for (const auto& line : g.lines) {
-          float phase = 0.0f;
-          StrokePolyline(line.data(), nullptr, line.size(), s.line_width_px * z_.s, s.line, s.color,
-                         &mesh, &phase);
-        }
-        gl->Draw(mesh, GlCanvas::Depth::kOff, s.color.a < 1.0f);
-        mesh.clear();
-      }
-      if (!g.markers.empty()) {
-        if (!layer) layer = std::make_unique<MarkerLayer>(lw, lh);
-        Color c = s.color;
-        for (std::size_t j = 0; j < g.markers.size(); ++j) {
-          if (!g.marker_alpha.empty()) c.a = g.marker_alpha[j];
-          layer->Stamp(s.marker, s.marker_size_px * z_.s, g.markers[j].x - p.x0,
-                       g.markers[j].y - p.y0, c);
-        }
-      }
-    }
-    flush_layer();
-    gl->ClearClip();
-    // Frame and tick marks.
-    const float fx0 = Snap(p.x0) - 1.0f, fy0 = Snap(p.y0) - 1.0f;
-    const float fx1 = Snap(p.x1), fy1 = Snap(p.y1);
-    AddRectOutline(fx0, fy0, fx1, fy1, frame_w, kFrameColor, &mesh);
-    for (double v : ps.xt.values) {
-      const float x = Snap(static_cast<float>(ps.xm.Map(v)));
-      AddRect(x - 0.5f * frame_w, fy1, x + 0.5f * frame_w, fy1 + z_.tick_len, 0, kFrameColor,
-              &mesh);
-    }
-    for (double v : ps.yt.values) {
-      const float y = Snap(static_cast<float>(ps.ym.Map(v)));
-      AddRect(fx0 - z_.tick_len, y - 0.5f * frame_w, fx0, y + 0.5f * frame_w, 0, kFrameColor,
-              &mesh);
-    }
-    gl->Draw(mesh);
-    mesh.clear();
-    if (!ps.legend.empty()) {
-      ps.legend.DrawShapes(ps.legend_x, ps.legend_y, &mesh);
-      gl->Draw(mesh);
+      gl->Draw(mesh, GlCanvas::Depth::kOff, s.color.a < 1.0f);
       mesh.clear();
     }
+    if (!g.markers.empty()) {
+      if (!layer) layer = std::make_unique<MarkerLayer>(lw, lh);
+      Color c = s.color;
+      for (std::size_t j = 0; j < g.markers.size(); ++j) {
+        if (!g.marker_alpha.empty()) c.a = g.marker_alpha[j];
+        layer->Stamp(s.marker, s.marker_size_px * z_.s, g.markers[j].x - p.x0,
+                     g.markers[j].y - p.y0, c);
+      }
+    }
+  }
+  flush_layer();
+  gl->ClearClip();
+}
+
+// Frame, tick marks and the panel's legend box.
+void Plot2D::DrawFrame(const PanelState& ps, GlCanvas* gl) {
+  Mesh mesh;
+  const Rect& p = ps.plot;
+  const float frame_w = std::max(1.0f, std::round(z_.s));
+  const float fx0 = Snap(p.x0) - 1.0f, fy0 = Snap(p.y0) - 1.0f;
+  const float fx1 = Snap(p.x1), fy1 = Snap(p.y1);
+  AddRectOutline(fx0, fy0, fx1, fy1, frame_w, kFrameColor, &mesh);
+  for (double v : ps.xt.values) {
+    const float x = Snap(static_cast<float>(ps.xm.Map(v)));
+    AddRect(x - 0.5f * frame_w, fy1, x + 0.5f * frame_w, fy1 + z_.tick_len, 0, kFrameColor,
+            &mesh);
+  }
+  for (double v : ps.yt.values) {
+    const float y = Snap(static_cast<float>(ps.ym.Map(v)));
+    AddRect(fx0 - z_.tick_len, y - 0.5f * frame_w, fx0, y + 0.5f * frame_w, 0, kFrameColor,
+            &mesh);
+  }
+  gl->Draw(mesh);
+  mesh.clear();
+  if (!ps.legend.empty()) {
+    ps.legend.DrawShapes(ps.legend_x, ps.legend_y, &mesh);
+    gl->Draw(mesh);
   }
 }
 
@@ -799,8 +830,17 @@ void Plot2D::DrawText(Image* img) {
   for (const PanelState& ps : ps_) {
     const Rect& p = ps.plot;
     const Panel& panel = *ps.panel;
+    float title_bottom = p.y0 - 5.0f * z_.s;
+    if (!panel.note.empty()) {
+      // One line, shrunk if it is wider than the plot.
+      const float w = text_->Width(panel.note, NotePx());
+      const float px = w > p.w() ? NotePx() * p.w() / w : NotePx();
+      text_->Draw(img, panel.note, 0.5f * (p.x0 + p.x1), title_bottom, {px, false, kNoteColor},
+                  HAlign::kCenter, VAlign::kBottom);
+      title_bottom -= text_->LineHeight(NotePx()) + 2.0f * z_.s;
+    }
     if (!panel.title.empty()) {
-      text_->Draw(img, panel.title, 0.5f * (p.x0 + p.x1), p.y0 - 5.0f * z_.s,
+      text_->Draw(img, panel.title, 0.5f * (p.x0 + p.x1), title_bottom,
                   {z_.panel_title_px, true, kTitleColor}, HAlign::kCenter, VAlign::kBottom);
     }
     // y tick labels, right-aligned left of the tick marks.

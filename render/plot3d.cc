@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "render/decimate.h"
@@ -25,6 +26,8 @@ const Color kPaneColor{0.955f, 0.957f, 0.962f, 1.0f};
 const Color kPaneEdgeColor{0.70f, 0.70f, 0.72f, 1.0f};
 const Color kGridColor{0.85f, 0.85f, 0.87f, 1.0f};
 const Color kAxisColor{0.35f, 0.35f, 0.35f, 1.0f};
+const Color kSeaColor{0.35f, 0.62f, 0.85f, 0.16f};
+const Color kSeaEdgeColor{0.35f, 0.62f, 0.85f, 0.7f};
 
 constexpr double kPi = 3.14159265358979323846;
 
@@ -98,6 +101,7 @@ class Plot3D {
   }
 
   void SetUpWorld();
+  void SetAxisTitles();
   void SetUpCamera();
   void Fit(const Rect& area);
   void MakeAxes();
@@ -107,6 +111,14 @@ class Plot3D {
   void PlaceLegend(const Rect& area);
 
   void DrawGeometry(GlCanvas* gl);
+  void DrawBox(GlCanvas* gl);
+  void DrawData(GlCanvas* gl);
+  void DrawMarkers(GlCanvas* gl);
+  void DrawSeaSurface(GlCanvas* gl);
+  void Segment(const V3& a, const V3& b, float w, const Color& c, Mesh* mesh) const {
+    const Vec2 l[2] = {P2(a), P2(b)};
+    StrokePolyline(l, nullptr, 2, w, LineStyle::kSolid, c, mesh);
+  }
   void DrawText(Image* img);
   void Halo(Image* img, const std::string& s, float x, float y, const TextStyle& st, HAlign h,
             VAlign v);
@@ -121,6 +133,7 @@ class Plot3D {
   double lo_[3] = {0, 0, 0}, hi_[3] = {1, 1, 1};  // world box
   double c_[3] = {0, 0, 0}, sc_[3] = {1, 1, 1};
   double half_[3] = {1, 1, 1};  // display half-extents of the box
+  bool sea_ = false;            // the sea surface is drawn
   V3 eye_{}, fwd_{}, right_{}, up_{};
   double k_ = 1, ox_ = 0, oy_ = 0, inv_near_ = 1, inv_far_ = 0.5;
   int back_[3] = {0, 0, 0};  // per axis: -1 if the back pane is at the low end, +1 at the high end
@@ -143,10 +156,6 @@ void Plot3D::SetUpWorld() {
     sign_[1] = 1;
     sign_[2] = -1;
   }
-  const std::string unit = f_.unit.empty() ? "" : " [" + f_.unit + "]";
-  const std::string data_titles[3] = {f_.x_label, f_.y_label, f_.z_label};
-  for (int k = 0; k < 3; ++k) axis_title_[k] = data_titles[perm_[k]] + unit;
-
   double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   const auto add = [&](const Point3& p) {
     if (!Finite(p)) return;
@@ -185,6 +194,26 @@ void Plot3D::SetUpWorld() {
     c_[k] = 0.5 * (lo_[k] + hi_[k]);
     sc_[k] = 2.0 * shown / (l * lmax);  // display extent: [-shown/lmax, shown/lmax]
     half_[k] = shown / lmax;
+  }
+  SetAxisTitles();
+  sea_ = f_.z_down && f_.sea_surface && lo_[2] <= 0.0 && hi_[2] >= 0.0;
+}
+
+// Axis titles with the unit, and how much an axis is stretched against the longest one
+// (so that a reader does not take a stretched depth for a steep dive).
+void Plot3D::SetAxisTitles() {
+  const std::string unit = f_.unit.empty() ? "" : " [" + f_.unit + "]";
+  const std::string data_titles[3] = {f_.x_label, f_.y_label, f_.z_label};
+  double metres_per_unit_max = 0.0;
+  for (int k = 0; k < 3; ++k) metres_per_unit_max = std::max(metres_per_unit_max, 1.0 / sc_[k]);
+  for (int k = 0; k < 3; ++k) {
+    axis_title_[k] = data_titles[perm_[k]] + unit;
+    const double stretch = metres_per_unit_max * sc_[k];
+    if (stretch > 1.05) {
+      char buf[48];
+      std::snprintf(buf, sizeof buf, ", stretched \xC3\x97%.2g", stretch);  // ×
+      axis_title_[k] += buf;
+    }
   }
 }
 
@@ -440,6 +469,11 @@ void Plot3D::PlaceLegend(const Rect& area) {
       entries.push_back({l.label, l.color, l.line, Marker::kNone, l.line_width_px});
   }
   for (const LegendEntry& e : f_.extra_legend) entries.push_back(e);
+  if (sea_) {
+    Color c = kSeaColor;
+    c.a = 0.45f;
+    entries.push_back({"sea surface, z = 0", c, LineStyle::kSolid, Marker::kNone, 8.0f});
+  }
   if (entries.empty()) return;
   legend_ = LegendBox(entries, lm_, *text_, 1);
   const float w = legend_.width(), h = legend_.height();
@@ -543,22 +577,27 @@ bool Plot3D::Render(Image* out, std::string* err) {
 }
 
 void Plot3D::DrawGeometry(GlCanvas* gl) {
+  DrawBox(gl);
+  DrawData(gl);
+  DrawMarkers(gl);
+  DrawSeaSurface(gl);
+  if (!legend_.empty()) {
+    Mesh mesh;
+    legend_.DrawShapes(legend_x_, legend_y_, &mesh);
+    gl->Draw(mesh);
+  }
+}
+
+// Back panes with grid lines, the lines' shadows on the floor, axis lines and ticks.
+void Plot3D::DrawBox(GlCanvas* gl) {
   Mesh mesh;
   const float grid_w = std::max(1.0f, 1.0f * s_);
   // Back panes: x = back x, y = back y, the floor.
   const double bx = back_[0] * half_[0], by = back_[1] * half_[1], fz = -half_[2];
-  const V3 panes[3][4] = {{{bx, -half_[1], -half_[2]},
-                           {bx, half_[1], -half_[2]},
-                           {bx, half_[1], half_[2]},
-                           {bx, -half_[1], half_[2]}},
-                          {{-half_[0], by, -half_[2]},
-                           {half_[0], by, -half_[2]},
-                           {half_[0], by, half_[2]},
-                           {-half_[0], by, half_[2]}},
-                          {{-half_[0], -half_[1], fz},
-                           {half_[0], -half_[1], fz},
-                           {half_[0], half_[1], fz},
-                           {-half_[0], half_[1], fz}}};
+  const double hx = half_[0], hy = half_[1], hz = half_[2];
+  const V3 panes[3][4] = {{{bx, -hy, -hz}, {bx, hy, -hz}, {bx, hy, hz}, {bx, -hy, hz}},
+                          {{-hx, by, -hz}, {hx, by, -hz}, {hx, by, hz}, {-hx, by, hz}},
+                          {{-hx, -hy, fz}, {hx, -hy, fz}, {hx, hy, fz}, {-hx, hy, fz}}};
   for (const auto& pane : panes) {
     Vec2 p[4];
     for (int i = 0; i < 4; ++i) p[i] = P2(pane[i]);
@@ -566,36 +605,29 @@ void Plot3D::DrawGeometry(GlCanvas* gl) {
   }
   gl->Draw(mesh);
   mesh.clear();
-  // Grid lines on the panes.
-  const auto seg = [&](const V3& a, const V3& b, float w, const Color& c) {
-    const Vec2 l[2] = {P2(a), P2(b)};
-    StrokePolyline(l, nullptr, 2, w, LineStyle::kSolid, c, &mesh);
-  };
   for (const AxisLabels& a : axes_) {
     const int k = a.axis;
     for (double wv : a.world) {
       const double d = (wv - c_[k]) * sc_[k];
       if (k == 0) {
-        seg({d, -half_[1], fz}, {d, half_[1], fz}, grid_w, kGridColor);
-        seg({d, by, -half_[2]}, {d, by, half_[2]}, grid_w, kGridColor);
+        Segment({d, -hy, fz}, {d, hy, fz}, grid_w, kGridColor, &mesh);
+        Segment({d, by, -hz}, {d, by, hz}, grid_w, kGridColor, &mesh);
       } else if (k == 1) {
-        seg({-half_[0], d, fz}, {half_[0], d, fz}, grid_w, kGridColor);
-        seg({bx, d, -half_[2]}, {bx, d, half_[2]}, grid_w, kGridColor);
+        Segment({-hx, d, fz}, {hx, d, fz}, grid_w, kGridColor, &mesh);
+        Segment({bx, d, -hz}, {bx, d, hz}, grid_w, kGridColor, &mesh);
       } else {
-        seg({bx, -half_[1], d}, {bx, half_[1], d}, grid_w, kGridColor);
-        seg({-half_[0], by, d}, {half_[0], by, d}, grid_w, kGridColor);
+        Segment({bx, -hy, d}, {bx, hy, d}, grid_w, kGridColor, &mesh);
+        Segment({-hx, by, d}, {hx, by, d}, grid_w, kGridColor, &mesh);
       }
     }
   }
   gl->Draw(mesh, GlCanvas::Depth::kOff, true);
   mesh.clear();
-  // Pane edges.
   for (const auto& pane : panes) {
-    for (int i = 0; i < 4; ++i) seg(pane[i], pane[(i + 1) % 4], grid_w, kPaneEdgeColor);
+    for (int i = 0; i < 4; ++i) Segment(pane[i], pane[(i + 1) % 4], grid_w, kPaneEdgeColor, &mesh);
   }
   gl->Draw(mesh);
   mesh.clear();
-  // Shadows of the lines on the floor.
   for (std::size_t li = 0; li < shadows_.size(); ++li) {
     const Color c = Mix(f_.lines[li].color, kPaneColor, 0.75f);
     for (const auto& run : shadows_[li]) {
@@ -606,16 +638,18 @@ void Plot3D::DrawGeometry(GlCanvas* gl) {
   }
   // Axis lines and tick marks (under the data).
   for (const AxisLabels& a : axes_) {
-    seg(a.edge_a, a.edge_b, 1.3f * s_, kAxisColor);
+    Segment(a.edge_a, a.edge_b, 1.3f * s_, kAxisColor, &mesh);
     for (const Vec2& t : a.tick_at) {
       const Vec2 l[2] = {t, {t.x + a.dir.x * 6.0f * s_, t.y + a.dir.y * 6.0f * s_}};
       StrokePolyline(l, nullptr, 2, 1.3f * s_, LineStyle::kSolid, kAxisColor, &mesh);
     }
   }
   gl->Draw(mesh);
-  mesh.clear();
+}
 
-  // Data with depth: lines, snapshot edges, then markers slightly towards the camera.
+// Data with depth: the lines, then the snapshots' edges.
+void Plot3D::DrawData(GlCanvas* gl) {
+  Mesh mesh;
   for (std::size_t li = 0; li < lines_.size(); ++li) {
     const Polyline3D& l = f_.lines[li];
     for (const auto& run : lines_[li]) {
@@ -646,37 +680,67 @@ void Plot3D::DrawGeometry(GlCanvas* gl) {
     gl->Draw(mesh, GlCanvas::Depth::kTestAndWrite, true);
     mesh.clear();
   }
+}
+
+// Snapshot discs, then the lines' start rings and end squares slightly towards the
+// camera, each on a white halo. A start ring is wide enough to show a snapshot disc taken
+// at the same point inside it.
+void Plot3D::DrawMarkers(GlCanvas* gl) {
+  Mesh mesh;
   const Color white{1, 1, 1, 1};
-  const auto marker = [&](const Projected& p, float r, const Color& c, bool hollow) {
-    if (!p.ok) return;
-    AddDisc({p.x, p.y}, p.z - 0.004f, r + 1.3f * s_, white, &mesh);
-    if (hollow) {
-      AddRing({p.x, p.y}, p.z - 0.006f, r - 2.0f * s_, r, c, &mesh);
-    } else {
-      AddDisc({p.x, p.y}, p.z - 0.006f, r, c, &mesh);
-    }
-  };
   for (const Snapshot& snap : f_.snapshots) {
+    const float r = 0.5f * snap.marker_size_px * s_;
     for (std::size_t i = 0; i < snap.points.size(); ++i) {
       if (!Finite(snap.points[i])) continue;
       const Color c = snap.colors.empty() ? Color{0.5f, 0.5f, 0.5f, 1.0f} : snap.colors[i];
-      marker(Project(Display(World(snap.points[i]))), 0.5f * snap.marker_size_px * s_, c, false);
+      const Projected p = Project(Display(World(snap.points[i])));
+      if (!p.ok) continue;
+      AddDisc({p.x, p.y}, p.z - 0.004f, r + 1.3f * s_, white, &mesh);
+      AddDisc({p.x, p.y}, p.z - 0.006f, r, c, &mesh);
     }
   }
+  const float ring_r = 8.5f * s_, ring_w = 2.6f * s_, square = 6.0f * s_;
   for (std::size_t li = 0; li < lines_.size(); ++li) {
     const Polyline3D& l = f_.lines[li];
     if (lines_[li].empty()) continue;
-    const float r = std::max(4.5f * s_, 2.2f * l.line_width_px * s_);
-    if (l.mark_start) marker(lines_[li].front().front(), r, l.color, true);
-    if (l.mark_end) marker(lines_[li].back().back(), r, l.color, false);
+    const Projected a = lines_[li].front().front(), b = lines_[li].back().back();
+    if (l.mark_start && a.ok) {
+      AddRing({a.x, a.y}, a.z - 0.008f, ring_r - ring_w - 1.3f * s_, ring_r + 1.3f * s_, white,
+              &mesh);
+      AddRing({a.x, a.y}, a.z - 0.010f, ring_r - ring_w, ring_r, l.color, &mesh);
+    }
+    if (l.mark_end && b.ok) {
+      const float h = square + 1.3f * s_;
+      AddRect(b.x - h, b.y - h, b.x + h, b.y + h, b.z - 0.008f, white, &mesh);
+      AddRect(b.x - square, b.y - square, b.x + square, b.y + square, b.z - 0.010f, l.color,
+              &mesh);
+    }
   }
   gl->Draw(mesh, GlCanvas::Depth::kTestAndWrite);
-  mesh.clear();
-  if (!legend_.empty()) {
-    legend_.DrawShapes(legend_x_, legend_y_, &mesh);
-    gl->Draw(mesh);
-    mesh.clear();
+}
+
+// The sea surface: a translucent plane at z = 0 over the box with its outline; what lies
+// below it is seen through it, tinted.
+void Plot3D::DrawSeaSurface(GlCanvas* gl) {
+  if (!sea_) return;
+  const double z = (0.0 - c_[2]) * sc_[2];
+  const V3 q[4] = {{-half_[0], -half_[1], z},
+                   {half_[0], -half_[1], z},
+                   {half_[0], half_[1], z},
+                   {-half_[0], half_[1], z}};
+  Mesh mesh;
+  Vec2 p[4];
+  float pz[4];
+  for (int i = 0; i < 4; ++i) {
+    const Projected pr = Project(q[i]);
+    p[i] = {pr.x, pr.y};
+    pz[i] = pr.z;
   }
+  AddConvexPolygon(p, pz, 4, kSeaColor, &mesh);
+  gl->Draw(mesh, GlCanvas::Depth::kTest, true);
+  mesh.clear();
+  for (int i = 0; i < 4; ++i) Segment(q[i], q[(i + 1) % 4], 1.2f * s_, kSeaEdgeColor, &mesh);
+  gl->Draw(mesh, GlCanvas::Depth::kOff, true);
 }
 
 void Plot3D::Halo(Image* img, const std::string& s, float x, float y, const TextStyle& st, HAlign h,

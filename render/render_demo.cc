@@ -27,6 +27,37 @@ bool Write(const std::string& path, const Figure& figure) {
   return true;
 }
 
+// The 2-D figures (states, errors on log and linear axes, channel) with their file names;
+// width 0: default sizes.
+std::vector<std::pair<std::string, shoal::render::Figure2D>> Figures2D(
+    const shoal::render::SyntheticRun& run, const std::string& scenario, int width, int height) {
+  using namespace shoal::render;
+  const int w2 = width > 0 ? width : 1600, h2 = height > 0 ? height : 1000;
+  std::vector<std::pair<std::string, Figure2D>> figures;
+  figures.emplace_back("states.png", StateFigure(run.vehicles, scenario, w2, h2));
+  ErrorOptions eo;
+  eo.scenario = scenario;
+  eo.log_y = true;
+  eo.position_tol_m = 0.5;
+  eo.velocity_tol_mps = 0.05;
+  eo.converged_s = run.converged_s;
+  eo.width_px = w2;
+  eo.height_px = h2;
+  figures.emplace_back("errors.png", ErrorFigure(run.errors, eo));
+  eo.log_y = false;
+  figures.emplace_back("errors_linear.png", ErrorFigure(run.errors, eo));
+  ChannelOptions co;
+  co.scenario = scenario;
+  co.tau_t_s = run.tau_t_s;
+  co.tau_s = run.tau_s;
+  co.mode = "lockstep";  // the synthetic deliveries are tick-aligned
+  co.control_period_s = 0.02;
+  co.width_px = w2;
+  co.height_px = height > 0 ? height : 0;
+  figures.emplace_back("channel.png", ChannelFigure(run.links, co));
+  return figures;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,27 +114,8 @@ int main(int argc, char** argv) {
   traj.azimuth_deg = azimuth_deg;
   traj.elevation_deg = elevation_deg;
 
-  const int w2 = width > 0 ? width : 1600, h2 = height > 0 ? height : 1000;
-  std::vector<std::pair<std::string, Figure2D>> figures;
-  figures.emplace_back("states.png", StateFigure(run.vehicles, scenario, w2, h2));
-  ErrorOptions eo;
-  eo.scenario = scenario;
-  eo.log_y = true;
-  eo.position_tol_m = 0.5;
-  eo.velocity_tol_mps = 0.05;
-  eo.converged_s = run.converged_s;
-  eo.width_px = w2;
-  eo.height_px = h2;
-  figures.emplace_back("errors.png", ErrorFigure(run.errors, eo));
-  eo.log_y = false;
-  figures.emplace_back("errors_linear.png", ErrorFigure(run.errors, eo));
-  ChannelOptions co;
-  co.scenario = scenario;
-  co.tau_t_s = run.tau_t_s;
-  co.tau_s = run.tau_s;
-  co.width_px = w2;
-  co.height_px = h2;
-  figures.emplace_back("channel.png", ChannelFigure(run.links, co));
+  const std::vector<std::pair<std::string, Figure2D>> figures =
+      Figures2D(run, scenario, width, height);
 
   // Bad options (e.g. a size too small for a figure) are reported before anything is drawn.
   std::string err;

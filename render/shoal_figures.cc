@@ -1,7 +1,9 @@
 #include "render/shoal_figures.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 
@@ -78,17 +80,6 @@ Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const Traj
   if (times.empty() && t1 >= t0) {
     for (int k = 0; k < 6; ++k) times.push_back(t0 + (t1 - t0) * k / 5.0);
   }
-  // A snapshot at a line's first or last sample already marks its start or end.
-  for (std::size_t k = 0; k < sorted.size(); ++k) {
-    const std::vector<double>& t = sorted[k]->t_s;
-    if (t.empty()) continue;
-    const double dt =
-        t.size() > 1 ? (t.back() - t.front()) / static_cast<double>(t.size() - 1) : 0.0;
-    for (double s : times) {
-      if (std::fabs(s - t.front()) <= dt) f.lines[k].mark_start = false;
-      if (std::fabs(s - t.back()) <= dt) f.lines[k].mark_end = false;
-    }
-  }
   std::vector<std::pair<int, int>> edges = o.snapshot_edges;
   if (edges.empty()) {
     for (const VehicleSeries* v : sorted) {
@@ -113,8 +104,10 @@ Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const Traj
     }
     f.snapshots.push_back(std::move(s));
   }
-  f.extra_legend.push_back({"formation snapshot", Color{0.3f, 0.3f, 0.3f, 1.0f}, LineStyle::kSolid,
-                            Marker::kCircle, 1.5f});
+  const Color grey{0.3f, 0.3f, 0.3f, 1.0f};
+  f.extra_legend.push_back({"formation snapshot", grey, LineStyle::kSolid, Marker::kCircle, 1.5f});
+  f.extra_legend.push_back({"start", grey, LineStyle::kNone, Marker::kRing, 1.5f});
+  f.extra_legend.push_back({"end", grey, LineStyle::kNone, Marker::kSquare, 1.5f});
   return f;
 }
 
@@ -126,7 +119,9 @@ Figure2D StateFigure(const std::vector<VehicleSeries>& vehicles, const std::stri
   f.title = Title(scenario, "states of all vehicles");
   f.columns = 2;
   f.link_x = true;
-  static const char* const kEta[5] = {"x", "y", "z", "\xCE\xB8", "\xCF\x88"};  // θ ψ
+  // z is drawn growing downwards, as in the 3-D figure (NED: z is positive down).
+  static const char* const kEta[5] = {"x (north)", "y (east)", "z (down)", "\xCE\xB8",
+                                      "\xCF\x88"};  // θ ψ
   static const char* const kNu[5] = {"u", "v", "w", "q", "r"};
   static const char* const kEtaUnit[5] = {"m", "m", "m", "rad", "rad"};
   static const char* const kNuUnit[5] = {"m/s", "m/s", "m/s", "rad/s", "rad/s"};
@@ -150,6 +145,7 @@ Figure2D StateFigure(const std::vector<VehicleSeries>& vehicles, const std::stri
       SetAxis(&p.x, "time", "s");
       SetAxis(&p.y, col == 0 ? kEta[row] : kNu[row], col == 0 ? kEtaUnit[row] : kNuUnit[row]);
       p.legend = LegendPlacement::kNone;
+      p.y.reversed = col == 0 && row == 2;
       for (const VehicleSeries* v : order) {
         Series s;
         s.x = v->t_s;
@@ -237,166 +233,267 @@ Figure2D ErrorFigure(const std::vector<ErrorSeries>& followers, const ErrorOptio
   return f;
 }
 
-Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOptions& o) {
-  Figure2D f;
-  f.width_px = o.width_px;
-  f.height_px = o.height_px;
-  f.title = Title(o.scenario, "channel: realised delays and drops");
-  f.columns = 1;
-  const bool have_tau = !o.tau_t_s.empty() && o.tau_t_s.size() == o.tau_s.size();
-  // tau at t by linear interpolation; `hint` speeds up increasing t (send times).
-  const auto tau_at = [&](double t, std::size_t* hint) {
-    if (!have_tau) return kNaN;
-    const std::vector<double>& T = o.tau_t_s;
+namespace {
+
+const Color kInk{0.1f, 0.1f, 0.1f, 1.0f};
+
+// tau(t) by linear interpolation in the caller's samples; `hint` speeds up increasing t
+// (send times).
+class TauCurve {
+ public:
+  explicit TauCurve(const ChannelOptions& o) : t_(o.tau_t_s), tau_(o.tau_s) {}
+  bool valid() const { return !t_.empty() && t_.size() == tau_.size(); }
+  double At(double t, std::size_t* hint) const {
+    if (!valid()) return kNaN;
     std::size_t i = *hint;
-    if (i >= T.size() || T[i] > t) i = 0;
-    if (i + 64 < T.size() && T[i + 64] < t) {
-      i = static_cast<std::size_t>(std::lower_bound(T.begin(), T.end(), t) - T.begin());
+    if (i >= t_.size() || t_[i] > t) i = 0;
+    if (i + 64 < t_.size() && t_[i + 64] < t) {
+      i = static_cast<std::size_t>(std::lower_bound(t_.begin(), t_.end(), t) - t_.begin());
       if (i > 0) --i;
     }
-    while (i + 1 < T.size() && T[i + 1] <= t) ++i;
+    while (i + 1 < t_.size() && t_[i + 1] <= t) ++i;
     *hint = i;
-    if (t <= T.front()) return o.tau_s.front();
-    if (i + 1 >= T.size()) return o.tau_s.back();
-    const double a = T[i], b = T[i + 1];
-    return o.tau_s[i] + (o.tau_s[i + 1] - o.tau_s[i]) * (t - a) / (b - a);
-  };
-  // Drop markers of dense links are translucent, so that bursts show as darker: alpha
-  // such that the average number of drops per pixel column of a plot ~1500 px wide reaches
-  // about half opacity. (The delay scatter stays opaque: single outliers must show.)
-  const auto density_alpha = [](std::size_t points, float floor_alpha) {
-    const double per_column = static_cast<double>(points) / 1500.0;
-    if (per_column <= 1.0) return 1.0f;
-    return std::max(floor_alpha, static_cast<float>(1.0 - std::pow(0.5, 1.0 / per_column)));
-  };
-  std::vector<const LinkSeries*> sorted;
-  for (const LinkSeries& l : links) sorted.push_back(&l);
-  std::sort(sorted.begin(), sorted.end(),
-            [](auto* a, auto* b) { return a->to != b->to ? a->to < b->to : a->from < b->from; });
-  double t_end = 0.0, t_start = INFINITY;
-  for (const LinkSeries* l : sorted) {
-    if (!l->sent_s.empty()) {
-      t_end = std::max(t_end, l->sent_s.back());
-      t_start = std::min(t_start, l->sent_s.front());
-    }
-    if (!l->dropped_s.empty()) {
-      t_end = std::max(t_end, l->dropped_s.back());
-      t_start = std::min(t_start, l->dropped_s.front());
-    }
+    if (t <= t_.front()) return tau_.front();
+    if (i + 1 >= t_.size()) return tau_.back();
+    const double a = t_[i], b = t_[i + 1];
+    return tau_[i] + (tau_[i + 1] - tau_[i]) * (t - a) / (b - a);
   }
-  if (!std::isfinite(t_start)) t_start = 0.0;
-  const double zoom_end = std::min(t_end, t_start + o.zoom_s);
 
-  // Legend: one entry per receiving vehicle, then tau and drops.
-  std::vector<int> receivers;
-  for (const LinkSeries* l : sorted) {
-    if (std::find(receivers.begin(), receivers.end(), l->to) == receivers.end())
-      receivers.push_back(l->to);
-  }
-  for (int id : receivers) {
-    f.legend.push_back(
-        {"to " + VehicleName(id), VehicleColor(id), LineStyle::kNone, Marker::kCircle, 2.0f});
-  }
-  if (have_tau) {
-    f.legend.push_back({"configured \xCF\x84(t)", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kDashed,
-                        Marker::kNone, 1.8f});
-  }
-  f.legend.push_back(
-      {"dropped", Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kNone, Marker::kCross, 2.0f});
+ private:
+  const std::vector<double>& t_;
+  const std::vector<double>& tau_;
+};
 
-  // 1. Realised delay against tau over the first seconds.
+// Drop markers of dense links are translucent, so that bursts show as darker: alpha such
+// that the average number of drops per pixel column of a plot ~1500 px wide reaches about
+// half opacity. (The delay scatter stays opaque: single outliers must show.)
+float DensityAlpha(std::size_t points, float floor_alpha) {
+  const double per_column = static_cast<double>(points) / 1500.0;
+  if (per_column <= 1.0) return 1.0f;
+  return std::max(floor_alpha, static_cast<float>(1.0 - std::pow(0.5, 1.0 / per_column)));
+}
+
+std::string LinkName(const LinkSeries& l) {
+  return std::to_string(l.from) + " \xE2\x86\x92 " + std::to_string(l.to);  // →
+}
+
+// Row of link k (of n) in the per-link panels: the first link at the top.
+double LinkRow(std::size_t k, std::size_t n) { return static_cast<double>(n - 1 - k); }
+
+std::vector<Tick> LinkTicks(const std::vector<const LinkSeries*>& links) {
+  std::vector<Tick> ticks;
+  for (std::size_t k = 0; k < links.size(); ++k)
+    ticks.push_back({LinkRow(k, links.size()), LinkName(*links[k])});
+  return ticks;
+}
+
+// 1. Realised delay of every link against tau over the first seconds. All links share
+// one colour: in tick-aligned runs their points coincide, so per-link colours would only
+// show the last link drawn; the per-link view is the next panel.
+Panel ZoomPanel(const std::vector<const LinkSeries*>& links, const ChannelOptions& o,
+                const TauCurve& tau, double t_start, double zoom_end) {
   Panel zoom;
   char title[96];
-  std::snprintf(title, sizeof title, "realised delay, first %.0f s", zoom_end - t_start);
+  std::snprintf(title, sizeof title, "realised delay of every link, first %.0f s",
+                zoom_end - t_start);
   zoom.title = title;
   SetAxis(&zoom.x, "send time", "s");
   SetAxis(&zoom.y, "delay", "s");
   zoom.x.min = t_start;
   zoom.x.max = zoom_end > t_start ? zoom_end : t_start + 1.0;
   zoom.legend = LegendPlacement::kNone;
-  Series drops_zoom;
-  drops_zoom.line = LineStyle::kNone;
-  drops_zoom.marker = Marker::kCross;
-  drops_zoom.marker_size_px = 9.0f;
-  drops_zoom.color = Color{0.1f, 0.1f, 0.1f, 1.0f};
-  for (const LinkSeries* l : sorted) {
-    Series s;
-    s.line = LineStyle::kNone;
-    s.marker = Marker::kCircle;
-    s.marker_size_px = 5.0f;
-    s.color = VehicleColor(l->to);
+  Series delivered, drops;
+  delivered.line = drops.line = LineStyle::kNone;
+  delivered.marker = Marker::kCircle;
+  delivered.marker_size_px = 5.0f;
+  delivered.color = Hex(0x0072B2);
+  drops.marker = Marker::kCross;
+  drops.marker_size_px = 9.0f;
+  drops.color = kInk;
+  for (const LinkSeries* l : links) {
     for (std::size_t i = 0; i < l->sent_s.size() && l->sent_s[i] <= zoom_end; ++i) {
-      s.x.push_back(l->sent_s[i]);
-      s.y.push_back(l->delay_s[i]);
+      delivered.x.push_back(l->sent_s[i]);
+      delivered.y.push_back(l->delay_s[i]);
     }
-    if (!s.x.empty()) zoom.series.push_back(std::move(s));
     std::size_t hint = 0;
     for (double t : l->dropped_s) {
       if (t > zoom_end) break;
-      drops_zoom.x.push_back(t);
-      drops_zoom.y.push_back(have_tau ? tau_at(t, &hint) : 0.0);
+      drops.x.push_back(t);
+      drops.y.push_back(tau.valid() ? tau.At(t, &hint) : 0.0);
     }
   }
-  if (have_tau) {
-    Series tau;
-    tau.color = Color{0.1f, 0.1f, 0.1f, 1.0f};
-    tau.line = LineStyle::kDashed;
-    tau.line_width_px = 1.8f;
+  if (!delivered.x.empty()) zoom.series.push_back(std::move(delivered));
+  if (tau.valid()) {
+    Series curve;
+    curve.color = kInk;
+    curve.line = LineStyle::kDashed;
+    curve.line_width_px = 1.8f;
     for (std::size_t i = 0; i < o.tau_t_s.size() && o.tau_t_s[i] <= zoom_end + 1.0; ++i) {
-      tau.x.push_back(o.tau_t_s[i]);
-      tau.y.push_back(o.tau_s[i]);
+      curve.x.push_back(o.tau_t_s[i]);
+      curve.y.push_back(o.tau_s[i]);
     }
-    if (!tau.x.empty()) zoom.series.push_back(std::move(tau));
+    if (!curve.x.empty()) zoom.series.push_back(std::move(curve));
   }
-  if (!drops_zoom.x.empty()) zoom.series.push_back(std::move(drops_zoom));
-  f.panels.push_back(std::move(zoom));
+  if (!drops.x.empty()) zoom.series.push_back(std::move(drops));
+  return zoom;
+}
 
-  // 2. Realised minus configured delay (or the realised delay) over the whole run.
-  Panel all;
-  all.title = have_tau ? "realised minus configured delay, whole run" : "realised delay, whole run";
-  SetAxis(&all.x, "send time", "s");
-  SetAxis(&all.y, have_tau ? "delay \xE2\x88\x92 \xCF\x84" : "delay", "s");
-  all.legend = LegendPlacement::kNone;
-  for (const LinkSeries* l : sorted) {
-    Series s;
-    s.line = LineStyle::kNone;
-    s.marker = Marker::kCircle;
-    s.marker_size_px = 4.0f;
-    s.color = VehicleColor(l->to);
-    s.x = l->sent_s;
-    s.y = l->delay_s;
-    if (have_tau) {
-      std::size_t hint = 0;
-      for (std::size_t i = 0; i < s.x.size(); ++i) s.y[i] -= tau_at(s.x[i], &hint);
+// What realised minus configured delay means in this run's mode.
+std::string DelayErrorNote(const ChannelOptions& o) {
+  char period[48] = "one control period)";
+  if (o.control_period_s > 0) {
+    std::snprintf(period, sizeof period, "%g ms), one control period", o.control_period_s * 1e3);
+  }
+  const std::string quantised = std::string("deliveries wait for the next control tick, so ") +
+                                "delay \xE2\x88\x92 \xCF\x84 lies in [0, " + period;
+  const std::string release = "delay \xE2\x88\x92 \xCF\x84 is the emulator's release error";
+  if (o.mode == "sim" || o.mode == "lockstep") return o.mode + " run: " + quantised;
+  if (o.mode == "realtime") return "real-time run: " + release;
+  return "sim and lockstep runs: " + quantised + "; real-time runs: " + release;
+}
+
+// Summary of one link's values: min, 5th, 50th, 95th percentile, max.
+std::array<double, 5> Quantiles(std::vector<double> v) {
+  std::array<double, 5> q{};
+  const double at[5] = {0.0, 0.05, 0.5, 0.95, 1.0};
+  for (int k = 0; k < 5; ++k) {
+    const auto i = static_cast<std::size_t>(std::lround(at[k] * static_cast<double>(v.size() - 1)));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(i), v.end());
+    q[static_cast<std::size_t>(k)] = v[i];
+  }
+  return q;
+}
+
+// 2. Realised minus configured delay per link over the whole run, one row per link: the
+// range as a thin line, the middle 90 % as a thick bar, the median as a black tick.
+Panel DelayErrorPanel(const std::vector<const LinkSeries*>& links, const ChannelOptions& o,
+                      const TauCurve& tau) {
+  // The reference: each message's drawn delay where the links know it, else tau(t).
+  bool have_ref = tau.valid();
+  if (!have_ref) {
+    have_ref = true;
+    for (const LinkSeries* l : links)
+      have_ref = have_ref && l->model_delay_s.size() == l->delay_s.size();
+  }
+  Panel p;
+  p.title = have_ref ? "realised minus configured delay per link, whole run"
+                        : "realised delay per link, whole run";
+  p.note = (have_ref ? DelayErrorNote(o) + ". " : std::string()) +
+           "Thin line: min to max; bar: 5 to 95 %; black tick: median.";
+  SetAxis(&p.x, have_ref ? "delay \xE2\x88\x92 \xCF\x84" : "delay", "ms");
+  SetAxis(&p.y, "link", "");
+  p.y.ticks = LinkTicks(links);
+  p.legend = LegendPlacement::kNone;
+  Series medians;
+  medians.line = LineStyle::kNone;
+  medians.marker = Marker::kVBar;
+  medians.marker_size_px = 14.0f;
+  medians.color = kInk;
+  for (std::size_t k = 0; k < links.size(); ++k) {
+    const LinkSeries& l = *links[k];
+    if (l.sent_s.empty()) continue;
+    std::vector<double> d(l.delay_s);
+    std::size_t hint = 0;
+    const bool drawn = l.model_delay_s.size() == d.size();
+    for (std::size_t i = 0; i < d.size(); ++i) {
+      const double ref = drawn ? l.model_delay_s[i] : tau.At(l.sent_s[i], &hint);
+      d[i] = 1e3 * (have_ref ? d[i] - ref : d[i]);
     }
-    if (!s.x.empty()) all.series.push_back(std::move(s));
+    const std::array<double, 5> q = Quantiles(std::move(d));
+    const double row = LinkRow(k, links.size());
+    Series range, bar;
+    range.color = bar.color = VehicleColor(l.to);
+    range.line_width_px = 1.5f;
+    range.x = {q[0], q[4]};
+    range.y = {row, row};
+    bar.line_width_px = 8.0f;
+    bar.x = {q[1], q[3]};
+    bar.y = {row, row};
+    p.series.push_back(std::move(range));
+    p.series.push_back(std::move(bar));
+    medians.x.push_back(q[2]);
+    medians.y.push_back(row);
   }
-  f.panels.push_back(std::move(all));
+  if (!medians.x.empty()) p.series.push_back(std::move(medians));
+  if (have_ref && o.control_period_s > 0 && o.mode != "realtime") {
+    for (double v : {0.0, 1e3 * o.control_period_s})
+      p.vlines.push_back({v, Color{0.45f, 0.45f, 0.45f, 1.0f}, LineStyle::kDashed, 1.2f, ""});
+  }
+  return p;
+}
 
-  // 3. Drops per link over time.
+// 3. Drops per link over time, rows as in panel 2.
+Panel DropPanel(const std::vector<const LinkSeries*>& links, double t_start, double t_end) {
   Panel drops;
   drops.title = "dropped messages per link";
   SetAxis(&drops.x, "send time", "s");
   SetAxis(&drops.y, "link", "");
+  drops.y.ticks = LinkTicks(links);
   drops.legend = LegendPlacement::kNone;
-  for (std::size_t k = 0; k < sorted.size(); ++k) {
-    const LinkSeries* l = sorted[k];
-    const double row = static_cast<double>(sorted.size() - 1 - k);
-    drops.y.ticks.push_back(
-        {row, std::to_string(l->from) + " \xE2\x86\x92 " + std::to_string(l->to)});
+  for (std::size_t k = 0; k < links.size(); ++k) {
+    const LinkSeries* l = links[k];
     Series s;
     s.line = LineStyle::kNone;
     s.marker = Marker::kVBar;
     s.marker_size_px = 10.0f;
     s.color = VehicleColor(l->to);
     s.x = l->dropped_s;
-    s.y.assign(s.x.size(), row);
-    s.color.a = density_alpha(s.x.size(), 0.05f);
+    s.y.assign(s.x.size(), LinkRow(k, links.size()));
+    s.color.a = DensityAlpha(s.x.size(), 0.05f);
     if (!s.x.empty()) drops.series.push_back(std::move(s));
   }
+  if (drops.series.empty()) drops.note = "no message was dropped";
   drops.x.min = t_start;
   drops.x.max = t_end > t_start ? t_end : t_start + 1.0;
-  f.panels.push_back(std::move(drops));
+  return drops;
+}
+
+}  // namespace
+
+Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOptions& o) {
+  std::vector<const LinkSeries*> sorted;
+  for (const LinkSeries& l : links) sorted.push_back(&l);
+  std::sort(sorted.begin(), sorted.end(),
+            [](auto* a, auto* b) { return a->to != b->to ? a->to < b->to : a->from < b->from; });
+  double t_end = 0.0, t_start = INFINITY;
+  for (const LinkSeries* l : sorted) {
+    for (const std::vector<double>* v : {&l->sent_s, &l->dropped_s}) {
+      if (v->empty()) continue;
+      t_end = std::max(t_end, v->back());
+      t_start = std::min(t_start, v->front());
+    }
+  }
+  if (!std::isfinite(t_start)) t_start = 0.0;
+  const TauCurve tau(o);
+
+  Figure2D f;
+  f.width_px = o.width_px;
+  f.height_px = o.height_px;
+  if (f.height_px <= 0) {
+    // Two panels have a row per link: about 22 px per row at scale 1, the text kept at
+    // the scale of a 1000 px high figure.
+    const int rows = static_cast<int>(sorted.size());
+    f.height_px = std::max(1000, 3 * (22 * rows + 90) + 110);
+    f.scale = std::clamp(static_cast<float>(f.width_px) / 1600.0f, 0.75f, 3.0f);
+  }
+  f.title = Title(o.scenario, "channel: realised delays and drops");
+  f.columns = 1;
+  std::vector<int> receivers;
+  for (const LinkSeries* l : sorted) {
+    if (std::find(receivers.begin(), receivers.end(), l->to) == receivers.end())
+      receivers.push_back(l->to);
+  }
+  f.legend.push_back({"delivered", Hex(0x0072B2), LineStyle::kNone, Marker::kCircle, 2.0f});
+  if (tau.valid())
+    f.legend.push_back({"configured \xCF\x84(t)", kInk, LineStyle::kDashed, Marker::kNone, 1.8f});
+  f.legend.push_back({"dropped", kInk, LineStyle::kNone, Marker::kCross, 2.0f});
+  for (int id : receivers)
+    f.legend.push_back({"to " + VehicleName(id), VehicleColor(id), LineStyle::kSolid,
+                        Marker::kNone, 6.0f});
+  f.panels.push_back(
+      ZoomPanel(sorted, o, tau, t_start, std::min(t_end, t_start + o.zoom_s)));
+  f.panels.push_back(DelayErrorPanel(sorted, o, tau));
+  f.panels.push_back(DropPanel(sorted, t_start, t_end));
   return f;
 }
 

@@ -1,6 +1,7 @@
-// The standard figures of a Shoal run (issue 4, `shoal render`), built from plain
-// per-vehicle arrays. The caller (the render command) reads the log; these functions only
-// arrange numbers into Figure2D / Figure3D with one colour per vehicle (VehicleColor).
+// The standard figures of a Shoal run (`shoal render`), built from plain per-vehicle
+// arrays. The caller (render/run_figures.h) reads the log; these functions only arrange
+// numbers into Figure2D / Figure3D with one colour per vehicle (VehicleColor), so that
+// they can be tested and benchmarked on synthetic data.
 #pragma once
 
 #include <array>
@@ -28,10 +29,14 @@ struct ErrorSeries {
 };
 
 /// One directed link's channel ground truth: delivered messages (send time, realised
-/// delay) and dropped ones (send time).
+/// delay and, if known, the delay the link's model drew for the message) and dropped ones
+/// (send time).
 struct LinkSeries {
   int from = 0, to = 1;
   std::vector<double> sent_s, delay_s;
+  /// Empty, or as long as delay_s: then the delay error is taken against it rather than
+  /// against ChannelOptions' tau(t) (right for per-link and random delay models too).
+  std::vector<double> model_delay_s;
   std::vector<double> dropped_s;
 };
 
@@ -46,14 +51,14 @@ struct TrajectoryOptions {
   int width_px = 1400, height_px = 1000;
 };
 
-/// Paper Figs. 12 and 23: 3-D trajectories of all vehicles with formation snapshots. A
-/// line's start (hollow circle) and end (filled circle) are marked unless a snapshot is
-/// taken there.
+/// Paper Figs. 12 and 23: 3-D trajectories of all vehicles with formation snapshots, each
+/// line's start marked by a ring and its end by a filled square (both in the legend); z
+/// down (NED), the sea surface z = 0 drawn when the box reaches it.
 Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const TrajectoryOptions& o);
 
 /// Paper Figs. 2-11, 13-22: x, y, z, theta, psi (left column) and u, v, w, q, r (right)
 /// against time for all vehicles, one legend for the figure. psi is drawn wrapped to
-/// (-pi, pi] with the line broken at each wrap.
+/// (-pi, pi] with the line broken at each wrap; z grows downwards, as in the 3-D figure.
 Figure2D StateFigure(const std::vector<VehicleSeries>& vehicles, const std::string& scenario,
                      int width_px = 1600, int height_px = 1000);
 
@@ -74,12 +79,19 @@ struct ChannelOptions {
   /// The configured delay tau(t), sampled by the caller (e.g. every 10 ms).
   std::vector<double> tau_t_s, tau_s;
   double zoom_s = 20.0;  // the first panel shows the first zoom_s seconds
-  int width_px = 1600, height_px = 1000;
+  /// "sim", "lockstep", "realtime" (analysis' RunAnalysis::mode) or "" (unknown), and the
+  /// control period (0: unknown): they say in the figure what the delay error means.
+  std::string mode;
+  double control_period_s = 0.0;
+  /// height_px 0: 1000 px, taller when there are so many links that their rows would
+  /// crowd (text then kept at the scale of a 1000 px high figure).
+  int width_px = 1600, height_px = 0;
 };
 
-/// The channel: realised delay against tau(t) over the first zoom_s seconds (drops
-/// marked), realised minus configured delay over the whole run, and drops over time per
-/// link. Colours: the receiving vehicle's.
+/// The channel: realised delay of every link against tau(t) over the first zoom_s seconds
+/// (drops marked); per link (one row each), the spread of realised minus configured delay
+/// over the whole run (min-max, 5-95 %, median) with a note on what it means in the run's
+/// mode; and drops over time per link. Row colours: the receiving vehicle's.
 Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOptions& o);
 
 }  // namespace shoal::render

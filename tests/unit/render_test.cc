@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <stb_image.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -266,18 +267,36 @@ TEST(Decimate, ScatterKeepsOnePointPerCellAndCountsTheRest) {
 
 // ---------------------------------------------------------------- palette and text
 
-TEST(Palette, LeaderIsDarkAndVehiclesAreDistinct) {
+// CIELAB (D65) of an sRGB colour: a perceptual-ish space where a Euclidean distance of
+// about 20 (CIE76 Delta-E) separates colours that are easy to tell apart in a plot.
+std::array<double, 3> Lab(const Color& c) {
+  const auto lin = [](double v) { return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4); };
+  const double r = lin(c.r), g = lin(c.g), b = lin(c.b);
+  const double x = (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.95047;
+  const double y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+  const double z = (0.0193 * r + 0.1192 * g + 0.9505 * b) / 1.08883;
+  const auto f = [](double t) { return t > 0.008856 ? std::cbrt(t) : 7.787 * t + 16.0 / 116.0; };
+  return {116.0 * f(y) - 16.0, 500.0 * (f(x) - f(y)), 200.0 * (f(y) - f(z))};
+}
+
+double DeltaE(const Color& a, const Color& b) {
+  const auto p = Lab(a), q = Lab(b);
+  return std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                   (p[2] - q[2]) * (p[2] - q[2]));
+}
+
+TEST(Palette, LeaderIsDarkAndSixteenFollowersAreDistinct) {
   const Color leader = VehicleColor(0);
   EXPECT_LT(leader.r + leader.g + leader.b, 0.5f);
-  std::set<std::tuple<int, int, int>> seen;
-  for (int id = 0; id <= 16; ++id) {
-    const Color c = VehicleColor(id);
-    seen.insert(
-        {static_cast<int>(c.r * 255), static_cast<int>(c.g * 255), static_cast<int>(c.b * 255)});
-    // Visible on white: not too light.
-    EXPECT_LT(0.299f * c.r + 0.587f * c.g + 0.114f * c.b, 0.85f) << "id " << id;
+  const Color white{1, 1, 1, 1};
+  for (int i = 1; i <= 16; ++i) {
+    const Color c = VehicleColor(i);
+    EXPECT_GE(DeltaE(c, white), 35.0) << "follower " << i << " is too light for white paper";
+    EXPECT_GE(DeltaE(c, leader), 25.0) << "follower " << i << " looks like the leader";
+    for (int j = 1; j < i; ++j) {
+      EXPECT_GE(DeltaE(c, VehicleColor(j)), 20.0) << "followers " << j << " and " << i;
+    }
   }
-  EXPECT_EQ(seen.size(), 17u);
   EXPECT_EQ(VehicleName(0), "leader");
   EXPECT_EQ(VehicleName(3), "follower 3");
 }
@@ -574,6 +593,98 @@ TEST(RenderFigures, StandardFiguresFromSyntheticData) {
   ASSERT_TRUE(RenderImage(traj, &img, &err)) << err;
 }
 
+TEST(RenderFigures, ChannelGivesEachLinkARowAndSaysWhatTheDelayErrorMeans) {
+  // Given three links whose delays exceed tau = 0.1 s by 0..10, 0..20 and 5..15 ms.
+  std::vector<LinkSeries> links(3);
+  const int from[3] = {0, 2, 0}, to[3] = {1, 1, 2};
+  const double lo_ms[3] = {0, 0, 5}, hi_ms[3] = {10, 20, 15};
+  for (int k = 0; k < 3; ++k) {
+    links[k].from = from[k];
+    links[k].to = to[k];
+    for (int i = 0; i <= 1000; ++i) {
+      links[k].sent_s.push_back(0.02 * i);
+      links[k].delay_s.push_back(0.1 + 1e-3 * (lo_ms[k] + (hi_ms[k] - lo_ms[k]) * i / 1000.0));
+    }
+  }
+  ChannelOptions o;
+  o.tau_t_s = {0.0, 100.0};
+  o.tau_s = {0.1, 0.1};
+  o.mode = "sim";
+  o.control_period_s = 0.02;
+  // When the figure is made,
+  const Figure2D f = ChannelFigure(links, o);
+  ASSERT_EQ(f.panels.size(), 3u);
+  const Panel& p = f.panels[1];
+  // then the delay-error panel has one row per link (named like the drops panel's rows),
+  ASSERT_EQ(p.y.ticks.size(), 3u);
+  EXPECT_EQ(p.y.ticks[0].label, "0 \xE2\x86\x92 1");
+  EXPECT_EQ(p.y.ticks[1].label, "2 \xE2\x86\x92 1");
+  EXPECT_EQ(p.y.ticks[2].label, "0 \xE2\x86\x92 2");
+  for (std::size_t k = 0; k < 3; ++k) EXPECT_EQ(f.panels[2].y.ticks[k].label, p.y.ticks[k].label);
+  // with each link's median (ms) on its own row,
+  const Series& medians = p.series.back();
+  ASSERT_EQ(medians.x.size(), 3u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NEAR(medians.x[k], 0.5 * (lo_ms[k] + hi_ms[k]), 0.05) << "link " << k;
+    EXPECT_EQ(medians.y[k], p.y.ticks[k].value);
+  }
+  // and a note that in a sim run the difference lies within one control period.
+  EXPECT_NE(p.note.find("[0, 20 ms), one control period"), std::string::npos) << p.note;
+  o.mode = "realtime";
+  EXPECT_NE(ChannelFigure(links, o).panels[1].note.find("release error"), std::string::npos);
+  Image img;
+  std::string err;
+  EXPECT_TRUE(RenderImage(f, &img, &err)) << err;
+}
+
+TEST(RenderFigures, StatesDrawDepthDownwardsLikeThe3DFigure) {
+  VehicleSeries v;
+  v.t_s = {0.0, 1.0};
+  for (auto& c : v.eta) c = {0.0, 1.0};
+  for (auto& c : v.nu) c = {0.0, 1.0};
+  const Figure2D f = StateFigure({v}, "");
+  const Panel& z = f.panels[4];  // row 2, left column
+  EXPECT_TRUE(z.y.reversed);
+  EXPECT_NE(z.y.label.find("down"), std::string::npos) << z.y.label;
+  const Figure3D t = TrajectoryFigure({v}, TrajectoryOptions{});
+  EXPECT_TRUE(t.z_down);
+  EXPECT_NE(t.z_label.find("down"), std::string::npos) << t.z_label;
+  for (std::size_t k = 0; k < f.panels.size(); ++k) {
+    if (k != 4) {
+      EXPECT_FALSE(f.panels[k].y.reversed) << "panel " << k;
+    }
+  }
+}
+
+TEST(Render3D, SeaSurfaceIsDrawnWhereTheBoxReachesIt) {
+  // Given a dive from the surface (z = 0) to 40 m depth, and the
+  // same dive 100 m deeper (the box does not reach z = 0).
+  for (double offset : {0.0, 100.0}) {
+    Figure3D f;
+    f.width_px = 500;
+    f.height_px = 400;
+    Polyline3D l;
+    l.color = VehicleColor(1);
+    for (int i = 0; i <= 100; ++i) l.points.push_back({i * 1.0, i * 0.5, offset + 0.4 * i});
+    f.lines.push_back(l);
+    Image with, without;
+    std::string err;
+    ASSERT_TRUE(RenderImage(f, &with, &err)) << err;
+    f.sea_surface = false;
+    ASSERT_TRUE(RenderImage(f, &without, &err)) << err;
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < with.rgba.size(); i += 4) {
+      differ += with.rgba[i] != without.rgba[i] || with.rgba[i + 2] != without.rgba[i + 2];
+    }
+    // Then the plane (and its legend entry) changes much of the picture only if it is there.
+    if (offset == 0.0) {
+      EXPECT_GT(differ, with.rgba.size() / 4 / 20) << "no sea surface drawn";
+    } else {
+      EXPECT_EQ(differ, 0u) << "a sea surface outside the box";
+    }
+  }
+}
+
 TEST(Render2D, RendersFromSeveralThreadsAtOnce) {
   // Given four threads drawing at the same time (each needs its own OpenGL context).
   std::vector<Image> images(4);
@@ -692,13 +803,69 @@ TEST(RenderErrors, ExtremeValuesRenderOrAreRefused) {
   }
 }
 
+// Where a colour's pixels are: their bounding box and count (within `tol` per channel).
+struct ColourBox {
+  int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+  std::size_t n = 0;
+};
+ColourBox FindColour(const Image& img, const Color& c, int x_from = 0, int x_to = 1 << 30,
+                     int tol = 40) {
+  const int r = static_cast<int>(std::lround(c.r * 255)),
+            g = static_cast<int>(std::lround(c.g * 255)),
+            b = static_cast<int>(std::lround(c.b * 255));
+  ColourBox box;
+  for (int y = 0; y < img.height; ++y) {
+    for (int x = std::max(0, x_from); x < std::min(img.width, x_to); ++x) {
+      const std::uint8_t* p = &img.rgba[(static_cast<std::size_t>(y) * img.width + x) * 4];
+      if (std::abs(p[0] - r) > tol || std::abs(p[1] - g) > tol || std::abs(p[2] - b) > tol)
+        continue;
+      ++box.n;
+      box.x0 = std::min(box.x0, x);
+      box.x1 = std::max(box.x1, x);
+      box.y0 = std::min(box.y0, y);
+      box.y1 = std::max(box.y1, y);
+    }
+  }
+  return box;
+}
+
 TEST(RenderErrors, NonPositiveValuesOnALogAxisAreSkipped) {
-  Figure2D f = TwoPanelFigure(600, 400);
-  f.panels[1].series[0].y[100] = 0.0;
-  f.panels[1].series[0].y[200] = -5.0;
+  // Given a log-y scatter of 1..100 over x = 0..100, except that x in [40, 60] holds 0,
+  // -5 and 1e-310 (positive, but its logarithm would stretch the axis over 300 decades).
+  const Color red = Hex(0xD00000);
+  Figure2D f;
+  f.width_px = 600;
+  f.height_px = 400;
+  Panel p;
+  p.y.log = true;
+  p.legend = LegendPlacement::kNone;
+  Series s;
+  s.line = LineStyle::kNone;
+  s.marker = Marker::kSquare;
+  s.marker_size_px = 6.0f;
+  s.color = red;
+  const double bad[3] = {0.0, -5.0, 1e-310};
+  for (int i = 0; i <= 100; ++i) {
+    s.x.push_back(i);
+    s.y.push_back(i >= 40 && i <= 60 ? bad[i % 3] : std::pow(10.0, i / 50.0));
+  }
+  p.series.push_back(std::move(s));
+  f.panels.push_back(std::move(p));
+  // When it is rendered,
   Image img;
   std::string err;
-  EXPECT_TRUE(RenderImage(f, &img, &err)) << err;
+  ASSERT_TRUE(RenderImage(f, &img, &err)) << err;
+  // then the good points span most of the plot's height (the axis is 1..100, not 1e-310..),
+  const ColourBox all = FindColour(img, red);
+  ASSERT_GT(all.n, 100u);
+  EXPECT_GT(all.y1 - all.y0, img.height / 2);
+  // and no marker is drawn where the skipped points are (x in [44, 56], clear of the
+  // markers of x = 39 and 61).
+  const double px_per_x = (all.x1 - all.x0) / 100.0;
+  const ColourBox gap = FindColour(img, red, all.x0 + static_cast<int>(44 * px_per_x),
+                                   all.x0 + static_cast<int>(56 * px_per_x));
+  EXPECT_EQ(gap.n, 0u) << "markers at x " << gap.x0 << ".." << gap.x1 << ", y " << gap.y0
+                       << ".." << gap.y1;
 }
 
 }  // namespace

@@ -1,0 +1,208 @@
+#include "render/run_figures.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <map>
+#include <utility>
+
+#include "core/channel_model.h"
+#include "core/topology.h"
+#include "render/figure.h"
+
+namespace shoal::render {
+namespace {
+
+bool Finite(const FormationErrors& e) {
+  return std::isfinite(e.position_m) && std::isfinite(e.velocity_mps) &&
+         std::isfinite(e.attitude_rad);
+}
+
+// Snapshot segments along the topology's links (each unordered pair once).
+std::vector<std::pair<int, int>> SnapshotEdges(const RunData& run) {
+  std::vector<std::pair<int, int>> edges;
+  if (!run.has_scenario) return edges;
+  const Topology topo =
+      Topology::Build(run.scenario.followers, run.scenario.edges, run.scenario.leader_links);
+  for (const auto& [from, to] : topo.Links()) {
+    const auto e = std::make_pair(std::min(from, to), std::max(from, to));
+    if (std::find(edges.begin(), edges.end(), e) == edges.end()) edges.push_back(e);
+  }
+  return edges;
+}
+
+template <typename Options>
+void SetSize(const RunFigureOptions& o, Options* f) {
+  if (o.width_px > 0) {
+    f->width_px = o.width_px;
+    f->height_px = o.height_px;
+  }
+}
+
+}  // namespace
+
+std::vector<VehicleSeries> VehicleSeriesOf(const RunData& run) {
+  std::vector<VehicleSeries> vehicles;
+  for (const VehicleTrack& track : run.vehicles) {
+    if (track.samples.empty()) continue;
+    VehicleSeries v;
+    v.id = track.id;
+    const std::size_t n = track.samples.size();
+    v.t_s.reserve(n);
+    for (auto& c : v.eta) c.reserve(n);
+    for (auto& c : v.nu) c.reserve(n);
+    for (const StateMsg& m : track.samples) {
+      v.t_s.push_back(ToSeconds(m.utime));
+      for (int k = 0; k < 5; ++k) {
+        v.eta[static_cast<std::size_t>(k)].push_back(m.eta(k));
+        v.nu[static_cast<std::size_t>(k)].push_back(m.nu(k));
+      }
+    }
+    vehicles.push_back(std::move(v));
+  }
+  return vehicles;
+}
+
+std::vector<ErrorSeries> ErrorSeriesOf(const RunData& run, const RunAnalysis& a) {
+  std::vector<ErrorSeries> errors;
+  if (!a.has_formation) return errors;
+  for (const FollowerAnalysis& fa : a.followers) {
+    if (fa.id <= 0 || fa.id >= static_cast<int>(run.vehicles.size())) continue;
+    const VehicleTrack& track = run.vehicles[static_cast<std::size_t>(fa.id)];
+    ErrorSeries e;
+    e.id = fa.id;
+    for (std::size_t k = 0; k < fa.errors.size() && k < track.samples.size(); ++k) {
+      if (!Finite(fa.errors[k])) continue;
+      e.t_s.push_back(ToSeconds(track.samples[k].utime));
+      e.position_m.push_back(fa.errors[k].position_m);
+      e.velocity_mps.push_back(fa.errors[k].velocity_mps);
+      e.attitude_rad.push_back(fa.errors[k].attitude_rad);
+    }
+    if (!e.t_s.empty()) errors.push_back(std::move(e));
+  }
+  return errors;
+}
+
+std::vector<LinkSeries> LinkSeriesOf(const RunData& run) {
+  std::map<std::pair<int, int>, LinkSeries> links;
+  for (const ChannelEventRecord& e : run.channel_events) {
+    LinkSeries& l = links[{e.sender, e.receiver}];
+    l.from = e.sender;
+    l.to = e.receiver;
+    if (e.status == 0) {
+      l.sent_s.push_back(ToSeconds(e.send_utime));
+      l.delay_s.push_back(ToSeconds(e.deliver_utime - e.send_utime));
+      l.model_delay_s.push_back(e.delay_s);
+    } else {
+      l.dropped_s.push_back(ToSeconds(e.send_utime));
+    }
+  }
+  std::vector<LinkSeries> list;
+  for (auto& [key, l] : links) list.push_back(std::move(l));
+  return list;
+}
+
+ChannelOptions ChannelOptionsOf(const RunData& run, const RunAnalysis& a) {
+  ChannelOptions o;
+  o.scenario = run.scenario_name.empty() ? "run" : run.scenario_name;
+  if (run.has_scenario && !run.channel_events.empty()) {  // the default link delay
+    const double end = ToSeconds(run.channel_events.back().send_utime);
+    for (double t = 0.0; t <= end + 1e-9; t += 0.01) {
+      o.tau_t_s.push_back(t);
+      o.tau_s.push_back(NominalDelaySeconds(run.scenario.delay, t));
+    }
+  }
+  o.mode = a.mode;
+  if (a.period_us > 0) {
+    o.control_period_s = ToSeconds(a.period_us);
+  } else if (run.has_scenario) {
+    o.control_period_s = ToSeconds(run.scenario.period_us());
+  }
+  return o;
+}
+
+bool WriteRunFigures(const RunData& run, const std::string& out_dir, const RunFigureOptions& o,
+                     RunFigureReport* report, std::string* err) {
+  const std::vector<VehicleSeries> vehicles = VehicleSeriesOf(run);
+  if (vehicles.empty()) {
+    if (err) *err = run.source + ": no vehicle states to draw";
+    return false;
+  }
+  const RunAnalysis a = AnalyseRun(run);
+  const std::string name = run.scenario_name.empty() ? "run" : run.scenario_name;
+  std::string why;
+  const auto emit = [&](bool ok, const std::string& path) {
+    if (ok) {
+      report->written.push_back(path);
+    } else {
+      report->failures.push_back(path + ": " + why);
+    }
+  };
+  TrajectoryOptions t;
+  t.scenario = name;
+  t.snapshot_edges = SnapshotEdges(run);
+  SetSize(o, &t);
+  const std::string trajectory = out_dir + "/trajectory.png";
+  emit(RenderPng(TrajectoryFigure(vehicles, t), trajectory, &why), trajectory);
+  const std::string states = out_dir + "/states.png";
+  const Figure2D sf = o.width_px > 0 ? StateFigure(vehicles, name, o.width_px, o.height_px)
+                                     : StateFigure(vehicles, name);
+  emit(RenderPng(sf, states, &why), states);
+
+  const std::vector<ErrorSeries> errors = ErrorSeriesOf(run, a);
+  if (!a.has_formation) {
+    report->skipped.push_back(
+        "no scenario (offsets) or no leader states in the log: errors.png skipped (give "
+        "--scenario FILE)");
+  } else if (errors.empty()) {
+    report->skipped.push_back(
+        "no follower has a leader state at the same time: errors.png skipped");
+  } else {
+    ErrorOptions e;
+    e.scenario = name;
+    e.log_y = !o.linear_errors;
+    e.position_tol_m = run.scenario.metrics.position_tol_m;
+    e.velocity_tol_mps = run.scenario.metrics.velocity_tol_mps;
+    e.converged_s = a.summary.converged ? a.summary.convergence_time_s : -1.0;
+    SetSize(o, &e);
+    const std::string path = out_dir + "/errors.png";
+    emit(RenderPng(ErrorFigure(errors, e), path, &why), path);
+  }
+
+  if (run.channel_events.empty()) {
+    report->skipped.push_back("no SHOAL_CHANNEL events in the log: channel.png skipped");
+  } else {
+    ChannelOptions c = ChannelOptionsOf(run, a);
+    SetSize(o, &c);
+    const std::string path = out_dir + "/channel.png";
+    emit(RenderPng(ChannelFigure(LinkSeriesOf(run), c), path, &why), path);
+  }
+  return true;
+}
+
+bool PrepareOutputDir(const std::string& out_dir, std::string* err) {
+  const auto fail = [&](const std::string& m) {
+    if (err) *err = out_dir + ": " + m;
+    return false;
+  };
+  if (mkdir(out_dir.c_str(), 0755) != 0 && errno != EEXIST) {
+    return fail(std::string("cannot create the output directory (") + std::strerror(errno) + ")");
+  }
+  struct stat st {};
+  if (stat(out_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    return fail("exists and is not a directory; give --out a directory");
+  }
+  // Writable before anything is loaded or drawn.
+  const std::string probe = out_dir + "/.shoal_render_probe";
+  FILE* f = std::fopen(probe.c_str(), "w");
+  if (!f) return fail(std::string("cannot write there (") + std::strerror(errno) + ")");
+  std::fclose(f);
+  std::remove(probe.c_str());
+  return true;
+}
+
+}  // namespace shoal::render
