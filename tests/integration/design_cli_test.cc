@@ -79,7 +79,7 @@ TEST(DesignCli, BadScenarioFilesAndFlagsExitTwo) {
   EXPECT_NE(help.out.find("--empirical"), std::string::npos);
 }
 
-// The JSON object has the keys and the paper's numbers.
+// The JSON object has the documented keys (docs/theory.md) and the paper's numbers.
 TEST(DesignCli, JsonHasThePaperNumbers) {
   const auto r = RunShoal("design " + Example(2) + " --json", "d_json");
   ASSERT_TRUE(r.status == 0 || r.status == 1) << r.err;
