@@ -206,36 +206,14 @@ struct CsdpWorkspace {
   }
 };
 
-}  // namespace
-
-CsdpSolution SolveWithCsdp(const LmiProblem& problem, const CsdpOptions& options) {
-  CsdpSolution out;
-  std::string why;
-  if (!problem.IsValid(&why)) {
-    out.return_code = -1;
-    out.message = "malformed LMI: " + why;
-    return out;
-  }
-  if (options.max_iterations < 1 || !(options.tolerance > 0.0)) {
-    out.return_code = -1;
-    out.message = "CSDP options: max_iterations must be >= 1 and tolerance > 0";
-    return out;
-  }
-  const auto start = std::chrono::steady_clock::now();
-
+// C = -F0 (CSDP: sum_i y_i A_i - C = Z >= 0).
+void FillCostMatrix(const LmiProblem& problem, CsdpWorkspace* ws) {
   const auto& blocks = problem.blocks();
-  CsdpWorkspace ws;
-  ws.k = problem.num_variables();
-  ws.n = 0;
-  for (const auto& b : blocks) ws.n += b.size;
-  const int k = ws.k;
   const int nblocks = problem.num_blocks();
-
-  // C = -F0 (CSDP: sum_i y_i A_i - C = Z >= 0).
-  ws.C.nblocks = nblocks;
-  ws.C.blocks = Alloc<blockrec>(nblocks + 1);
+  ws->C.nblocks = nblocks;
+  ws->C.blocks = Alloc<blockrec>(nblocks + 1);
   for (int b = 0; b < nblocks; ++b) {
-    blockrec& r = ws.C.blocks[b + 1];
+    blockrec& r = ws->C.blocks[b + 1];
     const int s = blocks[b].size;
     const Eigen::MatrixXd& f0 = problem.constants()[b];
     r.blocksize = s;
@@ -254,109 +232,95 @@ CsdpSolution SolveWithCsdp(const LmiProblem& problem, const CsdpOptions& options
       }
     }
   }
+  ws->a = Alloc<double>(ws->k + 1);
+  for (int v = 0; v < ws->k; ++v) ws->a[v + 1] = problem.cost()[v];
+}
 
-  ws.a = Alloc<double>(k + 1);
-  for (int v = 0; v < k; ++v) ws.a[v + 1] = problem.cost()[v];
-
-  // Constraint matrices A_i = F_i, merged, sorted, upper triangle, 1-based.
-  ws.constraints = Alloc<constraintmatrix>(k + 1);
-  for (int v = 0; v < k; ++v) {
-    std::vector<LmiProblem::Entry> e = problem.coefficients()[v];
-    std::sort(e.begin(), e.end(), [](const auto& l, const auto& r) {
-      return std::tie(l.block, l.j, l.i) < std::tie(r.block, r.j, r.i);
-    });
-    std::vector<LmiProblem::Entry> merged;
-    for (const auto& x : e) {
-      if (!merged.empty() && merged.back().block == x.block && merged.back().i == x.i &&
-          merged.back().j == x.j) {
-        merged.back().value += x.value;
-      } else {
-        merged.push_back(x);
-      }
-    }
-    merged.erase(
-        std::remove_if(merged.begin(), merged.end(), [](const auto& x) { return x.value == 0.0; }),
-        merged.end());
-    if (merged.empty()) {
-      out.return_code = -1;
-      out.message = "malformed LMI: variable " + std::to_string(v) +
-                    " has coefficients that cancel to zero in every block";
-      return out;
-    }
-    // Build the list in decreasing block order by prepending: it ends up increasing.
-    size_t end = merged.size();
-    while (end > 0) {
-      const int blk = merged[end - 1].block;
-      size_t begin = end;
-      while (begin > 0 && merged[begin - 1].block == blk) --begin;
-      const int count = static_cast<int>(end - begin);
-      sparseblock* p = Alloc<sparseblock>(1);
-      p->blocknum = blk + 1;
-      p->blocksize = blocks[blk].size;
-      p->constraintnum = v + 1;
-      p->numentries = count;
-      p->entries = Alloc<double>(count + 1);
-      p->iindices = Alloc<int>(count + 1);
-      p->jindices = Alloc<int>(count + 1);
-      for (int q = 0; q < count; ++q) {
-        p->entries[q + 1] = merged[begin + q].value;
-        p->iindices[q + 1] = merged[begin + q].i + 1;
-        p->jindices[q + 1] = merged[begin + q].j + 1;
-      }
-      // Dense arithmetic pays off only when a block is well filled; both paths are exact.
-      const long upper = static_cast<long>(p->blocksize) * (p->blocksize + 1) / 2;
-      p->issparse = (blocks[blk].diagonal || 4L * count < upper) ? 1 : 0;
-      p->next = ws.constraints[v + 1].blocks;
-      p->nextbyblock = nullptr;
-      ws.constraints[v + 1].blocks = p;
-      end = begin;
+// A variable's entries sorted by (block, j, i), duplicates summed, zeros dropped.
+std::vector<LmiProblem::Entry> MergedEntries(std::vector<LmiProblem::Entry> e) {
+  std::sort(e.begin(), e.end(), [](const auto& l, const auto& r) {
+    return std::tie(l.block, l.j, l.i) < std::tie(r.block, r.j, r.i);
+  });
+  std::vector<LmiProblem::Entry> merged;
+  for (const auto& x : e) {
+    if (!merged.empty() && merged.back().block == x.block && merged.back().i == x.i &&
+        merged.back().j == x.j) {
+      merged.back().value += x.value;
+    } else {
+      merged.push_back(x);
     }
   }
+  merged.erase(
+      std::remove_if(merged.begin(), merged.end(), [](const auto& x) { return x.value == 0.0; }),
+      merged.end());
+  return merged;
+}
 
-  // Per block, the chain of every constraint's entry for that block, in constraint order.
-  ws.byblocks = Alloc<sparseblock*>(nblocks + 1);
+// Constraint v + 1's list of sparse blocks, built in decreasing block order by prepending
+// so that it ends up increasing.
+void FillConstraint(const LmiProblem& problem, int v, const std::vector<LmiProblem::Entry>& merged,
+                    CsdpWorkspace* ws) {
+  const auto& blocks = problem.blocks();
+  size_t end = merged.size();
+  while (end > 0) {
+    const int blk = merged[end - 1].block;
+    size_t begin = end;
+    while (begin > 0 && merged[begin - 1].block == blk) --begin;
+    const int count = static_cast<int>(end - begin);
+    sparseblock* p = Alloc<sparseblock>(1);
+    p->blocknum = blk + 1;
+    p->blocksize = blocks[blk].size;
+    p->constraintnum = v + 1;
+    p->numentries = count;
+    p->entries = Alloc<double>(count + 1);
+    p->iindices = Alloc<int>(count + 1);
+    p->jindices = Alloc<int>(count + 1);
+    for (int q = 0; q < count; ++q) {
+      p->entries[q + 1] = merged[begin + q].value;
+      p->iindices[q + 1] = merged[begin + q].i + 1;
+      p->jindices[q + 1] = merged[begin + q].j + 1;
+    }
+    // Dense arithmetic pays off only when a block is well filled; both paths are exact.
+    const long upper = static_cast<long>(p->blocksize) * (p->blocksize + 1) / 2;
+    p->issparse = (blocks[blk].diagonal || 4L * count < upper) ? 1 : 0;
+    p->next = ws->constraints[v + 1].blocks;
+    p->nextbyblock = nullptr;
+    ws->constraints[v + 1].blocks = p;
+    end = begin;
+  }
+}
+
+// Constraint matrices A_i = F_i, merged, sorted, upper triangle, 1-based; then, per block,
+// the chain of every constraint's entry for that block, in constraint order. Returns "" or
+// why the problem is malformed.
+std::string FillConstraints(const LmiProblem& problem, CsdpWorkspace* ws) {
+  const int k = ws->k;
+  const int nblocks = problem.num_blocks();
+  ws->constraints = Alloc<constraintmatrix>(k + 1);
+  for (int v = 0; v < k; ++v) {
+    const std::vector<LmiProblem::Entry> merged = MergedEntries(problem.coefficients()[v]);
+    if (merged.empty()) {
+      return "malformed LMI: variable " + std::to_string(v) +
+             " has coefficients that cancel to zero in every block";
+    }
+    FillConstraint(problem, v, merged, ws);
+  }
+  ws->byblocks = Alloc<sparseblock*>(nblocks + 1);
   std::vector<sparseblock*> last(nblocks + 1, nullptr);
   for (int v = 1; v <= k; ++v) {
-    for (sparseblock* p = ws.constraints[v].blocks; p != nullptr; p = p->next) {
+    for (sparseblock* p = ws->constraints[v].blocks; p != nullptr; p = p->next) {
       if (last[p->blocknum] == nullptr) {
-        ws.byblocks[p->blocknum] = p;
+        ws->byblocks[p->blocknum] = p;
       } else {
         last[p->blocknum]->nextbyblock = p;
       }
       last[p->blocknum] = p;
     }
   }
+  return "";
+}
 
-  // Working storage, as CSDP's sdp() expects it.
-  alloc_mat(ws.C, &ws.work1);
-  alloc_mat(ws.C, &ws.work2);
-  alloc_mat(ws.C, &ws.work3);
-  alloc_mat_packed(ws.C, &ws.bestx);
-  alloc_mat_packed(ws.C, &ws.bestz);
-  alloc_mat_packed(ws.C, &ws.cholxinv);
-  alloc_mat_packed(ws.C, &ws.cholzinv);
-  alloc_mat(ws.C, &ws.Zi);
-  alloc_mat(ws.C, &ws.dZ);
-  alloc_mat(ws.C, &ws.dX);
-  ws.work_allocated = true;
-  const size_t nk = static_cast<size_t>(std::max(ws.n, k)) + 1;
-  double* workvec[8];
-  for (double*& w : workvec) w = ws.Vec(nk);
-  double* diagO = ws.Vec(nk);
-  double* besty = ws.Vec(k + 1);
-  double* rhs = ws.Vec(k + 1);
-  double* dy = ws.Vec(k + 1);
-  double* dy1 = ws.Vec(k + 1);
-  double* Fp = ws.Vec(k + 1);
-  const size_t ldam = (k % 2 == 0) ? k + 1 : k;
-  double* O = ws.Vec(ldam * ldam);
-
-  const int printlevel = 0;
-  makefill(k, ws.C, ws.constraints, &ws.fill, ws.work1, printlevel);
-  sort_entries(k, ws.C, ws.constraints);
-  initsoln(ws.n, k, ws.C, ws.a, ws.constraints, &ws.X, &ws.y, &ws.Z);
-  ws.solution_allocated = true;
-
+paramstruc CsdpParameters(const CsdpOptions& options) {
   paramstruc params;
   params.axtol = options.tolerance;
   params.atytol = options.tolerance;
@@ -373,17 +337,79 @@ CsdpSolution SolveWithCsdp(const LmiProblem& problem, const CsdpOptions& options
   params.affine = 0;
   params.perturbobj = 1;
   params.fastmode = 0;
+  return params;
+}
 
+// Working storage as CSDP's sdp() expects it, the initial point, and the solve itself.
+int RunSdp(const CsdpOptions& options, CsdpWorkspace* ws, double* pobj, double* dobj) {
+  const int k = ws->k;
+  alloc_mat(ws->C, &ws->work1);
+  alloc_mat(ws->C, &ws->work2);
+  alloc_mat(ws->C, &ws->work3);
+  alloc_mat_packed(ws->C, &ws->bestx);
+  alloc_mat_packed(ws->C, &ws->bestz);
+  alloc_mat_packed(ws->C, &ws->cholxinv);
+  alloc_mat_packed(ws->C, &ws->cholzinv);
+  alloc_mat(ws->C, &ws->Zi);
+  alloc_mat(ws->C, &ws->dZ);
+  alloc_mat(ws->C, &ws->dX);
+  ws->work_allocated = true;
+  const size_t nk = static_cast<size_t>(std::max(ws->n, k)) + 1;
+  double* workvec[8];
+  for (double*& w : workvec) w = ws->Vec(nk);
+  double* diagO = ws->Vec(nk);
+  double* besty = ws->Vec(k + 1);
+  double* rhs = ws->Vec(k + 1);
+  double* dy = ws->Vec(k + 1);
+  double* dy1 = ws->Vec(k + 1);
+  double* Fp = ws->Vec(k + 1);
+  const size_t ldam = (k % 2 == 0) ? k + 1 : k;
+  double* O = ws->Vec(ldam * ldam);
+
+  const int printlevel = 0;
+  makefill(k, ws->C, ws->constraints, &ws->fill, ws->work1, printlevel);
+  sort_entries(k, ws->C, ws->constraints);
+  initsoln(ws->n, k, ws->C, ws->a, ws->constraints, &ws->X, &ws->y, &ws->Z);
+  ws->solution_allocated = true;
+  return sdp(ws->n, k, ws->C, ws->a, 0.0, ws->constraints, ws->byblocks, ws->fill, ws->X, ws->y,
+             ws->Z, ws->cholxinv, ws->cholzinv, pobj, dobj, ws->work1, ws->work2, ws->work3,
+             workvec[0], workvec[1], workvec[2], workvec[3], workvec[4], workvec[5], workvec[6],
+             workvec[7], diagO, ws->bestx, besty, ws->bestz, ws->Zi, O, rhs, ws->dZ, ws->dX, dy,
+             dy1, Fp, printlevel, CsdpParameters(options));
+}
+
+}  // namespace
+
+CsdpSolution SolveWithCsdp(const LmiProblem& problem, const CsdpOptions& options) {
+  CsdpSolution out;
+  std::string why;
+  if (!problem.IsValid(&why)) {
+    out.return_code = -1;
+    out.message = "malformed LMI: " + why;
+    return out;
+  }
+  if (options.max_iterations < 1 || !(options.tolerance > 0.0)) {
+    out.return_code = -1;
+    out.message = "CSDP options: max_iterations must be >= 1 and tolerance > 0";
+    return out;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  CsdpWorkspace ws;
+  ws.k = problem.num_variables();
+  ws.n = 0;
+  for (const auto& b : problem.blocks()) ws.n += b.size;
+  FillCostMatrix(problem, &ws);
+  if (const std::string e = FillConstraints(problem, &ws); !e.empty()) {
+    out.return_code = -1;
+    out.message = e;
+    return out;
+  }
   double pobj = 0.0, dobj = 0.0;
-  const int ret =
-      sdp(ws.n, k, ws.C, ws.a, 0.0, ws.constraints, ws.byblocks, ws.fill, ws.X, ws.y, ws.Z,
-          ws.cholxinv, ws.cholzinv, &pobj, &dobj, ws.work1, ws.work2, ws.work3, workvec[0],
-          workvec[1], workvec[2], workvec[3], workvec[4], workvec[5], workvec[6], workvec[7], diagO,
-          ws.bestx, besty, ws.bestz, ws.Zi, O, rhs, ws.dZ, ws.dX, dy, dy1, Fp, printlevel, params);
+  const int ret = RunSdp(options, &ws, &pobj, &dobj);
   out.return_code = ret;
   out.message = CsdpReturnCodeMeaning(ret);
-  out.y.resize(k);
-  for (int v = 0; v < k; ++v) out.y(v) = ws.y[v + 1];
+  out.y.resize(ws.k);
+  for (int v = 0; v < ws.k; ++v) out.y(v) = ws.y[v + 1];
   out.objective = dobj;
   out.csdp_primal_objective = pobj;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -9,6 +9,8 @@
 #include <sstream>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 namespace shoal::design {
 namespace {
 
@@ -211,6 +213,151 @@ Theorem3Check CheckMultipliers(const Theorem3Input& in, const Theorem3Multiplier
   return c;
 }
 
+namespace {
+
+// The feasibility SDP of CheckTheorem3: its variables and blocks.
+struct Theorem3Sdp {
+  using MV = MatrixVariable;
+  LmiProblem p;
+  MV Q, Psi, Z, X, Y, Phi;
+  int t = -1;
+  int b_xi = -1, b_q = -1, b_psi = -1, b_xyz = -1, b_phi = -1, b_lp = -1;
+  int norm_row = 0;
+};
+
+void DeclareVariablesAndBlocks(int n, bool corrected, Theorem3Sdp* sdp) {
+  using MV = MatrixVariable;
+  const int m = 2 * n;
+  LmiProblem& p = sdp->p;
+  sdp->Q = MV::Make(MV::kSymmetric, m, &p);
+  sdp->Psi = MV::Make(MV::kSymmetric, m, &p);
+  sdp->Z = MV::Make(MV::kSymmetric, m, &p);
+  sdp->X = MV::Make(MV::kSymmetric, m, &p);
+  sdp->Y = MV::Make(MV::kFull, m, &p);
+  sdp->Phi = MV::Make(corrected ? MV::kDiagonal : MV::kSymmetric, n, &p);
+  sdp->t = p.AddVariable(-1.0);  // maximise t
+
+  sdp->b_xi = p.AddBlock(5 * n);
+  sdp->b_q = p.AddBlock(m);
+  sdp->b_psi = p.AddBlock(m);
+  sdp->b_xyz = p.AddBlock(2 * m);
+  // Corrected form: φ_i − t >= 0 (i < n) and the normalisation in one LP block.
+  // As printed: Φ − tI ⪰ 0 as a matrix block and the normalisation as an LP block.
+  sdp->b_phi = corrected ? -1 : p.AddBlock(n);
+  sdp->b_lp = p.AddBlock(corrected ? n + 1 : 1, /*diagonal=*/true);
+  sdp->norm_row = corrected ? n : 0;
+}
+
+// −Ξ − tI ⪰ 0: Ξ is linear in the multipliers, so each scalar's coefficient is −Ξ at its
+// basis matrix (the same AssembleXi the Eigen check uses).
+void AddXiBlock(const Theorem3Input& in, Theorem3Sdp* sdp) {
+  const int n = static_cast<int>(in.H.rows());
+  auto xi_coefficient = [&](const MatrixVariable& var, MatrixXd Theorem3Multipliers::*field) {
+    for (int q = 0; q < var.size(); ++q) {
+      Theorem3Multipliers mu = Zeros(n);
+      mu.*field = var.Basis(q);
+      sdp->p.AddCoefficient(var.first + q, sdp->b_xi, -AssembleXi(in, mu));
+    }
+  };
+  xi_coefficient(sdp->Q, &Theorem3Multipliers::Q);
+  xi_coefficient(sdp->Psi, &Theorem3Multipliers::Psi);
+  xi_coefficient(sdp->Z, &Theorem3Multipliers::Z);
+  xi_coefficient(sdp->X, &Theorem3Multipliers::X);
+  xi_coefficient(sdp->Y, &Theorem3Multipliers::Y);
+  xi_coefficient(sdp->Phi, &Theorem3Multipliers::Phi);
+  sdp->p.AddCoefficient(sdp->t, sdp->b_xi, -MatrixXd::Identity(5 * n, 5 * n));
+}
+
+// Q − tI ⪰ 0, Ψ − tI ⪰ 0 and [X Y; Yᵀ Z] − tI ⪰ 0.
+void AddDefinitenessBlocks(int m, Theorem3Sdp* sdp) {
+  LmiProblem& p = sdp->p;
+  const MatrixVariable &Q = sdp->Q, &Psi = sdp->Psi, &X = sdp->X, &Y = sdp->Y, &Z = sdp->Z;
+  for (int q = 0; q < Q.size(); ++q) p.AddCoefficient(Q.first + q, sdp->b_q, Q.Basis(q));
+  p.AddCoefficient(sdp->t, sdp->b_q, -MatrixXd::Identity(m, m));
+  for (int q = 0; q < Psi.size(); ++q) p.AddCoefficient(Psi.first + q, sdp->b_psi, Psi.Basis(q));
+  p.AddCoefficient(sdp->t, sdp->b_psi, -MatrixXd::Identity(m, m));
+
+  for (int q = 0; q < X.size(); ++q) {
+    MatrixXd e = MatrixXd::Zero(2 * m, 2 * m);
+    e.topLeftCorner(m, m) = X.Basis(q);
+    p.AddCoefficient(X.first + q, sdp->b_xyz, e);
+  }
+  for (int q = 0; q < Y.size(); ++q) {
+    MatrixXd e = MatrixXd::Zero(2 * m, 2 * m);
+    e.topRightCorner(m, m) = Y.Basis(q);
+    e.bottomLeftCorner(m, m) = Y.Basis(q).transpose();
+    p.AddCoefficient(Y.first + q, sdp->b_xyz, e);
+  }
+  for (int q = 0; q < Z.size(); ++q) {
+    MatrixXd e = MatrixXd::Zero(2 * m, 2 * m);
+    e.bottomRightCorner(m, m) = Z.Basis(q);
+    p.AddCoefficient(Z.first + q, sdp->b_xyz, e);
+  }
+  p.AddCoefficient(sdp->t, sdp->b_xyz, -MatrixXd::Identity(2 * m, 2 * m));
+}
+
+// Φ − tI ⪰ 0 (per entry in the corrected form) and 1 − (tr Q + tr Ψ + tr X + tr Z + tr Φ) >= 0.
+void AddPhiAndNormalisation(int n, bool corrected, Theorem3Sdp* sdp) {
+  LmiProblem& p = sdp->p;
+  const MatrixVariable& Phi = sdp->Phi;
+  if (corrected) {
+    for (int i = 0; i < n; ++i) {
+      p.AddCoefficientEntry(Phi.first + i, sdp->b_lp, i, i, 1.0);
+      p.AddCoefficientEntry(sdp->t, sdp->b_lp, i, i, -1.0);
+    }
+  } else {
+    for (int q = 0; q < Phi.size(); ++q) p.AddCoefficient(Phi.first + q, sdp->b_phi, Phi.Basis(q));
+    p.AddCoefficient(sdp->t, sdp->b_phi, -MatrixXd::Identity(n, n));
+  }
+  const int rows = corrected ? n + 1 : 1;
+  MatrixXd one = MatrixXd::Zero(rows, rows);
+  one(sdp->norm_row, sdp->norm_row) = 1.0;
+  p.AddConstant(sdp->b_lp, one);
+  for (const MatrixVariable* var : {&sdp->Q, &sdp->Psi, &sdp->X, &sdp->Z, &sdp->Phi}) {
+    for (int q = 0; q < var->size(); ++q) {
+      if (var->entries[q].first == var->entries[q].second) {
+        p.AddCoefficientEntry(var->first + q, sdp->b_lp, sdp->norm_row, sdp->norm_row, -1.0);
+      }
+    }
+  }
+}
+
+// The solver's answer, re-checked with Eigen, and the one-line message.
+void ReadSolution(const Theorem3Sdp& sdp, const CsdpSolution& s, const Theorem3Options& options,
+                  Theorem3Result* r) {
+  const Theorem3Input& in = r->input;
+  r->csdp_return_code = s.return_code;
+  r->csdp_status = s.message;
+  if (s.y.size() == sdp.p.num_variables()) {
+    r->certificate = {sdp.Q.Value(s.y), sdp.Psi.Value(s.y), sdp.Z.Value(s.y),
+                      sdp.X.Value(s.y), sdp.Y.Value(s.y),   sdp.Phi.Value(s.y)};
+    r->solver_margin = s.y(sdp.t);
+    r->check = CheckMultipliers(in, r->certificate);
+  } else {
+    r->certificate = Zeros(static_cast<int>(in.H.rows()));
+    r->solver_margin = 0.0;
+    r->check.margin = -kInf;
+  }
+  std::ostringstream msg;
+  char num[64];
+  if (!s.solved()) {
+    msg << "not certified: CSDP returned " << s.return_code << " (" << s.message << ")";
+  } else if (!(r->check.margin >= options.strict_margin)) {
+    std::snprintf(num, sizeof(num), "%.3g", r->check.margin);
+    msg << "infeasible: the best multipliers found satisfy the LMI with margin " << num << " < "
+        << options.strict_margin << " (normalised)";
+  } else {
+    r->feasible = true;
+    std::snprintf(num, sizeof(num), "%.3g", r->check.margin);
+    msg << "feasible: lambda_max(Xi) = " << r->check.xi_max_eigenvalue << ", normalised margin "
+        << num;
+    if (in.form != Theorem3Form::kCorrected) msg << " (as-printed form: not a proof)";
+  }
+  r->message = msg.str();
+}
+
+}  // namespace
+
 Theorem3Result CheckTheorem3(const Theorem3Input& in, const Theorem3Options& options) {
   const auto start = std::chrono::steady_clock::now();
   Theorem3Result r;
@@ -225,120 +372,14 @@ Theorem3Result CheckTheorem3(const Theorem3Input& in, const Theorem3Options& opt
   }
   r.input_valid = true;
   const int n = static_cast<int>(in.H.rows());
-  const int m = 2 * n;
   const bool corrected = in.form == Theorem3Form::kCorrected;
-
-  LmiProblem p;
-  using MV = MatrixVariable;
-  const MV Q = MV::Make(MV::kSymmetric, m, &p);
-  const MV Psi = MV::Make(MV::kSymmetric, m, &p);
-  const MV Z = MV::Make(MV::kSymmetric, m, &p);
-  const MV X = MV::Make(MV::kSymmetric, m, &p);
-  const MV Y = MV::Make(MV::kFull, m, &p);
-  const MV Phi = MV::Make(corrected ? MV::kDiagonal : MV::kSymmetric, n, &p);
-  const int t = p.AddVariable(-1.0);  // maximise t
-
-  const int b_xi = p.AddBlock(5 * n);
-  const int b_q = p.AddBlock(m);
-  const int b_psi = p.AddBlock(m);
-  const int b_xyz = p.AddBlock(2 * m);
-  // Corrected form: φ_i − t >= 0 (i < n) and the normalisation in one LP block.
-  // As printed: Φ − tI ⪰ 0 as a matrix block and the normalisation as an LP block.
-  const int b_phi = corrected ? -1 : p.AddBlock(n);
-  const int b_lp = p.AddBlock(corrected ? n + 1 : 1, /*diagonal=*/true);
-  const int norm_row = corrected ? n : 0;
-
-  // −Ξ − tI ⪰ 0: Ξ is linear in the multipliers, so each scalar's coefficient is −Ξ at
-  // its basis matrix (the same AssembleXi the Eigen check uses).
-  auto xi_coefficient = [&](const MV& var, MatrixXd Theorem3Multipliers::*field) {
-    for (int q = 0; q < var.size(); ++q) {
-      Theorem3Multipliers mu = Zeros(n);
-      mu.*field = var.Basis(q);
-      p.AddCoefficient(var.first + q, b_xi, -AssembleXi(in, mu));
-    }
-  };
-  xi_coefficient(Q, &Theorem3Multipliers::Q);
-  xi_coefficient(Psi, &Theorem3Multipliers::Psi);
-  xi_coefficient(Z, &Theorem3Multipliers::Z);
-  xi_coefficient(X, &Theorem3Multipliers::X);
-  xi_coefficient(Y, &Theorem3Multipliers::Y);
-  xi_coefficient(Phi, &Theorem3Multipliers::Phi);
-  p.AddCoefficient(t, b_xi, -MatrixXd::Identity(5 * n, 5 * n));
-
-  for (int q = 0; q < Q.size(); ++q) p.AddCoefficient(Q.first + q, b_q, Q.Basis(q));
-  p.AddCoefficient(t, b_q, -MatrixXd::Identity(m, m));
-  for (int q = 0; q < Psi.size(); ++q) p.AddCoefficient(Psi.first + q, b_psi, Psi.Basis(q));
-  p.AddCoefficient(t, b_psi, -MatrixXd::Identity(m, m));
-
-  for (int q = 0; q < X.size(); ++q) {
-    MatrixXd e = MatrixXd::Zero(2 * m, 2 * m);
-    e.topLeftCorner(m, m) = X.Basis(q);
-    p.AddCoefficient(X.first + q, b_xyz, e);
-  }
-  for (int q = 0; q < Y.size(); ++q) {
-    MatrixXd e = MatrixXd::Zero(2 * m, 2 * m);
-    e.topRightCorner(m, m) = Y.Basis(q);
-    e.bottomLeftCorner(m, m) = Y.Basis(q).transpose();
-    p.AddCoefficient(Y.first + q, b_xyz, e);
-  }
-  for (int q = 0; q < Z.size(); ++q) {
-    MatrixXd e = MatrixXd::Zero(2 * m, 2 * m);
-    e.bottomRightCorner(m, m) = Z.Basis(q);
-    p.AddCoefficient(Z.first + q, b_xyz, e);
-  }
-  p.AddCoefficient(t, b_xyz, -MatrixXd::Identity(2 * m, 2 * m));
-
-  if (corrected) {
-    for (int i = 0; i < n; ++i) {
-      p.AddCoefficientEntry(Phi.first + i, b_lp, i, i, 1.0);
-      p.AddCoefficientEntry(t, b_lp, i, i, -1.0);
-    }
-  } else {
-    for (int q = 0; q < Phi.size(); ++q) p.AddCoefficient(Phi.first + q, b_phi, Phi.Basis(q));
-    p.AddCoefficient(t, b_phi, -MatrixXd::Identity(n, n));
-  }
-  // 1 − (tr Q + tr Ψ + tr X + tr Z + tr Φ) >= 0.
-  MatrixXd one = MatrixXd::Zero(corrected ? n + 1 : 1, corrected ? n + 1 : 1);
-  one(norm_row, norm_row) = 1.0;
-  p.AddConstant(b_lp, one);
-  for (const MV* var : {&Q, &Psi, &X, &Z, &Phi}) {
-    for (int q = 0; q < var->size(); ++q) {
-      if (var->entries[q].first == var->entries[q].second) {
-        p.AddCoefficientEntry(var->first + q, b_lp, norm_row, norm_row, -1.0);
-      }
-    }
-  }
-  r.lmi_variables = p.num_variables();
-
-  const CsdpSolution s = SolveWithCsdp(p, options.csdp);
-  r.csdp_return_code = s.return_code;
-  r.csdp_status = s.message;
-  if (s.y.size() == p.num_variables()) {
-    r.certificate = {Q.Value(s.y), Psi.Value(s.y), Z.Value(s.y),
-                     X.Value(s.y), Y.Value(s.y),   Phi.Value(s.y)};
-    r.solver_margin = s.y(t);
-    r.check = CheckMultipliers(in, r.certificate);
-  } else {
-    r.certificate = Zeros(n);
-    r.solver_margin = 0.0;
-    r.check.margin = -kInf;
-  }
-  std::ostringstream msg;
-  char num[64];
-  if (!s.solved()) {
-    msg << "not certified: CSDP returned " << s.return_code << " (" << s.message << ")";
-  } else if (!(r.check.margin >= options.strict_margin)) {
-    std::snprintf(num, sizeof(num), "%.3g", r.check.margin);
-    msg << "infeasible: the best multipliers found satisfy the LMI with margin " << num << " < "
-        << options.strict_margin << " (normalised)";
-  } else {
-    r.feasible = true;
-    std::snprintf(num, sizeof(num), "%.3g", r.check.margin);
-    msg << "feasible: lambda_max(Xi) = " << r.check.xi_max_eigenvalue << ", normalised margin "
-        << num;
-    if (!corrected) msg << " (as-printed form: not a proof)";
-  }
-  r.message = msg.str();
+  Theorem3Sdp sdp;
+  DeclareVariablesAndBlocks(n, corrected, &sdp);
+  AddXiBlock(in, &sdp);
+  AddDefinitenessBlocks(2 * n, &sdp);
+  AddPhiAndNormalisation(n, corrected, &sdp);
+  r.lmi_variables = sdp.p.num_variables();
+  ReadSolution(sdp, SolveWithCsdp(sdp.p, options.csdp), options, &r);
   r.seconds = Seconds(start);
   return r;
 }
@@ -477,82 +518,60 @@ PaperMultipliersResult PaperMultipliersMaxEigenvalue(const Theorem3Input& in,
 
 namespace {
 
-std::string Num(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
+using Json = nlohmann::ordered_json;
 
-std::string Quote(const std::string& s) {
-  std::string o = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') {
-      o += '\\';
-      o += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\u%04x", c);
-      o += buf;
-    } else {
-      o += c;
-    }
-  }
-  return o + "\"";
-}
-
-std::string MatrixJson(const MatrixXd& m, const std::string& indent) {
-  std::string o = "[";
+// nlohmann writes a double in its shortest round-trip form (so a certificate re-reads to
+// the same matrices) and a non-finite one as null.
+Json MatrixJson(const MatrixXd& m) {
+  Json rows = Json::array();
   for (int i = 0; i < m.rows(); ++i) {
-    o += (i ? ",\n" + indent + " [" : "[");
-    for (int j = 0; j < m.cols(); ++j) o += (j ? ", " : "") + Num(m(i, j));
-    o += "]";
+    Json row = Json::array();
+    for (int j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
+    rows.push_back(std::move(row));
   }
-  return o + "]";
+  return rows;
+}
+
+Json CheckJson(const Theorem3Check& c) {
+  Json j;
+  j["margin"] = c.margin;
+  j["xi_max_eigenvalue"] = c.xi_max_eigenvalue;
+  j["q_min_eigenvalue"] = c.q_min_eigenvalue;
+  j["psi_min_eigenvalue"] = c.psi_min_eigenvalue;
+  j["z_min_eigenvalue"] = c.z_min_eigenvalue;
+  j["phi_min_eigenvalue"] = c.phi_min_eigenvalue;
+  j["xyz_min_eigenvalue"] = c.xyz_min_eigenvalue;
+  j["scale"] = c.scale;
+  return j;
 }
 
 }  // namespace
 
 std::string CertificateJson(const Theorem3Result& r) {
   const Theorem3Input& in = r.input;
-  std::ostringstream o;
-  o << "{\n";
-  o << "  \"theorem\": 3,\n";
-  o << "  \"form\": " << Quote(FormName(in.form)) << ",\n";
-  o << "  \"n\": " << in.H.rows() << ",\n";
-  o << "  \"k1\": " << Num(in.k1) << ",\n";
-  o << "  \"k2\": " << Num(in.k2) << ",\n";
-  o << "  \"h_s\": " << Num(in.h_s) << ",\n";
-  o << "  \"kappa\": " << Num(in.kappa) << ",\n";
-  o << "  \"lambda_G2\": " << Num(in.lambda_G2) << ",\n";
-  o << "  \"lambda_J2\": " << Num(in.lambda_J2) << ",\n";
-  o << "  \"H\": " << MatrixJson(in.H, "       ") << ",\n";
-  o << "  \"feasible\": " << (r.feasible ? "true" : "false") << ",\n";
-  o << "  \"certifies\": " << (r.certifies() ? "true" : "false") << ",\n";
-  o << "  \"message\": " << Quote(r.message) << ",\n";
-  o << "  \"csdp_return_code\": " << r.csdp_return_code << ",\n";
-  o << "  \"csdp_status\": " << Quote(r.csdp_status) << ",\n";
-  o << "  \"solver_margin\": " << Num(r.solver_margin) << ",\n";
-  o << "  \"strict_margin\": " << Num(r.strict_margin) << ",\n";
-  o << "  \"check\": {\"margin\": " << Num(r.check.margin)
-    << ", \"xi_max_eigenvalue\": " << Num(r.check.xi_max_eigenvalue)
-    << ", \"q_min_eigenvalue\": " << Num(r.check.q_min_eigenvalue)
-    << ", \"psi_min_eigenvalue\": " << Num(r.check.psi_min_eigenvalue)
-    << ", \"z_min_eigenvalue\": " << Num(r.check.z_min_eigenvalue)
-    << ", \"phi_min_eigenvalue\": " << Num(r.check.phi_min_eigenvalue)
-    << ", \"xyz_min_eigenvalue\": " << Num(r.check.xyz_min_eigenvalue)
-    << ", \"scale\": " << Num(r.check.scale) << "},\n";
+  Json o;
+  o["theorem"] = 3;
+  o["form"] = FormName(in.form);
+  o["n"] = in.H.rows();
+  o["k1"] = in.k1;
+  o["k2"] = in.k2;
+  o["h_s"] = in.h_s;
+  o["kappa"] = in.kappa;
+  o["lambda_G2"] = in.lambda_G2;
+  o["lambda_J2"] = in.lambda_J2;
+  o["H"] = MatrixJson(in.H);
+  o["feasible"] = r.feasible;
+  o["certifies"] = r.certifies();
+  o["message"] = r.message;
+  o["csdp_return_code"] = r.csdp_return_code;
+  o["csdp_status"] = r.csdp_status;
+  o["solver_margin"] = r.solver_margin;
+  o["strict_margin"] = r.strict_margin;
+  o["check"] = CheckJson(r.check);
   const Theorem3Multipliers& c = r.certificate;
-  const std::pair<const char*, const MatrixXd*> mats[] = {
-      {"Q", &c.Q}, {"Psi", &c.Psi}, {"Z", &c.Z}, {"X", &c.X}, {"Y", &c.Y}, {"Phi", &c.Phi}};
-  o << "  \"matrices\": {\n";
-  for (size_t i = 0; i < 6; ++i) {
-    const std::string key = Quote(mats[i].first);
-    o << "    " << key << ": " << MatrixJson(*mats[i].second, std::string(6 + key.size(), ' '))
-      << (i + 1 < 6 ? ",\n" : "\n");
-  }
-  o << "  }\n}\n";
-  return o.str();
+  o["matrices"] = {{"Q", MatrixJson(c.Q)}, {"Psi", MatrixJson(c.Psi)}, {"Z", MatrixJson(c.Z)},
+                   {"X", MatrixJson(c.X)}, {"Y", MatrixJson(c.Y)},     {"Phi", MatrixJson(c.Phi)}};
+  return o.dump(2) + "\n";
 }
 
 bool WriteCertificate(const Theorem3Result& result, const std::string& path, std::string* err) {

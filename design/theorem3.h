@@ -165,7 +165,8 @@ PaperMultipliersResult PaperMultipliersMaxEigenvalue(const Theorem3Input& in,
                                                      double q_min = 1e-6);
 
 /// Writes the result (input, status, margins and the matrices Q, Ψ, Z, X, Y, Φ) as one
-/// JSON object, numbers with 17 significant digits so the certificate can be re-checked.
+/// JSON object (nlohmann-json: every number in its shortest round-trip form, so the
+/// certificate re-reads to the same matrices; non-finite numbers as null).
 bool WriteCertificate(const Theorem3Result& result, const std::string& path, std::string* err);
 std::string CertificateJson(const Theorem3Result& result);
 

@@ -61,6 +61,111 @@ struct SimResiduals {
   }
 };
 
+/// The numbers reported for a pair of gains: margin, cost over the horizon, and the
+/// convergence of a full-length run.
+TunePoint Measure(const Scenario& s, const std::vector<theory::Complex>& ev, double k1, double k2,
+                  double horizon_s, CostKind cost, int* sim_runs) {
+  TunePoint t;
+  t.k1 = k1;
+  t.k2 = k2;
+  const theory::DelayMargin d = theory::ComputeDelayMargin(ev, k1, k2);
+  t.margin_s = d.tau_s;
+  const Scenario g = WithGains(s, k1, k2);
+  ++*sim_runs;
+  const SimOutcome o = RunSwarm(g, horizon_s, cost);
+  t.cost = o.cost;
+  t.position_ise_m2s = o.ise_m2s;
+  ++*sim_runs;
+  const SimOutcome full = RunSwarm(g, -1.0);
+  t.converged = full.converged;
+  t.convergence_time_s = full.convergence_time_s;
+  return t;
+}
+
+/// The search box of (log r, u).
+struct Box {
+  double log_r_lo, log_r_hi;
+  double u_lo = 0.02, u_hi = 1.0;
+};
+
+/// Starts: the scenario's gains (scaled down onto the feasible set if they miss the
+/// requirement), shapes 4x either side of the scenario's near the margin bound, and the
+/// scenario's shape on the bound.
+std::vector<std::pair<double, double>> Starts(const Scenario& s,
+                                              const std::vector<theory::Complex>& ev,
+                                              double required_s, Box* box) {
+  const double r0 = s.k1 / (s.k2 * s.k2);
+  const double theta0 = ShapeMargin(ev, r0);
+  const double u0 = theta0 > 0.0 ? std::min(1.0, s.k2 * required_s / theta0) : 0.5;
+  const double log_r0 = std::log(r0);
+  box->log_r_lo = log_r0 - std::log(100.0);
+  box->log_r_hi = log_r0 + std::log(100.0);
+  return {{log_r0, u0}, {log_r0 - std::log(4.0), 0.9}, {log_r0 + std::log(4.0), 0.9}, {log_r0, 1.0}};
+}
+
+/// Levenberg-Marquardt from (log r, u) = x over the box; fills the start's outcome.
+void SolveFrom(SimResiduals* functor, double x[2], const Box& box, int max_iterations,
+               TuneStart* ts) {
+  ceres::NumericDiffOptions nd;
+  nd.relative_step_size = 1e-3;
+  auto* cost = new ceres::DynamicNumericDiffCostFunction<SimResiduals, ceres::FORWARD>(
+      functor, ceres::TAKE_OWNERSHIP, nd);
+  cost->AddParameterBlock(2);
+  cost->SetNumResiduals(static_cast<int>(functor->count));
+  ceres::Problem problem;
+  problem.AddResidualBlock(cost, nullptr, x);
+  problem.SetParameterLowerBound(x, 0, box.log_r_lo);
+  problem.SetParameterUpperBound(x, 0, box.log_r_hi);
+  problem.SetParameterLowerBound(x, 1, box.u_lo);
+  problem.SetParameterUpperBound(x, 1, box.u_hi);
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = max_iterations;
+  // The cost is known to ~1e-4 relative at best across starts; finer tolerances only
+  // spend simulations.
+  so.function_tolerance = 1e-4;
+  so.parameter_tolerance = 1e-4;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  ts->iterations = static_cast<int>(summary.iterations.size());
+  ts->message = summary.message;
+  ts->usable = summary.IsSolutionUsable() && std::isfinite(summary.final_cost);
+  ts->cost = 2.0 * summary.final_cost;  // Ceres' cost is half the sum of squares
+}
+
+/// One start of the multi-start search.
+TuneStart RunStart(const SimResiduals& proto, double lr, double u, const Box& box,
+                   int max_iterations) {
+  TuneStart ts;
+  const Gains g0 = GainsOf(*proto.ev, lr, u, proto.required_s);
+  ts.k1_start = g0.k1;
+  ts.k2_start = g0.k2;
+  double x[2] = {lr, std::clamp(u, box.u_lo, box.u_hi)};
+  if (!g0.valid) {
+    ts.message = "start not usable: this shape is unstable without delay";
+    return ts;
+  }
+  auto* functor = new SimResiduals(proto);
+  {
+    // Ceres cannot start from a point it cannot evaluate (a run that diverges).
+    std::vector<double> r0(proto.count);
+    const double* p0[] = {x};
+    if (!(*functor)(p0, r0.data())) {
+      delete functor;
+      ts.message = "start not usable: the run diverges";
+      return ts;
+    }
+  }
+  SolveFrom(functor, x, box, max_iterations, &ts);
+  const Gains g = GainsOf(*proto.ev, x[0], x[1], proto.required_s);
+  ts.k1 = g.k1;
+  ts.k2 = g.k2;
+  ts.usable = ts.usable && g.valid;
+  return ts;
+}
+
 }  // namespace
 
 TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, double h_s,
@@ -72,43 +177,18 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
   // The step semantics delay every message by at least one control period, so even a
   // delay-free scenario is protected for that much.
   out.required_margin_s = opt.safety * std::max(h_s, period_s);
-
-  auto measure = [&](double k1, double k2) {
-    TunePoint t;
-    t.k1 = k1;
-    t.k2 = k2;
-    const theory::DelayMargin d = theory::ComputeDelayMargin(ev, k1, k2);
-    t.margin_s = d.tau_s;
-    const Scenario g = WithGains(s, k1, k2);
-    ++out.sim_runs;
-    const SimOutcome o = RunSwarm(g, out.horizon_s, opt.cost);
-    t.cost = o.cost;
-    t.position_ise_m2s = o.ise_m2s;
-    ++out.sim_runs;
-    const SimOutcome full = RunSwarm(g, -1.0);
-    t.converged = full.converged;
-    t.convergence_time_s = full.convergence_time_s;
-    return t;
-  };
-  out.before = measure(s.k1, s.k2);
+  out.before = Measure(s, ev, s.k1, s.k2, out.horizon_s, opt.cost, &out.sim_runs);
   out.before_feasible = out.before.margin_s >= out.required_margin_s;
 
   // Number of residuals of a complete run over the horizon: ticks 0..final (Swarm) per
   // follower.
   const auto ticks = static_cast<std::size_t>(s.final_tick(out.horizon_s)) + 1;
   const std::size_t count = 2 * ticks * static_cast<std::size_t>(s.followers);
-
-  // Starts: the scenario's gains (scaled down onto the feasible set if they miss the
-  // requirement), shapes 4x either side of the scenario's near the margin bound, and the
-  // scenario's shape on the bound.
-  const double r0 = s.k1 / (s.k2 * s.k2);
-  const double theta0 = ShapeMargin(ev, r0);
-  const double u0 = theta0 > 0.0 ? std::min(1.0, s.k2 * out.required_margin_s / theta0) : 0.5;
-  const double log_r0 = std::log(r0);
-  const std::vector<std::pair<double, double>> starts = {
-      {log_r0, u0}, {log_r0 - std::log(4.0), 0.9}, {log_r0 + std::log(4.0), 0.9}, {log_r0, 1.0}};
-  const double log_r_lo = log_r0 - std::log(100.0), log_r_hi = log_r0 + std::log(100.0);
-  const double u_lo = 0.02, u_hi = 1.0;
+  const SimResiduals proto{&s,       &ev,   out.required_margin_s, out.horizon_s,
+                           opt.cost, count, &out.sim_runs};
+  Box box;
+  const std::vector<std::pair<double, double>> starts =
+      Starts(s, ev, out.required_margin_s, &box);
 
   // Ceres' termination message is reported with each start; glog's copy of it on stderr
   // would only duplicate it (and warn about InitGoogleLogging): silence glog meanwhile.
@@ -116,61 +196,8 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
   FLAGS_minloglevel = google::GLOG_FATAL;
   int best = -1;
   for (const auto& [lr, u] : starts) {
-    TuneStart ts;
-    const Gains g0 = GainsOf(ev, lr, u, out.required_margin_s);
-    ts.k1_start = g0.k1;
-    ts.k2_start = g0.k2;
-    double x[2] = {lr, std::clamp(u, u_lo, u_hi)};
-    if (!g0.valid) {
-      ts.message = "start not usable: this shape is unstable without delay";
-      out.starts.push_back(ts);
-      continue;
-    }
-    auto* functor = new SimResiduals{&s,       &ev,   out.required_margin_s, out.horizon_s,
-                                     opt.cost, count, &out.sim_runs};
-    {
-      // Ceres cannot start from a point it cannot evaluate (a run that diverges).
-      std::vector<double> r0(count);
-      const double* p0[] = {x};
-      if (!(*functor)(p0, r0.data())) {
-        delete functor;
-        ts.message = "start not usable: the run diverges";
-        out.starts.push_back(ts);
-        continue;
-      }
-    }
-    ceres::NumericDiffOptions nd;
-    nd.relative_step_size = 1e-3;
-    auto* cost = new ceres::DynamicNumericDiffCostFunction<SimResiduals, ceres::FORWARD>(
-        functor, ceres::TAKE_OWNERSHIP, nd);
-    cost->AddParameterBlock(2);
-    cost->SetNumResiduals(static_cast<int>(count));
-    ceres::Problem problem;
-    problem.AddResidualBlock(cost, nullptr, x);
-    problem.SetParameterLowerBound(x, 0, log_r_lo);
-    problem.SetParameterUpperBound(x, 0, log_r_hi);
-    problem.SetParameterLowerBound(x, 1, u_lo);
-    problem.SetParameterUpperBound(x, 1, u_hi);
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::DENSE_QR;
-    so.max_num_iterations = opt.max_iterations;
-    // The cost is known to ~1e-4 relative at best across starts; finer tolerances only
-    // spend simulations.
-    so.function_tolerance = 1e-4;
-    so.parameter_tolerance = 1e-4;
-    so.logging_type = ceres::SILENT;
-    so.minimizer_progress_to_stdout = false;
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &problem, &summary);
-    ts.iterations = static_cast<int>(summary.iterations.size());
-    ts.message = summary.message;
-    ts.usable = summary.IsSolutionUsable() && std::isfinite(summary.final_cost);
-    const Gains g = GainsOf(ev, x[0], x[1], out.required_margin_s);
-    ts.k1 = g.k1;
-    ts.k2 = g.k2;
-    ts.cost = 2.0 * summary.final_cost;  // Ceres' cost is half the sum of squares
-    ts.usable = ts.usable && g.valid;
-    out.starts.push_back(ts);
+    out.starts.push_back(RunStart(proto, lr, u, box, opt.max_iterations));
+    const TuneStart& ts = out.starts.back();
     if (ts.usable && (best < 0 || ts.cost < out.starts[best].cost)) {
       best = static_cast<int>(out.starts.size()) - 1;
     }
@@ -180,7 +207,8 @@ TuneResult Tune(const Scenario& s, const std::vector<theory::Complex>& ev, doubl
     out.message = "no start gave a usable solution";
     return out;
   }
-  out.after = measure(out.starts[best].k1, out.starts[best].k2);
+  out.after = Measure(s, ev, out.starts[best].k1, out.starts[best].k2, out.horizon_s, opt.cost,
+                      &out.sim_runs);
   out.ok = true;
   return out;
 }

@@ -69,121 +69,141 @@ std::string Verdict::Line() const {
   return s;
 }
 
-Verdict Decide(const VerdictInput& in) {
+namespace {
+
+/// Rule 1: some s^2 + lambda (k2 s + k1) is not Hurwitz.
+Verdict UnstableWithoutDelay(const VerdictInput& in) {
   Verdict v;
-  const theory::DelayMargin& m = *in.margin;
-  v.margin_over_h = in.h_s > 0.0 ? m.tau_s / in.h_s : std::numeric_limits<double>::infinity();
-
-  if (!m.stable_at_zero) {
-    std::string which;
-    for (const theory::EigenMargin& e : m.per_eigenvalue) {
-      if (!e.stable_at_zero) {
-        which = Lambda(e.lambda);
-        break;
-      }
-    }
-    v.reason = "the loop is unstable even without delay (eigenvalue " + which +
-               " of H: s^2 + lambda (k2 s + k1) has a root with Re s > 0)";
-    v.advice = "raise k2 relative to k1 (a larger k2^2 / k1 damps the complex eigenvalues)";
-    return v;
-  }
-
-  if (in.h_s <= 0.0) {
-    switch (in.factor) {
-      case FactorKind::kNone:
-        v.certified = true;
-        if (in.theorem1 && in.theorem1->certifies) {
-          v.by = "Theorem 1";
-          v.reason =
-              "no delay, no uncertain factor; P = Q(A+B) + (A+B)^T Q has largest "
-              "eigenvalue " +
-              Num(in.theorem1->P_max_eigenvalue) + " < 0";
-        } else {
-          v.by = "the exact characteristic equation at tau = 0";
-          v.reason =
-              "no delay, no uncertain factor; every s^2 + lambda (k2 s + k1) is "
-              "Hurwitz (Theorem 1's Lyapunov function does not certify these gains, "
-              "but it is only sufficient)";
-        }
-        return v;
-      case FactorKind::kLipschitz:
-        if (in.theorem3_certified.value_or(false) && in.kappa && *in.kappa < 1.0) {
-          v.certified = true;
-          v.by = "Theorem 3 (LMI (27)-(28))";
-          v.reason = "no delay (h = 0), uncertain factor with rho0 = " + Num(in.rho0) +
-                     "; the LMI is feasible";
-          return v;
-        }
-        if (in.theorem2 && in.theorem2->certifies) {
-          v.certified = true;
-          v.by = "Theorem 2 (corrected)";
-          v.reason = "no delay; P~ with rho0 = " + Num(in.rho0) + " has largest eigenvalue " +
-                     Num(in.theorem2->P_tilde_max_eigenvalue) + " < 0";
-          return v;
-        }
-        v.reason =
-            "no delay, but Theorem 2 does not certify the gains with rho0 = " + Num(in.rho0) +
-            (in.theorem2 ? " (corrected P~ has largest eigenvalue " +
-                               Num(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
-                         : "") +
-            "; without the uncertain factor the loop is stable (exact)";
-        if (FactorUnstable(in)) {
-          v.reason += "; with the factor linearised the loop is unstable";
-          v.advice = FactorAdvice(in);
-        } else if (in.theorem2 && in.theorem2->k1_min_corrected) {
-          v.advice = "raise k1 above " + Num(*in.theorem2->k1_min_corrected) + " and k2 above " +
-                     Num(*in.theorem2->k2_min_corrected) + " (corrected (20)-(21))";
-        } else {
-          v.advice =
-              "Theorem 2's bounds (20)-(21) have no solution for this topology, alpha "
-              "and beta (alpha beta <= 2 lambda_max(M^T M)); try other --alpha/--beta "
-              "or higher gains checked by the P~ test";
-        }
-        return v;
-      case FactorKind::kUncovered:
-        v.reason =
-            "no delay and the nominal loop is stable (exact), but the uncertain factor "
-            "is not a Lipschitz f(x_i) - f(x_0): no theorem here covers it (expect a "
-            "bounded formation error rather than convergence)";
-        return v;
+  std::string which;
+  for (const theory::EigenMargin& e : in.margin->per_eigenvalue) {
+    if (!e.stable_at_zero) {
+      which = Lambda(e.lambda);
+      break;
     }
   }
+  v.reason = "the loop is unstable even without delay (eigenvalue " + which +
+             " of H: s^2 + lambda (k2 s + k1) has a root with Re s > 0)";
+  v.advice = "raise k2 relative to k1 (a larger k2^2 / k1 damps the complex eigenvalues)";
+  return v;
+}
 
-  // h > 0.
-  const bool t3_applicable = in.factor != FactorKind::kUncovered && in.kappa && *in.kappa < 1.0;
-  if (in.factor == FactorKind::kNone && in.delay_common_constant) {
-    if (m.tau_s > in.h_s) {
-      v.certified = true;
-      v.by = "the exact delay margin";
-      v.reason = "one constant delay h = " + Num(in.h_s) +
-                 " s on every link, no uncertain "
-                 "factor; " +
-                 MarginText(in);
-      if (m.tau_s < in.safety * in.h_s) {
-        v.advice = "the margin is below the safety factor " + Num(in.safety) + ": " +
-                   ScaleAdvice(in, in.safety * in.h_s);
-      }
-      return v;
-    }
-    v.reason = "one constant delay h = " + Num(in.h_s) + " s on every link exceeds the " +
-               MarginText(in) + ": the loop is unstable at this delay";
-    v.advice = ScaleAdvice(in, in.safety * in.h_s);
-    return v;
+/// Rule 2, no factor: Theorem 1, or else the exact characteristic equation at tau = 0.
+Verdict NoDelayNoFactor(const VerdictInput& in) {
+  Verdict v;
+  v.certified = true;
+  if (in.theorem1 && in.theorem1->certifies) {
+    v.by = "Theorem 1";
+    v.reason =
+        "no delay, no uncertain factor; P = Q(A+B) + (A+B)^T Q has largest "
+        "eigenvalue " +
+        Num(in.theorem1->P_max_eigenvalue) + " < 0";
+  } else {
+    v.by = "the exact characteristic equation at tau = 0";
+    v.reason =
+        "no delay, no uncertain factor; every s^2 + lambda (k2 s + k1) is "
+        "Hurwitz (Theorem 1's Lyapunov function does not certify these gains, "
+        "but it is only sufficient)";
   }
-  // Time-varying delays or an uncertain factor: Theorem 3 (the exact margin above is
-  // necessary and sufficient for one constant delay, so it decides that case first).
-  if (in.theorem3_certified.value_or(false) && t3_applicable) {
+  return v;
+}
+
+/// Rule 2, Lipschitz factor: Theorem 3 at h = 0, or Theorem 2's corrected P~ test.
+Verdict NoDelayLipschitzFactor(const VerdictInput& in) {
+  Verdict v;
+  if (in.theorem3_certified.value_or(false) && in.kappa && *in.kappa < 1.0) {
     v.certified = true;
     v.by = "Theorem 3 (LMI (27)-(28))";
-    v.reason =
-        "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
-        (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + Num(in.rho0)
-                                             : std::string(", no uncertain factor")) +
-        "; " + MarginText(in);
+    v.reason = "no delay (h = 0), uncertain factor with rho0 = " + Num(in.rho0) +
+               "; the LMI is feasible";
     return v;
   }
+  if (in.theorem2 && in.theorem2->certifies) {
+    v.certified = true;
+    v.by = "Theorem 2 (corrected)";
+    v.reason = "no delay; P~ with rho0 = " + Num(in.rho0) + " has largest eigenvalue " +
+               Num(in.theorem2->P_tilde_max_eigenvalue) + " < 0";
+    return v;
+  }
+  v.reason = "no delay, but Theorem 2 does not certify the gains with rho0 = " + Num(in.rho0) +
+             (in.theorem2 ? " (corrected P~ has largest eigenvalue " +
+                                Num(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
+                          : "") +
+             "; without the uncertain factor the loop is stable (exact)";
+  if (FactorUnstable(in)) {
+    v.reason += "; with the factor linearised the loop is unstable";
+    v.advice = FactorAdvice(in);
+  } else if (in.theorem2 && in.theorem2->k1_min_corrected) {
+    v.advice = "raise k1 above " + Num(*in.theorem2->k1_min_corrected) + " and k2 above " +
+               Num(*in.theorem2->k2_min_corrected) + " (corrected (20)-(21))";
+  } else {
+    v.advice =
+        "Theorem 2's bounds (20)-(21) have no solution for this topology, alpha "
+        "and beta (alpha beta <= 2 lambda_max(M^T M)); try other --alpha/--beta "
+        "or higher gains checked by the P~ test";
+  }
+  return v;
+}
 
-  // Delays or an uncertain factor that only Theorem 3 covers.
+/// Rule 2: h = 0.
+Verdict NoDelay(const VerdictInput& in) {
+  switch (in.factor) {
+    case FactorKind::kNone:
+      return NoDelayNoFactor(in);
+    case FactorKind::kLipschitz:
+      return NoDelayLipschitzFactor(in);
+    case FactorKind::kUncovered:
+      break;
+  }
+  Verdict v;
+  v.reason =
+      "no delay and the nominal loop is stable (exact), but the uncertain factor "
+      "is not a Lipschitz f(x_i) - f(x_0): no theorem here covers it (expect a "
+      "bounded formation error rather than convergence)";
+  return v;
+}
+
+/// Rule 3: one common constant delay, no factor: the exact margin decides.
+Verdict CommonConstantDelay(const VerdictInput& in) {
+  Verdict v;
+  const theory::DelayMargin& m = *in.margin;
+  if (m.tau_s > in.h_s) {
+    v.certified = true;
+    v.by = "the exact delay margin";
+    v.reason = "one constant delay h = " + Num(in.h_s) +
+               " s on every link, no uncertain "
+               "factor; " +
+               MarginText(in);
+    if (m.tau_s < in.safety * in.h_s) {
+      v.advice = "the margin is below the safety factor " + Num(in.safety) + ": " +
+                 ScaleAdvice(in, in.safety * in.h_s);
+    }
+    return v;
+  }
+  v.reason = "one constant delay h = " + Num(in.h_s) + " s on every link exceeds the " +
+             MarginText(in) + ": the loop is unstable at this delay";
+  v.advice = ScaleAdvice(in, in.safety * in.h_s);
+  return v;
+}
+
+bool Theorem3Applicable(const VerdictInput& in) {
+  return in.factor != FactorKind::kUncovered && in.kappa && *in.kappa < 1.0;
+}
+
+/// Rule 4: Theorem 3's LMI is feasible at (h, kappa).
+Verdict ByTheorem3(const VerdictInput& in) {
+  Verdict v;
+  v.certified = true;
+  v.by = "Theorem 3 (LMI (27)-(28))";
+  v.reason =
+      "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
+      (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + Num(in.rho0)
+                                           : std::string(", no uncertain factor")) +
+      "; " + MarginText(in);
+  return v;
+}
+
+/// Rule 5, the reason: what only Theorem 3 covers, and what Theorem 3 said.
+std::string OnlyTheorem3Reason(const VerdictInput& in) {
   std::string why;
   auto add = [&why](const std::string& s) { why += (why.empty() ? "" : ", ") + s; };
   if (in.delay_time_varying)
@@ -197,7 +217,7 @@ Verdict Decide(const VerdictInput& in) {
     add("an uncertain factor acts that no theorem "
         "here covers");
   std::string t3;
-  if (!t3_applicable) {
+  if (!Theorem3Applicable(in)) {
     t3 = in.kappa ? (in.factor == FactorKind::kUncovered
                          ? "Theorem 3 does not cover this uncertain factor"
                          : "Theorem 3 needs kappa < 1")
@@ -207,25 +227,50 @@ Verdict Decide(const VerdictInput& in) {
   } else {
     t3 = "Theorem 3's LMI is not feasible at h = " + Num(in.h_s) + " s";
   }
-  v.reason = why + "; " + t3 + "; " + MarginText(in) + ": indications, not certificates";
-  if (FactorUnstable(in)) {
-    v.advice = FactorAdvice(in);
-  } else if (m.tau_s <= in.h_s) {
-    v.advice = "the gains are unstable already for a constant delay h: " +
-               ScaleAdvice(in, in.safety * in.h_s);
-  } else if (t3_applicable && in.theorem3_certified.has_value()) {
-    if (in.theorem3_max_delay_s && *in.theorem3_max_delay_s <= 0.0) {
-      v.advice =
-          "Theorem 3's LMI is infeasible even at h = 0 with these gains and this uncertain "
-          "factor: the velocity gain must dominate the factor's slope (a necessary condition "
-          "is k2 lambda_min(H) > sqrt(2 lambda_max(J^2)), docs/theory_theorem3.md); raise k2 "
-          "(check the delay margin again), or weaken the factor";
-    } else {
-      v.advice = "reduce the delay below Theorem 3's max_delay_s" +
-                 (in.theorem3_max_delay_s ? " = " + Num(*in.theorem3_max_delay_s) + " s" : "") +
-                 ", or change the gains and compare max_delay_s (the LMI is only sufficient)";
-    }
+  return why + "; " + t3 + "; " + MarginText(in) + ": indications, not certificates";
+}
+
+/// Rule 5, the advice.
+std::string OnlyTheorem3Advice(const VerdictInput& in) {
+  if (FactorUnstable(in)) return FactorAdvice(in);
+  if (in.margin->tau_s <= in.h_s) {
+    return "the gains are unstable already for a constant delay h: " +
+           ScaleAdvice(in, in.safety * in.h_s);
   }
+  if (!Theorem3Applicable(in) || !in.theorem3_certified.has_value()) return "";
+  if (in.theorem3_max_delay_s && *in.theorem3_max_delay_s <= 0.0) {
+    return "Theorem 3's LMI is infeasible even at h = 0 with these gains and this uncertain "
+           "factor: the velocity gain must dominate the factor's slope (a necessary condition "
+           "is k2 lambda_min(H) > sqrt(2 lambda_max(J^2)), docs/theory_theorem3.md); raise k2 "
+           "(check the delay margin again), or weaken the factor";
+  }
+  return "reduce the delay below Theorem 3's max_delay_s" +
+         (in.theorem3_max_delay_s ? " = " + Num(*in.theorem3_max_delay_s) + " s" : "") +
+         ", or change the gains and compare max_delay_s (the LMI is only sufficient)";
+}
+
+}  // namespace
+
+Verdict Decide(const VerdictInput& in) {
+  const theory::DelayMargin& m = *in.margin;
+  const double margin_over_h =
+      in.h_s > 0.0 ? m.tau_s / in.h_s : std::numeric_limits<double>::infinity();
+  Verdict v;
+  if (!m.stable_at_zero) {
+    v = UnstableWithoutDelay(in);
+  } else if (in.h_s <= 0.0) {
+    v = NoDelay(in);
+  } else if (in.factor == FactorKind::kNone && in.delay_common_constant) {
+    v = CommonConstantDelay(in);
+  } else if (in.theorem3_certified.value_or(false) && Theorem3Applicable(in)) {
+    // Time-varying delays or an uncertain factor: Theorem 3 (the exact margin is
+    // necessary and sufficient for one constant delay, so it decides that case first).
+    v = ByTheorem3(in);
+  } else {
+    v.reason = OnlyTheorem3Reason(in);
+    v.advice = OnlyTheorem3Advice(in);
+  }
+  v.margin_over_h = margin_over_h;
   return v;
 }
 

@@ -21,9 +21,11 @@ struct DesignOptions {
   bool tune = false;
   double tune_horizon_s = 120.0;
   std::string tune_cost = "itse";  // itse, ise or position_ise (design/sim_eval.h)
+  bool advise = false;         // --advise: gains Theorem 3 certifies (design/advise.h)
+  std::string write_scenario;  // --write-scenario FILE: the scenario with the advised gains
 };
 
-/// `shoal design`: exit status 0 certified, 1 not certified, 2 bad input.
+/// `shoal design` (docs/theory.md): exit status 0 certified, 1 not certified, 2 bad input.
 int RunDesign(const DesignOptions& opt);
 
 }  // namespace shoal

@@ -2,10 +2,14 @@
 // the paper's numbers, the verdict and its exit status, and advice that really works.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "tests/integration/test_util.h"
 
@@ -79,7 +83,7 @@ TEST(DesignCli, BadScenarioFilesAndFlagsExitTwo) {
   EXPECT_NE(help.out.find("--empirical"), std::string::npos);
 }
 
-// The JSON object has the keys and the paper's numbers.
+// The JSON object has the documented keys (docs/theory.md) and the paper's numbers.
 TEST(DesignCli, JsonHasThePaperNumbers) {
   const auto r = RunShoal("design " + Example(2) + " --json", "d_json");
   ASSERT_TRUE(r.status == 0 || r.status == 1) << r.err;
@@ -104,6 +108,29 @@ TEST(DesignCli, JsonHasThePaperNumbers) {
   // Exit status follows the verdict.
   const bool certified = r.out.find("\"certified\":true") != std::string::npos;
   EXPECT_EQ(r.status, certified ? 0 : 1);
+}
+
+// The --json output is one JSON document (nlohmann parses it), in the report's order, with
+// numbers at full precision: the margin is exactly the smallest per-eigenvalue margin.
+TEST(DesignCli, JsonParsesAndKeepsTheReportOrder) {
+  const auto r = RunShoal("design " + Example(2) + " --json", "d_json_parse");
+  ASSERT_EQ(r.status, 1) << r.err;
+  const nlohmann::ordered_json j = nlohmann::ordered_json::parse(r.out);
+  std::vector<std::string> keys;
+  for (auto it = j.begin(); it != j.end(); ++it) keys.push_back(it.key());
+  ASSERT_GE(keys.size(), 3u);
+  EXPECT_EQ(keys.front(), "scenario");
+  EXPECT_EQ(keys.back(), "verdict");
+  EXPECT_EQ(j["verdict"]["certified"], false);
+  EXPECT_EQ(j["theorem3"]["evaluated"], true);
+  EXPECT_TRUE(j["delay"]["time_varying"].get<bool>());
+  const double margin = j["delay_margin_s"].get<double>();
+  EXPECT_NEAR(margin, 0.3435, 5e-5);
+  double smallest = 1e9;
+  for (const auto& e : j["delay_margin"]["per_eigenvalue"]) {
+    smallest = std::min(smallest, e["tau_s"].get<double>());
+  }
+  EXPECT_EQ(margin, smallest);  // the same double, written twice without rounding
 }
 
 // Theorem 3 through the CLI: without an uncertain factor the corrected LMI certifies a

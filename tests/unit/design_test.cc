@@ -1,11 +1,15 @@
-// design/: the verdict's rules, the empirical margin against the exact one, and tuning's
-// constraint and improvement.
+// design/: the verdict's rules, the empirical margin against the exact one, tuning's
+// constraint and improvement, the report of `shoal design` (built and rendered without the
+// command) and the advised gains.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/topology.h"
+#include "design/advise.h"
 #include "design/empirical_margin.h"
+#include "design/report.h"
 #include "design/sim_eval.h"
 #include "design/tune.h"
 #include "design/verdict.h"
@@ -252,6 +256,151 @@ TEST(Tune, MeetsTheMarginRequirementAndDoesNotIncreaseTheCost) {
     EXPECT_GE(st.cost, r.after.cost * (1 - 1e-9));
   }
   EXPECT_GT(r.sim_runs, 4);
+}
+
+// ---- The report of `shoal design` (BuildDesignReport and its two renderings) ----
+
+// Given paper Example 2 as shipped, when the report is built, then it has the paper's
+// numbers: the exact delay margin 0.3435 s, Theorem 1 certifies the gains (no delay, no
+// factor), and Theorem 3's corrected LMI is infeasible at h = 0.15 s and even at h = 0
+// (k2 lambda_min(H) = 0.539 < sqrt(2 lambda_max(J^2)) = 0.707): not certified.
+TEST(DesignReport, PaperExample2HasThePaperNumbersAndIsNotCertified) {
+  const DesignReport r = BuildDesignReport(Load("scenarios/paper_example2.toml"), {});
+  EXPECT_NEAR(r.margin.tau_s, 0.3435, 1e-4);
+  ASSERT_TRUE(r.theorem1.has_value());
+  EXPECT_TRUE(r.theorem1->certifies);
+  EXPECT_NEAR(r.theorem1->P_max_eigenvalue, -7.3e-4, 0.05e-4);
+  EXPECT_NEAR(r.delay.h_s, 0.15, 1e-12);
+  ASSERT_TRUE(r.theorem3.evaluated) << r.theorem3.not_evaluated_reason;
+  EXPECT_FALSE(r.theorem3.at_h.certifies());
+  EXPECT_FALSE(r.theorem3.max_delay.feasible_at_zero);
+  EXPECT_TRUE(r.factor_margin_shown);
+  EXPECT_NEAR(r.factor_margin.tau_s, 0.3101, 1e-4);
+  EXPECT_FALSE(r.verdict.certified);
+  EXPECT_FALSE(r.advice.has_value());  // only on request
+}
+
+// The two renderings carry the same numbers; the JSON keeps the report's order and the
+// text ends with the verdict.
+TEST(DesignReport, TextAndJsonRenderTheSameReport) {
+  const DesignReport r = BuildDesignReport(Load("scenarios/paper_example2.toml"), {});
+  const nlohmann::ordered_json j = DesignReportJson(r);
+  EXPECT_EQ(j.begin().key(), "scenario");
+  EXPECT_EQ(j.back()["line"], r.verdict.Line());
+  EXPECT_EQ(j["delay_margin_s"].get<double>(), r.margin.tau_s);  // full precision
+  EXPECT_EQ(j["theorem3"]["feasible"], false);
+  EXPECT_EQ(j["theorem3"]["feasible_at_zero_delay"], false);
+  EXPECT_EQ(j["assumption1"].dump(), "{\"holds\":true,\"unreachable_followers\":[]}");
+  EXPECT_TRUE(j["delay"]["kappa"].is_number());
+  const std::string text = DesignReportText(r);
+  EXPECT_NE(text.find("delay_margin_s = 0.3435 s"), std::string::npos) << text;
+  const std::string last = text.substr(text.rfind('\n', text.size() - 2) + 1);
+  EXPECT_EQ(last, r.verdict.Line() + "\n");
+}
+
+// Without the uncertain factor the corrected LMI certifies a time-varying delay of 0.15 s
+// at the paper's gains, with max_delay_s between h and the exact margin.
+TEST(DesignReport, Theorem3CertifiesExample1WithATimeVaryingDelay) {
+  DesignRequest q;
+  q.h_s = 0.15;
+  q.kappa = 0.05;
+  const DesignReport r = BuildDesignReport(Load("scenarios/paper_example1.toml"), q);
+  ASSERT_TRUE(r.theorem3.evaluated);
+  EXPECT_TRUE(r.theorem3.at_h.certifies()) << r.theorem3.at_h.message;
+  EXPECT_GT(r.theorem3.max_delay.max_delay_s, 0.15);
+  EXPECT_LT(r.theorem3.max_delay.max_delay_s, r.margin.tau_s);
+  EXPECT_TRUE(r.verdict.certified);
+  EXPECT_EQ(r.verdict.by, "Theorem 3 (LMI (27)-(28))");
+}
+
+TEST(DesignReport, RequestValidationNamesTheFlag) {
+  const Scenario s = Load("scenarios/paper_example2.toml");
+  std::string why;
+  DesignRequest q;
+  EXPECT_TRUE(q.IsValid(s, &why)) << why;
+  q.k2 = -1.0;
+  EXPECT_FALSE(q.IsValid(s, &why));
+  EXPECT_NE(why.find("--k2 must be a positive number (got -1)"), std::string::npos) << why;
+  q = {};
+  q.rho0 = 0.1;  // the model's own constant is 0.5
+  EXPECT_FALSE(q.IsValid(s, &why));
+  EXPECT_NE(why.find("--rho0 0.1 is below"), std::string::npos) << why;
+}
+
+// Example 2: no scale of the paper's gains is certified at h = 0.15 s, so the advice is
+// the scale Theorem 3 certifies for the largest delay. It must satisfy the necessary
+// condition k2 lambda_min(H) > sqrt(2 lambda_max(J^2)), keep the gains' shape, come with
+// a verified certificate at its max_delay_s, and its delay margins are reported.
+TEST(DesignReport, AdviceForExample2MaximisesTheDelayTheorem3Certifies) {
+  DesignRequest q;
+  q.advise = true;
+  const DesignReport r = BuildDesignReport(Load("scenarios/paper_example2.toml"), q);
+  ASSERT_TRUE(r.advice.has_value());
+  ASSERT_TRUE(r.advice->evaluated) << r.advice->not_evaluated_reason;
+  const GainAdvice& g = r.advice->advice;
+  EXPECT_FALSE(g.certified_at_h);
+  ASSERT_TRUE(g.found);
+  EXPECT_GT(g.k2 * 0.4679111, std::sqrt(0.5));
+  EXPECT_NEAR(g.k1 / (g.k2 * g.k2), 0.18 / (1.152 * 1.152), 1e-12);
+  EXPECT_GT(g.theorem3_max_delay_s, 0.1);  // the best of a coarse grid was 0.119 s
+  EXPECT_LT(g.theorem3_max_delay_s, 0.15);
+  EXPECT_TRUE(g.certificate.certifies());
+  EXPECT_NEAR(g.certificate.input.h_s, g.theorem3_max_delay_s, 1e-12);
+  EXPECT_NEAR(g.delay_margin_s, theory::ComputeDelayMargin(r.eigenvalues, g.k1, g.k2).tau_s, 1e-12);
+  EXPECT_GT(g.delay_margin_with_factor_s, 0.15);
+  // The advised gains converge where the paper's do, and faster.
+  const Scenario s = Load("scenarios/paper_example2.toml");
+  const SimOutcome before = RunSwarm(s, -1.0), after = RunSwarm(WithGains(s, g.k1, g.k2), -1.0);
+  ASSERT_TRUE(before.converged);
+  ASSERT_TRUE(after.converged);
+  EXPECT_LT(after.convergence_time_s, before.convergence_time_s);
+}
+
+// Without a factor Theorem 3 scales with the gains: a delay too large for the paper's gains
+// is certified by slower gains (c < 1), the nearest scale that is.
+TEST(Advice, SlowerGainsCertifyALargerDelayWithoutAFactor) {
+  const Eigen::MatrixXd H =
+      Topology::Build(5, {{1, 3}, {2, 1}, {2, 5}, {3, 1}, {4, 5}, {5, 2}, {5, 4}}, {1, 3, 5}).H();
+  AdviceInput in;
+  in.theorem3.H = H;
+  in.theorem3.k1 = 0.18;
+  in.theorem3.k2 = 1.152;
+  in.theorem3.h_s = 0.3;  // Theorem 3 certifies 0.2117 s at these gains
+  in.theorem3.kappa = 0.05;
+  in.eigenvalues = theory::HEigenvalues(H);
+  const GainAdvice g = AdviseGains(in);
+  ASSERT_TRUE(g.certified_at_h) << g.how;
+  EXPECT_LT(g.scale, 1.0);
+  EXPECT_GT(g.scale, 0.5);
+  EXPECT_TRUE(g.certificate.certifies());
+  EXPECT_NEAR(g.certificate.input.h_s, 0.3, 1e-12);
+  EXPECT_GE(g.theorem3_max_delay_s, 0.3);
+  EXPECT_GT(g.delay_margin_s, 0.3);  // the LMI is only sufficient
+  // The next scale up (nearer to 1) is not certified: this is the nearest one.
+  Theorem3Input faster = in.theorem3;
+  const double up = g.scale * std::pow(2.0, 0.25);
+  faster.k1 = up * up * 0.18;
+  faster.k2 = up * 1.152;
+  EXPECT_FALSE(CheckTheorem3(faster).certifies());
+}
+
+TEST(Advice, WrittenScenarioLoadsWithTheAdvisedGains) {
+  const std::string out = ::testing::TempDir() + "design_test_advised.toml";
+  std::string err;
+  const double k1 = 0.40466665847772559, k2 = 1.7272887250325508;
+  ASSERT_TRUE(WriteScenarioWithGains(std::string(SHOAL_SOURCE_DIR) + "/scenarios/paper_example2.toml",
+                                     k1, k2, out, &err))
+      << err;
+  const Scenario s = LoadScenario(out);
+  EXPECT_EQ(s.k1, k1);
+  EXPECT_EQ(s.k2, k2);
+  EXPECT_EQ(s.name, "paper_example2_advised");
+  const Scenario original = Load("scenarios/paper_example2.toml");
+  EXPECT_EQ(s.followers, original.followers);
+  EXPECT_EQ(s.duration_s, original.duration_s);
+  std::remove(out.c_str());
+  EXPECT_FALSE(WriteScenarioWithGains("/nonexistent/scenario.toml", k1, k2, out, &err));
+  EXPECT_NE(err.find("/nonexistent/scenario.toml"), std::string::npos) << err;
 }
 
 }  // namespace

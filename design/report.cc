@@ -1,0 +1,309 @@
+#include "design/report.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "core/topology.h"
+
+namespace shoal {
+namespace design {
+namespace {
+
+std::string G(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.4g", v);
+  return buf;
+}
+
+double WallSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string PositiveError(const char* flag, const std::optional<double>& v, const char* what) {
+  if (v && !(std::isfinite(*v) && *v > 0.0)) {
+    return std::string(flag) + " must be a positive number (got " + G(*v) + "): " + what;
+  }
+  return "";
+}
+
+/// The request's values alone: an error message naming the flag, or "".
+std::string ValueError(const DesignRequest& o) {
+  std::string e;
+  if (!(e = PositiveError("--k1", o.k1, "the position gain k1 of protocol (10)")).empty()) return e;
+  if (!(e = PositiveError("--k2", o.k2, "the velocity gain k2 of protocol (10)")).empty()) return e;
+  if (!(e = PositiveError("--h", o.h_s,
+                          "the delay bound h in seconds; for a delay-free analysis use a scenario "
+                          "whose [channel.delay] model is \"none\""))
+           .empty()) {
+    return e;
+  }
+  if (o.kappa && !(std::isfinite(*o.kappa) && *o.kappa >= 0.0 && *o.kappa < 1.0)) {
+    return "--kappa must be in [0, 1) (got " + G(*o.kappa) +
+           "): the bound on d tau/dt of Assumption 3";
+  }
+  if (!(std::isfinite(o.alpha) && o.alpha > 0.0)) {
+    return "--alpha must be a positive number (got " + G(o.alpha) + "): Theorem 1's alpha";
+  }
+  if (!(std::isfinite(o.beta) && o.beta > 0.0)) {
+    return "--beta must be a positive number (got " + G(o.beta) + "): Theorem 1's beta";
+  }
+  if (o.rho0 && !(std::isfinite(*o.rho0) && *o.rho0 >= 0.0)) {
+    return "--rho0 must be a number >= 0 (got " + G(*o.rho0) +
+           "): the Lipschitz constant of the uncertain factor";
+  }
+  if (!(std::isfinite(o.safety) && o.safety >= 1.0)) {
+    return "--safety must be a number >= 1 (got " + G(o.safety) +
+           "): the required margin is safety x h";
+  }
+  if (!(std::isfinite(o.tune_horizon_s) && o.tune_horizon_s > 0.0)) {
+    return "--tune-horizon must be a positive number of seconds (got " + G(o.tune_horizon_s) + ")";
+  }
+  if (o.empirical_duration_s != -1.0 &&
+      !(std::isfinite(o.empirical_duration_s) && o.empirical_duration_s > 0.0)) {
+    return "--empirical-duration must be a positive number of seconds (got " +
+           G(o.empirical_duration_s) + ")";
+  }
+  return "";
+}
+
+void Progress(const DesignRequest& q, const std::string& what) {
+  if (q.progress) q.progress(what);
+}
+
+/// Gains, topology, delays and the uncertain factor: the data every result below uses.
+void DescribeProblem(const Scenario& s, const DesignRequest& q, DesignReport* r) {
+  r->scenario_name = s.name;
+  r->followers = s.followers;
+  r->k1 = q.k1.value_or(s.k1);
+  r->k2 = q.k2.value_or(s.k2);
+  r->alpha = q.alpha;
+  r->beta = q.beta;
+  r->gains_from_flags = q.k1.has_value() || q.k2.has_value();
+  r->safety = q.safety;
+  r->duration_s = s.duration_s;
+  r->position_tol_m = s.metrics.position_tol_m;
+  r->velocity_tol_mps = s.metrics.velocity_tol_mps;
+
+  const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
+  r->H = topo.H();
+  r->eigenvalues = theory::HEigenvalues(r->H);
+  r->unreachable_followers = topo.UnreachableFollowers();
+
+  // Delays: the scenario's, or h (and kappa) from the flags describing one common delay.
+  r->delay_model = s.delay.kind;
+  r->per_link_overrides = !s.links.empty();
+  r->delay = theory::DelayBoundsOf(s);
+  r->delay_from_flags = q.h_s.has_value() || q.kappa.has_value();
+  if (q.h_s) r->delay.h_s = *q.h_s;
+  if (q.kappa) r->delay.kappa = *q.kappa;
+  if (r->delay_from_flags) {
+    r->delay.time_varying = !r->delay.kappa || *r->delay.kappa > 0.0;
+    r->delay.constant = !r->delay.time_varying;
+  }
+
+  r->disturbance = s.disturbance.kind;
+  r->relative_to_leader = s.disturbance.relative_to_leader;
+  r->lipschitz = theory::LipschitzOf(s.disturbance);
+  r->rho0_from_flag = q.rho0.has_value();
+  if (q.rho0) {
+    r->rho0 = *q.rho0;
+  } else if (r->lipschitz.applicable || s.disturbance.kind == DisturbanceKind::kPaperExample2) {
+    r->rho0 = r->lipschitz.rho0;
+  }
+  if (s.disturbance.kind != DisturbanceKind::kNone) {
+    r->factor = r->lipschitz.applicable ? FactorKind::kLipschitz : FactorKind::kUncovered;
+  }
+  // --rho0 states an assumed Lipschitz bound for the factor (or, with none, adds one).
+  if (q.rho0 && *q.rho0 > 0.0) r->factor = FactorKind::kLipschitz;
+}
+
+/// Why Theorem 3 does not apply, or "" when it does.
+std::string Theorem3NotApplicable(const DesignReport& r) {
+  const std::optional<double>& kappa = r.delay.kappa;
+  if (!kappa) {
+    return "the delay's rate is unbounded (uniform jitter draws a new delay per message)";
+  }
+  if (*kappa >= 1.0) return "kappa = " + G(*kappa) + " >= 1 (Assumption 3 needs tau' <= kappa < 1)";
+  if (r.factor != FactorKind::kUncovered) return "";
+  return r.disturbance == DisturbanceKind::kOceanCurrent
+             ? "the ocean current has no Lipschitz bound of the form f(x_i) - f(x_0) "
+               "(pass --rho0 to assume one)"
+             : "the uncertain factor is not of the form f(x_i) - f(x_0) that Theorem 3 "
+               "covers (relative_to_leader = false; pass --rho0 to assume a bound)";
+}
+
+/// Theorem 3 (LMI (27)-(28), every multiplier free, CSDP) at the gains and delay bounds:
+/// feasibility at (h, kappa), max_delay_s by bisection, the paper's multipliers.
+void RunTheorem3(const DesignRequest& q, DesignReport* r) {
+  Theorem3Section& t = r->theorem3;
+  t.not_evaluated_reason = Theorem3NotApplicable(*r);
+  if (!t.not_evaluated_reason.empty()) return;
+  t.evaluated = true;
+  t.rho0_from_flag = q.rho0.has_value();
+  t.input.H = r->H;
+  t.input.k1 = r->k1;
+  t.input.k2 = r->k2;
+  t.input.h_s = r->delay.h_s;
+  t.input.kappa = *r->delay.kappa;
+  if (q.rho0) {  // an assumed bound ||F|| <= rho0 (||x|| + ||v||): G = J = rho0 I
+    t.input.lambda_G2 = t.input.lambda_J2 = *q.rho0 * *q.rho0;
+  } else {
+    t.input.lambda_G2 = r->lipschitz.lambda_max_G2;
+    t.input.lambda_J2 = r->lipschitz.lambda_max_J2;
+  }
+  t.at_h = CheckTheorem3(t.input);
+  t.max_delay = MaxDelayTheorem3(t.input);
+  t.paper = PaperMultipliersMaxEigenvalue(t.input);
+}
+
+void RunEmpirical(const Scenario& s, const DesignRequest& q, DesignReport* r) {
+  EmpiricalMarginOptions eo;
+  eo.duration_s = q.empirical_duration_s;
+  eo.initial_upper_s = r->margin.stable_at_zero ? 2.0 * r->margin.tau_s : 1.0;
+  Progress(q, "empirical margin (bisection over shoal sim runs)...");
+  const auto t0 = std::chrono::steady_clock::now();
+  EmpiricalSection e;
+  e.margin = FindEmpiricalMargin(s, eo);
+  e.wall_s = WallSince(t0);
+  e.model = EmpiricalModelDescription(s, e.margin.duration_s);
+  r->empirical = std::move(e);
+}
+
+double FactorMarginOf(const DesignReport& r, double k1, double k2) {
+  const theory::FactorDelayMargin f =
+      theory::ComputeFactorDelayMargin(r.eigenvalues, k1, k2, r.lipschitz);
+  return f.stable_at_zero ? f.tau_s : 0.0;
+}
+
+void RunTune(const Scenario& s, const DesignRequest& q, DesignReport* r) {
+  TuneOptions to;
+  to.safety = q.safety;
+  to.horizon_s = q.tune_horizon_s;
+  to.cost = q.tune_cost;
+  Progress(q, "tuning k1, k2 with Ceres (4 starts)...");
+  const auto t0 = std::chrono::steady_clock::now();
+  TuneSection t;
+  t.cost = q.tune_cost;
+  t.result = Tune(s, r->eigenvalues, r->delay.h_s, to);
+  t.wall_s = WallSince(t0);
+  t.before_factor_margin_s = FactorMarginOf(*r, t.result.before.k1, t.result.before.k2);
+  if (t.result.ok) {
+    t.after_factor_margin_s = FactorMarginOf(*r, t.result.after.k1, t.result.after.k2);
+  }
+  r->tune = std::move(t);
+}
+
+void RunAdvice(const DesignRequest& q, DesignReport* r) {
+  AdviceSection a;
+  if (!r->theorem3.evaluated) {
+    a.not_evaluated_reason = "Theorem 3 does not apply: " + r->theorem3.not_evaluated_reason;
+  } else if (!r->theorem3.input.IsValid(&a.not_evaluated_reason)) {
+    a.not_evaluated_reason = "Theorem 3's input is invalid: " + a.not_evaluated_reason;
+  } else {
+    Progress(q, "advising gains (Theorem 3 over scales of the gains)...");
+    AdviceInput in;
+    in.theorem3 = r->theorem3.input;
+    in.eigenvalues = r->eigenvalues;
+    in.lipschitz = r->lipschitz;
+    in.factor_slopes_known = r->factor_margin_shown;
+    a.evaluated = true;
+    a.advice = AdviseGains(in);
+  }
+  r->advice = std::move(a);
+}
+
+void Decide(DesignReport* r) {
+  VerdictInput vi;
+  vi.k1 = r->k1;
+  vi.k2 = r->k2;
+  vi.h_s = r->delay.h_s;
+  vi.kappa = r->delay.kappa;
+  vi.delay_time_varying = r->delay.time_varying;
+  vi.delay_common_constant = r->delay.constant;
+  vi.factor = r->factor;
+  vi.rho0 = r->rho0.value_or(0.0);
+  vi.theorem1 = r->theorem1 ? &*r->theorem1 : nullptr;
+  vi.theorem2 = r->theorem2 ? &*r->theorem2 : nullptr;
+  vi.margin = &r->margin;
+  vi.factor_margin = r->factor_margin_shown ? &r->factor_margin : nullptr;
+  vi.safety = r->safety;
+  if (r->theorem3.evaluated) {
+    const Theorem3Section& t = r->theorem3;
+    vi.theorem3_certified = t.at_h.certifies();
+    if (t.max_delay.input_valid) {
+      vi.theorem3_max_delay_s = t.max_delay.feasible_at_zero ? t.max_delay.max_delay_s : 0.0;
+    }
+  }
+  r->verdict = design::Decide(vi);
+}
+
+}  // namespace
+
+bool DesignRequest::IsValid(const Scenario& s, std::string* why) const {
+  std::string e = ValueError(*this);
+  const theory::Lipschitz lip = theory::LipschitzOf(s.disturbance);
+  if (e.empty() && rho0 && lip.applicable && s.disturbance.kind != DisturbanceKind::kNone &&
+      *rho0 < lip.rho0) {
+    e = "--rho0 " + G(*rho0) + " is below the uncertain factor's own Lipschitz constant " +
+        G(lip.rho0) + " (" + DisturbanceName(s.disturbance.kind) +
+        "): a certificate would rest on a bound the model does not satisfy; give --rho0 >= " +
+        G(lip.rho0) + " or leave it out";
+  }
+  if (why) *why = e;
+  return e.empty();
+}
+
+const Theorem3Result& Theorem3Section::CertificateResult() const {
+  return at_h.certifies() || !max_delay.feasible_at_zero ? at_h : max_delay.at_max;
+}
+
+DesignReport BuildDesignReport(const Scenario& scenario, const DesignRequest& q) {
+  DesignReport r;
+  DescribeProblem(scenario, q, &r);
+  Scenario s = scenario;  // the empirical margin and the tuner run these gains
+  s.k1 = r.k1;
+  s.k2 = r.k2;
+  r.theorem1 = theory::ComputeTheorem1(r.H, r.k1, r.k2, r.alpha, r.beta);
+  if (r.theorem1 && r.rho0) {
+    r.theorem2 = theory::ComputeTheorem2(*r.theorem1, r.alpha, r.beta, *r.rho0);
+  }
+  RunTheorem3(q, &r);
+  r.margin = theory::ComputeDelayMargin(r.eigenvalues, r.k1, r.k2);
+  r.factor_margin_shown = r.disturbance != DisturbanceKind::kNone && r.lipschitz.slopes_known;
+  r.factor_margin = theory::ComputeFactorDelayMargin(r.eigenvalues, r.k1, r.k2, r.lipschitz);
+  if (q.empirical) RunEmpirical(s, q, &r);
+  if (q.tune) RunTune(s, q, &r);
+  if (q.advise) RunAdvice(q, &r);
+  Decide(&r);
+  return r;
+}
+
+const char* DelayKindName(DelayKind k) {
+  switch (k) {
+    case DelayKind::kNone:
+      return "none";
+    case DelayKind::kConstant:
+      return "constant";
+    case DelayKind::kSinusoid:
+      return "sinusoid";
+    case DelayKind::kUniform:
+      return "uniform";
+  }
+  return "?";
+}
+
+const char* DisturbanceName(DisturbanceKind k) {
+  switch (k) {
+    case DisturbanceKind::kNone:
+      return "none";
+    case DisturbanceKind::kPaperExample2:
+      return "paper_example2";
+    case DisturbanceKind::kOceanCurrent:
+      return "ocean_current";
+  }
+  return "?";
+}
+
+}  // namespace design
+}  // namespace shoal

@@ -1,0 +1,136 @@
+// The report of `shoal design`: everything the command computes for a scenario (topology,
+// delays, uncertain factor, Theorems 1-3, the exact delay margins, optionally the
+// empirical margin, tuning and advised gains) and the verdict, as one value. The command
+// only parses flags, calls BuildDesignReport and prints one of the two renderings.
+#pragma once
+
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/scenario.h"
+#include "core/theory.h"
+#include "design/advise.h"
+#include "design/empirical_margin.h"
+#include "design/sim_eval.h"
+#include "design/theorem3.h"
+#include "design/tune.h"
+#include "design/verdict.h"
+
+namespace shoal {
+namespace design {
+
+/// What to compute; empty optionals take the scenario's values. Field by field the flags
+/// of `shoal design` (docs/theory.md), so IsValid's messages name the flags.
+struct DesignRequest {
+  std::optional<double> k1, k2;
+  std::optional<double> h_s, kappa;
+  std::optional<double> rho0;
+  double alpha = 0.05;  ///< Theorem 1-2 parameters, the paper's values by default
+  double beta = 6.4;
+  double safety = 2.0;  ///< required margin = safety x h (--tune, advice)
+  bool empirical = false;
+  double empirical_duration_s = -1.0;  ///< < 0: the scenario's run.duration_s
+  bool tune = false;
+  double tune_horizon_s = 120.0;
+  CostKind tune_cost = CostKind::kItse;
+  bool advise = false;
+  /// Called before each long step (empirical margin, tuning, advice); may be empty.
+  std::function<void(const std::string&)> progress;
+
+  /// The values alone and against the scenario (--rho0 below the model's own Lipschitz
+  /// constant). On failure `why` is the message, naming the flag.
+  bool IsValid(const Scenario& s, std::string* why) const;
+};
+
+struct Theorem3Section {
+  bool evaluated = false;
+  std::string not_evaluated_reason;
+  bool rho0_from_flag = false;  ///< lambda_G2 = lambda_J2 = rho0^2 from --rho0
+  Theorem3Input input;
+  Theorem3Result at_h;
+  MaxDelayResult max_delay;
+  PaperMultipliersResult paper;
+  /// The result to write with --certificate: at h if certified there (or nothing is
+  /// certified even at h = 0), else at the largest certified h.
+  const Theorem3Result& CertificateResult() const;
+  /// Set by the caller that wrote it (empty: not written).
+  std::string certificate_path;
+};
+
+struct EmpiricalSection {
+  EmpiricalMargin margin;
+  double wall_s = 0.0;
+  std::string model;
+};
+
+struct TuneSection {
+  TuneResult result;
+  CostKind cost = CostKind::kItse;
+  double wall_s = 0.0;
+  /// Margins with the uncertain factor linearised (when shown), before and after.
+  double before_factor_margin_s = 0.0, after_factor_margin_s = 0.0;
+};
+
+struct AdviceSection {
+  bool evaluated = false;
+  std::string not_evaluated_reason;
+  GainAdvice advice;
+  std::string scenario_written;  ///< set by the caller that wrote it (--write-scenario)
+};
+
+struct DesignReport {
+  std::string scenario_name;
+  int followers = 0;
+  double k1 = 0.0, k2 = 0.0, alpha = 0.0, beta = 0.0;
+  bool gains_from_flags = false;
+  double safety = 2.0;
+  double duration_s = 0.0;  ///< the scenario's run length
+  double position_tol_m = 0.0, velocity_tol_mps = 0.0;
+
+  Eigen::MatrixXd H;
+  std::vector<theory::Complex> eigenvalues;
+  std::vector<int> unreachable_followers;
+
+  DelayKind delay_model = DelayKind::kNone;
+  bool per_link_overrides = false;
+  bool delay_from_flags = false;
+  theory::DelayBounds delay;
+
+  DisturbanceKind disturbance = DisturbanceKind::kNone;
+  bool relative_to_leader = false;
+  theory::Lipschitz lipschitz;
+  std::optional<double> rho0;
+  bool rho0_from_flag = false;
+  FactorKind factor = FactorKind::kNone;
+
+  std::optional<theory::Theorem1> theorem1;
+  std::optional<theory::Theorem2> theorem2;
+  Theorem3Section theorem3;
+  theory::DelayMargin margin;
+  bool factor_margin_shown = false;
+  theory::FactorDelayMargin factor_margin;
+  std::optional<EmpiricalSection> empirical;
+  std::optional<TuneSection> tune;
+  std::optional<AdviceSection> advice;
+  Verdict verdict;
+};
+
+/// Precondition: request.IsValid(s). Runs every analysis the request asks for; never
+/// prints (progress goes to request.progress) and writes no file.
+DesignReport BuildDesignReport(const Scenario& s, const DesignRequest& request);
+
+/// The readable report; its last line is the verdict, followed by the advised gains when
+/// they were asked for.
+std::string DesignReportText(const DesignReport& r);
+
+/// The same as one JSON object (docs/theory.md lists the keys). Non-finite numbers are null.
+nlohmann::ordered_json DesignReportJson(const DesignReport& r);
+
+const char* DelayKindName(DelayKind k);
+const char* DisturbanceName(DisturbanceKind k);
+
+}  // namespace design
+}  // namespace shoal
