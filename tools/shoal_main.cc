@@ -130,6 +130,12 @@ CLI::App* AddDesign(CLI::App* app, shoal::DesignOptions* design) {
                 "--tune cost: itse (time-weighted, default), ise, position_ise "
                 "(docs/theory.md)")
       ->check(CLI::IsMember({"itse", "ise", "position_ise"}));
+  c->add_flag("--advise", design->advise,
+              "Advise gains: the scale (c^2 k1, c k2) Theorem 3 certifies at h, or else the "
+              "one it certifies for the largest delay (docs/theory.md)");
+  c->add_option("--write-scenario", design->write_scenario,
+                "With the advised gains (implies --advise), write the scenario to this TOML "
+                "file");
   return c;
 }
 
