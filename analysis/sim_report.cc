@@ -184,7 +184,7 @@ bool RunSimulation(const Scenario& s, const SimRunOptions& opt, SimReport* repor
   std::unique_ptr<LogObserver> log_obs;
   if (log) {
     log_obs = std::make_unique<LogObserver>(log.get(), swarm.period_us());
-    log->Write(channels::Status(), 0, Status(s, 0, 0, "running", "shoal sim", true));
+    log->Write(channels::Status(), 0, Status(s, 0, 0, RunStateName(RunState::kRunning), "shoal sim", true));
   }
   ProgressObserver progress(log_obs.get(), &swarm, opt.show_progress);
   // Nothing to log or show: no observer at all (its calls are ~30 per tick).
@@ -204,7 +204,8 @@ bool RunSimulation(const Scenario& s, const SimRunOptions& opt, SimReport* repor
   if (log) {
     const Micros end = static_cast<Micros>(swarm.sim_time_s() * 1e6);
     const std::string state =
-        interrupted ? "interrupted" : (swarm.diverged_id() ? "failed" : "finished");
+        RunStateName(interrupted ? RunState::kInterrupted
+                                : (swarm.diverged_id() ? RunState::kFailed : RunState::kFinished));
     log_obs->FlushChannel();
     log->Write(channels::Status(), end, Status(s, end, 1, state, DivergedDetail(swarm), false));
     log->Close();

@@ -79,7 +79,7 @@ const double kOffsets[5][3] = {{6, 6, 0}, {6, -6, 0}, {-6, 6, 0}, {-6, -6, 0}, {
 const double kStart[5][3] = {{75, 13, 5}, {50, 39, -6}, {42, 21, 8}, {72, 45, -6}, {64, 9, 10}};
 const double kHeading[5] = {0.5, 2.0, 3.5, 5.0, 1.2};
 const double kPitch[5] = {0.10, -0.15, 0.05, -0.10, 0.12};
-const double kBias[5] = {0.016, 0.032, 0.016, 0.049, 0.032};  // README: PD bias on the helix
+const double kBias[5] = {0.016, 0.032, 0.016, 0.049, 0.032};  // docs/examples.md: PD bias on the helix
 
 // Follower f's (0-based) positions and velocities, and its position error in es.
 Kinematics FollowerKinematics(int f, const std::vector<double>& t, const Kinematics& leader,

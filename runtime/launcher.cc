@@ -142,7 +142,7 @@ class ProgressTracker {
 
  private:
   void OnEvent(const std::string& ch, const void* d, int n) {
-    if (ch.rfind("SHOAL_STATE_", 0) != 0) return;
+    if (!channels::ParseStateId(ch)) return;
     vehicle_state_t m{};
     if (!Decode(d, n, &m) || m.vehicle_id < 0 || m.vehicle_id > s_.followers) return;
     const StateMsg st = FromLcm(m);
@@ -194,13 +194,16 @@ class Launch {
   std::string vehicle_exe_, leader_exe_, emulator_exe_;
   std::vector<Child> kids_;
   std::int64_t t0_ns_ = 0;
+  Mode mode_ = Mode::kLockstep;  // opt_.mode, parsed by Prepare
 };
 
 bool Launch::Prepare(std::string* error) {
-  if (opt_.mode != "lockstep" && opt_.mode != "realtime") {
+  const std::optional<Mode> mode = ParseMode(opt_.mode);
+  if (!mode) {
     *error = "--mode must be lockstep or realtime (got " + opt_.mode + ")";
     return false;
   }
+  mode_ = *mode;
   if (opt_.duration_s == 0 || (opt_.duration_s < 0 && opt_.duration_s != -1)) {
     *error = "--duration must be a positive number of seconds";
     return false;
@@ -286,7 +289,7 @@ void Launch::StartAll() {
   // for the CPU while the run saturates it. As root it runs at nice -10 against the run's
   // +5 (CFS weight 9548 against 335), else at 0. Not SCHED_FIFO: a real-time logger
   // preempts the run at every message, and with SHOAL_CHANNEL batched it loses no fewer
-  // states (README "The SIL runtime": 600 s runs, 36-39x against 50-56x).
+  // states (docs/benchmarks.md, lockstep: 600 s runs, 36-39x against 50-56x).
   const bool root = geteuid() == 0;
   Start("lcm-logger", kLoggerId,
         {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url, "-f", "-q", r_->log},
@@ -297,7 +300,7 @@ void Launch::StartAll() {
   }
   t0_ns_ = MonotonicNs() + 4000000000LL;  // real time: start margin
   std::vector<std::string> emulator_more = {"--max-lookahead", std::to_string(opt_.max_lookahead)};
-  if (opt_.mode == "lockstep" && logger_pid > 0) {
+  if (mode_ == Mode::kLockstep && logger_pid > 0) {
     emulator_more.push_back("--recorder-pid");  // back-pressure: the log stays complete
     emulator_more.push_back(std::to_string(logger_pid));
   }
@@ -314,7 +317,7 @@ void Launch::StartAll() {
   // sending it a burst). Real time is paced by the clock. The clock master is every
   // window's critical path (it waits for the last state, then releases the next window):
   // in lockstep it runs at nice 0, above the vehicles' +5.
-  const int run_nice = opt_.mode == "lockstep" ? 5 : 0;
+  const int run_nice = mode_ == Mode::kLockstep ? 5 : 0;
   Start("channel emulator", kEmulatorId, ProcessArgs(emulator_exe_, emulator_more), 0,
         "emulator");
   auto rx = [&](int id) {
@@ -333,7 +336,7 @@ void Launch::StartAll() {
 
 double Launch::WallSeconds(std::chrono::steady_clock::time_point wall0) const {
   // Real time: from the common start time t0 (the start margin before it is not the run's).
-  if (opt_.mode == "realtime") return (MonotonicNs() - t0_ns_) * 1e-9;
+  if (mode_ == Mode::kRealtime) return (MonotonicNs() - t0_ns_) * 1e-9;
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 }
 

@@ -9,12 +9,13 @@
 #include <vector>
 
 #include "core/scenario.h"
+#include "runtime/process.h"
 
 namespace shoal {
 
 struct LaunchOptions {
   std::string scenario;  // scenario file, passed on to every process
-  std::string mode = "lockstep";  // or "realtime"
+  std::string mode = ModeName(Mode::kLockstep);  // a ModeName
   double duration_s = -1;    // simulated seconds; -1: the scenario's
   std::string out;           // log path; default <scenario name>.lcmlog
   std::string lcm_url;       // default: a private udpm URL (random port, ttl=0)

@@ -13,13 +13,10 @@
 
 #include <CLI/CLI.hpp>
 
+#include "runtime/stop_signals.h"
 #include "scenario/loader.h"
 
 namespace shoal {
-namespace {
-volatile sig_atomic_t g_stop = 0;
-extern "C" void OnStopSignal(int) { g_stop = 1; }
-}  // namespace
 
 void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
   app->add_option("--scenario", opt->scenario, "Scenario file (TOML)")->required();
@@ -44,20 +41,17 @@ int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
 }
 
 void InstallProcessSignals() {
-  struct sigaction sa = {};
-  sa.sa_handler = OnStopSignal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
+  static StopSignals signals;  // for the life of the process, never restored
   prctl(PR_SET_PDEATHSIG, SIGTERM);
-  if (getppid() == 1) g_stop = 1;  // the parent died before prctl took effect
+  if (getppid() == 1) StopSignals::Request();  // the parent died before prctl took effect
 }
 
-bool StopRequested() { return g_stop != 0; }
+bool StopRequested() { return StopSignals::Requested(); }
 
 std::string EnableRealtimeScheduling(int priority) {
   prctl(PR_SET_TIMERSLACK, 1UL);
-  // SCHED_FIFO is opt-in until it is measured to help on a quiet machine (see README).
+  // SCHED_FIFO is opt-in: under load a late FIFO process catching up starves lcm-logger
+  // and the others (docs/benchmarks.md, real time).
   if (std::getenv("SHOAL_SCHED_FIFO") == nullptr) return "SCHED_OTHER, timer slack 1 ns";
   sched_param sp = {};
   sp.sched_priority = priority;

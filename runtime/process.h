@@ -62,8 +62,8 @@ std::string EnableRealtimeScheduling(int priority);
 /// object lives (the kernel drops it when the descriptor closes, also if the process dies).
 /// Idle CPUs then poll instead of halting. On a VM a halted vCPU is woken through the
 /// hypervisor, and a SIL run is a chain of cross-CPU wake-ups (measured on the 2-vCPU VM:
-/// lockstep paper_example2 ≈ 20 % faster, README "The SIL runtime"). Needs root; without it
-/// held() is false and note() says why. The cost: idle CPUs spin for the run's duration.
+/// lockstep paper_example2 ≈ 20 % faster; docs/benchmarks.md, lockstep). Needs root;
+/// without it held() is false and note() says why. The cost: idle CPUs spin for the run's duration.
 class CpuLatencyRequest {
  public:
   CpuLatencyRequest();

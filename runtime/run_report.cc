@@ -6,6 +6,7 @@
 
 #include "analysis/run_data.h"
 #include "analysis/verdict.h"
+#include "runtime/process.h"
 
 namespace shoal {
 

@@ -17,7 +17,9 @@
 #include "analysis/csv.h"
 #include "analysis/run_data.h"
 #include "analysis/verdict.h"
+#include "runtime/channels.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/messages.h"
 #include "scenario/loader.h"
 #include "runtime/stop_signals.h"
 
@@ -33,8 +35,9 @@ std::int64_t WallMicros() {
 /// A run-level end: shoal sim / the launcher (-2) or the channel emulator (-1) says the run
 /// is over. Vehicles' own "finished" statuses do not end it.
 bool RunEnded(const StatusRecord& st) {
-  return st.vehicle_id < 0 &&
-         (st.state == "finished" || st.state == "failed" || st.state == "interrupted");
+  const std::optional<RunState> s = ParseRunState(st.state);
+  return st.vehicle_id < 0 && s &&
+         (*s == RunState::kFinished || *s == RunState::kFailed || *s == RunState::kInterrupted);
 }
 
 /// Subscribes to every Shoal channel on `url` until SIGINT, a run-level end status (plus a
@@ -52,7 +55,7 @@ bool ReadLive(const AnalyzeOptions& opt, const LoadOptions& lo, RunData* run, st
   RunDataBuilder b(run, lo);
   bool ended = false;
   std::size_t statuses_seen = 0;
-  bus->Subscribe("SHOAL_.*", [&](const std::string& ch, const void* d, int n) {
+  bus->Subscribe(channels::kAllPattern, [&](const std::string& ch, const void* d, int n) {
     b.Add(ch, static_cast<const std::uint8_t*>(d), n, WallMicros());
     for (; statuses_seen < run->statuses.size(); ++statuses_seen) {
       ended = ended || RunEnded(run->statuses[statuses_seen]);

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/verdict.h"
+#include "runtime/channels.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/messages.h"
 
@@ -38,7 +39,7 @@ bool ReadStates(const std::string& path, std::map<Key, Sample>* out, std::string
   std::int64_t events = 0;
   while (const lcm::LogEvent* ev = log.readNextEvent()) {
     ++events;
-    if (ev->channel.rfind("SHOAL_STATE_", 0) != 0) continue;
+    if (!channels::ParseStateId(ev->channel)) continue;
     vehicle_state_t m{};
     if (!Decode(ev->data, ev->datalen, &m)) continue;
     (*out)[{m.vehicle_id, m.utime}] = Sample{Load5(m.eta), Load5(m.eta_dot)};

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "analysis/verdict.h"
+#include "runtime/process.h"
 #include "tools/analyze_command.h"
 #include "tools/compare_command.h"
 #include "tools/design_command.h"
@@ -37,7 +38,8 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
   c->add_option("--mode", run->launch.mode,
                 "lockstep (deterministic, as fast as possible) or "
                 "realtime (wall-clock loops)")
-      ->check(CLI::IsMember({"lockstep", "realtime"}));
+      ->check(CLI::IsMember({shoal::ModeName(shoal::Mode::kLockstep),
+                                     shoal::ModeName(shoal::Mode::kRealtime)}));
   c->add_option("--duration", run->launch.duration_s,
                 "Simulated seconds (default: the scenario's)");
   c->add_option("--out", run->launch.out, "LCM log path (default: <scenario name>.lcmlog)");

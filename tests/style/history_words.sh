@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The repository speaks to its users about the project, not about how it came to be:
-# no file names the working sessions or tracker entries of its own development.
+# no file tells the story of its own development (its work periods, its tracker entries).
 # (The pattern is built from pieces so that this file does not match itself.)
 # Usage: history_words.sh SOURCE_DIR
 set -euo pipefail
