@@ -101,41 +101,57 @@ void AnalyseFormation(const RunData& run, RunAnalysis* a) {
   if (m.samples() > 0) a->final_errors = m.final_errors();
 }
 
-void AnalyseChannel(const RunData& run, RunAnalysis* a) {
-  ChannelAnalysis& c = a->channel;
-  const std::vector<ChannelEventRecord>& ev = run.channel_events;
-  // The scenario's links and their delay models.
-  std::map<std::pair<int, int>, DelayConfig> model;
-  double timeout_s = kNaN;
-  if (run.has_scenario) {
-    const Scenario& s = run.scenario;
-    for (const Link& l : BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links))) {
-      model[{l.from, l.to}] = l.delay;
+/// The channel's links: the scenario's (with their delay models, in (from, to) order),
+/// then any other link the log shows, in order of appearance.
+class LinkTable {
+ public:
+  LinkTable(const RunData& run, std::vector<LinkAnalysis>* links) : links_(links) {
+    if (run.has_scenario) {
+      const Scenario& s = run.scenario;
+      for (const Link& l : BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links))) {
+        model_[{l.from, l.to}] = l.delay;
+      }
     }
-    timeout_s = s.neighbour_timeout_s;
+    for (const auto& [key, cfg] : model_) {
+      index_.emplace(key, links_->size());
+      LinkAnalysis l;
+      l.from = key.first;
+      l.to = key.second;
+      l.in_scenario = true;
+      links_->push_back(l);
+    }
   }
-  std::map<std::pair<int, int>, std::size_t> link_index;
-  for (const auto& [key, cfg] : model) {
-    link_index.emplace(key, c.links.size());
-    LinkAnalysis l;
-    l.from = key.first;
-    l.to = key.second;
-    l.in_scenario = true;
-    c.links.push_back(l);
+
+  /// The delay model of a link of the scenario, null for any other.
+  const DelayConfig* Model(int from, int to) const {
+    auto it = model_.find({from, to});
+    return it == model_.end() ? nullptr : &it->second;
   }
-  auto link_of = [&](int from, int to) -> std::size_t {
-    auto it = link_index.find({from, to});
-    if (it != link_index.end()) return it->second;
+
+  /// Index of the link in *links, appended on first sight if not in the scenario.
+  std::size_t Of(int from, int to) {
+    auto it = index_.find({from, to});
+    if (it != index_.end()) return it->second;
     LinkAnalysis l;
     l.from = from;
     l.to = to;
-    c.links.push_back(l);
-    link_index.emplace(std::make_pair(from, to), c.links.size() - 1);
-    return c.links.size() - 1;
-  };
+    links_->push_back(l);
+    index_.emplace(std::make_pair(from, to), links_->size() - 1);
+    return links_->size() - 1;
+  }
 
-  ReserveHuge(&c.configured_delay_s, ev.size());
-  c.configured_delay_s.resize(ev.size());
+ private:
+  std::vector<LinkAnalysis>* links_;
+  std::map<std::pair<int, int>, DelayConfig> model_;
+  std::map<std::pair<int, int>, std::size_t> index_;
+};
+
+/// Per event: its configured delay (checked against the drawn one) and its link's counts.
+/// Returns each event's link index.
+std::vector<std::uint32_t> CountChannelEvents(const std::vector<ChannelEventRecord>& ev,
+                                              LinkTable* table, ChannelAnalysis* c) {
+  ReserveHuge(&c->configured_delay_s, ev.size());
+  c->configured_delay_s.resize(ev.size());
   std::vector<std::uint32_t> link_of_event(ev.size());
   const DelayConfig* last_cfg = nullptr;
   int last_from = -1, last_to = -1;
@@ -144,20 +160,19 @@ void AnalyseChannel(const RunData& run, RunAnalysis* a) {
     if (e.sender != last_from || e.receiver != last_to) {
       last_from = e.sender;
       last_to = e.receiver;
-      auto it = model.find({e.sender, e.receiver});
-      last_cfg = it == model.end() ? nullptr : &it->second;
+      last_cfg = table->Model(e.sender, e.receiver);
     }
     double cfg = e.delay_s;
     if (last_cfg == nullptr) {
-      ++c.unknown_links;
+      ++c->unknown_links;
     } else if (last_cfg->kind != DelayKind::kUniform) {
       cfg = DelaySeconds(*last_cfg, ToSeconds(e.send_utime), nullptr);
-      if (!(std::abs(cfg - e.delay_s) <= 1e-9)) ++c.model_mismatches;
+      if (!(std::abs(cfg - e.delay_s) <= 1e-9)) ++c->model_mismatches;
     }
-    c.configured_delay_s[k] = cfg;
-    const std::size_t li = link_of(e.sender, e.receiver);
+    c->configured_delay_s[k] = cfg;
+    const std::size_t li = table->Of(e.sender, e.receiver);
     link_of_event[k] = static_cast<std::uint32_t>(li);
-    LinkAnalysis& l = c.links[li];
+    LinkAnalysis& l = c->links[li];
     ++l.sent;
     switch (e.status) {
       case kDelivered: ++l.delivered; break;
@@ -166,71 +181,94 @@ void AnalyseChannel(const RunData& run, RunAnalysis* a) {
       default: ++l.dropped_invalid; break;
     }
   }
+  return link_of_event;
+}
 
-  // Realised delay and its error, per link and overall. One scratch vector per quantity,
-  // filled link by link (events are grouped by link with a counting sort of indices).
-  std::vector<std::size_t> start(c.links.size() + 1, 0);
-  for (std::uint32_t li : link_of_event) ++start[li + 1];
-  for (std::size_t li = 0; li < c.links.size(); ++li) start[li + 1] += start[li];
-  std::vector<std::uint32_t> order(ev.size());
-  {
+/// Event indices grouped by link (a counting sort): link li's events, in log order, are
+/// order[start[li]] .. order[start[li + 1] - 1].
+struct EventsByLink {
+  std::vector<std::size_t> start;
+  std::vector<std::uint32_t> order;
+
+  EventsByLink(const std::vector<std::uint32_t>& link_of_event, std::size_t links)
+      : start(links + 1, 0), order(link_of_event.size()) {
+    for (std::uint32_t li : link_of_event) ++start[li + 1];
+    for (std::size_t li = 0; li < links; ++li) start[li + 1] += start[li];
     std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    for (std::size_t k = 0; k < ev.size(); ++k) order[fill[link_of_event[k]]++] = static_cast<std::uint32_t>(k);
+    for (std::size_t k = 0; k < link_of_event.size(); ++k) {
+      order[fill[link_of_event[k]]++] = static_cast<std::uint32_t>(k);
+    }
   }
-  std::vector<std::uint32_t>().swap(link_of_event);
-  // One buffer, reused for each quantity: filled link by link, so each link's values are a
-  // contiguous range (its quantiles) and the whole buffer gives the overall ones.
+};
+
+/// Values of one quantity, filled link by link: each link's values are a contiguous range
+/// (seg[li] .. seg[li + 1]) for its quantiles, and the whole buffer gives the overall ones.
+/// One buffer is reused for every quantity.
+struct PerLinkValues {
   std::vector<double> buf;
-  std::vector<std::size_t> seg(c.links.size() + 1, 0);
-  const auto quantiles = [&](Quantiles LinkAnalysis::*field, Quantiles* overall) {
-    for (std::size_t li = 0; li < c.links.size(); ++li) {
-      c.links[li].*field = QuantilesOf(buf.data() + seg[li], buf.data() + seg[li + 1]);
+  std::vector<std::size_t> seg;
+
+  explicit PerLinkValues(std::size_t links) : seg(links + 1, 0) {}
+
+  void Quantify(std::vector<LinkAnalysis>* links, Quantiles LinkAnalysis::*field,
+                Quantiles* overall) {
+    for (std::size_t li = 0; li < links->size(); ++li) {
+      (*links)[li].*field = QuantilesOf(buf.data() + seg[li], buf.data() + seg[li + 1]);
     }
     *overall = QuantilesOf(buf.data(), buf.data() + buf.size());
-  };
+  }
+};
+
+/// Realised delay and its error from the configured one, per link and overall.
+void DelayQuantiles(const std::vector<ChannelEventRecord>& ev, const EventsByLink& by_link,
+                    PerLinkValues* v, ChannelAnalysis* c) {
   for (int pass = 0; pass < 2; ++pass) {  // 0: realised delay, 1: its error
-    buf.clear();
-    ReserveHuge(&buf, ev.size());
-    for (std::size_t li = 0; li < c.links.size(); ++li) {
-      seg[li] = buf.size();
-      for (std::size_t p = start[li]; p < start[li + 1]; ++p) {
-        const std::size_t k = order[p];
+    v->buf.clear();
+    ReserveHuge(&v->buf, ev.size());
+    for (std::size_t li = 0; li < c->links.size(); ++li) {
+      v->seg[li] = v->buf.size();
+      for (std::size_t p = by_link.start[li]; p < by_link.start[li + 1]; ++p) {
+        const std::size_t k = by_link.order[p];
         const ChannelEventRecord& e = ev[k];
         if (e.status != kDelivered) continue;
         const double real = ToSeconds(e.deliver_utime - e.send_utime);
-        buf.push_back(pass == 0 ? real : real - c.configured_delay_s[k]);
+        v->buf.push_back(pass == 0 ? real : real - c->configured_delay_s[k]);
       }
     }
-    seg[c.links.size()] = buf.size();
+    v->seg[c->links.size()] = v->buf.size();
     if (pass == 0) {
-      quantiles(&LinkAnalysis::realised_delay_s, &c.realised_delay_s);
+      v->Quantify(&c->links, &LinkAnalysis::realised_delay_s, &c->realised_delay_s);
     } else {
-      quantiles(&LinkAnalysis::delay_error_s, &c.delay_error_s);
+      v->Quantify(&c->links, &LinkAnalysis::delay_error_s, &c->delay_error_s);
     }
   }
+}
 
-  // Age at use: at each of the receiver's ticks (its state samples), the newest message
-  // delivered so far (largest send time: the follower keeps only newer messages) and its
-  // age; a message older than the neighbour timeout is not used (a stale tick).
-  buf.clear();
+/// Age at use: at each of the receiver's ticks (its state samples), the newest message
+/// delivered so far (largest send time: the follower keeps only newer messages) and its
+/// age; a message older than the neighbour timeout is not used (a stale tick).
+void AgeAtUse(const RunData& run, const EventsByLink& by_link, PerLinkValues* v,
+              ChannelAnalysis* c) {
+  const std::vector<ChannelEventRecord>& ev = run.channel_events;
+  const double timeout_s = run.has_scenario ? run.scenario.neighbour_timeout_s : kNaN;
+  v->buf.clear();
   std::vector<std::pair<Micros, Micros>> deliveries;  // (deliver, send) of one link
-  for (std::size_t li = 0; li < c.links.size(); ++li) {
-    LinkAnalysis& l = c.links[li];
-    seg[li] = buf.size();
+  for (std::size_t li = 0; li < c->links.size(); ++li) {
+    LinkAnalysis& l = c->links[li];
+    v->seg[li] = v->buf.size();
     if (l.to < 1) continue;
     deliveries.clear();
-    for (std::size_t p = start[li]; p < start[li + 1]; ++p) {
-      const ChannelEventRecord& e = ev[order[p]];
+    for (std::size_t p = by_link.start[li]; p < by_link.start[li + 1]; ++p) {
+      const ChannelEventRecord& e = ev[by_link.order[p]];
       if (e.status == kDelivered) deliveries.emplace_back(e.deliver_utime, e.send_utime);
     }
     if (!std::is_sorted(deliveries.begin(), deliveries.end())) {
       std::sort(deliveries.begin(), deliveries.end());
     }
-    const std::vector<StateMsg>& rx = Samples(run, l.to);
     std::size_t d = 0;
     Micros newest = -1;
     bool have = false;
-    for (const StateMsg& m : rx) {
+    for (const StateMsg& m : Samples(run, l.to)) {
       while (d < deliveries.size() && deliveries[d].first <= m.utime) {
         if (!have || deliveries[d].second > newest) newest = deliveries[d].second;
         have = true;
@@ -245,11 +283,22 @@ void AnalyseChannel(const RunData& run, RunAnalysis* a) {
         ++l.ticks_stale;
         continue;
       }
-      buf.push_back(age);
+      v->buf.push_back(age);
     }
   }
-  seg[c.links.size()] = buf.size();
-  quantiles(&LinkAnalysis::age_at_use_s, &c.age_at_use_s);
+  v->seg[c->links.size()] = v->buf.size();
+  v->Quantify(&c->links, &LinkAnalysis::age_at_use_s, &c->age_at_use_s);
+}
+
+void AnalyseChannel(const RunData& run, RunAnalysis* a) {
+  ChannelAnalysis& c = a->channel;
+  LinkTable table(run, &c.links);
+  std::vector<std::uint32_t> link_of_event = CountChannelEvents(run.channel_events, &table, &c);
+  const EventsByLink by_link(link_of_event, c.links.size());
+  std::vector<std::uint32_t>().swap(link_of_event);
+  PerLinkValues values(c.links.size());
+  DelayQuantiles(run.channel_events, by_link, &values, &c);
+  AgeAtUse(run, by_link, &values, &c);
 
   for (const LinkAnalysis& l : c.links) {
     c.sent += l.sent;
@@ -283,7 +332,8 @@ void AnalyseHealth(const RunData& run, RunAnalysis* a) {
   a->summary.release_error_p99_s = a->channel.release_error_p99_s;
 }
 
-void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
+/// Interrupted and failed processes from the run statuses, and the mode the log shows.
+void AnalyseStatuses(const RunData& run, RunAnalysis* a) {
   bool emulator = false;
   for (const HealthRecord& h : run.health) emulator = emulator || h.process_id == -1;
   for (const StatusRecord& st : run.statuses) {
@@ -301,8 +351,10 @@ void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
   } else {
     a->mode = emulator ? "realtime" : "unknown";
   }
+}
 
-  // Control period: the scenario's, else the clock's, else the leader's sample spacing.
+/// Control period: the scenario's, else the clock's, else the leader's sample spacing.
+void SetControlPeriod(const RunData& run, RunAnalysis* a) {
   if (run.has_scenario) {
     a->period_us = run.scenario.period_us();
   } else if (!run.clock.empty() && run.clock.front().period_us > 0) {
@@ -316,7 +368,10 @@ void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
       a->period_us = dt[dt.size() / 2];
     }
   }
+}
 
+/// Ticks run, states the log should hold, and the recording's wall-clock span.
+void AnalyseTicks(const RunData& run, RunAnalysis* a) {
   Micros last_utime = -1;
   std::int64_t max_samples = 0;
   for (const VehicleTrack& v : run.vehicles) {
@@ -333,8 +388,11 @@ void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
   if (run.first_timestamp > 1000000000000000LL) {
     a->wall_time_s = ToSeconds(run.last_timestamp - run.first_timestamp);
   }
+}
 
-  // Divergence as shoal sim defines it: non-finite state or |pitch| > 80 deg.
+/// The follower that diverged first, as shoal sim defines it: non-finite state or
+/// |pitch| > 80 deg.
+void FindDivergence(const RunData& run, RunAnalysis* a) {
   Micros first = -1;
   for (int i = 1; i <= run.followers && i < static_cast<int>(run.vehicles.size()); ++i) {
     const VehicleTrack& v = run.vehicles[i];
@@ -353,6 +411,13 @@ void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
       a->diverged_follower = i;
     }
   }
+}
+
+void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
+  AnalyseStatuses(run, a);
+  SetControlPeriod(run, a);
+  AnalyseTicks(run, a);
+  FindDivergence(run, a);
 
   const auto& lead = Samples(run, 0);
   if (!lead.empty()) {

@@ -99,15 +99,10 @@ RxResult Follower::Receive(const StateMsg& m) {
   return RxResult::kAccepted;
 }
 
-const StateMsg& Follower::Tick(Micros now) {
-  if (trig_age_ == 0) trig_ = AttitudeTrig<double>(x_.eta);
-  const AttitudeTrig<double> trig = trig_;
-  const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);
-  history_.Push(HistorySample{now, x_.eta, eta_dot});
-
+int Follower::GatherTerms(Micros now, bool* any_stale) {
   // Protocol (10): one term per live neighbour, own state at the neighbour's send time.
   int count = 0;
-  bool any_stale = false;
+  *any_stale = false;
   for (Slot& sl : slots_) {
     if (!sl.have) continue;
     if (now - sl.msg.utime > timeout_us_) {
@@ -115,7 +110,7 @@ const StateMsg& Follower::Tick(Micros now) {
         sl.stale = true;
         ++counters_.neighbour_timeouts;
       }
-      any_stale = true;
+      *any_stale = true;
       continue;
     }
     HistorySample own;
@@ -129,37 +124,66 @@ const StateMsg& Follower::Tick(Micros now) {
     t.eta_dot_i = own.eta_dot;
   }
   counters_.active_neighbours = count;
-  const Vec5 a = Protocol10(k1_, k2_, offset_, terms_.data(), count);
+  return count;
+}
 
+bool Follower::ControlForce(const AttitudeTrig<double>& trig, const Vec5& a, Vec5* tau) {
   // Inner loop: feedback linearisation, saturated to the actuator limits.
-  Vec5 tau, tau_wanted;
+  Vec5 tau_wanted;
   const bool saturated =
-      SaturatedFeedbackLinearise(model_, trig, x_.nu, a, tau_max_, &tau, &tau_wanted);
+      SaturatedFeedbackLinearise(model_, trig, x_.nu, a, tau_max_, tau, &tau_wanted);
   if (saturated) {
     ++counters_.saturated_ticks;
     for (int k = 0; k < 5; ++k) {
-      counters_.saturated_channel[k] += std::abs(tau(k)) >= tau_max_(k) && tau(k) != tau_wanted(k);
+      counters_.saturated_channel[k] +=
+          std::abs((*tau)(k)) >= tau_max_(k) && (*tau)(k) != tau_wanted(k);
     }
   }
+  return saturated;
+}
 
+void Follower::Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_dist,
+                       Vec3* current) {
   // Uncertain factor, held over the control period.
-  Vec5 tau_dist = Vec5::Zero();
-  Vec3 current = Vec3::Zero();
-  const double period_s = ToSeconds(period_us_);
+  tau_dist->setZero();
+  current->setZero();
   if (disturbance_ == DisturbanceKind::kPaperExample2) {
     // f(eta(t - tau(t)), eta_dot(t - tau(t))) in eta'': as a force, M J^{-1} f.
     const Environment::DelayedLeader dl = env_->At(now);
-    const Micros delay_us = dl.delay_us;
     HistorySample past;
-    if (!history_.At(now - delay_us, &past)) past = history_.Oldest();
+    if (!history_.At(now - dl.delay_us, &past)) past = history_.Oldest();
     Vec5 f = PaperExample2F(past.eta, past.eta_dot);
-    if (disturbance_relative_) {
-      f -= dl.f0;
-    }
-    tau_dist = model_.MTimes(FossenModel::JInvTimes(trig, f));
+    if (disturbance_relative_) f -= dl.f0;
+    *tau_dist = model_.MTimes(FossenModel::JInvTimes(trig, f));
   } else if (disturbance_ == DisturbanceKind::kOceanCurrent) {
-    current = current_.Step(period_s);
+    *current = current_.Step(ToSeconds(period_us_));
   }
+}
+
+void Follower::Advance(const AttitudeTrig<double>& trig, const Vec5& force, const Vec3& current) {
+  Integrate(model_, force, current, ToSeconds(period_us_), substeps_, &x_, &trig, &trig_);
+  trig_age_ = (trig_age_ + 1) % kTrigRefreshTicks;  // the heading's wrap below keeps sin, cos
+  x_.eta(4) = WrapAngle(x_.eta(4));
+  ++counters_.ticks;
+  if (!x_.eta.allFinite() || !x_.nu.allFinite() || std::abs(x_.eta(3)) > 80.0 * kPi / 180.0) {
+    diverged_ = true;
+  }
+}
+
+const StateMsg& Follower::Tick(Micros now) {
+  if (trig_age_ == 0) trig_ = AttitudeTrig<double>(x_.eta);
+  const AttitudeTrig<double> trig = trig_;
+  const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);
+  history_.Push(HistorySample{now, x_.eta, eta_dot});
+
+  bool any_stale = false;
+  const int count = GatherTerms(now, &any_stale);
+  const Vec5 a = Protocol10(k1_, k2_, offset_, terms_.data(), count);
+  Vec5 tau;
+  const bool saturated = ControlForce(trig, a, &tau);
+  Vec5 tau_dist;
+  Vec3 current;
+  Disturb(now, trig, &tau_dist, &current);
 
   out_.seq += 1;
   out_.utime = now;
@@ -171,13 +195,7 @@ const StateMsg& Follower::Tick(Micros now) {
   out_.flags = (saturated ? StateMsg::kFlagSaturated : 0) |
                (any_stale ? StateMsg::kFlagStaleNeighbour : 0);
 
-  Integrate(model_, tau + tau_dist, current, period_s, substeps_, &x_, &trig, &trig_);
-  trig_age_ = (trig_age_ + 1) % kTrigRefreshTicks;  // the heading's wrap below keeps sin, cos
-  x_.eta(4) = WrapAngle(x_.eta(4));
-  ++counters_.ticks;
-  if (!x_.eta.allFinite() || !x_.nu.allFinite() || std::abs(x_.eta(3)) > 80.0 * kPi / 180.0) {
-    diverged_ = true;
-  }
+  Advance(trig, tau + tau_dist, current);
   return out_;
 }
 

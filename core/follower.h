@@ -69,6 +69,17 @@ class Follower {
     StateMsg msg;
   };
 
+  // The steps of Tick, in order.
+  /// Fills terms_ with protocol (10)'s terms of the live neighbours; returns their count.
+  /// Marks (and counts) neighbours whose newest message is older than the timeout.
+  int GatherTerms(Micros now, bool* any_stale);
+  /// tau for the commanded eta'' `a`, saturated; counts saturation; true if saturated.
+  bool ControlForce(const AttitudeTrig<double>& trig, const Vec5& a, Vec5* tau);
+  /// The uncertain factor as a force, or the ocean current, held over the period.
+  void Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_dist, Vec3* current);
+  /// Integrates the plant over one period under `force` and checks for divergence.
+  void Advance(const AttitudeTrig<double>& trig, const Vec5& force, const Vec3& current);
+
   int id_;
   double k1_, k2_;
   Vec5 offset_;

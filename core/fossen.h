@@ -55,7 +55,14 @@ inline AttitudeTrig<double> ShiftTrig(const AttitudeTrig<double>& base, const Ve
   return t;
 }
 
-/// REMUS 100 (Prestero 2001, MIT/WHOI thesis); SI units. See REFERENCE.md.
+/// REMUS 100 (Prestero 2001, MIT/WHOI thesis); SI units. See docs/reference.md.
+///
+/// The hydrodynamic forces are Prestero's nonlinear model: axial and cross-flow drag
+/// quadratic in the velocities, plus body and fin lift proportional to u. His linear
+/// table (X_u = -13.5 kg/s, Z_w = -66.6 kg/s, M_q = -6.87 kg m^2/s at 1.54 m/s) is the
+/// linearisation of these same forces about cruise, not extra damping: adding it to the
+/// quadratic terms would count the drag twice (about 24 N of surge drag at 1.5 m/s
+/// against the 3.86 N cruise thrust). The added-mass Munk terms are in C(nu).
 struct RemusParams {
   double m = 30.48;    // kg
   double W = 299.0;    // N, weight (= buoyancy B)
@@ -66,14 +73,18 @@ struct RemusParams {
   double X_udot = -0.93, Y_vdot = -35.5, Z_wdot = -35.5;
   double M_qdot = -4.88, N_rdot = -4.88;
   double Y_rdot = 1.93, Z_qdot = -1.93, M_wdot = -1.93, N_vdot = 1.93;
-  // Linear damping (Prestero's linearisation at 1.54 m/s; Y_v, N_r by axisymmetry).
-  double X_u = -13.5, Y_v = -66.6, Z_w = -66.6, M_q = -6.87, N_r = -6.87;
-  // Quadratic damping.
+  // Quadratic drag: X_u|u| (kg/m), Y_v|v| = Z_w|w| (kg/m), M_q|q| = N_r|r| (kg m^2/rad^2).
   double X_uu = -1.62, Y_vv = -131.0, Z_ww = -131.0, M_qq = -9.40, N_rr = -9.40;
+  // Lift of the hull and the fins, proportional to u (forward motion), derived from
+  // Prestero's formulas and geometry (docs/reference.md): heave/pitch (w, q) and, by
+  // axisymmetry, sway/yaw (v, r). Z_uw, Y_uv in kg/m; Z_uq, Y_ur in kg/rad; M_uw, N_uv
+  // in kg; M_uq, N_ur in kg m/rad.
+  double Z_uw = -33.23, Z_uq = -7.295, M_uw = -14.53, M_uq = -4.980;
+  double Y_uv = -33.23, Y_ur = 7.295, N_uv = 14.53, N_ur = -4.980;
 };
 
 /// Rigid-body + added-mass inertia (Fossen 2011; paper Sec. II-B with m52 = -N_vdot so
-/// that M = M^T, REFERENCE.md errata).
+/// that M = M^T, docs/reference.md errata).
 inline Mat5 MassMatrix(const RemusParams& p) {
   Mat5 M = Mat5::Zero();
   M(0, 0) = p.m - p.X_udot;
@@ -106,7 +117,7 @@ class FossenModel {
   const Mat5& M_inv() const { return M_inv_; }
 
   /// Coriolis-centripetal matrix C(nu) with the paper's sign errors corrected
-  /// (REFERENCE.md): skew-symmetric, so nu^T C(nu) nu = 0.
+  /// (docs/reference.md): skew-symmetric, so nu^T C(nu) nu = 0.
   template <typename T>
   Mat5T<T> C(const Vec5T<T>& nu) const {
     const T u = nu(0), v = nu(1), w = nu(2), q = nu(3), r = nu(4);
@@ -154,16 +165,23 @@ class FossenModel {
     return y;
   }
 
-  /// D(nu) nu with linear and quadratic damping: -diag(X_u + X_u|u| |u|, ...) nu.
+  /// D(nu) nu, minus Prestero's drag and lift forces (docs/reference.md):
+  ///   X = X_u|u| |u| u
+  ///   Y = Y_v|v| |v| v + u (Y_uv v + Y_ur r),   N = N_r|r| |r| r + u (N_uv v + N_ur r)
+  ///   Z = Z_w|w| |w| w + u (Z_uw w + Z_uq q),   M = M_q|q| |q| q + u (M_uw w + M_uq q)
+  /// For u >= 0 it dissipates energy (nu^T D(nu) nu >= 0). The lift terms are Prestero's
+  /// model of forward motion; going astern (u < 0) they feed energy in, and the model is
+  /// not meant for long runs astern.
   template <typename T>
   Vec5T<T> DampingForce(const Vec5T<T>& nu) const {
     using std::abs;
+    const T u = nu(0), v = nu(1), w = nu(2), q = nu(3), r = nu(4);
     Vec5T<T> d;
-    d(0) = -(T(p_.X_u) + T(p_.X_uu) * abs(nu(0))) * nu(0);
-    d(1) = -(T(p_.Y_v) + T(p_.Y_vv) * abs(nu(1))) * nu(1);
-    d(2) = -(T(p_.Z_w) + T(p_.Z_ww) * abs(nu(2))) * nu(2);
-    d(3) = -(T(p_.M_q) + T(p_.M_qq) * abs(nu(3))) * nu(3);
-    d(4) = -(T(p_.N_r) + T(p_.N_rr) * abs(nu(4))) * nu(4);
+    d(0) = -T(p_.X_uu) * abs(u) * u;
+    d(1) = -(T(p_.Y_vv) * abs(v) * v + u * (T(p_.Y_uv) * v + T(p_.Y_ur) * r));
+    d(2) = -(T(p_.Z_ww) * abs(w) * w + u * (T(p_.Z_uw) * w + T(p_.Z_uq) * q));
+    d(3) = -(T(p_.M_qq) * abs(q) * q + u * (T(p_.M_uw) * w + T(p_.M_uq) * q));
+    d(4) = -(T(p_.N_rr) * abs(r) * r + u * (T(p_.N_uv) * v + T(p_.N_ur) * r));
     return d;
   }
 
@@ -193,7 +211,7 @@ class FossenModel {
   template <typename T>
   static Mat5T<T> J(const Vec5T<T>& eta) { return J(AttitudeTrig<T>(eta)); }
 
-  /// J^{-1}(eta) = blockdiag(R^T, diag(1, cos theta)) (REFERENCE.md).
+  /// J^{-1}(eta) = blockdiag(R^T, diag(1, cos theta)) (docs/reference.md).
   template <typename T>
   static Mat5T<T> JInv(const AttitudeTrig<T>& c) {
     Mat5T<T> Ji = Mat5T<T>::Zero();

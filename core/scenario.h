@@ -87,7 +87,7 @@ struct FollowerInit {
 };
 
 struct VehicleConfig {
-  /// Per-channel limits of tau = [X Y Z M N] (N, N, N, N m, N m); REFERENCE.md.
+  /// Per-channel limits of tau = [X Y Z M N] (N, N, N, N m, N m); docs/reference.md.
   Vec5 tau_max = (Vec5() << 100.0, 10.0, 10.0, 6.0, 6.0).finished();
   /// RK4 step inside each control period; the period is split into whole steps.
   double integrator_step_s = 0.01;

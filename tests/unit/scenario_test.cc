@@ -646,7 +646,9 @@ INSTANTIATE_TEST_SUITE_P(Rules, ScenarioRuleTest, ::testing::ValuesIn(RuleCases(
                          });
 
 // ---------------------------------------------------------------------------------------
-// tests/data/bad_scenarios/*.toml: the first line of each is "# expect: <substring>".
+// tests/data/bad_scenarios/*.toml: the first line of each is "# expect: <substring>", the
+// second "# at: line <n>, key <dotted key>": where the message must point. (For the TOML
+// syntax error, whose message names no key, "TOML syntax error" stands in its place.)
 
 fs::path BadScenarioDir() { return fs::path(SHOAL_SOURCE_DIR) / "tests/data/bad_scenarios"; }
 
@@ -660,7 +662,37 @@ std::vector<std::string> BadScenarioFiles() {
   return files;
 }
 
-TEST(BadScenarioFilesTest, AtLeastTwentyExist) { EXPECT_GE(BadScenarioFiles().size(), 20u); }
+/// The second line of a fixture, "# at: line <n>, key <key>", as "<n>: <key>: ".
+std::string DeclaredPlace(const std::string& text) {
+  static const std::regex at("^# expect: [^\n]*\n# at: line ([0-9]+), key ([^\n]+)\n");
+  std::smatch m;
+  if (!std::regex_search(text, m, at)) return "";
+  return m[1].str() + ": " + m[2].str() + ": ";
+}
+
+// Every fixture is refused the way a command refuses it before exiting with status 2: one
+// line on stderr, "<who>: <file>:<line>: <key>: ...", naming exactly the line and the key
+// the fixture declares. A loader that accepted the file, pointed at the table instead of
+// the value (or at a line off by one), or spelled the key path differently fails here.
+TEST(BadScenarioFilesTest, EachIsRefusedAtTheLineAndKeyItDeclares) {
+  const std::vector<std::string> files = BadScenarioFiles();
+  ASSERT_GE(files.size(), 20u) << "no fixtures found in " << BadScenarioDir();
+  for (const std::string& name : files) {
+    SCOPED_TRACE(name);
+    const std::string path = (BadScenarioDir() / name).string();
+    const std::string place = DeclaredPlace(ReadText(path));
+    ASSERT_FALSE(place.empty()) << "second line must be \"# at: line <n>, key <key>\"";
+    Scenario s;
+    ::testing::internal::CaptureStderr();
+    const bool loaded = LoadScenarioOrReport("shoal test", path, &s);
+    const std::string err = ::testing::internal::GetCapturedStderr();
+    EXPECT_FALSE(loaded);
+    const std::string expected_start = "shoal test: " + path + ":" + place;
+    EXPECT_EQ(err.substr(0, expected_start.size()), expected_start) << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;  // one line
+    EXPECT_TRUE(!err.empty() && err.back() == '\n') << err;
+  }
+}
 
 class BadScenarioFileTest : public ::testing::TestWithParam<std::string> {};
 

@@ -68,7 +68,7 @@ TEST(Theory, PaperEigenvaluesOfWAndM2AsPrinted) {
   EXPECT_NEAR(t->lambda_max_M2, 0.2766, 1e-4);
 }
 
-// H's eigenvalues as REFERENCE.md lists them (3.879, 3, 1.653, 1, 0.468).
+// H's eigenvalues as docs/reference.md lists them (3.879, 3, 1.653, 1, 0.468).
 TEST(Theory, PaperHEigenvalues) {
   const auto ev = HEigenvalues(PaperH());
   const double expect[] = {3.879, 3.0, 1.653, 1.0, 0.468};
