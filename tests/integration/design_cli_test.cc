@@ -1,5 +1,6 @@
 // `shoal design` as a user runs it: bad input (exit 2, clear messages), the JSON keys and
-// the paper's numbers, the verdict and its exit status, and advice that really works.
+// the paper's numbers, the verdict and its exit status, and advice that really works (--advise,
+// --write-scenario and the scenario it writes).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -252,6 +253,84 @@ TEST(DesignCli, AdviceForTooLargeADelayWorks) {
   Json g = ParseJson(good.out);
   EXPECT_NEAR(Num(g, "/delay_margin_s"), 1.0, 2e-3);
   EXPECT_EQ(g["verdict"]["by"], "the exact delay margin") << g["verdict"];
+}
+
+// --advise on paper Example 2 (docs/theory.md): no scale of the paper's gains is certified
+// at h = 0.15 s (exit 1, the verdict of the scenario's own gains), so the advice is the
+// scale whose gains Theorem 3 certifies for the largest delay. --write-scenario writes a
+// scenario with exactly those gains that `shoal design` and `shoal sim` load, and with
+// which the formation converges faster than with the paper's gains.
+TEST(DesignCli, AdviseWritesAScenarioThatConverges) {
+  const std::string out = TmpPath("d_advise.toml");
+  std::remove(out.c_str());
+  const auto r = RunShoal(
+      "design " + Example(2) + " --advise --write-scenario " + out + " --json", "d_advise");
+  EXPECT_EQ(r.status, 1) << r.err;
+  Json j = ParseJson(r.out);
+  EXPECT_EQ(j["verdict"]["certified"], false);
+  ASSERT_TRUE(j.contains("advised_gains")) << r.out;
+  Json a = j["advised_gains"];
+  EXPECT_EQ(a["evaluated"], true) << a;
+  EXPECT_EQ(a["certified_at_h"], false) << a;
+  const double k1 = Num(a, "/k1"), k2 = Num(a, "/k2"), c = Num(a, "/scale");
+  EXPECT_NEAR(k1, 0.4047, 1e-4);
+  EXPECT_NEAR(k2, 1.727, 1e-3);
+  EXPECT_NEAR(c, 1.499, 1e-3);
+  EXPECT_NEAR(k1, c * c * Num(j, "/gains/k1"), 1e-12);  // along the scale family
+  EXPECT_NEAR(k2, c * Num(j, "/gains/k2"), 1e-12);
+  EXPECT_NEAR(Num(a, "/theorem3_max_delay_s"), 0.1219, 1e-4);
+  EXPECT_NEAR(Num(a, "/delay_margin_s"), 0.2291, 1e-4);
+  EXPECT_NEAR(Num(a, "/delay_margin_with_factor_s"), 0.2138, 1e-4);
+  EXPECT_EQ(a["scenario_written"], out) << a;
+
+  // The written scenario carries the advised gains to the last bit, and Theorem 3 gives
+  // them the same largest delay.
+  const auto d = RunShoal("design " + out + " --json", "d_advise_design");
+  EXPECT_EQ(d.status, 1) << d.err;
+  Json dj = ParseJson(d.out);
+  EXPECT_EQ(dj["scenario"], "paper_example2_advised");
+  EXPECT_EQ(Num(dj, "/gains/k1"), k1);
+  EXPECT_EQ(Num(dj, "/gains/k2"), k2);
+  EXPECT_EQ(Num(dj, "/theorem3/max_delay_s"), Num(a, "/theorem3_max_delay_s"));
+
+  const auto sim = RunShoal("sim " + out + " --duration 60 --json", "d_advise_sim");
+  EXPECT_EQ(sim.status, 0) << sim.out << sim.err;
+  Json s = ParseJson(sim.out);
+  EXPECT_EQ(s["converged"], true) << sim.out;
+  const auto paper = RunShoal("sim " + Example(2) + " --duration 60 --json", "d_advise_sim0");
+  EXPECT_EQ(paper.status, 0) << paper.out << paper.err;
+  Json p = ParseJson(paper.out);
+  EXPECT_EQ(p["converged"], true) << paper.out;
+  EXPECT_NEAR(Num(s, "/convergence_time_s"), 24.52, 0.05);  // docs/theory.md
+  EXPECT_NEAR(Num(p, "/convergence_time_s"), 53.02, 0.05);
+}
+
+// A --write-scenario path that cannot be written is refused before any solve (exit 2, the
+// path named, nothing on stdout); with gains that cannot be advised (Theorem 3 does not
+// apply) nothing is written and the exit status is 2.
+TEST(DesignCli, WriteScenarioFailuresExitTwo) {
+  const auto bad = RunShoal(
+      "design " + Example(2) + " --write-scenario /nonexistent-dir/adv.toml --json", "d_ws_bad");
+  EXPECT_EQ(bad.status, 2) << bad.err;
+  EXPECT_NE(bad.err.find("shoal design: --write-scenario: /nonexistent-dir/adv.toml: cannot "
+                         "write there"),
+            std::string::npos)
+      << bad.err;
+  EXPECT_TRUE(bad.out.empty()) << bad.out;
+
+  const std::string out = TmpPath("d_ws_abs_adv.toml");
+  std::remove(out.c_str());
+  const auto none = RunShoal("design " + AbsoluteFactorScenario("d_ws_abs.toml") +
+                                 " --write-scenario " + out + " --json",
+                             "d_ws_none");
+  EXPECT_EQ(none.status, 2) << none.err;
+  EXPECT_NE(none.err.find("shoal design: --write-scenario: no gains were advised (Theorem 3 "
+                          "does not apply"),
+            std::string::npos)
+      << none.err;
+  EXPECT_NE(none.err.find("nothing written"), std::string::npos) << none.err;
+  EXPECT_EQ(ParseJson(none.out)["advised_gains"]["evaluated"], false) << none.out;
+  EXPECT_FALSE(std::ifstream(out).good()) << out << " was written";
 }
 
 }  // namespace
