@@ -1,11 +1,13 @@
 // `shoal design` as a user runs it: bad input (exit 2, clear messages), the JSON keys and
-// the paper's numbers, the verdict and its exit status, and advice that really works.
+// the paper's numbers, the verdict and its exit status, and advice that really works (--advise,
+// --write-scenario and the scenario it writes).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -16,13 +18,44 @@
 namespace shoal {
 namespace {
 
-using shoal::testing::JsonNumber;
-using shoal::testing::JsonRaw;
+using Json = nlohmann::ordered_json;
+using shoal::testing::ParseJson;
+using shoal::testing::ReadFile;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
+using shoal::testing::TmpPath;
 
 std::string Example(int n) {
   return SourcePath("scenarios/paper_example" + std::to_string(n) + ".toml");
+}
+
+/// Paper Example 2 with the absolute factor f(x_i) (relative_to_leader = false), which
+/// Theorem 3 does not cover, written to the test directory; returns its path.
+std::string AbsoluteFactorScenario(const std::string& name) {
+  std::string text = ReadFile(Example(2));
+  const std::string from = "relative_to_leader = true", to = "relative_to_leader = false";
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos);
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  const std::string path = TmpPath(name);
+  FILE* f = std::fopen(path.c_str(), "w");
+  EXPECT_NE(f, nullptr) << path;
+  if (f) {
+    std::fputs(text.c_str(), f);
+    std::fclose(f);
+  }
+  return path;
+}
+
+/// j at the JSON pointer `path` as a double; fails the test (and gives NaN) where it is
+/// missing or not a number.
+double Num(const Json& j, const std::string& path) {
+  const Json::json_pointer ptr(path);
+  if (!j.contains(ptr) || !j.at(ptr).is_number()) {
+    ADD_FAILURE() << path << " is missing or not a number";
+    return std::nan("");
+  }
+  return j.at(ptr).get<double>();
 }
 
 TEST(DesignCli, AssumptionOneViolationNamesTheUnreachableFollowers) {
@@ -83,31 +116,35 @@ TEST(DesignCli, BadScenarioFilesAndFlagsExitTwo) {
   EXPECT_NE(help.out.find("--empirical"), std::string::npos);
 }
 
-// The JSON object has the documented keys (docs/theory.md) and the paper's numbers.
+// The JSON object has the documented keys (docs/theory.md), each where it belongs, and the
+// paper's numbers.
 TEST(DesignCli, JsonHasThePaperNumbers) {
   const auto r = RunShoal("design " + Example(2) + " --json", "d_json");
   ASSERT_TRUE(r.status == 0 || r.status == 1) << r.err;
   ASSERT_EQ(r.out.front(), '{');
   ASSERT_EQ(r.out.substr(r.out.size() - 2), "}\n");
-  for (const char* key :
-       {"H_eigenvalues", "assumption1", "theorem1", "W", "W_eigenvalues", "M2_eigenvalues",
-        "k1_min", "k2_min", "k1_min_corrected", "k2_min_corrected", "P_max_eigenvalue", "theorem2",
-        "delay_margin_s", "verdict", "lambda_max_G2", "lambda_max_J2", "rho0"}) {
-    EXPECT_NE(r.out.find(std::string("\"") + key + "\":"), std::string::npos) << key;
+  Json j = ParseJson(r.out);
+  for (const char* path :
+       {"/H_eigenvalues", "/assumption1", "/theorem1", "/theorem1/W", "/theorem1/W_eigenvalues",
+        "/theorem1/M2_eigenvalues", "/theorem1/k1_min", "/theorem1/k2_min",
+        "/theorem1/k1_min_corrected", "/theorem1/k2_min_corrected",
+        "/theorem1/P_max_eigenvalue", "/theorem2", "/delay_margin_s", "/verdict",
+        "/uncertain_factor/lambda_max_G2", "/uncertain_factor/lambda_max_J2",
+        "/uncertain_factor/rho0"}) {
+    EXPECT_TRUE(j.contains(Json::json_pointer(path))) << path;
   }
-  EXPECT_NE(r.out.find("\"assumption1\":{\"holds\":true,\"unreachable_followers\":[]}"),
-            std::string::npos);
-  EXPECT_NEAR(JsonNumber(r.out, "k1_min"), 0.1286, 1e-4);
-  EXPECT_NEAR(JsonNumber(r.out, "k1_min_corrected"), 0.1754, 1e-4);
-  EXPECT_NEAR(JsonNumber(r.out, "P_max_eigenvalue"), -7.3e-4, 0.05e-4);
-  EXPECT_NEAR(JsonNumber(r.out, "delay_margin_s"), 0.3435, 1e-4);
-  EXPECT_NEAR(JsonNumber(r.out, "h_s"), 0.15, 1e-12);
-  EXPECT_NEAR(JsonNumber(r.out, "kappa"), 0.05, 1e-12);
-  EXPECT_NEAR(JsonNumber(r.out, "lambda_max_G2"), 0.0004, 1e-12);
-  EXPECT_NEAR(JsonNumber(r.out, "lambda_max_J2"), 0.25, 1e-12);
+  EXPECT_EQ(j["assumption1"], Json::parse(R"({"holds":true,"unreachable_followers":[]})"));
+  EXPECT_NEAR(Num(j, "/theorem1/k1_min"), 0.1286, 1e-4);
+  EXPECT_NEAR(Num(j, "/theorem1/k1_min_corrected"), 0.1754, 1e-4);
+  EXPECT_NEAR(Num(j, "/theorem1/P_max_eigenvalue"), -7.3e-4, 0.05e-4);
+  EXPECT_NEAR(Num(j, "/delay_margin_s"), 0.3435, 1e-4);
+  EXPECT_NEAR(Num(j, "/delay/h_s"), 0.15, 1e-12);
+  EXPECT_NEAR(Num(j, "/delay/kappa"), 0.05, 1e-12);
+  EXPECT_NEAR(Num(j, "/uncertain_factor/lambda_max_G2"), 0.0004, 1e-12);
+  EXPECT_NEAR(Num(j, "/uncertain_factor/lambda_max_J2"), 0.25, 1e-12);
   // Exit status follows the verdict.
-  const bool certified = r.out.find("\"certified\":true") != std::string::npos;
-  EXPECT_EQ(r.status, certified ? 0 : 1);
+  ASSERT_TRUE(j["verdict"]["certified"].is_boolean()) << j["verdict"];
+  EXPECT_EQ(r.status, j["verdict"]["certified"].get<bool>() ? 0 : 1);
 }
 
 // The --json output is one JSON document (nlohmann parses it), in the report's order, with
@@ -115,7 +152,7 @@ TEST(DesignCli, JsonHasThePaperNumbers) {
 TEST(DesignCli, JsonParsesAndKeepsTheReportOrder) {
   const auto r = RunShoal("design " + Example(2) + " --json", "d_json_parse");
   ASSERT_EQ(r.status, 1) << r.err;
-  const nlohmann::ordered_json j = nlohmann::ordered_json::parse(r.out);
+  Json j = ParseJson(r.out);
   std::vector<std::string> keys;
   for (auto it = j.begin(); it != j.end(); ++it) keys.push_back(it.key());
   ASSERT_GE(keys.size(), 3u);
@@ -123,10 +160,11 @@ TEST(DesignCli, JsonParsesAndKeepsTheReportOrder) {
   EXPECT_EQ(keys.back(), "verdict");
   EXPECT_EQ(j["verdict"]["certified"], false);
   EXPECT_EQ(j["theorem3"]["evaluated"], true);
-  EXPECT_TRUE(j["delay"]["time_varying"].get<bool>());
-  const double margin = j["delay_margin_s"].get<double>();
+  EXPECT_EQ(j["delay"]["time_varying"], true);
+  const double margin = Num(j, "/delay_margin_s");
   EXPECT_NEAR(margin, 0.3435, 5e-5);
   double smallest = 1e9;
+  ASSERT_FALSE(j["delay_margin"]["per_eigenvalue"].empty());
   for (const auto& e : j["delay_margin"]["per_eigenvalue"]) {
     smallest = std::min(smallest, e["tau_s"].get<double>());
   }
@@ -141,43 +179,46 @@ TEST(DesignCli, JsonParsesAndKeepsTheReportOrder) {
 TEST(DesignCli, Theorem3CertifiesWithoutTheFactorAndNotWithIt) {
   const auto ok = RunShoal("design " + Example(1) + " --h 0.15 --kappa 0.05 --json", "d_t3a");
   EXPECT_EQ(ok.status, 0) << ok.out << ok.err;
-  const std::string t3 = ok.out.substr(ok.out.find("\"theorem3\":"));
-  EXPECT_NE(t3.find("\"evaluated\":true"), std::string::npos) << t3;
-  EXPECT_NE(t3.find("\"feasible\":true"), std::string::npos) << t3;
-  const double max_delay = JsonNumber(t3, "max_delay_s");
+  Json a = ParseJson(ok.out);
+  EXPECT_EQ(a["theorem3"]["evaluated"], true) << a["theorem3"];
+  EXPECT_EQ(a["theorem3"]["feasible"], true) << a["theorem3"];
+  const double max_delay = Num(a, "/theorem3/max_delay_s");
   EXPECT_GT(max_delay, 0.15);
-  EXPECT_LT(max_delay, JsonNumber(ok.out, "delay_margin_s"));  // the LMI is only sufficient
-  EXPECT_NE(ok.out.find("\"by\":\"Theorem 3"), std::string::npos) << ok.out;
+  EXPECT_LT(max_delay, Num(a, "/delay_margin_s"));  // the LMI is only sufficient
+  ASSERT_TRUE(a["verdict"]["by"].is_string()) << a["verdict"];
+  EXPECT_EQ(a["verdict"]["by"].get<std::string>().rfind("Theorem 3", 0), 0u) << a["verdict"];
 
-  const std::string cert = shoal::testing::TmpPath("d_t3_cert.json");
+  const std::string cert = TmpPath("d_t3_cert.json");
   const auto no = RunShoal("design " + Example(2) + " --json --certificate " + cert, "d_t3b");
   EXPECT_EQ(no.status, 1) << no.out << no.err;
-  const std::string t3b = no.out.substr(no.out.find("\"theorem3\":"));
-  EXPECT_NE(t3b.find("\"feasible\":false"), std::string::npos) << t3b;
-  EXPECT_NE(t3b.find("\"feasible_at_zero_delay\":false"), std::string::npos) << t3b;
-  EXPECT_GT(JsonNumber(t3b, "paper_multipliers_max_eigenvalue"), 0.0);
-  const std::string text = shoal::testing::ReadFile(cert);
-  for (const char* m : {"\"Q\"", "\"Psi\"", "\"Z\"", "\"X\"", "\"Y\"", "\"Phi\""}) {
-    EXPECT_NE(text.find(m), std::string::npos) << m;
+  Json b = ParseJson(no.out);
+  EXPECT_EQ(b["theorem3"]["feasible"], false) << b["theorem3"];
+  EXPECT_EQ(b["theorem3"]["feasible_at_zero_delay"], false) << b["theorem3"];
+  EXPECT_GT(Num(b, "/theorem3/paper_multipliers_max_eigenvalue"), 0.0);
+  EXPECT_EQ(b["theorem3"]["certificate"], cert);
+  Json c = ParseJson(ReadFile(cert));
+  EXPECT_EQ(c["certifies"], false);
+  for (const char* m : {"Q", "Psi", "Z", "X", "Y", "Phi"}) {
+    ASSERT_TRUE(c["matrices"].contains(m)) << m;
+    EXPECT_TRUE(c["matrices"][m].is_array() && !c["matrices"][m].empty()) << m;
   }
 }
 
 // Theorem 3 covers only factors of the form f(x_i) - f(x_0): with the absolute factor
 // (relative_to_leader = false) it is not evaluated, and says why, whatever the LMI would give.
 TEST(DesignCli, Theorem3IsNotEvaluatedForAFactorItDoesNotCover) {
-  std::string text = shoal::testing::ReadFile(Example(2));
-  const std::string from = "relative_to_leader = true", to = "relative_to_leader = false";
-  ASSERT_NE(text.find(from), std::string::npos);
-  text.replace(text.find(from), from.size(), to);
-  const std::string path = shoal::testing::TmpPath("d_abs.toml");
-  FILE* f = std::fopen(path.c_str(), "w");
-  std::fputs(text.c_str(), f);
-  std::fclose(f);
+  const std::string path = AbsoluteFactorScenario("d_abs.toml");
   const auto r = RunShoal("design " + path + " --k1 0.5 --k2 2.5 --h 0.05 --kappa 0 --json", "d_abs");
   EXPECT_EQ(r.status, 1) << r.out << r.err;
-  const std::string t3 = r.out.substr(r.out.find("\"theorem3\":"));
-  EXPECT_EQ(t3.rfind("\"theorem3\":{\"evaluated\":false", 0), 0u) << t3;
-  EXPECT_EQ(r.out.find("\"feasible\":true"), std::string::npos) << r.out;
+  Json t3 = ParseJson(r.out)["theorem3"];
+  ASSERT_TRUE(t3.is_object()) << r.out;
+  EXPECT_EQ(t3.begin().key(), "evaluated") << t3;
+  EXPECT_EQ(t3["evaluated"], false) << t3;
+  EXPECT_EQ(t3.size(), 2u) << t3;  // evaluated and reason: no feasible, no max_delay_s
+  ASSERT_TRUE(t3["reason"].is_string()) << t3;
+  EXPECT_NE(t3["reason"].get<std::string>().find("relative_to_leader = false"),
+            std::string::npos)
+      << t3;
 }
 
 TEST(DesignCli, ReadableReportHasEverySectionAndAVerdictLine) {
@@ -195,18 +236,101 @@ TEST(DesignCli, ReadableReportHasEverySectionAndAVerdictLine) {
 TEST(DesignCli, AdviceForTooLargeADelayWorks) {
   const auto bad = RunShoal("design " + Example(1) + " --h 0.5 --json", "d_adv1");
   EXPECT_EQ(bad.status, 1) << bad.err;
+  Json b = ParseJson(bad.out);
+  ASSERT_TRUE(b["verdict"]["advice"].is_string()) << b["verdict"];
+  const std::string advice = b["verdict"]["advice"].get<std::string>();
   const std::string tag = "scale the gains to k1 = ";
-  const std::size_t p = bad.out.find(tag);
-  ASSERT_NE(p, std::string::npos) << bad.out;
-  const double k1 = std::strtod(bad.out.c_str() + p + tag.size(), nullptr);
-  const std::size_t q = bad.out.find("k2 = ", p);
-  const double k2 = std::strtod(bad.out.c_str() + q + 5, nullptr);
+  const std::size_t p = advice.find(tag);
+  ASSERT_NE(p, std::string::npos) << advice;
+  const double k1 = std::strtod(advice.c_str() + p + tag.size(), nullptr);
+  const std::size_t q = advice.find("k2 = ", p);
+  ASSERT_NE(q, std::string::npos) << advice;
+  const double k2 = std::strtod(advice.c_str() + q + 5, nullptr);
   char args[128];
   std::snprintf(args, sizeof(args), " --h 0.5 --k1 %.6g --k2 %.6g --json", k1, k2);
   const auto good = RunShoal("design " + Example(1) + args, "d_adv2");
   EXPECT_EQ(good.status, 0) << good.out;
-  EXPECT_NEAR(JsonNumber(good.out, "delay_margin_s"), 1.0, 2e-3);
-  EXPECT_NE(good.out.find("\"by\":\"the exact delay margin\""), std::string::npos);
+  Json g = ParseJson(good.out);
+  EXPECT_NEAR(Num(g, "/delay_margin_s"), 1.0, 2e-3);
+  EXPECT_EQ(g["verdict"]["by"], "the exact delay margin") << g["verdict"];
+}
+
+// --advise on paper Example 2 (docs/theory.md): no scale of the paper's gains is certified
+// at h = 0.15 s (exit 1, the verdict of the scenario's own gains), so the advice is the
+// scale whose gains Theorem 3 certifies for the largest delay. --write-scenario writes a
+// scenario with exactly those gains that `shoal design` and `shoal sim` load, and with
+// which the formation converges faster than with the paper's gains.
+TEST(DesignCli, AdviseWritesAScenarioThatConverges) {
+  const std::string out = TmpPath("d_advise.toml");
+  std::remove(out.c_str());
+  const auto r = RunShoal(
+      "design " + Example(2) + " --advise --write-scenario " + out + " --json", "d_advise");
+  EXPECT_EQ(r.status, 1) << r.err;
+  Json j = ParseJson(r.out);
+  EXPECT_EQ(j["verdict"]["certified"], false);
+  ASSERT_TRUE(j.contains("advised_gains")) << r.out;
+  Json a = j["advised_gains"];
+  EXPECT_EQ(a["evaluated"], true) << a;
+  EXPECT_EQ(a["certified_at_h"], false) << a;
+  const double k1 = Num(a, "/k1"), k2 = Num(a, "/k2"), c = Num(a, "/scale");
+  EXPECT_NEAR(k1, 0.4047, 1e-4);
+  EXPECT_NEAR(k2, 1.727, 1e-3);
+  EXPECT_NEAR(c, 1.499, 1e-3);
+  EXPECT_NEAR(k1, c * c * Num(j, "/gains/k1"), 1e-12);  // along the scale family
+  EXPECT_NEAR(k2, c * Num(j, "/gains/k2"), 1e-12);
+  EXPECT_NEAR(Num(a, "/theorem3_max_delay_s"), 0.1219, 1e-4);
+  EXPECT_NEAR(Num(a, "/delay_margin_s"), 0.2291, 1e-4);
+  EXPECT_NEAR(Num(a, "/delay_margin_with_factor_s"), 0.2138, 1e-4);
+  EXPECT_EQ(a["scenario_written"], out) << a;
+
+  // The written scenario carries the advised gains to the last bit, and Theorem 3 gives
+  // them the same largest delay.
+  const auto d = RunShoal("design " + out + " --json", "d_advise_design");
+  EXPECT_EQ(d.status, 1) << d.err;
+  Json dj = ParseJson(d.out);
+  EXPECT_EQ(dj["scenario"], "paper_example2_advised");
+  EXPECT_EQ(Num(dj, "/gains/k1"), k1);
+  EXPECT_EQ(Num(dj, "/gains/k2"), k2);
+  EXPECT_EQ(Num(dj, "/theorem3/max_delay_s"), Num(a, "/theorem3_max_delay_s"));
+
+  const auto sim = RunShoal("sim " + out + " --duration 60 --json", "d_advise_sim");
+  EXPECT_EQ(sim.status, 0) << sim.out << sim.err;
+  Json s = ParseJson(sim.out);
+  EXPECT_EQ(s["converged"], true) << sim.out;
+  const auto paper = RunShoal("sim " + Example(2) + " --duration 60 --json", "d_advise_sim0");
+  EXPECT_EQ(paper.status, 0) << paper.out << paper.err;
+  Json p = ParseJson(paper.out);
+  EXPECT_EQ(p["converged"], true) << paper.out;
+  EXPECT_NEAR(Num(s, "/convergence_time_s"), 24.52, 0.05);  // docs/theory.md
+  EXPECT_NEAR(Num(p, "/convergence_time_s"), 53.02, 0.05);
+}
+
+// A --write-scenario path that cannot be written is refused before any solve (exit 2, the
+// path named, nothing on stdout); with gains that cannot be advised (Theorem 3 does not
+// apply) nothing is written and the exit status is 2.
+TEST(DesignCli, WriteScenarioFailuresExitTwo) {
+  const auto bad = RunShoal(
+      "design " + Example(2) + " --write-scenario /nonexistent-dir/adv.toml --json", "d_ws_bad");
+  EXPECT_EQ(bad.status, 2) << bad.err;
+  EXPECT_NE(bad.err.find("shoal design: --write-scenario: /nonexistent-dir/adv.toml: cannot "
+                         "write there"),
+            std::string::npos)
+      << bad.err;
+  EXPECT_TRUE(bad.out.empty()) << bad.out;
+
+  const std::string out = TmpPath("d_ws_abs_adv.toml");
+  std::remove(out.c_str());
+  const auto none = RunShoal("design " + AbsoluteFactorScenario("d_ws_abs.toml") +
+                                 " --write-scenario " + out + " --json",
+                             "d_ws_none");
+  EXPECT_EQ(none.status, 2) << none.err;
+  EXPECT_NE(none.err.find("shoal design: --write-scenario: no gains were advised (Theorem 3 "
+                          "does not apply"),
+            std::string::npos)
+      << none.err;
+  EXPECT_NE(none.err.find("nothing written"), std::string::npos) << none.err;
+  EXPECT_EQ(ParseJson(none.out)["advised_gains"]["evaluated"], false) << none.out;
+  EXPECT_FALSE(std::ifstream(out).good()) << out << " was written";
 }
 
 }  // namespace

@@ -36,25 +36,6 @@ inline nlohmann::ordered_json ParseJson(const std::string& text) {
   return j;
 }
 
-/// Text search for the first "key": in a JSON text (also in part of one), for tests that
-/// look into fragments; "<missing>" if absent. Prefer ParseJson.
-inline std::string JsonRaw(const std::string& json, const std::string& key) {
-  const std::string k = "\"" + key + "\":";
-  const auto p = json.find(k);
-  if (p == std::string::npos) return "<missing>";
-  const auto b = p + k.size();
-  return json.substr(b, json.find_first_of(",}]", b) - b);
-}
-
-/// The number after the first "key": (NaN if absent, null or not a number). Prefer
-/// ParseJson.
-inline double JsonNumber(const std::string& json, const std::string& key) {
-  const std::string v = JsonRaw(json, key);
-  char* end = nullptr;
-  const double x = std::strtod(v.c_str(), &end);
-  return v.empty() || end == v.c_str() ? std::strtod("nan", nullptr) : x;
-}
-
 inline std::string ReadFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::stringstream ss;
