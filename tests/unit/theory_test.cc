@@ -112,7 +112,7 @@ TEST(Theory, NoWWhenHHasAnEigenvalueWithNonPositiveRealPart) {
   EXPECT_FALSE(ComputeTheorem1(topo.H(), 1.0, 1.0, 0.05, 6.4).has_value());
 }
 
-// README's figures for the scenario gains: the paper's bound 0.1286, the corrected
+// The figures docs/examples.md quotes for the scenario gains: the paper's bound 0.1286, the corrected
 // 0.1754 (lambda_max(M^T M) = 0.2882), P's largest eigenvalue -7.3e-4.
 TEST(Theory, Theorem1BoundsForPaperExample) {
   const auto t = ComputeTheorem1(PaperH(), 0.18, 1.152, 0.05, 6.4);
@@ -286,7 +286,7 @@ TEST(Theory, DelayBoundsOfScenarioTakesMaxOverLinks) {
 }
 
 // The margin of the paper example's largest eigenvalue, by hand: w^2 solves
-// u^2 - |l|^2 k2^2 u - |l|^2 k1^2 = 0 and tau = atan2(k2 w, k1) / w (README: 0.34 s).
+// u^2 - |l|^2 k2^2 u - |l|^2 k1^2 = 0 and tau = atan2(k2 w, k1) / w (docs/examples.md: 0.34 s).
 TEST(Theory, DelayMarginRealEigenvalueClosedForm) {
   const double k1 = 0.18, k2 = 1.152;
   const DelayMargin d = ComputeDelayMargin(HEigenvalues(PaperH()), k1, k2);
@@ -373,7 +373,7 @@ TEST(Theory, GeneralDelayMarginAgreesAndIsARoot) {
 // Example 2's factor: -0.5 tanh(psi') adds delayed damping to the heading channel, which
 // lowers the margin of the largest eigenvalue (0.3435 s -> about 0.31 s); 0.48 tanh(theta')
 // removes damping from pitch, which makes k2 = 1.0 unstable without any delay
-// (lambda_min k2 = 0.468 < 0.48), as shoal sim shows (README of this change: docs/theory.md).
+// (lambda_min k2 = 0.468 < 0.48), as shoal sim shows (docs/theory.md).
 TEST(Theory, FactorDelayMarginOfPaperExample2) {
   DisturbanceConfig d;
   d.kind = DisturbanceKind::kPaperExample2;
