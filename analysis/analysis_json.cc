@@ -119,6 +119,21 @@ Json FollowersJson(const RunAnalysis& a) {
 
 }  // namespace
 
+void AddFormationKeys(bool converged, double convergence_time_s,
+                      const FormationErrors& final_worst, Json* j) {
+  (*j)["converged"] = converged;
+  (*j)["convergence_time_s"] = converged ? convergence_time_s : kNaN;
+  (*j)["final_position_error_m"] = final_worst.position_m;
+  (*j)["final_velocity_error_mps"] = final_worst.velocity_mps;
+  (*j)["final_attitude_error_rad"] = final_worst.attitude_rad;
+}
+
+void AddTimingKeys(double sim_time_s, double wall_time_s, Json* j) {
+  (*j)["sim_time_s"] = sim_time_s;
+  (*j)["wall_time_s"] = wall_time_s;
+  (*j)["realtime_factor"] = wall_time_s > 0 ? sim_time_s / wall_time_s : kNaN;
+}
+
 Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource& source) {
   const RunSummary& s = a.summary;
   const bool f = a.has_formation;
@@ -127,15 +142,10 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   j["scenario"] = StringOrNull(run.scenario_name);
   j["scenario_source"] = StringOrNull(run.scenario_origin);
   j["mode"] = a.mode;
-  j["converged"] = conv;
-  j["convergence_time_s"] = conv ? s.convergence_time_s : kNaN;
-  j["final_position_error_m"] = f ? s.final_worst.position_m : kNaN;
-  j["final_velocity_error_mps"] = f ? s.final_worst.velocity_mps : kNaN;
-  j["final_attitude_error_rad"] = f ? s.final_worst.attitude_rad : kNaN;
+  AddFormationKeys(conv, s.convergence_time_s,
+                   f ? s.final_worst : FormationErrors{kNaN, kNaN, kNaN}, &j);
   j["max_position_error_m"] = f ? s.max_position_error_m : kNaN;
-  j["sim_time_s"] = s.sim_time_s;
-  j["wall_time_s"] = a.wall_time_s;
-  j["realtime_factor"] = a.wall_time_s > 0 ? s.sim_time_s / a.wall_time_s : kNaN;
+  AddTimingKeys(s.sim_time_s, a.wall_time_s, &j);
   j["ticks"] = a.ticks;
   j["channel_delivered"] = a.channel.delivered;
   j["channel_dropped"] = a.channel.dropped;

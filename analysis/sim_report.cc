@@ -6,6 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "analysis/analysis_json.h"
 #include "analysis/verdict.h"
 #include "core/swarm.h"
 #include "runtime/channels.h"
@@ -218,15 +219,9 @@ bool RunSimulation(const Scenario& s, const SimRunOptions& opt, SimReport* repor
 nlohmann::ordered_json SimReportJson(const SimReport& r) {
   nlohmann::ordered_json j;
   j["scenario"] = r.scenario;
-  j["converged"] = r.converged;
-  j["convergence_time_s"] = r.converged ? r.convergence_time_s : NAN;
-  j["final_position_error_m"] = r.final_worst.position_m;
-  j["final_velocity_error_mps"] = r.final_worst.velocity_mps;
-  j["final_attitude_error_rad"] = r.final_worst.attitude_rad;
+  AddFormationKeys(r.converged, r.convergence_time_s, r.final_worst, &j);
   j["max_position_error_m"] = r.max_position_error_m;
-  j["sim_time_s"] = r.sim_time_s;
-  j["wall_time_s"] = r.wall_time_s;
-  j["realtime_factor"] = r.wall_time_s > 0 ? r.sim_time_s / r.wall_time_s : NAN;
+  AddTimingKeys(r.sim_time_s, r.wall_time_s, &j);
   j["ticks"] = r.ticks;
   j["channel_delivered"] = r.delivered;
   j["channel_dropped"] = r.dropped;

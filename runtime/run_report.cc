@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "analysis/analysis_json.h"
 #include "analysis/run_data.h"
 #include "analysis/verdict.h"
 #include "runtime/process.h"
@@ -42,18 +43,12 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
 nlohmann::ordered_json RunReportJson(const RunReport& r) {
   const RunSummary& sum = r.summary;
   const LaunchResult& l = r.launch;
-  const bool realtime = l.mode == "realtime";
+  const bool realtime = l.mode == ModeName(Mode::kRealtime);
   nlohmann::ordered_json j;
   j["scenario"] = r.scenario;
   j["mode"] = l.mode;
-  j["converged"] = r.converged;
-  j["convergence_time_s"] = r.converged ? sum.convergence_time_s : NAN;
-  j["final_position_error_m"] = sum.final_worst.position_m;
-  j["final_velocity_error_mps"] = sum.final_worst.velocity_mps;
-  j["final_attitude_error_rad"] = sum.final_worst.attitude_rad;
-  j["sim_time_s"] = sum.sim_time_s;
-  j["wall_time_s"] = l.wall_time_s;
-  j["realtime_factor"] = l.wall_time_s > 0 ? sum.sim_time_s / l.wall_time_s : NAN;
+  AddFormationKeys(r.converged, sum.convergence_time_s, sum.final_worst, &j);
+  AddTimingKeys(sum.sim_time_s, l.wall_time_s, &j);
   j["diverged_follower"] = r.diverged_follower;
   j["channel"] = {{"delivered", sum.delivered},
                   {"dropped", sum.dropped},
@@ -74,7 +69,7 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
 void PrintRunReport(const RunReport& r, std::FILE* out) {
   const RunSummary& sum = r.summary;
   const LaunchResult& l = r.launch;
-  const bool realtime = l.mode == "realtime";
+  const bool realtime = l.mode == ModeName(Mode::kRealtime);
   std::fprintf(out, "shoal run: %s (%s, %d followers, %.0f Hz)\n", r.scenario.c_str(),
                l.mode.c_str(), r.followers, r.control_rate_hz);
   std::fprintf(out, "  simulated %.1f s in %.2f s wall (%.1fx real time)%s\n", sum.sim_time_s,
