@@ -19,13 +19,16 @@ rtf() { grep -o '"realtime_factor":[0-9.e+-]*' | cut -d: -f2; }
 
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), load $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "command: $shoal sim $scenario --duration $duration --json --quiet [--out LOG]"
+# shoal sim exits 1 when the formation has not converged (a short duration): only a status
+# above 1 stops the benchmark.
+sim_json() { "$shoal" sim "$scenario" --duration "$duration" --json --quiet "$@" || [ $? -eq 1 ]; }
 for mode in nolog log; do
   vals=()
   for ((i = 1; i <= runs; i++)); do
     if [ $mode = log ]; then
-      v=$("$shoal" sim "$scenario" --duration "$duration" --json --quiet --out "$log" | rtf)
+      v=$(sim_json --out "$log" | rtf)
     else
-      v=$("$shoal" sim "$scenario" --duration "$duration" --json --quiet | rtf)
+      v=$(sim_json | rtf)
     fi
     vals+=("$v")
   done
