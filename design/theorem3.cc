@@ -571,7 +571,8 @@ std::string CertificateJson(const Theorem3Result& r) {
   const Theorem3Multipliers& c = r.certificate;
   o["matrices"] = {{"Q", MatrixJson(c.Q)}, {"Psi", MatrixJson(c.Psi)}, {"Z", MatrixJson(c.Z)},
                    {"X", MatrixJson(c.X)}, {"Y", MatrixJson(c.Y)},     {"Phi", MatrixJson(c.Phi)}};
-  return o.dump(2) + "\n";
+  // replace: a scenario name that is not valid UTF-8 must not abort the certificate.
+  return o.dump(2, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 bool WriteCertificate(const Theorem3Result& result, const std::string& path, std::string* err) {

@@ -22,6 +22,7 @@
 #include "runtime/messages.h"
 #include "scenario/loader.h"
 #include "runtime/stop_signals.h"
+#include "tools/json_text.h"
 
 namespace shoal {
 namespace {
@@ -247,7 +248,7 @@ int RunAnalyze(const AnalyzeOptions& opt) {
     AnalysisSource source;
     source.live = opt.live;
     source.log = opt.log;
-    std::cout << AnalysisJson(run, a, source).dump() << "\n";
+    std::cout << JsonText(AnalysisJson(run, a, source)) << "\n";
   } else {
     PrintText(opt, run, a);
   }

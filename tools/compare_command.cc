@@ -15,6 +15,7 @@
 #include "runtime/channels.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/messages.h"
+#include "tools/json_text.h"
 
 namespace shoal {
 namespace {
@@ -86,7 +87,7 @@ int RunCompare(const CompareOptions& opt) {
     j["position_tol_m"] = opt.position_tol_m;
     j["velocity_tol_mps"] = opt.velocity_tol_mps;
     j["within_tolerance"] = within;
-    std::cout << j.dump() << "\n";
+    std::cout << JsonText(j) << "\n";
   } else {
     std::printf("shoal compare: %lld matching vehicle states (of %zu and %zu)\n",
                 static_cast<long long>(samples), a.size(), b.size());

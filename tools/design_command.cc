@@ -12,6 +12,7 @@
 
 #include "design/report.h"
 #include "scenario/loader.h"
+#include "tools/json_text.h"
 
 namespace shoal {
 namespace {
@@ -109,7 +110,7 @@ int RunDesign(const DesignOptions& opt) {
   const bool files_ok = WriteCertificateFile(opt.certificate, &report) &
                         WriteAdvisedScenario(opt, &report);
   if (opt.json) {
-    std::cout << design::DesignReportJson(report).dump() << "\n";
+    std::cout << JsonText(design::DesignReportJson(report)) << "\n";
   } else {
     std::cout << design::DesignReportText(report);
   }

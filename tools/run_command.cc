@@ -8,6 +8,7 @@
 #include "analysis/verdict.h"
 #include "runtime/run_report.h"
 #include "scenario/loader.h"
+#include "tools/json_text.h"
 
 namespace shoal {
 
@@ -40,7 +41,7 @@ int RunRun(const RunOptions& opt) {
   if (show) std::fprintf(stderr, "\r%110s\r", "");
   const RunReport report = MakeRunReport(s, std::move(launch));
   if (opt.json) {
-    std::cout << RunReportJson(report).dump() << "\n";
+    std::cout << JsonText(RunReportJson(report)) << "\n";
   } else {
     PrintRunReport(report, stdout);
   }

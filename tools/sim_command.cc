@@ -9,6 +9,7 @@
 #include "analysis/verdict.h"
 #include "runtime/stop_signals.h"
 #include "scenario/loader.h"
+#include "tools/json_text.h"
 
 namespace shoal {
 
@@ -35,7 +36,7 @@ int RunSim(const SimOptions& opt) {
     }
   }
   if (opt.json) {
-    std::cout << SimReportJson(report).dump() << "\n";
+    std::cout << JsonText(SimReportJson(report)) << "\n";
   } else {
     PrintSimReport(report, stdout);
   }

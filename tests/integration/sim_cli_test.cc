@@ -328,5 +328,19 @@ TEST(SimCli, SigintStopsCleanlyWithAReadableLog) {
   EXPECT_EQ(last_state, "interrupted");
 }
 
+// A path that is not valid UTF-8 is a valid Linux path: the JSON report names it with
+// U+FFFD for the bad byte instead of aborting the command after the work is done.
+TEST(SimCli, JsonOfAPathThatIsNotUtf8IsStillJson) {
+  const std::string log = TmpPath("not_utf8_\xff.lcmlog");
+  const auto r = RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +
+                              " --duration 2 --json --out '" + log + "'", "not_utf8");
+  EXPECT_EQ(r.status, 1) << r.err;  // not converged in 2 s: the verdict, not a crash
+  const auto j = ParseJson(r.out);
+  ASSERT_TRUE(j.contains("log")) << r.out;
+  EXPECT_NE(j["log"].get<std::string>().find("not_utf8_\xEF\xBF\xBD.lcmlog"), std::string::npos)
+      << r.out;
+}
+
 }  // namespace
 }  // namespace shoal
+
