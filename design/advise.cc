@@ -178,10 +178,14 @@ bool WriteScenarioWithGains(const std::string& scenario_path, double k1, double 
     *err = std::string("the rewritten scenario does not load: ") + e.what();
     return false;
   }
-  std::ofstream f(out_path);
+  // Written beside the target and renamed over it: a failed write (a full disk) never
+  // leaves a truncated scenario, also when the target is the input scenario itself.
+  const std::string tmp = out_path + ".tmp";
+  std::ofstream f(tmp);
   f << text.str();
   f.close();
-  if (!f) {
+  if (!f || std::rename(tmp.c_str(), out_path.c_str()) != 0) {
+    std::remove(tmp.c_str());
     *err = out_path + ": cannot write there";
     return false;
   }

@@ -34,6 +34,7 @@ int LcmBus::Handle(int timeout_ms) {
   int r = lcm_.handleTimeout(timeout_ms);
   while (r > 0) {  // drain whatever else is already queued, without waiting
     ++n;
+    if (n >= kMaxMessagesPerHandle) break;
     r = lcm_.handleTimeout(0);
   }
   return r < 0 ? -1 : n;

@@ -22,13 +22,18 @@ namespace shoal {
 
 class Bus {
  public:
+  /// Far more than a run sends a process between two of its calls (a lockstep window's
+  /// deliveries and clock messages, a real-time period's states).
+  static constexpr int kMaxMessagesPerHandle = 1024;
   using Handler = std::function<void(const std::string& channel, const void* data, int size)>;
   virtual ~Bus() = default;
   /// Publishes raw bytes; returns false on failure.
   virtual bool PublishRaw(const std::string& channel, const void* data, int size) = 0;
   /// `channel` is a regular expression (implicitly ^...$), as in LCM.
   virtual void Subscribe(const std::string& channel, Handler handler) = 0;
-  /// Dispatches pending messages, waiting at most timeout_ms for the first.
+  /// Dispatches pending messages, waiting at most timeout_ms for the first, and at most
+  /// kMaxMessagesPerHandle of them: a flood on the bus then cannot grow what a caller
+  /// buffers between two calls without bound; the rest waits, in order, for the next call.
   /// Returns the number of messages handled (0 on timeout), or -1 on error.
   virtual int Handle(int timeout_ms) = 0;
 

@@ -32,9 +32,9 @@ void StopSignals::Install(int signal, void (*handler)(int)) {
   struct sigaction sa = {};
   sa.sa_handler = handler;
   sigemptyset(&sa.sa_mask);
-  Saved& s = saved_[n_saved_++];
+  Saved& s = saved_[n_saved_];
   s.signal = signal;
-  sigaction(signal, &sa, &s.old);
+  if (sigaction(signal, &sa, &s.old) == 0) ++n_saved_;  // restore only what was replaced
 }
 
 }  // namespace shoal

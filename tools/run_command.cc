@@ -6,7 +6,7 @@
 #include <iostream>
 
 #include "analysis/verdict.h"
-#include "runtime/run_report.h"
+#include "launcher/run_report.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
 

@@ -1,6 +1,6 @@
 #pragma once
 
-#include "runtime/launcher.h"
+#include "launcher/launcher.h"
 
 namespace shoal {
 

@@ -77,7 +77,7 @@ TEST(AnalyzeCli, JsonHasEveryKeyOfShoalRun) {
   const auto ana = RunShoal("analyze " + SimLog() + " --json", "analyze_cli_keys");
   ASSERT_EQ(ana.status, 0) << ana.err;
   const auto j = ParseJson(ana.out);
-  // The keys of `shoal run --json` (runtime/run_report.cc, docs/run.md), but the launcher's
+  // The keys of `shoal run --json` (launcher/run_report.cc, docs/run.md), but the launcher's
   // own (process_output_dir, cpu_latency_request).
   for (const char* key : {"scenario", "mode", "converged", "convergence_time_s",
                           "final_position_error_m", "final_velocity_error_mps",

@@ -1,4 +1,4 @@
-#include "runtime/run_report.h"
+#include "launcher/run_report.h"
 
 #include <unistd.h>
 

@@ -1,4 +1,4 @@
-#include "runtime/launcher.h"
+#include "launcher/launcher.h"
 
 #include <dirent.h>
 #include <fcntl.h>
@@ -100,6 +100,23 @@ pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::strin
   _exit(127);
 }
 
+/// The log must be writable before anything starts. An existing log is only checked: it
+/// stays as it is until lcm-logger replaces it.
+bool CheckLogWritable(const std::string& log, std::string* error) {
+  if (access(log.c_str(), F_OK) == 0) {
+    if (access(log.c_str(), W_OK) == 0) return true;
+  } else {
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
+    if (fd >= 0) {
+      close(fd);
+      unlink(log.c_str());
+      return true;
+    }
+  }
+  *error = log + ": cannot open log for writing (" + std::strerror(errno) + ")";
+  return false;
+}
+
 /// Creates <log>.d/ and removes the output files a previous run left there, so that the
 /// folder holds this run's processes only.
 bool PrepareOutputDir(const std::string& dir, std::string* error) {
@@ -195,6 +212,7 @@ class Launch {
   std::vector<Child> kids_;
   std::int64_t t0_ns_ = 0;
   Mode mode_ = Mode::kLockstep;  // opt_.mode, parsed by Prepare
+  bool start_failed_ = false;    // a process could not be forked
 };
 
 bool Launch::Prepare(std::string* error) {
@@ -212,16 +230,6 @@ bool Launch::Prepare(std::string* error) {
   r_->duration_s = opt_.duration_s > 0 ? opt_.duration_s : s_.duration_s;
   r_->log = opt_.out.empty() ? s_.name + ".lcmlog" : opt_.out;
   r_->process_output_dir = r_->log + ".d";
-  {  // The log must be writable before anything starts.
-    const int fd = open(r_->log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd < 0) {
-      *error = r_->log + ": cannot open log for writing (" + std::strerror(errno) + ")";
-      return false;
-    }
-    close(fd);
-    unlink(r_->log.c_str());
-  }
-  if (!PrepareOutputDir(r_->process_output_dir, error)) return false;
   vehicle_exe_ = FindExe("vehicle", "shoal_vehicle");
   leader_exe_ = FindExe("leader", "shoal_leader");
   emulator_exe_ = FindExe("channel_emulator", "shoal_channel_emulator");
@@ -234,7 +242,10 @@ bool Launch::Prepare(std::string* error) {
     *error = "lcm-logger not found (Debian package liblcm-bin)";
     return false;
   }
-  return ChooseUrls(error);
+  // Everything that can refuse the run is checked before anything is written: a refused
+  // run leaves an earlier log and its process output as they were.
+  return ChooseUrls(error) && CheckLogWritable(r_->log, error) &&
+         PrepareOutputDir(r_->process_output_dir, error);
 }
 
 bool Launch::ChooseUrls(std::string* error) {
@@ -271,6 +282,10 @@ void Launch::Start(const std::string& name, int id, const std::vector<std::strin
   c.id = id;
   c.pid = Spawn(argv, nice_inc, r_->process_output_dir + "/" + tag + ".txt");
   c.running = c.pid > 0;
+  if (c.pid < 0) {  // no process to supervise: the run cannot go on
+    r_->problems.push_back("cannot start " + name + " (fork: " + std::strerror(errno) + ")");
+    start_failed_ = true;
+  }
   kids_.push_back(c);
 }
 
@@ -349,7 +364,7 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
   const auto wall0 = std::chrono::steady_clock::now();
   auto last_show = wall0;
   bool emulator_done = false;
-  while (!emulator_done && !StopSignals::Requested()) {
+  while (!emulator_done && !start_failed_ && !StopSignals::Requested()) {
     const timespec poll = {0, 50000000};
     nanosleep(&poll, nullptr);  // returns early when a child exits (SIGCHLD)
     for (Child& c : kids_) {

@@ -1,4 +1,4 @@
-// What shoal run reports: the launcher's side of the run (runtime/launcher.h) and what the
+// What shoal run reports: the launcher's side of the run (launcher/launcher.h) and what the
 // run's log says, analysed with the code of shoal analyze (analysis/), with the verdict of
 // shoal sim and shoal analyze (analysis/verdict.h).
 #pragma once
@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/analysis.h"
-#include "runtime/launcher.h"
+#include "launcher/launcher.h"
 
 namespace shoal {
 

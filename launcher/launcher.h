@@ -1,7 +1,7 @@
 // shoal run's launcher and supervisor: starts lcm-logger, the channel emulator, the leader
 // and one process per vehicle, watches them until the run ends or a stop signal arrives,
 // and shuts them down in order (docs/run.md). What the run achieved is read afterwards
-// from its log (runtime/run_report.h).
+// from its log (launcher/run_report.h).
 #pragma once
 
 #include <functional>
