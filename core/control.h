@@ -46,7 +46,7 @@ struct NeighbourTerm {
   Vec5 eta_dot_i = Vec5::Zero();
 };
 
-/// Protocol (10) with formation offsets (DESIGN.md):
+/// Protocol (10) with formation offsets (docs/examples.md, "Outer loop"):
 ///   a_i = sum_j a_ij [k1((eta_j - d_j) - (eta_i - d_i)) + k2(eta_dot_j - eta_dot_i)]
 /// every term at the neighbour's send time t - tau_ij, angle differences wrapped.
 inline Vec5 Protocol10(double k1, double k2, const Vec5& offset_i, const NeighbourTerm* terms,

@@ -1,5 +1,5 @@
-// LCM channel names: built and parsed here and nowhere else (DESIGN.md, "Processes and
-// messages").
+// LCM channel names: built and parsed here and nowhere else, so that a name's shape
+// (docs/run.md lists the channels) lives in one place.
 #pragma once
 
 #include <optional>

@@ -1,4 +1,4 @@
-// The small transport interface the processes program against (STYLE.md: Drake's
+// The small transport interface the processes program against (as Drake's
 // DrakeLcmInterface), with the LCM implementation. Handlers get raw bytes: decoding,
 // validation and counting happen in the caller, so that a malformed message is dropped
 // and counted instead of being printed and lost inside LCM's auto-decoding.
