@@ -1,0 +1,87 @@
+#include "analysis/analysis_text.h"
+
+#include <cmath>
+
+#include "analysis/verdict.h"
+
+namespace shoal {
+
+void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
+                       const AnalysisSource& source) {
+  const RunSummary& s = a.summary;
+  std::fprintf(out, "shoal analyze: %s (%s, %d followers, mode %s)\n",
+              run.scenario_name.empty() ? "unnamed run" : run.scenario_name.c_str(),
+              source.live ? run.source.c_str() : source.log.c_str(), run.followers, a.mode.c_str());
+  std::fprintf(out, "  %lld events, %lld vehicle states (of %lld expected), simulated %.2f s",
+              static_cast<long long>(run.events), static_cast<long long>(s.states),
+              static_cast<long long>(a.states_expected), s.sim_time_s);
+  if (a.wall_time_s > 0) std::fprintf(out, ", recorded over %.2f s wall", a.wall_time_s);
+  std::fprintf(out, "\n");
+  if (!a.has_formation) {
+    std::fprintf(out, "  formation: not computed (%s)\n",
+                run.has_scenario ? "no leader states in the log"
+                                 : "no scenario in the log; give --scenario FILE");
+  } else {
+    if (FormationConverged(a)) {
+      std::fprintf(out, "  converged: yes, at %.2f s (position tol %.3g m, velocity tol %.3g m/s)\n",
+                  s.convergence_time_s, run.scenario.metrics.position_tol_m,
+                  run.scenario.metrics.velocity_tol_mps);
+    } else {
+      std::fprintf(out, "  converged: NO (position tol %.3g m, velocity tol %.3g m/s)\n",
+                  run.scenario.metrics.position_tol_m, run.scenario.metrics.velocity_tol_mps);
+    }
+    if (a.diverged_follower) std::fprintf(out, "  DIVERGED: follower %d\n", a.diverged_follower);
+    std::fprintf(out, "  final errors, worst follower: position %.4f m, velocity %.4f m/s, attitude %.4f rad\n",
+                s.final_worst.position_m, s.final_worst.velocity_mps, s.final_worst.attitude_rad);
+    std::fprintf(out, "  %-9s %12s %14s %14s %12s %10s %9s\n", "follower", "position[m]",
+                "velocity[m/s]", "attitude[rad]", "converged[s]", "saturated", "stale");
+    for (std::size_t i = 0; i < a.followers.size(); ++i) {
+      const FollowerAnalysis& f = a.followers[i];
+      const FormationErrors e = i < a.final_errors.size() ? a.final_errors[i] : f.final_errors;
+      char conv[32] = "no";
+      if (f.converged) std::snprintf(conv, sizeof(conv), "%.2f", f.convergence_time_s);
+      std::fprintf(out, "  %-9d %12.4f %14.4f %14.4f %12s %9.1f%% %9lld\n", f.id, e.position_m,
+                  e.velocity_mps, e.attitude_rad, conv, 100.0 * f.saturation_fraction,
+                  static_cast<long long>(f.stale_events));
+    }
+  }
+  const ChannelAnalysis& c = a.channel;
+  std::fprintf(out, "  channel: %lld sent, %lld delivered, %lld dropped (loss %lld, queue %lld, invalid %lld)\n",
+              static_cast<long long>(c.sent), static_cast<long long>(c.delivered),
+              static_cast<long long>(c.dropped), static_cast<long long>(c.dropped_loss),
+              static_cast<long long>(c.dropped_queue), static_cast<long long>(c.dropped_invalid));
+  if (c.delay_error_s.count > 0) {
+    std::fprintf(out, "  realised delay - configured tau: p50 %.3f ms, p99 %.3f ms, max %.3f ms (%s)\n",
+                c.delay_error_s.p50 * 1e3, c.delay_error_s.p99 * 1e3, c.delay_error_s.max * 1e3,
+                a.mode == "realtime" ? "scheduled release times; the release error is below"
+                                     : "tick quantisation: delivery at the first tick at or after send + tau");
+  }
+  if (c.age_at_use_s.count > 0) {
+    std::fprintf(out, "  message age at use: p50 %.3f s, p99 %.3f s, max %.3f s\n", c.age_at_use_s.p50,
+                c.age_at_use_s.p99, c.age_at_use_s.max);
+  }
+  if (c.model_mismatches > 0) {
+    std::fprintf(out, "  WARNING: %lld channel decisions drew a delay other than the scenario's tau(t)\n",
+                static_cast<long long>(c.model_mismatches));
+  }
+  if (a.mode == "realtime") {
+    std::fprintf(out, "  emulator release error p99 %.3f ms\n", c.release_error_p99_s * 1e3);
+  }
+  if (!a.processes.empty()) {
+    std::fprintf(out, "  %-9s %10s %10s %10s %9s %10s %9s\n", "process", "late p50", "late p99",
+                "late max", "overruns", "saturated", "timeouts");
+    for (const ProcessAnalysis& p : a.processes) {
+      const HealthRecord& h = p.last;
+      std::fprintf(out, "  %-9s %8.3fms %8.3fms %8.3fms %9lld %9.1f%% %9lld\n",
+                  p.id == -1 ? "emulator" : std::to_string(p.id).c_str(), h.lateness_p50_s * 1e3,
+                  h.lateness_p99_s * 1e3, h.lateness_max_s * 1e3,
+                  static_cast<long long>(h.overruns), 100.0 * h.saturation_fraction,
+                  static_cast<long long>(h.neighbour_timeouts));
+    }
+  }
+  if (a.interrupted) std::fprintf(out, "  the run was interrupted\n");
+  for (const std::string& p : a.problems) std::fprintf(out, "  PROBLEM: %s\n", p.c_str());
+}
+
+
+}  // namespace shoal
