@@ -1,19 +1,21 @@
 #include "tools/compare_command.h"
 
-#include <lcm/lcm-cpp.hpp>
-#include <unistd.h>
-
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "analysis/verdict.h"
 #include "runtime/channels.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/log_reader.h"
 #include "runtime/messages.h"
 #include "tools/json_text.h"
 
@@ -24,32 +26,122 @@ struct Sample {
   Vec5 eta, eta_dot;
 };
 using Key = std::pair<int, std::int64_t>;  // (vehicle id, utime)
+using States = std::map<Key, Sample>;
 
-/// Reads every SHOAL_STATE_<id> of a log. Returns false (with a message) if the file is
-/// not an LCM log.
-bool ReadStates(const std::string& path, std::map<Key, Sample>* out, std::string* err) {
-  if (access(path.c_str(), R_OK) != 0) {
-    *err = path + ": cannot read";
-    return false;
-  }
-  lcm::LogFile log(path, "r");
-  if (!log.good()) {
-    *err = path + ": not an LCM log";
-    return false;
-  }
-  std::int64_t events = 0;
-  while (const lcm::LogEvent* ev = log.readNextEvent()) {
-    ++events;
-    if (!channels::ParseStateId(ev->channel)) continue;
+/// Reads every SHOAL_STATE_<id> of a log with the project's log reader, so that a damaged
+/// or truncated log is read up to the damage and said to be so (the reader's warnings,
+/// which name the file). False, with a message, if the file cannot be read, is empty, or holds
+/// no complete LCM event.
+bool ReadStates(const std::string& path, States* out, std::vector<std::string>* warnings,
+                std::string* err) {
+  LcmLogReader reader;
+  if (!reader.Open(path, err)) return false;
+  LogEventView ev;
+  while (reader.Next(&ev)) {
+    if (!channels::ParseStateId(ev.channel)) continue;
     vehicle_state_t m{};
-    if (!Decode(ev->data, ev->datalen, &m)) continue;
+    if (!Decode(ev.data, ev.size, &m)) continue;
     (*out)[{m.vehicle_id, m.utime}] = Sample{Load5(m.eta), Load5(m.eta_dot)};
   }
-  if (events == 0) {
-    *err = path + ": empty or not an LCM log";
+  warnings->insert(warnings->end(), reader.warnings().begin(), reader.warnings().end());
+  if (reader.events() == 0) {
+    *err = path + ": no complete LCM event in the file" +
+           (reader.warnings().empty() ? std::string() : " (" + reader.warnings().front() + ")");
     return false;
   }
   return true;
+}
+
+struct Comparison {
+  std::int64_t samples = 0;     // states held by both logs
+  std::int64_t only_in_a = 0, only_in_b = 0;
+  std::int64_t non_finite = 0;  // matching states whose difference is NaN or infinite
+  // Largest finite differences; NaN when no matching state has one.
+  double max_pos = std::numeric_limits<double>::quiet_NaN();
+  double max_vel = std::numeric_limits<double>::quiet_NaN();
+  bool within_tolerance = false;  // samples, every difference finite and within tolerance
+  bool complete = false;          // no state in only one log
+  bool passed = false;            // the verdict: exit 0
+};
+
+/// Largest of `m` (NaN: none yet) and a finite `d`.
+double Max(double m, double d) { return std::isnan(m) ? d : std::max(m, d); }
+
+Comparison Compare(const States& a, const States& b, const CompareOptions& opt) {
+  Comparison c;
+  for (const auto& [key, sa] : a) {
+    const auto it = b.find(key);
+    if (it == b.end()) continue;
+    ++c.samples;
+    const double dp = (sa.eta.head<3>() - it->second.eta.head<3>()).norm();
+    const double dv = (sa.eta_dot - it->second.eta_dot).norm();
+    // std::max would let a NaN through unseen; a non-finite difference is a failure of
+    // its own, counted apart from the finite ones.
+    if (!std::isfinite(dp) || !std::isfinite(dv)) {
+      ++c.non_finite;
+      continue;
+    }
+    c.max_pos = Max(c.max_pos, dp);
+    c.max_vel = Max(c.max_vel, dv);
+  }
+  c.only_in_a = static_cast<std::int64_t>(a.size()) - c.samples;
+  c.only_in_b = static_cast<std::int64_t>(b.size()) - c.samples;
+  // With samples and none non-finite, the maxima are finite numbers.
+  c.within_tolerance = c.samples > 0 && c.non_finite == 0 && c.max_pos <= opt.position_tol_m &&
+                       c.max_vel <= opt.velocity_tol_mps;
+  c.complete = c.only_in_a == 0 && c.only_in_b == 0;
+  c.passed = c.within_tolerance && (c.complete || opt.allow_missing);
+  return c;
+}
+
+void PrintJson(const Comparison& c, std::size_t states_a, std::size_t states_b,
+               const std::vector<std::string>& warnings, const CompareOptions& opt) {
+  nlohmann::ordered_json j;
+  j["max_position_diff_m"] = c.max_pos;  // NaN is written as null
+  j["max_velocity_diff_mps"] = c.max_vel;
+  j["samples"] = c.samples;
+  j["states_a"] = states_a;
+  j["states_b"] = states_b;
+  j["only_in_a"] = c.only_in_a;
+  j["only_in_b"] = c.only_in_b;
+  j["non_finite_diffs"] = c.non_finite;
+  j["position_tol_m"] = opt.position_tol_m;
+  j["velocity_tol_mps"] = opt.velocity_tol_mps;
+  j["allow_missing"] = opt.allow_missing;
+  j["within_tolerance"] = c.within_tolerance;
+  j["complete"] = c.complete;
+  j["passed"] = c.passed;
+  j["warnings"] = warnings;
+  std::cout << JsonText(j) << "\n";
+}
+
+void PrintText(const Comparison& c, std::size_t states_a, std::size_t states_b,
+               const CompareOptions& opt) {
+  std::printf("shoal compare: %lld matching vehicle states (of %zu and %zu); "
+              "%lld only in A, %lld only in B\n",
+              static_cast<long long>(c.samples), states_a, states_b,
+              static_cast<long long>(c.only_in_a), static_cast<long long>(c.only_in_b));
+  if (c.samples > c.non_finite) {
+    std::printf("  max position difference %.3e m, max velocity difference %.3e m/s\n",
+                c.max_pos, c.max_vel);
+  }
+  if (c.non_finite > 0) {
+    std::printf("  %lld matching states differ by a non-finite amount (NaN or Inf)\n",
+                static_cast<long long>(c.non_finite));
+  }
+  if (c.samples == 0) {
+    std::printf("  NO matching states\n");
+  } else {
+    std::printf("  %s (tolerances %.3g m, %.3g m/s)\n",
+                c.within_tolerance ? "within tolerance" : "BEYOND TOLERANCE",
+                opt.position_tol_m, opt.velocity_tol_mps);
+  }
+  if (!c.complete) {
+    std::printf(opt.allow_missing
+                    ? "  states only in one log ignored (--allow-missing)\n"
+                    : "  INCOMPLETE: states only in one log fail the comparison "
+                      "(--allow-missing compares only the states both logs hold)\n");
+  }
 }
 
 }  // namespace
@@ -59,46 +151,21 @@ int RunCompare(const CompareOptions& opt) {
     std::cerr << "shoal compare: --position-tol-m and --velocity-tol-mps must be >= 0\n";
     return kExitBadInput;
   }
-  std::map<Key, Sample> a, b;
+  States a, b;
+  std::vector<std::string> warnings;
   std::string err;
-  if (!ReadStates(opt.a, &a, &err) || !ReadStates(opt.b, &b, &err)) {
+  if (!ReadStates(opt.a, &a, &warnings, &err) || !ReadStates(opt.b, &b, &warnings, &err)) {
     std::cerr << "shoal compare: " << err << "\n";
     return kExitBadInput;
   }
-  double max_pos = 0.0, max_vel = 0.0;
-  std::int64_t samples = 0;
-  for (const auto& [key, sa] : a) {
-    auto it = b.find(key);
-    if (it == b.end()) continue;
-    ++samples;
-    max_pos = std::max(max_pos, (sa.eta.head<3>() - it->second.eta.head<3>()).norm());
-    max_vel = std::max(max_vel, (sa.eta_dot - it->second.eta_dot).norm());
-  }
-  // NaN differences (a non-finite state on one side) are beyond any tolerance.
-  const bool within = samples > 0 && max_pos <= opt.position_tol_m &&
-                      max_vel <= opt.velocity_tol_mps;
+  for (const std::string& w : warnings) std::cerr << "shoal compare: warning: " << w << "\n";
+  const Comparison c = Compare(a, b, opt);
   if (opt.json) {
-    nlohmann::ordered_json j;
-    j["max_position_diff_m"] = samples ? max_pos : NAN;
-    j["max_velocity_diff_mps"] = samples ? max_vel : NAN;
-    j["samples"] = samples;
-    j["states_a"] = a.size();
-    j["states_b"] = b.size();
-    j["position_tol_m"] = opt.position_tol_m;
-    j["velocity_tol_mps"] = opt.velocity_tol_mps;
-    j["within_tolerance"] = within;
-    std::cout << JsonText(j) << "\n";
+    PrintJson(c, a.size(), b.size(), warnings, opt);
   } else {
-    std::printf("shoal compare: %lld matching vehicle states (of %zu and %zu)\n",
-                static_cast<long long>(samples), a.size(), b.size());
-    std::printf("  max position difference %.3e m, max velocity difference %.3e m/s\n",
-                max_pos, max_vel);
-    std::printf("  %s (tolerances %.3g m, %.3g m/s)\n",
-                within ? "within tolerance"
-                       : (samples ? "BEYOND TOLERANCE" : "NO matching states"),
-                opt.position_tol_m, opt.velocity_tol_mps);
+    PrintText(c, a.size(), b.size(), opt);
   }
-  return within ? kExitOk : kExitFailed;
+  return c.passed ? kExitOk : kExitFailed;
 }
 
 }  // namespace shoal

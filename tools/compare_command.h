@@ -11,12 +11,17 @@ struct CompareOptions {
   /// the last digits of a log written elsewhere) and flag any other difference.
   double position_tol_m = 1e-9;
   double velocity_tol_mps = 1e-9;
+  /// Compare only the states both logs hold. Without it a state in only one log fails
+  /// the comparison (a truncated log must not pass); with it, for a log known to be
+  /// partial (lcm-logger may drop states of a run on a shared bus).
+  bool allow_missing = false;
   bool json = false;
 };
 
 /// `shoal compare A B`: vehicle states of two logs at matching (vehicle, time).
-/// Exit 0 with at least one matching sample and every difference within the tolerances,
-/// 1 with none or beyond a tolerance, 2 for unreadable input (docs/cli.md).
+/// Exit 0 with at least one matching state, every difference finite and within the
+/// tolerances, and (unless allow_missing) no state in only one of the logs; 1 otherwise;
+/// 2 for unreadable input (docs/cli.md).
 int RunCompare(const CompareOptions& opt);
 
 }  // namespace shoal

@@ -74,6 +74,9 @@ CLI::App* AddCompare(CLI::App* app, shoal::CompareOptions* cmp) {
   c->add_option("--velocity-tol-mps", cmp->velocity_tol_mps,
                 "Largest velocity difference (m/s) that passes; exit 1 beyond it")
       ->capture_default_str();
+  c->add_flag("--allow-missing", cmp->allow_missing,
+              "Compare only the states both logs hold (a log known to be partial); without "
+              "it a state in only one log fails the comparison");
   c->add_flag("--json", cmp->json, "Print one JSON object");
   return c;
 }

@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cmath>
 #include <dirent.h>
+#include <fstream>
+#include <functional>
 #include <map>
 #include <thread>
 
@@ -103,8 +105,10 @@ TEST(RunCli, BadInputExitsTwoBeforeAnythingStarts) {
   EXPECT_EQ(RunShoal("compare /nonexistent.lcmlog " + empty, "cmp_bad1").status, 2);
   const auto c2 = RunShoal("compare " + empty + " " + empty, "cmp_bad2");
   EXPECT_EQ(c2.status, 2);
-  EXPECT_NE(c2.err.find("empty or not an LCM log"), std::string::npos) << c2.err;
-  EXPECT_EQ(RunShoal("compare " + text + " " + text, "cmp_bad3").status, 2);
+  EXPECT_NE(c2.err.find("empty file"), std::string::npos) << c2.err;
+  const auto c3 = RunShoal("compare " + text + " " + text, "cmp_bad3");
+  EXPECT_EQ(c3.status, 2);
+  EXPECT_NE(c3.err.find("not an LCM log"), std::string::npos) << c3.err;
 }
 
 TEST(SimCli, HelpOnEveryCommand) {
@@ -221,6 +225,148 @@ TEST(CompareCli, ToleranceDecidesTheExitStatus) {
   EXPECT_EQ(status(pos / 2, 2 * vel), 1);  // each tolerance counts on its own
   EXPECT_EQ(status(2 * pos, vel / 2), 1);
   EXPECT_EQ(RunShoal("compare " + a + " " + b + " --position-tol-m -1", "cmp_tol_bad").status, 2);
+}
+
+// Copies the LCM log `from` to `to`, passing every SHOAL_STATE_* message through `edit`
+// (which returns false to leave the state out).
+void CopyLogEditingStates(const std::string& from, const std::string& to,
+                          const std::function<bool(vehicle_state_t*)>& edit) {
+  lcm::LogFile in(from, "r"), out(to, "w");
+  ASSERT_TRUE(in.good() && out.good()) << from << " -> " << to;
+  while (const lcm::LogEvent* ev = in.readNextEvent()) {
+    lcm::LogEvent copy = *ev;
+    std::vector<unsigned char> buf;
+    if (ev->channel.rfind("SHOAL_STATE_", 0) == 0) {
+      vehicle_state_t m{};
+      ASSERT_GE(m.decode(ev->data, 0, ev->datalen), 0);
+      if (!edit(&m)) continue;
+      buf.resize(m.getEncodedSize());
+      m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+      copy.data = buf.data();
+      copy.datalen = static_cast<int32_t>(buf.size());
+    }
+    ASSERT_EQ(out.writeEvent(&copy), 0);
+  }
+}
+
+// A short paper Example 1 log for the comparisons below (exit 1: not converged in 20 s).
+std::string CompareLog(const std::string& name) {
+  const std::string log = TmpPath(name);
+  EXPECT_EQ(RunShoal("sim " + SourcePath("scenarios/paper_example1.toml") +
+                         " --duration 20 --out " + log, name).status, 1);
+  return log;
+}
+
+// A state that is not finite on one side makes a difference that is not finite: it fails
+// the comparison (exit 1) and is counted, whatever the tolerances.
+TEST(CompareCli, NonFiniteDifferenceFails) {
+  const std::string a = CompareLog("cmp_nan_a.lcmlog"), b = TmpPath("cmp_nan_b.lcmlog");
+  std::int64_t edited = 0;
+  CopyLogEditingStates(a, b, [&](vehicle_state_t* m) {
+    if (m->vehicle_id == 3 && m->utime >= 10'000'000) {
+      m->eta[0] = std::nan("");
+      ++edited;
+    } else if (m->vehicle_id == 1 && m->utime == 5'000'000) {
+      m->eta_dot[1] = INFINITY;
+      ++edited;
+    }
+    return true;
+  });
+  ASSERT_GT(edited, 400);  // 10 s of vehicle 3 at 50 Hz, and one state of vehicle 1
+  for (const std::string& extra : {std::string(""), std::string(" --allow-missing"),
+                                   std::string(" --position-tol-m 1e9 --velocity-tol-mps 1e9")}) {
+    const auto r = RunShoal("compare " + a + " " + b + " --json" + extra, "cmp_nan");
+    EXPECT_EQ(r.status, 1) << extra << r.out << r.err;
+    const auto j = ParseJson(r.out);
+    EXPECT_EQ(j["non_finite_diffs"], edited) << r.out;
+    EXPECT_EQ(j["samples"], 6006) << r.out;
+    EXPECT_EQ(j["within_tolerance"], false) << r.out;
+    EXPECT_EQ(j["passed"], false) << r.out;
+    EXPECT_EQ(j["max_position_diff_m"].get<double>(), 0.0) << "the finite ones: " << r.out;
+  }
+  // NaN against NaN is no agreement either.
+  EXPECT_EQ(RunShoal("compare " + b + " " + b, "cmp_nan_same").status, 1);
+  const auto text = RunShoal("compare " + b + " " + a, "cmp_nan_text");
+  EXPECT_EQ(text.status, 1);
+  EXPECT_NE(text.out.find(std::to_string(edited) + " matching states differ by a non-finite"),
+            std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("BEYOND TOLERANCE"), std::string::npos) << text.out;
+}
+
+// A state held by only one log fails the comparison (a truncated log must not pass);
+// --allow-missing compares the states both hold, and still fails when none match.
+TEST(CompareCli, StatesInOnlyOneLogFailUnlessAllowed) {
+  const std::string a = CompareLog("cmp_miss_a.lcmlog"), cut = TmpPath("cmp_miss_cut.lcmlog");
+  {
+    const std::string bytes = ReadFile(a);
+    ASSERT_GT(bytes.size(), 1000000u);
+    std::ofstream(cut, std::ios::binary) << bytes.substr(0, 1000000);  // cut inside an event
+  }
+  const auto same = RunShoal("compare " + a + " " + a + " --json", "cmp_miss_same");
+  EXPECT_EQ(same.status, 0) << same.out << same.err;
+  const auto sj = ParseJson(same.out);
+  EXPECT_EQ(sj["samples"], 6006) << same.out;  // 6 vehicles x (20 s x 50 Hz + 1)
+  EXPECT_EQ(sj["only_in_a"], 0) << same.out;
+  EXPECT_EQ(sj["only_in_b"], 0) << same.out;
+  EXPECT_EQ(sj["complete"], true) << same.out;
+  EXPECT_EQ(sj["passed"], true) << same.out;
+  EXPECT_TRUE(sj["warnings"].empty()) << same.out;
+
+  const auto strict = RunShoal("compare " + a + " " + cut + " --json", "cmp_miss_strict");
+  EXPECT_EQ(strict.status, 1) << strict.out << strict.err;
+  EXPECT_NE(strict.err.find("truncated"), std::string::npos) << strict.err;
+  const auto j = ParseJson(strict.out);
+  const std::int64_t in_cut = j["states_b"].get<std::int64_t>();
+  ASSERT_GT(in_cut, 100);
+  ASSERT_LT(in_cut, 6006);
+  EXPECT_EQ(j["samples"], in_cut) << strict.out;
+  EXPECT_EQ(j["only_in_a"], 6006 - in_cut) << strict.out;
+  EXPECT_EQ(j["only_in_b"], 0) << strict.out;
+  EXPECT_EQ(j["within_tolerance"], true) << strict.out;
+  EXPECT_EQ(j["complete"], false) << strict.out;
+  EXPECT_EQ(j["passed"], false) << strict.out;
+  ASSERT_EQ(j["warnings"].size(), 1u) << strict.out;
+  EXPECT_NE(j["warnings"][0].get<std::string>().find("truncated"), std::string::npos);
+  // The other way round: the states are only in B.
+  const auto swapped = RunShoal("compare " + cut + " " + a, "cmp_miss_swapped");
+  EXPECT_EQ(swapped.status, 1) << swapped.out << swapped.err;
+  EXPECT_NE(swapped.out.find("0 only in A, " + std::to_string(6006 - in_cut) + " only in B"),
+            std::string::npos) << swapped.out;
+  EXPECT_NE(swapped.out.find("INCOMPLETE"), std::string::npos) << swapped.out;
+
+  const auto allowed = RunShoal("compare " + a + " " + cut + " --allow-missing --json",
+                                "cmp_miss_allowed");
+  EXPECT_EQ(allowed.status, 0) << allowed.out << allowed.err;
+  const auto aj = ParseJson(allowed.out);
+  EXPECT_EQ(aj["samples"], in_cut) << allowed.out;
+  EXPECT_EQ(aj["only_in_a"], 6006 - in_cut) << allowed.out;
+  EXPECT_EQ(aj["allow_missing"], true) << allowed.out;
+  EXPECT_EQ(aj["passed"], true) << allowed.out;
+
+  // Nothing in common (every state 1 us later): exit 1 with --allow-missing too.
+  const std::string shifted = TmpPath("cmp_miss_shifted.lcmlog");
+  CopyLogEditingStates(a, shifted, [](vehicle_state_t* m) {
+    m->utime += 1;
+    return true;
+  });
+  const auto none = RunShoal("compare " + a + " " + shifted + " --allow-missing --json",
+                             "cmp_miss_none");
+  EXPECT_EQ(none.status, 1) << none.out << none.err;
+  const auto nj = ParseJson(none.out);
+  EXPECT_EQ(nj["samples"], 0) << none.out;
+  EXPECT_EQ(nj["only_in_a"], 6006) << none.out;
+  EXPECT_EQ(nj["only_in_b"], 6006) << none.out;
+  EXPECT_TRUE(nj["max_position_diff_m"].is_null()) << none.out;
+  // A state left out in the middle of B (not at its end) is found too.
+  const std::string holed = TmpPath("cmp_miss_holed.lcmlog");
+  CopyLogEditingStates(a, holed, [](vehicle_state_t* m) {
+    return !(m->vehicle_id == 2 && m->utime == 7'000'000);
+  });
+  const auto hole = RunShoal("compare " + a + " " + holed + " --json", "cmp_miss_hole");
+  EXPECT_EQ(hole.status, 1) << hole.out << hole.err;
+  EXPECT_EQ(ParseJson(hole.out)["only_in_a"], 1) << hole.out;
+  EXPECT_EQ(RunShoal("compare " + a + " " + holed + " --allow-missing", "cmp_miss_hole2").status,
+            0);
 }
 
 TEST(SimCli, VersionPrintsTheProjectVersion) {
