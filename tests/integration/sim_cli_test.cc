@@ -84,6 +84,21 @@ TEST(SimCli, UsageErrorsExitTwo) {
   EXPECT_EQ(RunShoal("frobnicate", "u6").status, 2);
 }
 
+// A refused run writes nothing: an earlier log of the same name stays as it was (here the
+// process output folder <log>.d exists as a file, so the run is refused).
+TEST(RunCli, ARefusedRunLeavesAnEarlierLogAsItWas) {
+  const std::string log = TmpPath("refused_keep.lcmlog");
+  FILE* f = std::fopen(log.c_str(), "w");
+  std::fputs("an earlier run's log\n", f);
+  std::fclose(f);
+  std::system(("rm -rf '" + log + ".d' && touch '" + log + ".d'").c_str());
+  const auto r = RunShoal("run " + SourcePath("scenarios/paper_example1.toml") + " --out " + log,
+                          "run_refused");
+  EXPECT_EQ(r.status, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("is not a folder"), std::string::npos) << r.err;
+  EXPECT_EQ(ReadFile(log), "an earlier run's log\n");
+}
+
 // shoal run and shoal compare refuse bad input before starting anything.
 TEST(RunCli, BadInputExitsTwoBeforeAnythingStarts) {
   const std::string bad = SourcePath("tests/data/bad_scenarios/negative_control_rate.toml");
@@ -168,13 +183,18 @@ TEST(RunCli, DivergingRunExitsOneLikeShoalSimAndSaysSo) {
   ASSERT_LT(t_diverged, 10.0) << "diverges quickly: " << sim.out;
 
   const std::string log = TmpPath("diverge_run.lcmlog");
-  const std::string duration = std::to_string(std::ceil(t_diverged) + 2);
+  // The 0.9 s delay would let the clock master release 45 ticks per window, and
+  // lcm-logger's 30-message queue then loses states of each burst: the verdict read back
+  // from the log would depend on which. Three ticks per window keep the log complete.
+  const std::string duration =
+      std::to_string(std::ceil(t_diverged) + 2) + " --max-lookahead 3";
   const auto run = RunShoal("run " + scenario + " --duration " + duration + " --json --out " + log,
                             "diverge_run");
   EXPECT_EQ(run.status, 1) << run.out << run.err;
   const auto rj = ParseJson(run.out);
   EXPECT_EQ(rj["converged"], false) << run.out;
   EXPECT_EQ(rj["diverged_follower"], follower) << run.out;
+  EXPECT_EQ(rj["log_states"], rj["log_states_expected"]) << run.out;
   const auto text = RunShoal("run " + scenario + " --duration " + duration + " --out " + log,
                              "diverge_run_text");
   EXPECT_EQ(text.status, 1) << text.out << text.err;
