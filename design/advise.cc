@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "scenario/loader.h"
+#include "design/format.h"
 
 namespace shoal {
 namespace design {
@@ -113,25 +114,19 @@ void Describe(const AdviceInput& in, double c, const AdviceOptions& o, GainAdvic
   }
 }
 
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.4g", v);
-  return buf;
-}
-
 }  // namespace
 
 GainAdvice AdviseGains(const AdviceInput& in, const AdviceOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   GainAdvice out;
   const std::vector<double> scales = ScalesNearestFirst(options);
-  const std::string range = "c in [" + Num(options.c_min) + ", " + Num(options.c_max) + "]";
+  const std::string range = "c in [" + G4(options.c_min) + ", " + G4(options.c_max) + "]";
   const double c = FirstCertifiedScale(in, scales, &out);
   if (c > 0.0) {
     out.certified_at_h = true;
     Describe(in, c, options, &out);
-    out.how = "the scale c = " + Num(c) + " nearest to the scenario's gains (k1 x c^2, k2 x c; " +
-              range + ") at which Theorem 3 certifies h = " + Num(in.theorem3.h_s) + " s";
+    out.how = "the scale c = " + G4(c) + " nearest to the scenario's gains (k1 x c^2, k2 x c; " +
+              range + ") at which Theorem 3 certifies h = " + G4(in.theorem3.h_s) + " s";
   } else {
     const auto [lo, hi] = ScalesFeasibleWithoutDelay(in, scales, &out);
     if (lo == 0.0) {
@@ -143,7 +138,7 @@ GainAdvice AdviseGains(const AdviceInput& in, const AdviceOptions& options) {
       const double best = BestMaxDelayScale(in, lo / step, hi * step, options, &out);
       Describe(in, best, options, &out);
       out.how = "no scale " + range + " is certified by Theorem 3 at h = " +
-                Num(in.theorem3.h_s) + " s; c = " + Num(best) +
+                G4(in.theorem3.h_s) + " s; c = " + G4(best) +
                 " maximises the delay Theorem 3 certifies (golden section over log c)";
     }
   }

@@ -5,16 +5,11 @@
 #include <cstdio>
 
 #include "core/topology.h"
+#include "design/format.h"
 
 namespace shoal {
 namespace design {
 namespace {
-
-std::string G(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.4g", v);
-  return buf;
-}
 
 double WallSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -22,7 +17,7 @@ double WallSince(std::chrono::steady_clock::time_point t0) {
 
 std::string PositiveError(const char* flag, const std::optional<double>& v, const char* what) {
   if (v && !(std::isfinite(*v) && *v > 0.0)) {
-    return std::string(flag) + " must be a positive number (got " + G(*v) + "): " + what;
+    return std::string(flag) + " must be a positive number (got " + G4(*v) + "): " + what;
   }
   return "";
 }
@@ -39,30 +34,30 @@ std::string ValueError(const DesignRequest& o) {
     return e;
   }
   if (o.kappa && !(std::isfinite(*o.kappa) && *o.kappa >= 0.0 && *o.kappa < 1.0)) {
-    return "--kappa must be in [0, 1) (got " + G(*o.kappa) +
+    return "--kappa must be in [0, 1) (got " + G4(*o.kappa) +
            "): the bound on d tau/dt of Assumption 3";
   }
   if (!(std::isfinite(o.alpha) && o.alpha > 0.0)) {
-    return "--alpha must be a positive number (got " + G(o.alpha) + "): Theorem 1's alpha";
+    return "--alpha must be a positive number (got " + G4(o.alpha) + "): Theorem 1's alpha";
   }
   if (!(std::isfinite(o.beta) && o.beta > 0.0)) {
-    return "--beta must be a positive number (got " + G(o.beta) + "): Theorem 1's beta";
+    return "--beta must be a positive number (got " + G4(o.beta) + "): Theorem 1's beta";
   }
   if (o.rho0 && !(std::isfinite(*o.rho0) && *o.rho0 >= 0.0)) {
-    return "--rho0 must be a number >= 0 (got " + G(*o.rho0) +
+    return "--rho0 must be a number >= 0 (got " + G4(*o.rho0) +
            "): the Lipschitz constant of the uncertain factor";
   }
   if (!(std::isfinite(o.safety) && o.safety >= 1.0)) {
-    return "--safety must be a number >= 1 (got " + G(o.safety) +
+    return "--safety must be a number >= 1 (got " + G4(o.safety) +
            "): the required margin is safety x h";
   }
   if (!(std::isfinite(o.tune_horizon_s) && o.tune_horizon_s > 0.0)) {
-    return "--tune-horizon must be a positive number of seconds (got " + G(o.tune_horizon_s) + ")";
+    return "--tune-horizon must be a positive number of seconds (got " + G4(o.tune_horizon_s) + ")";
   }
   if (o.empirical_duration_s != -1.0 &&
       !(std::isfinite(o.empirical_duration_s) && o.empirical_duration_s > 0.0)) {
     return "--empirical-duration must be a positive number of seconds (got " +
-           G(o.empirical_duration_s) + ")";
+           G4(o.empirical_duration_s) + ")";
   }
   return "";
 }
@@ -124,7 +119,7 @@ std::string Theorem3NotApplicable(const DesignReport& r) {
   if (!kappa) {
     return "the delay's rate is unbounded (uniform jitter draws a new delay per message)";
   }
-  if (*kappa >= 1.0) return "kappa = " + G(*kappa) + " >= 1 (Assumption 3 needs tau' <= kappa < 1)";
+  if (*kappa >= 1.0) return "kappa = " + G4(*kappa) + " >= 1 (Assumption 3 needs tau' <= kappa < 1)";
   if (r.factor != FactorKind::kUncovered) return "";
   return r.disturbance == DisturbanceKind::kOceanCurrent
              ? "the ocean current has no Lipschitz bound of the form f(x_i) - f(x_0) "
@@ -245,10 +240,10 @@ bool DesignRequest::IsValid(const Scenario& s, std::string* why) const {
   const theory::Lipschitz lip = theory::LipschitzOf(s.disturbance);
   if (e.empty() && rho0 && lip.applicable && s.disturbance.kind != DisturbanceKind::kNone &&
       *rho0 < lip.rho0) {
-    e = "--rho0 " + G(*rho0) + " is below the uncertain factor's own Lipschitz constant " +
-        G(lip.rho0) + " (" + DisturbanceName(s.disturbance.kind) +
+    e = "--rho0 " + G4(*rho0) + " is below the uncertain factor's own Lipschitz constant " +
+        G4(lip.rho0) + " (" + DisturbanceName(s.disturbance.kind) +
         "): a certificate would rest on a bound the model does not satisfy; give --rho0 >= " +
-        G(lip.rho0) + " or leave it out";
+        G4(lip.rho0) + " or leave it out";
   }
   if (why) *why = e;
   return e.empty();

@@ -4,19 +4,13 @@
 #include <sstream>
 
 #include "design/report.h"
+#include "design/format.h"
 
 namespace shoal {
 namespace design {
 namespace {
 
 using theory::Complex;
-
-std::string Fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), f, v);
-  return buf;
-}
-std::string G(double v) { return Fmt("%.4g", v); }
 
 std::string ComplexText(const Complex& c) {
   if (std::abs(c.imag()) < 1e-12) return Fmt("%.5g", c.real());
@@ -28,13 +22,13 @@ std::string ComplexListText(const std::vector<Complex>& v) {
   for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + ComplexText(v[i]);
   return s;
 }
-std::string OrNone(const std::optional<double>& v) { return v ? G(*v) : "none"; }
+std::string OrNone(const std::optional<double>& v) { return v ? G4(*v) : "none"; }
 
 const char* kComponent[] = {"x", "y", "z", "theta", "psi"};
 
 void TopologyText(const DesignReport& r, std::ostream& txt) {
   txt << "shoal design: " << r.scenario_name << " (" << r.followers << " followers; k1 = "
-      << G(r.k1) << ", k2 = " << G(r.k2) << "; alpha = " << G(r.alpha) << ", beta = " << G(r.beta)
+      << G4(r.k1) << ", k2 = " << G4(r.k2) << "; alpha = " << G4(r.alpha) << ", beta = " << G4(r.beta)
       << ")\n";
   txt << "topology\n  H eigenvalues: " << ComplexListText(r.eigenvalues) << "\n";
   if (r.unreachable_followers.empty()) {
@@ -53,16 +47,16 @@ void DelayAndFactorText(const DesignReport& r, std::ostream& txt) {
                              : std::string("model ") + DelayKindName(r.delay_model))
       << (!r.per_link_overrides || r.delay_from_flags ? ""
                                                       : " (with per-link overrides: max over links)")
-      << ": h = " << G(d.h_s) << " s, kappa = "
-      << (d.kappa ? G(*d.kappa) : std::string("unbounded (a new random delay per message: tau jumps)"))
+      << ": h = " << G4(d.h_s) << " s, kappa = "
+      << (d.kappa ? G4(*d.kappa) : std::string("unbounded (a new random delay per message: tau jumps)"))
       << (d.time_varying ? " (time-varying)"
           : d.constant   ? " (one constant delay)"
                          : " (different constant delays)")
       << "\n";
   txt << "uncertain factor\n  " << DisturbanceName(r.disturbance);
   if (r.disturbance != DisturbanceKind::kOceanCurrent) {
-    txt << ": lambda_max(G^2) = " << G(r.lipschitz.lambda_max_G2)
-        << ", lambda_max(J^2) = " << G(r.lipschitz.lambda_max_J2);
+    txt << ": lambda_max(G^2) = " << G4(r.lipschitz.lambda_max_G2)
+        << ", lambda_max(J^2) = " << G4(r.lipschitz.lambda_max_J2);
   }
   txt << ", rho0 = " << OrNone(r.rho0) << (r.rho0_from_flag ? " (--rho0)" : "") << "\n  "
       << r.lipschitz.note << "\n";
@@ -85,21 +79,21 @@ void Theorem1Text(const DesignReport& r, std::ostream& txt) {
     txt << (i ? ", " : "") << Fmt("%.4f", t1.W_eigenvalues(i));
   }
   txt << "\n  M^2 eigenvalues: " << ComplexListText(t1.M2_eigenvalues)
-      << "\n  lambda_max(W) = " << G(t1.lambda_max_W) << ", lambda_max(M^2) = " << G(t1.lambda_max_M2)
-      << ", lambda_max(M^T M) = " << G(t1.lambda_max_MtM) << "\n";
+      << "\n  lambda_max(W) = " << G4(t1.lambda_max_W) << ", lambda_max(M^2) = " << G4(t1.lambda_max_M2)
+      << ", lambda_max(M^T M) = " << G4(t1.lambda_max_MtM) << "\n";
   auto bound = [&](const char* what, const std::optional<double>& a,
                    const std::optional<double>& b, double lm) {
     txt << "  " << what << ": ";
     if (a) {
-      txt << "k1 > " << G(*a) << ", k2 > " << G(*b) << "\n";
+      txt << "k1 > " << G4(*a) << ", k2 > " << G4(*b) << "\n";
     } else {
-      txt << "no gains (alpha beta = " << G(r.alpha * r.beta) << " <= " << G(lm) << ")\n";
+      txt << "no gains (alpha beta = " << G4(r.alpha * r.beta) << " <= " << G4(lm) << ")\n";
     }
   };
   bound("paper's (15) with lambda_max(M^2)", t1.k1_min, t1.k2_min, t1.lambda_max_M2);
   bound("corrected, lambda_max(M^T M)", t1.k1_min_corrected, t1.k2_min_corrected,
         t1.lambda_max_MtM);
-  txt << "  P = Q(A+B) + (A+B)^T Q: largest eigenvalue " << G(t1.P_max_eigenvalue)
+  txt << "  P = Q(A+B) + (A+B)^T Q: largest eigenvalue " << G4(t1.P_max_eigenvalue)
       << (t1.certifies ? " < 0: certifies these gains (no delay, no uncertain factor)"
                        : (t1.Q_positive_definite ? " >= 0: does not certify these gains"
                                                  : "; Q is not positive definite (k1 <= "
@@ -114,26 +108,26 @@ void Theorem2Text(const DesignReport& r, std::ostream& txt) {
   }
   const theory::Theorem2& t2 = *r.theorem2;
   const double ab = r.alpha * r.beta;
-  txt << "theorem 2 (no delay, uncertain factor with rho0 = " << G(t2.rho0) << ")\n"
-      << "  paper's (20)-(21): k11 = " << G(t2.k11) << ", k21 = " << G(t2.k21)
+  txt << "theorem 2 (no delay, uncertain factor with rho0 = " << G4(t2.rho0) << ")\n"
+      << "  paper's (20)-(21): k11 = " << G4(t2.k11) << ", k21 = " << G4(t2.k21)
       << ", k12 = " << OrNone(t2.k12) << ", k22 = " << OrNone(t2.k22);
   if (t2.k1_min) {
-    txt << "  =>  k1 > " << G(*t2.k1_min) << ", k2 > " << G(*t2.k2_min) << "\n";
+    txt << "  =>  k1 > " << G4(*t2.k1_min) << ", k2 > " << G4(*t2.k2_min) << "\n";
   } else {
     txt << "  =>  no gains (alpha beta - 2 lambda_max(M^2) = "
-        << G(ab - 2 * r.theorem1->lambda_max_M2) << " <= 0)\n";
+        << G4(ab - 2 * r.theorem1->lambda_max_M2) << " <= 0)\n";
   }
-  txt << "  corrected (factor 2, M^T M): k11 = " << G(t2.k11_corrected)
-      << ", k21 = " << G(t2.k21_corrected) << ", k12 = " << OrNone(t2.k12_corrected)
+  txt << "  corrected (factor 2, M^T M): k11 = " << G4(t2.k11_corrected)
+      << ", k21 = " << G4(t2.k21_corrected) << ", k12 = " << OrNone(t2.k12_corrected)
       << ", k22 = " << OrNone(t2.k22_corrected);
   if (t2.k1_min_corrected) {
-    txt << "  =>  k1 > " << G(*t2.k1_min_corrected) << ", k2 > " << G(*t2.k2_min_corrected)
+    txt << "  =>  k1 > " << G4(*t2.k1_min_corrected) << ", k2 > " << G4(*t2.k2_min_corrected)
         << "\n";
   } else {
     txt << "  =>  no gains (alpha beta - 2 lambda_max(M^T M) = "
-        << G(ab - 2 * r.theorem1->lambda_max_MtM) << " <= 0)\n";
+        << G4(ab - 2 * r.theorem1->lambda_max_MtM) << " <= 0)\n";
   }
-  txt << "  P~ for these gains: largest eigenvalue " << G(t2.P_tilde_max_eigenvalue)
+  txt << "  P~ for these gains: largest eigenvalue " << G4(t2.P_tilde_max_eigenvalue)
       << (t2.certifies ? " < 0: certifies them (no delay)" : ": does not certify them") << "\n";
 }
 
@@ -145,9 +139,9 @@ void Theorem3Text(const DesignReport& r, std::ostream& txt) {
     return;
   }
   const MaxDelayResult& maxd = t.max_delay;
-  txt << "  lambda_max(G^2) = " << G(t.input.lambda_G2) << ", lambda_max(J^2) = "
-      << G(t.input.lambda_J2) << (t.rho0_from_flag ? " (from --rho0)" : "") << "\n";
-  txt << "  at h = " << G(t.input.h_s) << " s, kappa = " << G(t.input.kappa) << ": "
+  txt << "  lambda_max(G^2) = " << G4(t.input.lambda_G2) << ", lambda_max(J^2) = "
+      << G4(t.input.lambda_J2) << (t.rho0_from_flag ? " (from --rho0)" : "") << "\n";
+  txt << "  at h = " << G4(t.input.h_s) << " s, kappa = " << G4(t.input.kappa) << ": "
       << (t.at_h.certifies() ? "FEASIBLE (certified)" : "infeasible") << "; " << t.at_h.message
       << "\n";
   if (!maxd.input_valid) {
@@ -155,18 +149,18 @@ void Theorem3Text(const DesignReport& r, std::ostream& txt) {
   } else if (!maxd.feasible_at_zero) {
     txt << "  max delay: none (infeasible even at h = 0; docs/theory_theorem3.md says why)\n";
   } else {
-    txt << "  max_delay_s = " << G(maxd.max_delay_s) << " s" << (maxd.hit_cap ? " (search cap)" : "")
+    txt << "  max_delay_s = " << G4(maxd.max_delay_s) << " s" << (maxd.hit_cap ? " (search cap)" : "")
         << " (" << maxd.solves << " solves)\n";
   }
   const PaperMultipliersResult& p = t.paper;
   txt << "  paper's multipliers (X = 0.3I, Y = 0, Z = I, psi = 0.1I, Phi = 0.6I), best Q: "
-      << (p.solved ? "lambda_max(Xi) = " + G(p.max_eigenvalue) +
+      << (p.solved ? "lambda_max(Xi) = " + G4(p.max_eigenvalue) +
                          (p.max_eigenvalue < 0 ? " < 0 (certifies)" : " >= 0 (does not certify)")
                    : p.message)
       << "\n";
   if (!t.certificate_path.empty()) {
     const Theorem3Result& c = t.CertificateResult();
-    txt << "  certificate (h = " << G(c.input.h_s) << " s, "
+    txt << "  certificate (h = " << G4(c.input.h_s) << " s, "
         << (c.certifies() ? "feasible" : "NOT feasible: the solver's last matrices")
         << ") written to " << t.certificate_path << "\n";
   }
@@ -183,7 +177,7 @@ void DelayMarginText(const DesignReport& r, std::ostream& txt) {
   }
   const theory::EigenMargin& c = m.per_eigenvalue[m.critical];
   txt << "  delay_margin_s = " << Fmt("%.4f", m.tau_s) << " s (eigenvalue " << ComplexText(c.lambda)
-      << ", crossing at " << G(std::abs(c.omega_rad_s)) << " rad/s)";
+      << ", crossing at " << G4(std::abs(c.omega_rad_s)) << " rad/s)";
   if (h > 0) txt << " = " << Fmt("%.2f", m.tau_s / h) << " x h";
   txt << "\n  per eigenvalue:";
   for (std::size_t i = 0; i < m.per_eigenvalue.size(); ++i) {
@@ -200,12 +194,12 @@ void FactorMarginText(const DesignReport& r, std::ostream& txt) {
          "corner; indication only)\n  ";
   if (!f.stable_at_zero) {
     txt << "UNSTABLE without delay: component " << kComponent[f.component] << " with slope "
-        << G(f.v_slope) << " on its rate, eigenvalue " << ComplexText(f.lambda)
+        << G4(f.v_slope) << " on its rate, eigenvalue " << ComplexText(f.lambda)
         << " (lambda k2 - slope has no damping left)\n";
     return;
   }
   txt << Fmt("%.4f", f.tau_s) << " s (component " << kComponent[f.component] << ", eigenvalue "
-      << ComplexText(f.lambda) << ", slopes dx " << G(f.x_slope) << ", dv " << G(f.v_slope) << ")";
+      << ComplexText(f.lambda) << ", slopes dx " << G4(f.x_slope) << ", dv " << G4(f.v_slope) << ")";
   if (r.delay.h_s > 0) txt << " = " << Fmt("%.2f", f.tau_s / r.delay.h_s) << " x h";
   txt << "\n";
 }
@@ -215,34 +209,34 @@ void EmpiricalText(const EmpiricalSection& e, std::ostream& txt) {
   txt << "empirical margin (--empirical)\n";
   if (!em.converges_without_delay) {
     txt << "  does NOT converge even with the minimum delay of one control period ("
-        << G(em.period_s) << " s)\n";
+        << G4(em.period_s) << " s)\n";
   } else if (em.capped) {
-    txt << "  converges at every delay tried, up to " << G(em.cap_s)
+    txt << "  converges at every delay tried, up to " << G4(em.cap_s)
         << " s (the neighbour timeout limits the search)\n";
   } else {
     txt << "  empirical_margin_s = " << Fmt("%.3f", em.margin_s) << " s (converges; does not at "
         << Fmt("%.3f", em.first_failing_s) << " s; resolution one control period)\n";
   }
-  txt << "  " << em.runs << " runs of " << G(em.duration_s) << " s in " << Fmt("%.1f", e.wall_s)
+  txt << "  " << em.runs << " runs of " << G4(em.duration_s) << " s in " << Fmt("%.1f", e.wall_s)
       << " s wall; model: " << e.model << "\n";
 }
 
 void TunePointText(const DesignReport& r, const char* name, const TunePoint& p,
                    double factor_margin_s, std::ostream& txt) {
-  txt << "  " << name << ": k1 = " << G(p.k1) << ", k2 = " << G(p.k2) << ", margin "
+  txt << "  " << name << ": k1 = " << G4(p.k1) << ", k2 = " << G4(p.k2) << ", margin "
       << Fmt("%.4f", p.margin_s) << " s";
   if (r.factor_margin_shown) {
     txt << " (with the factor linearised: " << Fmt("%.4f", factor_margin_s) << " s)";
   }
-  txt << ", cost " << G(p.cost) << " (position ISE " << G(p.position_ise_m2s) << " m^2 s), "
+  txt << ", cost " << G4(p.cost) << " (position ISE " << G4(p.position_ise_m2s) << " m^2 s), "
       << (p.converged ? "converged at " + Fmt("%.2f", p.convergence_time_s) + " s"
                       : std::string("did NOT converge"))
       << "\n";
 }
 
 std::string TuneIntegrand(const DesignReport& r, CostKind cost) {
-  const std::string pt = "(e_p/" + G(r.position_tol_m) + " m)^2";
-  const std::string vt = "(e_v/" + G(r.velocity_tol_mps) + " m/s)^2";
+  const std::string pt = "(e_p/" + G4(r.position_tol_m) + " m)^2";
+  const std::string vt = "(e_v/" + G4(r.velocity_tol_mps) + " m/s)^2";
   if (cost == CostKind::kPositionIse) return "e_p^2 dt";
   if (cost == CostKind::kIse) return pt + " + " + vt + " dt";
   return "t (" + pt + " + " + vt + ") dt";
@@ -251,8 +245,8 @@ std::string TuneIntegrand(const DesignReport& r, CostKind cost) {
 void TuneText(const DesignReport& r, const TuneSection& t, std::ostream& txt) {
   const TuneResult& tr = t.result;
   txt << "tune (--tune, cost " << CostName(t.cost) << ": integral of " << TuneIntegrand(r, t.cost)
-      << " over " << G(tr.horizon_s) << " s, summed over followers; margin >= " << G(r.safety)
-      << " x max(h, control period) = " << G(tr.required_margin_s) << " s)\n";
+      << " over " << G4(tr.horizon_s) << " s, summed over followers; margin >= " << G4(r.safety)
+      << " x max(h, control period) = " << G4(tr.required_margin_s) << " s)\n";
   TunePointText(r, "before", tr.before, t.before_factor_margin_s, txt);
   if (!tr.before_feasible) txt << "          (the scenario's gains do not meet the margin requirement)\n";
   if (tr.ok) {
@@ -262,15 +256,15 @@ void TuneText(const DesignReport& r, const TuneSection& t, std::ostream& txt) {
   }
   txt << "  starts:";
   for (const TuneStart& st : tr.starts) {
-    txt << " (" << G(st.k1_start) << ", " << G(st.k2_start) << ") -> ";
+    txt << " (" << G4(st.k1_start) << ", " << G4(st.k2_start) << ") -> ";
     if (st.usable) {
-      txt << "(" << G(st.k1) << ", " << G(st.k2) << ") cost " << G(st.cost) << ";";
+      txt << "(" << G4(st.k1) << ", " << G4(st.k2) << ") cost " << G4(st.cost) << ";";
     } else {
       txt << "not usable (" << st.message << ");";
     }
   }
   txt << "\n  " << tr.sim_runs << " simulations in " << Fmt("%.1f", t.wall_s) << " s wall"
-      << " (convergence times from full " << G(r.duration_s) << " s runs)\n";
+      << " (convergence times from full " << G4(r.duration_s) << " s runs)\n";
 }
 
 void AdviceText(const DesignReport& r, const AdviceSection& a, std::ostream& txt) {
@@ -280,14 +274,14 @@ void AdviceText(const DesignReport& r, const AdviceSection& a, std::ostream& txt
     return;
   }
   const GainAdvice& g = a.advice;
-  txt << "  k1 = " << G(g.k1) << ", k2 = " << G(g.k2) << ": " << g.how << "\n  ";
+  txt << "  k1 = " << G4(g.k1) << ", k2 = " << G4(g.k2) << ": " << g.how << "\n  ";
   if (g.certified_at_h) {
-    txt << "CERTIFIED by Theorem 3 at h = " << G(r.delay.h_s) << " s, kappa = "
-        << G(r.theorem3.input.kappa) << "; it certifies up to max_delay_s = "
-        << G(g.theorem3_max_delay_s) << " s\n";
+    txt << "CERTIFIED by Theorem 3 at h = " << G4(r.delay.h_s) << " s, kappa = "
+        << G4(r.theorem3.input.kappa) << "; it certifies up to max_delay_s = "
+        << G4(g.theorem3_max_delay_s) << " s\n";
   } else if (g.found) {
-    txt << "NOT certified at h = " << G(r.delay.h_s) << " s: Theorem 3 certifies up to "
-        << "max_delay_s = " << G(g.theorem3_max_delay_s) << " s (the LMI is only sufficient)\n";
+    txt << "NOT certified at h = " << G4(r.delay.h_s) << " s: Theorem 3 certifies up to "
+        << "max_delay_s = " << G4(g.theorem3_max_delay_s) << " s (the LMI is only sufficient)\n";
   } else {
     txt << "NOT certified: Theorem 3 certifies no delay for them\n";
   }

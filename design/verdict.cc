@@ -6,28 +6,24 @@
 #include <limits>
 #include <string>
 
+#include "design/format.h"
+
 namespace shoal {
 namespace design {
 namespace {
 
-std::string Num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.4g", v);
-  return buf;
-}
-
 std::string Lambda(const theory::Complex& l) {
-  if (std::abs(l.imag()) < 1e-12) return Num(l.real());
-  return Num(l.real()) + (l.imag() < 0 ? " - " : " + ") + Num(std::abs(l.imag())) + "j";
+  if (std::abs(l.imag()) < 1e-12) return G4(l.real());
+  return G4(l.real()) + (l.imag() < 0 ? " - " : " + ") + G4(std::abs(l.imag())) + "j";
 }
 
 /// k1 -> c^2 k1, k2 -> c k2 divides the margin by c: the gains that give `target_s`.
 std::string ScaleAdvice(const VerdictInput& in, double target_s) {
   const double c = in.margin->tau_s / target_s;
-  return "scale the gains to k1 = " + Num(c * c * in.k1) + ", k2 = " + Num(c * in.k2) +
-         " (k1 x c^2, k2 x c with c = " + Num(c) + "), which makes the exact margin " +
-         Num(target_s) + " s = " + Num(in.safety) + " x h, at the price of a response " +
-         Num(1.0 / c) + " x slower; or run --tune";
+  return "scale the gains to k1 = " + G4(c * c * in.k1) + ", k2 = " + G4(c * in.k2) +
+         " (k1 x c^2, k2 x c with c = " + G4(c) + "), which makes the exact margin " +
+         G4(target_s) + " s = " + G4(in.safety) + " x h, at the price of a response " +
+         G4(1.0 / c) + " x slower; or run --tune";
 }
 
 const char* kComponent[] = {"x", "y", "z", "theta", "psi"};
@@ -38,11 +34,11 @@ bool FactorUnstable(const VerdictInput& in) {
 
 std::string MarginText(const VerdictInput& in) {
   const theory::DelayMargin& m = *in.margin;
-  std::string s = "exact constant-delay margin " + Num(m.tau_s) + " s";
-  if (in.h_s > 0.0) s += " = " + Num(m.tau_s / in.h_s) + " x h";
+  std::string s = "exact constant-delay margin " + G4(m.tau_s) + " s";
+  if (in.h_s > 0.0) s += " = " + G4(m.tau_s / in.h_s) + " x h";
   const theory::FactorDelayMargin* f = in.factor_margin;
   if (f && f->available && in.factor != FactorKind::kNone) {
-    s += f->stable_at_zero ? " (" + Num(f->tau_s) + " s with the uncertain factor linearised)"
+    s += f->stable_at_zero ? " (" + G4(f->tau_s) + " s with the uncertain factor linearised)"
                            : " (UNSTABLE with the uncertain factor linearised)";
   }
   return s;
@@ -52,10 +48,10 @@ std::string MarginText(const VerdictInput& in) {
 std::string FactorAdvice(const VerdictInput& in) {
   const theory::FactorDelayMargin& f = *in.factor_margin;
   const std::string c = kComponent[std::max(0, f.component)];
-  std::string s = "raise k2: the uncertain factor's slope " + Num(f.v_slope) + " on " + c +
+  std::string s = "raise k2: the uncertain factor's slope " + G4(f.v_slope) + " on " + c +
                   "' exceeds the damping lambda k2 of eigenvalue " + Lambda(f.lambda);
   if (std::abs(f.lambda.imag()) < 1e-12 && f.lambda.real() > 0.0) {
-    s += " (k2 > " + Num(f.v_slope / f.lambda.real()) + " is needed without delay)";
+    s += " (k2 > " + G4(f.v_slope / f.lambda.real()) + " is needed without delay)";
   }
   return s;
 }
@@ -96,7 +92,7 @@ Verdict NoDelayNoFactor(const VerdictInput& in) {
     v.reason =
         "no delay, no uncertain factor; P = Q(A+B) + (A+B)^T Q has largest "
         "eigenvalue " +
-        Num(in.theorem1->P_max_eigenvalue) + " < 0";
+        G4(in.theorem1->P_max_eigenvalue) + " < 0";
   } else {
     v.by = "the exact characteristic equation at tau = 0";
     v.reason =
@@ -113,28 +109,28 @@ Verdict NoDelayLipschitzFactor(const VerdictInput& in) {
   if (in.theorem3_certified.value_or(false) && in.kappa && *in.kappa < 1.0) {
     v.certified = true;
     v.by = "Theorem 3 (LMI (27)-(28))";
-    v.reason = "no delay (h = 0), uncertain factor with rho0 = " + Num(in.rho0) +
+    v.reason = "no delay (h = 0), uncertain factor with rho0 = " + G4(in.rho0) +
                "; the LMI is feasible";
     return v;
   }
   if (in.theorem2 && in.theorem2->certifies) {
     v.certified = true;
     v.by = "Theorem 2 (corrected)";
-    v.reason = "no delay; P~ with rho0 = " + Num(in.rho0) + " has largest eigenvalue " +
-               Num(in.theorem2->P_tilde_max_eigenvalue) + " < 0";
+    v.reason = "no delay; P~ with rho0 = " + G4(in.rho0) + " has largest eigenvalue " +
+               G4(in.theorem2->P_tilde_max_eigenvalue) + " < 0";
     return v;
   }
-  v.reason = "no delay, but Theorem 2 does not certify the gains with rho0 = " + Num(in.rho0) +
+  v.reason = "no delay, but Theorem 2 does not certify the gains with rho0 = " + G4(in.rho0) +
              (in.theorem2 ? " (corrected P~ has largest eigenvalue " +
-                                Num(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
+                                G4(in.theorem2->P_tilde_max_eigenvalue) + " >= 0)"
                           : "") +
              "; without the uncertain factor the loop is stable (exact)";
   if (FactorUnstable(in)) {
     v.reason += "; with the factor linearised the loop is unstable";
     v.advice = FactorAdvice(in);
   } else if (in.theorem2 && in.theorem2->k1_min_corrected) {
-    v.advice = "raise k1 above " + Num(*in.theorem2->k1_min_corrected) + " and k2 above " +
-               Num(*in.theorem2->k2_min_corrected) + " (corrected (20)-(21))";
+    v.advice = "raise k1 above " + G4(*in.theorem2->k1_min_corrected) + " and k2 above " +
+               G4(*in.theorem2->k2_min_corrected) + " (corrected (20)-(21))";
   } else {
     v.advice =
         "Theorem 2's bounds (20)-(21) have no solution for this topology, alpha "
@@ -169,17 +165,17 @@ Verdict CommonConstantDelay(const VerdictInput& in) {
   if (m.tau_s > in.h_s) {
     v.certified = true;
     v.by = "the exact delay margin";
-    v.reason = "one constant delay h = " + Num(in.h_s) +
+    v.reason = "one constant delay h = " + G4(in.h_s) +
                " s on every link, no uncertain "
                "factor; " +
                MarginText(in);
     if (m.tau_s < in.safety * in.h_s) {
-      v.advice = "the margin is below the safety factor " + Num(in.safety) + ": " +
+      v.advice = "the margin is below the safety factor " + G4(in.safety) + ": " +
                  ScaleAdvice(in, in.safety * in.h_s);
     }
     return v;
   }
-  v.reason = "one constant delay h = " + Num(in.h_s) + " s on every link exceeds the " +
+  v.reason = "one constant delay h = " + G4(in.h_s) + " s on every link exceeds the " +
              MarginText(in) + ": the loop is unstable at this delay";
   v.advice = ScaleAdvice(in, in.safety * in.h_s);
   return v;
@@ -195,8 +191,8 @@ Verdict ByTheorem3(const VerdictInput& in) {
   v.certified = true;
   v.by = "Theorem 3 (LMI (27)-(28))";
   v.reason =
-      "tau(t) <= h = " + Num(in.h_s) + " s, d tau/dt <= kappa = " + Num(*in.kappa) +
-      (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + Num(in.rho0)
+      "tau(t) <= h = " + G4(in.h_s) + " s, d tau/dt <= kappa = " + G4(*in.kappa) +
+      (in.factor == FactorKind::kLipschitz ? ", uncertain factor with rho0 = " + G4(in.rho0)
                                            : std::string(", no uncertain factor")) +
       "; " + MarginText(in);
   return v;
@@ -212,7 +208,7 @@ std::string OnlyTheorem3Reason(const VerdictInput& in) {
   else if (!in.delay_common_constant)
     add("the links have different delays");
   if (in.factor == FactorKind::kLipschitz)
-    add("an uncertain factor acts (rho0 = " + Num(in.rho0) + ")");
+    add("an uncertain factor acts (rho0 = " + G4(in.rho0) + ")");
   if (in.factor == FactorKind::kUncovered)
     add("an uncertain factor acts that no theorem "
         "here covers");
@@ -225,7 +221,7 @@ std::string OnlyTheorem3Reason(const VerdictInput& in) {
   } else if (!in.theorem3_certified) {
     t3 = "Theorem 3 not evaluated";
   } else {
-    t3 = "Theorem 3's LMI is not feasible at h = " + Num(in.h_s) + " s";
+    t3 = "Theorem 3's LMI is not feasible at h = " + G4(in.h_s) + " s";
   }
   return why + "; " + t3 + "; " + MarginText(in) + ": indications, not certificates";
 }
@@ -245,7 +241,7 @@ std::string OnlyTheorem3Advice(const VerdictInput& in) {
            "(check the delay margin again), or weaken the factor";
   }
   return "reduce the delay below Theorem 3's max_delay_s" +
-         (in.theorem3_max_delay_s ? " = " + Num(*in.theorem3_max_delay_s) + " s" : "") +
+         (in.theorem3_max_delay_s ? " = " + G4(*in.theorem3_max_delay_s) + " s" : "") +
          ", or change the gains and compare max_delay_s (the LMI is only sufficient)";
 }
 
