@@ -462,7 +462,7 @@ Quantiles QuantilesOf(std::vector<double>* v) { return QuantilesOf(v->data(), v-
 
 RunAnalysis AnalyseRun(const RunData& run) {
   RunAnalysis a;
-  a.summary.states = run.state_messages();
+  a.summary.states = run.state_samples();
   a.has_formation = run.has_scenario && !Samples(run, 0).empty() &&
                     static_cast<int>(run.scenario.offsets_m.size()) == run.followers;
   AnalyseRunLevel(run, &a);

@@ -352,6 +352,14 @@ void RunDataBuilder::Finish() {
     }
     s.resize(w);
   }
+  std::int64_t repeated = 0;
+  for (const VehicleTrack& v : d_->vehicles) repeated += v.repeated;
+  if (repeated > 0) {
+    d_->warnings.push_back(std::to_string(repeated) +
+                           " vehicle states appear more than once (same vehicle and time: a "
+                           "log recorded twice or concatenated, or replayed onto a recording "
+                           "bus); each is counted once, the last copy kept");
+  }
 }
 
 bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out,

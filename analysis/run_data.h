@@ -114,6 +114,13 @@ struct RunData {
     for (const VehicleTrack& v : vehicles) k += v.received;
     return k;
   }
+  /// Distinct states (one per vehicle and time): what the run recorded, whatever was
+  /// recorded twice.
+  std::int64_t state_samples() const {
+    std::int64_t k = 0;
+    for (const VehicleTrack& v : vehicles) k += static_cast<std::int64_t>(v.samples.size());
+    return k;
+  }
 };
 
 struct LoadOptions {

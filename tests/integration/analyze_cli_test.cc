@@ -201,5 +201,21 @@ TEST(AnalyzeCli, ScenarioFileReplacesTheLogs) {
   EXPECT_EQ(j["channel"]["model_mismatches"], 3001 * 10);
 }
 
+// A log recorded twice (here: concatenated with itself) holds every state twice: the run
+// still recorded each state once, so the count is the run's, never 200 %, and a warning
+// says why.
+TEST(AnalyzeCli, ALogConcatenatedWithItselfCountsEachStateOnce) {
+  const std::string one = TmpPath("twice_one.lcmlog"), two = TmpPath("twice_two.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") + " --duration 20 --out " +
+                         one, "twice_sim").status, 1);  // not converged in 20 s
+  ASSERT_EQ(std::system(("cat '" + one + "' '" + one + "' > '" + two + "'").c_str()), 0);
+  const auto r = RunShoal("analyze " + two + " --json", "twice_ana");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = ParseJson(r.out);
+  EXPECT_EQ(j["log_states"], 6 * 1001) << r.out;
+  EXPECT_EQ(j["log_states_expected"], 6 * 1001) << r.out;
+  EXPECT_NE(r.err.find("6006 vehicle states appear more than once"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace shoal
