@@ -8,10 +8,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
 #include "core/control.h"
+#include "core/follower.h"
 #include "core/rng.h"
 
 namespace shoal {
@@ -268,6 +270,32 @@ TEST(StateHistoryTest, UnevenlySpacedBufferAfterWrapAround) {
       ExpectNear(out, Lerp(pushed[k], pushed[k + 1], q), 1e-12);
     }
   }
+}
+
+// The history is sized by the neighbour timeout, the largest delay and two periods, but
+// never beyond the run's ticks (+2): a delay of 1e9 s once asked for 5e10 samples.
+TEST(StateHistoryTest, FollowerHistoryIsBoundedByTheRun) {
+  Scenario s;
+  s.followers = 1;
+  s.leader_links = {1};
+  s.offsets_m = {{0.0, 0.0, 0.0}};
+  s.initial.resize(1);
+  s.control_rate_hz = 50.0;
+  s.duration_s = 600.0;
+  s.neighbour_timeout_s = 1.0;
+  s.delay.kind = DelayKind::kConstant;
+  s.delay.base_s = 0.5;
+  EXPECT_EQ(Follower::HistoryCapacity(s), 79);  // ceil(1.54 / 0.02) + 2
+  s.delay.base_s = 1e9;
+  EXPECT_EQ(Follower::HistoryCapacity(s), 30002);  // 30001 ticks + 1
+  EXPECT_EQ(Follower::HistoryCapacity(s, 10.0), 502);
+  s.duration_s = 1e9;
+  EXPECT_EQ(Follower::HistoryCapacity(s), std::int64_t{50000000002});
+  EXPECT_THROW(StateHistory(Follower::HistoryCapacity(s)), std::length_error);
+  s.duration_s = 600.0;
+  const Topology topo = Topology::Build(1, {}, {1});
+  const Follower f(s, topo, 1, nullptr, 20.0);  // would need 400 GB sized by the delay
+  EXPECT_EQ(f.id(), 1);
 }
 
 }  // namespace
