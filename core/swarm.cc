@@ -6,10 +6,12 @@
 
 namespace shoal {
 
-// Cost of one follower-tick and one link-tick of shoal sim, measured on
-// scenarios/paper_example2.toml (4 followers, 7 links: 30001 ticks in about 0.35 s).
-constexpr double kSecondsPerFollowerTick = 2.0e-6;
-constexpr double kSecondsPerLinkTick = 0.3e-6;
+// Cost of a tick, a follower-tick and a link-tick of shoal sim, fitted (within a factor of
+// two) to scenarios/paper_example2.toml (5 followers: 30001 ticks in 0.35 s) and to 200
+// followers with 3891 links (3001 ticks in 0.7 s) on a current PC.
+constexpr double kSecondsPerTick = 3e-6;
+constexpr double kSecondsPerFollowerTick = 1.2e-6;
+constexpr double kSecondsPerLinkTick = 0.03e-6;
 // Per pending delivery: its payload, its queue entry and their bookkeeping.
 constexpr double kBytesPerPending = sizeof(StateMsg) + 64.0;
 constexpr double kMaxPending = 1 << 20;  // Channel's default max_pending
@@ -25,8 +27,9 @@ RunEstimate EstimateRun(const Scenario& s, double duration_s) {
                                                 static_cast<double>(s.period_us())) + 2.0);
   const double pending = std::min(kMaxPending, delay_ticks * static_cast<double>(e.links));
   e.memory_bytes = s.followers * history * sizeof(HistorySample) + pending * kBytesPerPending;
-  e.wall_seconds = static_cast<double>(e.ticks) * (s.followers * kSecondsPerFollowerTick +
-                                                   static_cast<double>(e.links) * kSecondsPerLinkTick);
+  const double per_tick = kSecondsPerTick + s.followers * kSecondsPerFollowerTick +
+                          static_cast<double>(e.links) * kSecondsPerLinkTick;
+  e.wall_seconds = static_cast<double>(e.ticks) * per_tick;
   return e;
 }
 

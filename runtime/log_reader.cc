@@ -49,7 +49,8 @@ LcmLogReader::~LcmLogReader() {
 
 bool LcmLogReader::Open(const std::string& path, std::string* error) {
   path_ = path;
-  fd_ = OpenRegularFile(path, "log", -1, error, &file_size_);  // a FIFO or device: refused, never read
+  // A FIFO or a device is refused, never read (it would block or never end).
+  fd_ = OpenRegularFile(path, "log", -1, error, &file_size_);
   if (fd_ < 0) return false;
   if (file_size_ == 0) {
     *error = path + ": empty file (0 bytes), not an LCM log";

@@ -440,15 +440,18 @@ TEST(ScenarioLoaderTest, UnreadableFileIsRefused) {
 
 // A file written by an editor that puts a UTF-8 byte order mark first reads as without it.
 TEST(ScenarioLoaderTest, ByteOrderMarkIsSkipped) {
-  const std::string text = "[swarm]\nfollowers = 1\nleader_links = [1]\n[control]\nk1 = 1\nk2 = 2\n";
+  const std::string text =
+      "[swarm]\nfollowers = 1\nleader_links = [1]\n[control]\nk1 = 1\nk2 = 2\n";
   EXPECT_EQ(ParseScenario("\xEF\xBB\xBF" + text, "bom.toml").followers, 1);
   EXPECT_TRUE(Contains(ErrorOf("\xEF\xBB\xBF[run]\nduration_s = -1\n" + text, "bom.toml"),
                        "bom.toml:2: run.duration_s: must be a positive number"));
 }
 
 TEST(ScenarioLoaderTest, RunNameIsAPlainFileName) {
-  const std::string rest = "[swarm]\nfollowers = 1\nleader_links = [1]\n[control]\nk1 = 1\nk2 = 2\n";
-  for (const std::string& name : std::vector<std::string>{"helix_4", "a.b-c", "X", std::string(100, 'n')}) {
+  const std::string rest =
+      "[swarm]\nfollowers = 1\nleader_links = [1]\n[control]\nk1 = 1\nk2 = 2\n";
+  for (const std::string& name :
+       std::vector<std::string>{"helix_4", "a.b-c", "X", std::string(100, 'n')}) {
     EXPECT_EQ(ParseScenario("[run]\nname = \"" + name + "\"\n" + rest, "t.toml").name, name);
   }
   for (const std::string& name : std::vector<std::string>
