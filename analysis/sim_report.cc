@@ -168,31 +168,81 @@ void FillReport(const Scenario& s, const Swarm& swarm, SimReport* r) {
   }
 }
 
+std::string SecondsText(double t) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.3f", t);
+  return text;
+}
+
+/// Opens the log and writes its first event through to the file, so that an unwritable
+/// path or a full disk refuses the run before it starts. False with *error.
+bool OpenLog(const Scenario& s, const std::string& path, std::unique_ptr<LogWriter>* log,
+             std::string* error) {
+  try {
+    *log = std::make_unique<LogWriter>(path);
+    (*log)->Write(channels::Status(), 0,
+                  Status(s, 0, 0, RunStateName(RunState::kRunning), "shoal sim", true));
+    (*log)->Flush();
+    return true;
+  } catch (const std::runtime_error& e) {
+    *error = e.what();
+    log->reset();
+    return false;
+  }
+}
+
+/// Writes the log's last events and closes it; a failure goes to report->log_error.
+void FinishLog(const Scenario& s, const Swarm& swarm, bool interrupted, LogObserver* obs,
+               LogWriter* log, SimReport* report) {
+  if (report->log_error.empty()) {
+    try {
+      const Micros end = static_cast<Micros>(swarm.sim_time_s() * 1e6);
+      const std::string state = RunStateName(
+          interrupted ? RunState::kInterrupted
+                      : (swarm.diverged_id() ? RunState::kFailed : RunState::kFinished));
+      obs->FlushChannel();
+      log->Write(channels::Status(), end, Status(s, end, 1, state, DivergedDetail(swarm), false));
+      log->Close();
+    } catch (const std::runtime_error& e) {
+      report->log_error = e.what();
+    }
+  }
+  report->log_events = log->events();
+  if (!report->log_error.empty()) {
+    report->log_error += "; the log is incomplete: at most " +
+                         std::to_string(report->log_events) + " events, up to t = " +
+                         SecondsText(swarm.sim_time_s()) + " s";
+  }
+}
+
 }  // namespace
 
 bool RunSimulation(const Scenario& s, const SimRunOptions& opt, SimReport* report,
                    std::string* error) {
+  std::unique_ptr<Swarm> swarm_ptr;
+  try {
+    swarm_ptr = std::make_unique<Swarm>(s, opt.duration_s);
+  } catch (const std::exception& e) {  // std::bad_alloc, std::length_error
+    *error = std::string("this run does not fit in memory (") + e.what() + "; estimated " +
+             EstimateRun(s, opt.duration_s).Describe(s.followers) + ")";
+    return false;
+  }
+  Swarm& swarm = *swarm_ptr;
   std::unique_ptr<LogWriter> log;
-  if (!opt.out.empty()) {
-    try {
-      log = std::make_unique<LogWriter>(opt.out);
-    } catch (const std::exception& e) {
-      *error = e.what();
-      return false;
-    }
-  }
-  Swarm swarm(s, opt.duration_s);
+  if (!opt.out.empty() && !OpenLog(s, opt.out, &log, error)) return false;
   std::unique_ptr<LogObserver> log_obs;
-  if (log) {
-    log_obs = std::make_unique<LogObserver>(log.get(), swarm.period_us());
-    log->Write(channels::Status(), 0, Status(s, 0, 0, RunStateName(RunState::kRunning), "shoal sim", true));
-  }
+  if (log) log_obs = std::make_unique<LogObserver>(log.get(), swarm.period_us());
   ProgressObserver progress(log_obs.get(), &swarm, opt.show_progress);
   // Nothing to log or show: no observer at all (its calls are ~30 per tick).
   SwarmObserver* obs = log_obs || progress.shows() ? &progress : nullptr;
   const auto t0 = std::chrono::steady_clock::now();
   bool interrupted = false;
-  while (!(interrupted = opt.stop_requested && opt.stop_requested()) && swarm.Step(obs)) {
+  std::string log_error;
+  try {
+    while (!(interrupted = opt.stop_requested && opt.stop_requested()) && swarm.Step(obs)) {
+    }
+  } catch (const std::runtime_error& e) {  // only the log's writes throw
+    log_error = e.what();
   }
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -202,16 +252,10 @@ bool RunSimulation(const Scenario& s, const SimRunOptions& opt, SimReport* repor
   FillReport(s, swarm, report);
   report->interrupted = interrupted;
   report->wall_time_s = wall_s;
+  report->log_error = log_error;
   if (log) {
-    const Micros end = static_cast<Micros>(swarm.sim_time_s() * 1e6);
-    const std::string state =
-        RunStateName(interrupted ? RunState::kInterrupted
-                                : (swarm.diverged_id() ? RunState::kFailed : RunState::kFinished));
-    log_obs->FlushChannel();
-    log->Write(channels::Status(), end, Status(s, end, 1, state, DivergedDetail(swarm), false));
-    log->Close();
     report->log = opt.out;
-    report->log_events = log->events();
+    FinishLog(s, swarm, interrupted, log_obs.get(), log.get(), report);
   }
   return true;
 }
@@ -242,6 +286,7 @@ nlohmann::ordered_json SimReportJson(const SimReport& r) {
     j["log"] = r.log;
     j["log_events"] = r.log_events;
   }
+  if (!r.log_error.empty()) j["log_error"] = r.log_error;
   return j;
 }
 
@@ -286,6 +331,7 @@ void PrintSimReport(const SimReport& r, std::FILE* out) {
 }
 
 int SimExitStatus(const SimReport& r) {
+  if (!r.log_error.empty()) return kExitFailed;
   if (r.interrupted) return kExitInterrupted;
   return r.converged ? kExitOk : kExitFailed;
 }

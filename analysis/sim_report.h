@@ -48,10 +48,14 @@ struct SimReport {
   std::vector<SimFollowerReport> per_follower;
   std::string log;  // "" = no log written
   std::int64_t log_events = 0;
+  /// The log could not be written (full disk, I/O error): why, and what it holds. The run
+  /// stopped at that tick; "" if the log (if any) was written whole.
+  std::string log_error;
 };
 
 /// Runs scenario `s`. Returns false with *error (and runs nothing) if the log cannot be
-/// opened for writing.
+/// opened or its first event cannot be written, or the run does not fit in memory. A
+/// write failure during the run stops it and is reported in report->log_error.
 bool RunSimulation(const Scenario& s, const SimRunOptions& opt, SimReport* report,
                    std::string* error);
 
@@ -59,7 +63,8 @@ bool RunSimulation(const Scenario& s, const SimRunOptions& opt, SimReport* repor
 nlohmann::ordered_json SimReportJson(const SimReport& r);
 /// The readable summary.
 void PrintSimReport(const SimReport& r, std::FILE* out);
-/// 0 converged, 1 not converged or diverged, 130 interrupted (analysis/verdict.h).
+/// 0 converged, 1 not converged or diverged or the log could not be written whole, 130
+/// interrupted (analysis/verdict.h).
 int SimExitStatus(const SimReport& r);
 
 }  // namespace shoal

@@ -180,10 +180,12 @@ class Channel {
     }
     if (period_us_ > 0) {
       // Pending deliveries span at most max delay + 2 ticks ahead of the delivered tick.
-      const auto horizon =
-          static_cast<std::size_t>(std::ceil(max_delay_s * 1e6 / period_us_)) + 2;
+      // Deliveries further ahead than the wheel wait in overflow_ (a delay of years must
+      // not size the wheel by it).
+      const double horizon =
+          std::min(std::ceil(max_delay_s * 1e6 / period_us_) + 2.0, double{kMaxWheel - 1});
       std::size_t w = 8;
-      while (w <= horizon) w *= 2;
+      while (static_cast<double>(w) <= horizon) w *= 2;
       wheel_.resize(w);
     }
   }
@@ -247,10 +249,12 @@ class Channel {
   Micros NextDue() const {
     if (pending_ == 0) return -1;
     if (period_us_ <= 0) return heap_.top().due;
-    for (std::int64_t t = next_tick_;; ++t) {
+    const auto size = static_cast<std::int64_t>(wheel_.size());
+    for (std::int64_t t = next_tick_; t < next_tick_ + size; ++t) {
       const auto& b = wheel_[static_cast<std::size_t>(t) & (wheel_.size() - 1)];
       if (!b.empty()) return b.front().due;
     }
+    return overflow_.top().p.due;  // everything pending is beyond the wheel
   }
   std::size_t pending() const { return pending_; }
 
@@ -268,6 +272,7 @@ class Channel {
     }
     const std::int64_t now_tick = now / period_us_;
     for (; next_tick_ <= now_tick && pending_ > 0; ++next_tick_) {
+      Migrate();
       auto& b = wheel_[static_cast<std::size_t>(next_tick_) & (wheel_.size() - 1)];
       for (const Pending& p : b) Deliver(p, fn);
       b.clear();
@@ -305,23 +310,25 @@ class Channel {
     // A message already due (submitted after its delivery tick was delivered) goes out at
     // the next DeliverDue().
     tick = std::max(tick, next_tick_);
-    // Never reached with delays within the links' models; kept so that the wheel can
-    // never silently mix two ticks in one bucket.
-    while (tick - next_tick_ >= static_cast<std::int64_t>(wheel_.size())) Grow();
+    Migrate();
+    if (tick - next_tick_ >= static_cast<std::int64_t>(wheel_.size())) {
+      overflow_.push(Far{tick, p});
+      return;
+    }
     wheel_[static_cast<std::size_t>(tick) & (wheel_.size() - 1)].push_back(p);
   }
 
-  // Doubles the wheel; each bucket holds exactly one pending tick, moved whole.
-  void Grow() {
-    std::vector<std::vector<Pending>> bigger(wheel_.size() * 2);
-    for (std::int64_t t = next_tick_; t < next_tick_ + static_cast<std::int64_t>(wheel_.size());
-         ++t) {
-      auto& b = wheel_[static_cast<std::size_t>(t) & (wheel_.size() - 1)];
-      if (b.empty()) continue;
-      const std::int64_t tick = t;
-      bigger[static_cast<std::size_t>(tick) & (bigger.size() - 1)] = std::move(b);
+  // Moves the overflowing deliveries whose tick came within the wheel into their buckets,
+  // in submission order. Called before any bucket of such a tick is filled or delivered,
+  // so each bucket stays in submission order.
+  void Migrate() {
+    const auto end = next_tick_ + static_cast<std::int64_t>(wheel_.size());
+    while (!overflow_.empty() && overflow_.top().tick < end) {
+      const Far& f = overflow_.top();
+      const std::int64_t tick = std::max(f.tick, next_tick_);  // overdue: the next delivery
+      wheel_[static_cast<std::size_t>(tick) & (wheel_.size() - 1)].push_back(f.p);
+      overflow_.pop();
     }
-    wheel_ = std::move(bigger);
   }
 
   int Store(const Payload& payload) {
@@ -353,6 +360,16 @@ class Channel {
   double last_delay_ = 0.0;  // wheel: first tick not yet delivered
   std::vector<std::vector<Pending>> wheel_;
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> heap_;
+  // A delivery beyond the wheel, ordered by (tick, submission order).
+  struct Far {
+    std::int64_t tick;
+    Pending p;
+    bool operator>(const Far& o) const {
+      return tick != o.tick ? tick > o.tick : p.order > o.p.order;
+    }
+  };
+  static constexpr std::size_t kMaxWheel = std::size_t{1} << 16;  // buckets
+  std::priority_queue<Far, std::vector<Far>, std::greater<Far>> overflow_;
 };
 
 }  // namespace shoal

@@ -8,7 +8,7 @@
 namespace shoal {
 
 Follower::Follower(const Scenario& s, const Topology& topo, int id,
-                   std::shared_ptr<const Environment> env)
+                   std::shared_ptr<const Environment> env, double duration_s)
     : id_(id),
       k1_(s.k1),
       k2_(s.k2),
@@ -53,17 +53,25 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
   for (std::size_t k = 0; k < slots_.size(); ++k) slot_of_[slots_[k].sender] = static_cast<int>(k);
   terms_.resize(slots_.size());
 
+  history_ = StateHistory(HistoryCapacity(s, duration_s));
+
+  out_.vehicle_id = id_;
+  out_.seq = -1;
+}
+
+std::int64_t Follower::HistoryCapacity(const Scenario& s, double duration_s) {
   // The history must reach back to the oldest send time still usable: the neighbour
   // timeout, plus the largest delay of any delay model, plus a margin of two periods.
   double max_delay = MaxDelaySeconds(s.delay);
   for (const LinkOverride& o : s.links) {
     if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
   }
-  const double span_s = s.neighbour_timeout_s + max_delay + 2.0 * ToSeconds(period_us_);
-  history_ = StateHistory(static_cast<int>(std::ceil(span_s / ToSeconds(period_us_))) + 2);
-
-  out_.vehicle_id = id_;
-  out_.seq = -1;
+  const double period_s = ToSeconds(s.period_us());
+  const double span_s = s.neighbour_timeout_s + max_delay + 2.0 * period_s;
+  // Computed in double: a delay of 1e9 s at 50 Hz is 5e10 samples, beyond int.
+  const double span_samples = std::ceil(span_s / period_s) + 2.0;
+  const double run_samples = static_cast<double>(s.final_tick(duration_s)) + 2.0;
+  return static_cast<std::int64_t>(std::min(span_samples, run_samples));
 }
 
 RxResult Follower::Check(const StateMsg& m) const {

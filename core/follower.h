@@ -33,8 +33,15 @@ class Follower {
  public:
   /// Follower `id` (1..n) of a validated scenario.
   /// `env` may be shared between the followers of one process; null builds a private one.
+  /// `duration_s`: the run's length (< 0: the scenario's); it bounds the history's size.
   Follower(const Scenario& s, const Topology& topo, int id,
-           std::shared_ptr<const Environment> env = nullptr);
+           std::shared_ptr<const Environment> env = nullptr, double duration_s = -1.0);
+
+  /// Samples the history of a follower of `s` holds in a run of `duration_s` (< 0: the
+  /// scenario's): enough to reach back over the neighbour timeout, the largest delay and
+  /// two periods, but never more than the run has ticks (plus two), since a history that
+  /// is never full gives the same answers as a larger one.
+  static std::int64_t HistoryCapacity(const Scenario& s, double duration_s = -1.0);
 
   int id() const { return id_; }
 

@@ -2,6 +2,9 @@
 // neighbour message's send time and for delayed disturbance arguments.
 #pragma once
 
+#include <cstdint>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "core/types.h"
@@ -18,12 +21,20 @@ struct HistorySample {
 /// never allocate (safe inside a real-time tick).
 class StateHistory {
  public:
-  /// Holds at least `capacity` samples (rounded up to a power of two).
-  explicit StateHistory(int capacity = 1) {
-    int c = 1;
+  /// The most samples a history may hold (indices are int).
+  static constexpr std::int64_t kMaxCapacity = std::int64_t{1} << 30;
+
+  /// Holds at least `capacity` samples (rounded up to a power of two). Throws
+  /// std::length_error above kMaxCapacity, std::bad_alloc if memory runs out.
+  explicit StateHistory(std::int64_t capacity = 1) {
+    if (capacity > kMaxCapacity) {
+      throw std::length_error("a state history of " + std::to_string(capacity) +
+                              " samples exceeds the limit of " + std::to_string(kMaxCapacity));
+    }
+    std::int64_t c = 1;
     while (c < capacity) c *= 2;
-    buf_.resize(c);
-    mask_ = c - 1;
+    buf_.resize(static_cast<std::size_t>(c));
+    mask_ = static_cast<int>(c - 1);
   }
 
   int capacity() const { return static_cast<int>(buf_.size()); }

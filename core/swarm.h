@@ -8,6 +8,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "core/channel_model.h"
@@ -28,6 +29,26 @@ class SwarmObserver {
   /// Once per simulated second, and at the final tick, for each follower.
   virtual void OnHealth(Micros /*utime*/, const Follower& /*f*/) {}
 };
+
+/// What a run will cost, estimated before it starts (a guard against runs of years).
+struct RunEstimate {
+  std::int64_t ticks = 0;
+  std::int64_t links = 0;      // channel links, leader's included
+  double memory_bytes = 0.0;   // histories and the channel's pending deliveries
+  double wall_seconds = 0.0;   // shoal sim on one core of a current PC
+  /// Beyond these a run is refused unless the user allows it (--allow-large).
+  static constexpr double kMaxMemoryBytes = 4.0 * (1 << 30);
+  static constexpr double kMaxWallSeconds = 3600.0;
+  bool large() const { return memory_bytes > kMaxMemoryBytes || wall_seconds > kMaxWallSeconds; }
+  /// "3.6e+09 ticks x 4 followers and 7 links: about 2.1 h and 1.2 GiB of memory"
+  std::string Describe(int followers) const;
+};
+
+/// The estimate of a run of `duration_s` (< 0: the scenario's) of a validated scenario.
+RunEstimate EstimateRun(const Scenario& s, double duration_s = -1.0);
+
+/// "" if the run is not large, else why it is refused and how to run it anyway.
+std::string LargeRunRefusal(const Scenario& s, double duration_s = -1.0);
 
 class Swarm {
  public:

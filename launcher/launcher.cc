@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "core/metrics.h"
+#include "core/swarm.h"
 #include "runtime/channels.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
@@ -225,6 +226,10 @@ bool Launch::Prepare(std::string* error) {
   if (opt_.duration_s == 0 || (opt_.duration_s < 0 && opt_.duration_s != -1)) {
     *error = "--duration must be a positive number of seconds";
     return false;
+  }
+  if (!opt_.allow_large) {
+    *error = LargeRunRefusal(s_, opt_.duration_s);
+    if (!error->empty()) return false;
   }
   r_->mode = opt_.mode;
   r_->duration_s = opt_.duration_s > 0 ? opt_.duration_s : s_.duration_s;

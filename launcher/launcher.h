@@ -22,6 +22,7 @@ struct LaunchOptions {
   bool per_vehicle_urls = false;  // explicit; the default with the private URL anyway
   bool shared_url = false;        // everything on one group (vehicles hear all traffic)
   long long max_lookahead = 50;   // lockstep: most ticks the clock master releases at once
+  bool allow_large = false;  // run even when the estimate exceeds 1 h or 4 GiB (core/swarm.h)
   bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
 };
 

@@ -7,6 +7,8 @@
 #include <cerrno>
 #include <cstring>
 
+#include "scenario/regular_file.h"
+
 namespace shoal {
 namespace {
 
@@ -47,17 +49,9 @@ LcmLogReader::~LcmLogReader() {
 
 bool LcmLogReader::Open(const std::string& path, std::string* error) {
   path_ = path;
-  fd_ = open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd_ < 0) {
-    *error = path + ": cannot read (" + std::strerror(errno) + ")";
-    return false;
-  }
-  struct stat st {};
-  if (fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
-    *error = path + ": not a regular file";
-    return false;
-  }
-  file_size_ = st.st_size;
+  // A FIFO or a device is refused, never read (it would block or never end).
+  fd_ = OpenRegularFile(path, "log", -1, error, &file_size_);
+  if (fd_ < 0) return false;
   if (file_size_ == 0) {
     *error = path + ": empty file (0 bytes), not an LCM log";
     return false;
@@ -244,7 +238,8 @@ bool LcmLogReader::Next(LogEventView* ev) {
 
 bool LcmLogReader::OpenToFollow(const std::string& path) {
   path_ = path;
-  fd_ = open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  std::string error;  // not there yet, or not a file: nothing to follow
+  fd_ = OpenRegularFile(path, "log", -1, &error);
   return fd_ >= 0;
 }
 

@@ -15,7 +15,14 @@ LogWriter::LogWriter(const std::string& path) : path_(path), buf_(1024) {
   std::setvbuf(log_->f, nullptr, _IOFBF, 1 << 20);
 }
 
-LogWriter::~LogWriter() { Close(); }
+LogWriter::~LogWriter() {
+  try {
+    Close();
+  } catch (const std::runtime_error&) {
+    // A log closed by the destructor is abandoned (an error path); its failure was or
+    // will be reported by whoever stopped using it.
+  }
+}
 
 void LogWriter::WriteRaw(const std::string& channel, std::int64_t utime, const void* data,
                          int size) {
@@ -33,10 +40,23 @@ void LogWriter::WriteRaw(const std::string& channel, std::int64_t utime, const v
   ++events_;
 }
 
+void LogWriter::Flush() {
+  if (log_ == nullptr) throw std::runtime_error(path_ + ": write to a closed log");
+  if (std::fflush(log_->f) != 0 || std::ferror(log_->f)) {
+    throw std::runtime_error(path_ + ": write failed (" + std::strerror(errno) + ")");
+  }
+}
+
 void LogWriter::Close() {
-  if (log_ != nullptr) {
-    lcm_eventlog_destroy(log_);
-    log_ = nullptr;
+  if (log_ == nullptr) return;
+  // lcm_eventlog_destroy ignores fclose's result: flush first and check, so that a full
+  // disk is reported rather than a silently cut log.
+  const bool flushed = std::fflush(log_->f) == 0 && !std::ferror(log_->f);
+  const int flush_errno = errno;
+  lcm_eventlog_destroy(log_);
+  log_ = nullptr;
+  if (!flushed) {
+    throw std::runtime_error(path_ + ": write failed (" + std::strerror(flush_errno) + ")");
   }
 }
 

@@ -29,8 +29,13 @@ class LogWriter {
     WriteRaw(channel, utime, buf_.data(), size);
   }
 
+  /// Appends one event; throws std::runtime_error if the file cannot take it (a full disk
+  /// shows here or at Flush/Close, when the buffer is written).
   void WriteRaw(const std::string& channel, std::int64_t utime, const void* data, int size);
-  /// Flushes and closes; further writes are errors. Called by the destructor too.
+  /// Writes the buffered events to the file; throws std::runtime_error on failure.
+  void Flush();
+  /// Flushes and closes; throws std::runtime_error if the flush or close failed. Further
+  /// writes are errors. The destructor closes too, without throwing.
   void Close();
   std::int64_t events() const { return events_; }
   const std::string& path() const { return path_; }

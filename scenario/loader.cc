@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include <toml++/toml.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -28,6 +29,7 @@
 #include <vector>
 
 #include "core/topology.h"
+#include "scenario/regular_file.h"
 
 namespace shoal {
 namespace {
@@ -39,10 +41,24 @@ constexpr std::int64_t kMaxFollowers = 1000;
 // Times are converted to int64 microseconds by the core; 1e9 s (~32 years) keeps every
 // conversion far from overflow.
 constexpr double kMaxSeconds = 1e9;
+// A scenario is a few kilobytes; the limit keeps a wrong path (a disk image, a log) from
+// being read whole.
+constexpr std::size_t kMaxScenarioBytes = 16u << 20;
 constexpr double kMaxControlRateHz = 10000.0;
 constexpr double kMaxPitchRad = 0.5235987755982988;  // 30 deg, REMUS 100 limit
 constexpr std::size_t kMaxShownChars = 80;           // of a value quoted in a message
 constexpr int kMaxSuggestionDistance = 2;
+
+constexpr std::size_t kMaxNameChars = 100;
+
+/// A name that is safe as a file name in the working directory, on every file system.
+bool IsPlainName(std::string_view name) {
+  if (name.empty() || name.size() > kMaxNameChars || name.front() == '.') return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           c == '_' || c == '-' || c == '.';
+  });
+}
 
 // ---------------------------------------------------------------------------------------
 // Schema: the keys each table accepts.
@@ -604,6 +620,13 @@ void ReadRun(const Reader& r, const Table& t, Scenario* s) {
     const std::string hint = "name is a label for logs and reports, e.g. name = \"helix_4\"";
     s->name = r.ToString(*node, t.KeyOf("name"), hint);
     if (s->name.empty()) r.FailAt(*node, t.KeyOf("name"), "must not be empty", hint);
+    if (!IsPlainName(s->name)) {
+      // shoal run names its log and its process output after it: never a path.
+      r.FailAt(*node, t.KeyOf("name"),
+               "must be a plain file name: letters, digits, '_', '-' and '.', not starting "
+               "with '.', at most " + std::to_string(kMaxNameChars) + " characters",
+               hint);
+    }
   }
   r.ReadNumber(t, "duration_s", kPositiveSeconds,
                "the run lasts duration_s seconds, e.g. duration_s = 600", &s->duration_s);
@@ -979,20 +1002,30 @@ void ReadScenario(const Reader& r, const toml::table& root, Scenario* s) {
 }  // namespace
 
 Scenario LoadScenario(const std::string& path) {
-  const auto fail = [&path](int error) {
-    throw ScenarioError(path + ": cannot read scenario file (" +
-                        std::error_code(error, std::generic_category()).message() + ")");
-  };
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"),
-                                                       &std::fclose);
-  if (file == nullptr) fail(errno);
+  std::string error;
+  const int fd = OpenRegularFile(path, "scenario file", kMaxScenarioBytes, &error);
+  if (fd < 0) throw ScenarioError(error);
   std::string text;
   char buffer[1 << 16];
-  std::size_t count = 0;
-  while ((count = std::fread(buffer, 1, sizeof(buffer), file.get())) > 0) {
-    text.append(buffer, count);
+  for (;;) {
+    const ssize_t count = read(fd, buffer, sizeof(buffer));
+    if (count < 0 && errno == EINTR) continue;
+    if (count <= 0) {
+      const int e = errno;
+      close(fd);
+      if (count < 0) {
+        throw ScenarioError(path + ": cannot read scenario file (" +
+                            std::error_code(e, std::generic_category()).message() + ")");
+      }
+      break;
+    }
+    text.append(buffer, static_cast<std::size_t>(count));
+    if (text.size() > kMaxScenarioBytes) {  // grew since it was opened
+      close(fd);
+      throw ScenarioError(path + ": cannot read scenario file: it grew beyond the limit of " +
+                          std::to_string(kMaxScenarioBytes) + " bytes while being read");
+    }
   }
-  if (std::ferror(file.get())) fail(errno);  // e.g. EISDIR for a directory
   return ParseScenario(text, path);
 }
 
@@ -1011,7 +1044,7 @@ Scenario ParseScenario(const std::string& text, const std::string& path) {
   s.source_path = path;
   s.source_text = text;
   s.name = std::filesystem::path(path).stem().string();
-  if (s.name.empty()) s.name = "scenario";
+  if (s.name.empty()) s.name = "scenario";  // a file name holds no '/': never a path
   ReadScenario(Reader(file), root, &s);
   return s;
 }

@@ -26,6 +26,8 @@ CLI::App* AddSim(CLI::App* app, shoal::SimOptions* sim) {
                 "Simulated seconds (default: the scenario's run.duration_s)");
   c->add_flag("--json", sim->json, "Print one JSON object instead of the summary");
   c->add_flag("--quiet", sim->quiet, "No progress line");
+  c->add_flag("--allow-large", sim->allow_large,
+              "Run even if the run is estimated to take over 1 h or 4 GiB of memory");
   return c;
 }
 
@@ -55,6 +57,8 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
                 "lag of the channel bounds it; 1 = a round trip every tick)")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  c->add_flag("--allow-large", run->launch.allow_large,
+              "Run even if the run is estimated to take over 1 h or 4 GiB of memory");
   c->add_flag("--deep-idle", run->launch.deep_idle,
               "Let idle CPUs halt during the run (by default, as root, shoal run holds "
               "a 0 us CPU latency request: idle CPUs poll, wake-ups are cheaper)");

@@ -7,6 +7,7 @@
 
 #include "analysis/sim_report.h"
 #include "analysis/verdict.h"
+#include "core/swarm.h"
 #include "runtime/stop_signals.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
@@ -20,6 +21,13 @@ int RunSim(const SimOptions& opt) {
     std::cerr << "shoal sim: --duration must be a positive number of seconds (got "
               << opt.duration_s << ")\n";
     return kExitBadInput;
+  }
+  if (!opt.allow_large) {
+    const std::string refusal = LargeRunRefusal(s, opt.duration_s);
+    if (!refusal.empty()) {
+      std::cerr << "shoal sim: " << opt.scenario << ": " << refusal << "\n";
+      return kExitBadInput;
+    }
   }
   SimRunOptions run;
   run.out = opt.out;
@@ -35,6 +43,7 @@ int RunSim(const SimOptions& opt) {
       return kExitBadInput;
     }
   }
+  if (!report.log_error.empty()) std::cerr << "shoal sim: " << report.log_error << "\n";
   if (opt.json) {
     std::cout << JsonText(SimReportJson(report)) << "\n";
   } else {

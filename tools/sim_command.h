@@ -10,6 +10,7 @@ struct SimOptions {
   double duration_s = -1;   // < 0: the scenario's
   bool json = false;
   bool quiet = false;       // no progress line
+  bool allow_large = false; // run even when the estimate exceeds 1 h or 4 GiB
 };
 
 /// `shoal sim`: exit status 0 converged, 1 ran but did not converge / diverged,

@@ -25,7 +25,8 @@ Topology TopologyOf(const Scenario& s) {
 
 VehicleApp::VehicleApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, double duration_s,
                        Bus* bus, Bus* rx_bus)
-    : ClockedNode(s, id, mode, t0_ns, duration_s, bus, rx_bus), follower_(s, TopologyOf(s), id) {
+    : ClockedNode(s, id, mode, t0_ns, duration_s, bus, rx_bus),
+      follower_(s, TopologyOf(s), id, nullptr, duration_s) {
   // Lockstep: a message is delivered (listed) at the latest one period after send time +
   // the largest delay of the links' delay models.
   const std::vector<Link> links = BuildLinks(s, TopologyOf(s));

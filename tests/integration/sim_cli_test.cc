@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
 #include <signal.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -507,6 +509,146 @@ TEST(SimCli, JsonOfAPathThatIsNotUtf8IsStillJson) {
       << r.out;
 }
 
+// ---------------------------------------------------------------------------------------
+// Hostile input: every case ends with a status and a message, quickly, never a crash or a
+// hang (docs/reliability.md).
+
+/// Runs `shoal <args>` and returns its result and its wall time in seconds.
+std::pair<testing::RunResult, double> TimedShoal(const std::string& args, const std::string& tag) {
+  const auto t0 = std::chrono::steady_clock::now();
+  testing::RunResult r = RunShoal(args, tag);
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return {r, s};
+}
+
+std::string WriteScenario(const std::string& name, const std::string& extra) {
+  const std::string path = TmpPath(name);
+  std::ofstream(path) << "[swarm]\nfollowers = 2\nleader_links = [1]\nedges = [[2, 1]]\n"
+                      << "[control]\nk1 = 1.0\nk2 = 2.0\n"
+                      << extra;
+  return path;
+}
+
+TEST(SimCli, EveryBadScenarioIsRefusedWithinSeconds) {
+  for (const std::string& f : BadScenarioFiles()) {
+    const auto [r, s] = TimedShoal("sim '" + f + "'", "bad_timed");
+    EXPECT_EQ(r.status, 2) << f << "\n" << r.err;
+    EXPECT_FALSE(r.err.empty()) << f;
+    EXPECT_LT(s, 5.0) << f;
+  }
+}
+
+// A FIFO would block open() and read() forever, /dev/zero never ends: sim refuses each
+// as a scenario, and analyze, render and compare refuse each as a log.
+TEST(SimCli, SpecialFilesAreRefusedNotRead) {
+  const std::string dir = TmpPath("special_files");
+  std::system(("rm -rf '" + dir + "' && mkdir -p '" + dir + "/dir.toml'").c_str());
+  const std::string fifo = dir + "/fifo.toml", loop = dir + "/loop.toml";
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  ASSERT_EQ(symlink(loop.c_str(), loop.c_str()), 0);  // a symbolic link to itself
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {fifo, "it is a FIFO (named pipe), not a regular file"},
+      {"/dev/zero", "it is a character device, not a regular file"},
+      {dir + "/dir.toml", "it is a directory, not a regular file"},
+      {loop, "Too many levels of symbolic links"}};
+  for (const auto& [path, why] : files) {
+    for (const std::string& cmd : {"sim '" + path + "'", "analyze '" + path + "'",
+                                   "render '" + path + "' --out " + dir + "/figs",
+                                   "compare '" + path + "' '" + path + "'"}) {
+      const auto [r, s] = TimedShoal(cmd, "special");
+      EXPECT_EQ(r.status, 2) << cmd << "\n" << r.err;
+      EXPECT_NE(r.err.find(why), std::string::npos) << cmd << "\n" << r.err;
+      EXPECT_LT(s, 5.0) << cmd;
+    }
+  }
+}
+
+TEST(SimCli, OversizedScenarioIsRefusedUnread) {
+  const std::string big = TmpPath("oversized.toml");
+  ASSERT_EQ(std::system(("truncate -s 17M '" + big + "'").c_str()), 0);  // sparse
+  const auto [r, s] = TimedShoal("sim '" + big + "'", "oversized");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("larger than the limit of 16777216 bytes"), std::string::npos) << r.err;
+  EXPECT_LT(s, 5.0);
+}
+
+// A delay the scenario rules allow (up to 1e9 s) once sized the history and the channel
+// by the delay itself: 13 GB for 1e6 s, std::bad_alloc beyond. Both are now bounded by
+// the run, and the run is as short as its duration.
+TEST(SimCli, HugeDelaysRunInBoundedMemory) {
+  for (const std::string& delay :
+       {std::string("model = \"constant\"\nbase_s = 1e7\n"),
+        std::string("model = \"uniform\"\nbase_s = 1e9\namplitude_s = 1.0\n")}) {
+    const std::string path = WriteScenario("huge_delay.toml",
+                                           "[run]\nduration_s = 20\n[channel.delay]\n" + delay);
+    const auto [r, s] = TimedShoal("sim '" + path + "' --json --out " +
+                                       TmpPath("huge_delay.lcmlog"), "huge_delay");
+    EXPECT_EQ(r.status, 1) << delay << r.err;  // runs; no neighbour data arrives in 20 s
+    EXPECT_LT(s, 5.0) << delay;
+    const auto j = ParseJson(r.out);
+    EXPECT_EQ(j["ticks"], 1001) << r.out;
+    for (const auto& f : j["followers"]) EXPECT_EQ(f["msgs_received"], 0) << r.out;  // none due
+  }
+}
+
+TEST(SimCli, YearsLongRunIsRefusedUnlessAllowed) {
+  const std::string path = WriteScenario("years.toml", "[run]\nduration_s = 1e8\n");
+  const auto [r, s] = TimedShoal("sim '" + path + "'", "years");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("refusing a large run (5e+09 ticks"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--allow-large"), std::string::npos) << r.err;
+  EXPECT_LT(s, 5.0);
+  const auto run = RunShoal("run '" + path + "' --out " + TmpPath("years.lcmlog"), "years_run");
+  EXPECT_EQ(run.status, 2);
+  EXPECT_NE(run.err.find("refusing a large run"), std::string::npos) << run.err;
+  EXPECT_NE(access(TmpPath("years.lcmlog").c_str(), F_OK), 0);
+  // Shortened, it runs; allowed, it starts (and is stopped by SIGINT after 1 s).
+  EXPECT_NE(RunShoal("sim '" + path + "' --duration 5", "years_short").status, 2);
+  const auto allowed = RunShoal("sim '" + path + "' --allow-large & pid=$!; sleep 1; "
+                                "kill -INT $pid; wait $pid", "years_allowed");
+  EXPECT_EQ(allowed.status, 130) << allowed.err;
+}
+
+TEST(SimCli, UnwritableLogBeforeTheRunExitsTwo) {
+  const std::string scenario = SourcePath("scenarios/paper_example2.toml");
+  const auto full = RunShoal("sim " + scenario + " --out /dev/full", "dev_full");
+  EXPECT_EQ(full.status, 2);
+  EXPECT_NE(full.err.find("/dev/full: write failed (No space left on device)"),
+            std::string::npos) << full.err;
+  EXPECT_TRUE(full.out.empty());
+  const auto dir = RunShoal("sim " + scenario + " --out /nonexistent/x.lcmlog", "no_dir");
+  EXPECT_EQ(dir.status, 2);
+  EXPECT_NE(dir.err.find("cannot open log for writing"), std::string::npos) << dir.err;
+}
+
+// A disk that fills during the run (here: a 2 MiB file size limit, SIGXFSZ ignored so
+// that write() fails with EFBIG): the run stops, says what the log holds, exits 1.
+TEST(SimCli, LogWriteFailureDuringTheRunExitsOne) {
+  const std::string log = TmpPath("cut.lcmlog"), err = TmpPath("cut.err");
+  const std::string cmd = "bash -c 'trap \"\" XFSZ; ulimit -f 2048; exec " +
+                          testing::ShoalBinary() + " sim " +
+                          SourcePath("scenarios/paper_example2.toml") + " --json --out " + log +
+                          "' >/dev/null 2>" + err;
+  const int raw = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(raw));
+  EXPECT_EQ(WEXITSTATUS(raw), 1);
+  const std::string text = ReadFile(err);
+  EXPECT_NE(text.find("write failed (File too large); the log is incomplete: at most"),
+            std::string::npos) << text;
+}
+
+// run.name names shoal run's log and process output: a path in it is refused (the
+// fixtures name_*.toml hold more), before any file is written.
+TEST(RunCli, ScenarioNameCannotEscapeTheWorkingDirectory) {
+  const std::string path =
+      WriteScenario("escape.toml", "[run]\nname = \"../../../../tmp/shoal_escape\"\n");
+  std::remove("/tmp/shoal_escape.lcmlog");
+  const auto r = RunShoal("run '" + path + "'", "escape");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("escape.toml:9: run.name: must be a plain file name"), std::string::npos)
+      << r.err;
+  EXPECT_NE(access("/tmp/shoal_escape.lcmlog", F_OK), 0);
+}
+
 }  // namespace
 }  // namespace shoal
-

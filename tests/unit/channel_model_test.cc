@@ -686,5 +686,34 @@ TEST(ChannelWheelRegression, AFirstMessageAtALargeTimeDoesNotGrowTheWheel) {
   EXPECT_EQ(got, 1);
 }
 
+// A delay longer than the wheel (65536 ticks: 1311 s at 50 Hz) no longer sizes the wheel
+// by itself (1e9 s once meant std::bad_alloc): such a delivery waits aside and enters its
+// bucket before anything submitted later can, so the order stays (tick, submission).
+TEST(ChannelWheelRegression, DelaysBeyondTheWheelWaitAsideAndKeepTheirOrder) {
+  std::vector<Link> links(2);
+  links[0].from = 0;
+  links[0].to = 1;
+  links[0].delay = Constant(2000.0);  // 100000 ticks
+  links[1].from = 2;
+  links[1].to = 1;
+  links[1].delay = Constant(0.1);
+  Channel<int> ch(links, kPeriod);
+  std::vector<ChannelDecision> d;
+  ch.Submit(0, 1, 0, 10, &d);
+  EXPECT_EQ(ch.NextDue(), 2000000000);
+  std::vector<std::pair<std::int64_t, int>> got;
+  for (std::int64_t tick = 1; tick <= 100001; ++tick) {
+    ch.DeliverDue(tick * kPeriod, [&](int, const int& v) { got.emplace_back(tick, v); });
+    if (tick == 99995) ch.Submit(2, 1, tick * kPeriod, 20, &d);  // due at tick 100000 too
+  }
+  const std::vector<std::pair<std::int64_t, int>> expected = {{100000, 10}, {100000, 20}};
+  EXPECT_EQ(got, expected);
+  EXPECT_EQ(ch.pending(), 0u);
+  links[0].delay = Constant(1e9);  // neither wheel nor queue grows to 5e10 ticks
+  Channel<int> huge(std::vector<Link>{links[0]}, kPeriod);
+  huge.Submit(0, 1, 0, 1, &d);
+  EXPECT_EQ(huge.pending(), 1u);
+}
+
 }  // namespace
 }  // namespace shoal

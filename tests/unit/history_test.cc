@@ -8,10 +8,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
 #include "core/control.h"
+#include "core/follower.h"
+#include "core/swarm.h"
 #include "core/rng.h"
 
 namespace shoal {
@@ -268,6 +271,56 @@ TEST(StateHistoryTest, UnevenlySpacedBufferAfterWrapAround) {
       ExpectNear(out, Lerp(pushed[k], pushed[k + 1], q), 1e-12);
     }
   }
+}
+
+// The history is sized by the neighbour timeout, the largest delay and two periods, but
+// never beyond the run's ticks (+2): a delay of 1e9 s once asked for 5e10 samples.
+TEST(StateHistoryTest, FollowerHistoryIsBoundedByTheRun) {
+  Scenario s;
+  s.followers = 1;
+  s.leader_links = {1};
+  s.offsets_m = {{0.0, 0.0, 0.0}};
+  s.initial.resize(1);
+  s.control_rate_hz = 50.0;
+  s.duration_s = 600.0;
+  s.neighbour_timeout_s = 1.0;
+  s.delay.kind = DelayKind::kConstant;
+  s.delay.base_s = 0.5;
+  EXPECT_EQ(Follower::HistoryCapacity(s), 79);  // ceil(1.54 / 0.02) + 2
+  s.delay.base_s = 1e9;
+  EXPECT_EQ(Follower::HistoryCapacity(s), 30002);  // 30001 ticks + 1
+  EXPECT_EQ(Follower::HistoryCapacity(s, 10.0), 502);
+  s.duration_s = 1e9;
+  EXPECT_EQ(Follower::HistoryCapacity(s), std::int64_t{50000000002});
+  EXPECT_THROW(StateHistory(Follower::HistoryCapacity(s)), std::length_error);
+  s.duration_s = 600.0;
+  const Topology topo = Topology::Build(1, {}, {1});
+  const Follower f(s, topo, 1, nullptr, 20.0);  // would need 400 GB sized by the delay
+  EXPECT_EQ(f.id(), 1);
+}
+
+// The estimate behind --allow-large: a run of years is large, the same run for 600 s is
+// not, and the memory counts the histories bounded by the run.
+TEST(StateHistoryTest, RunEstimateFlagsRunsOfYears) {
+  Scenario s;
+  s.followers = 1;
+  s.leader_links = {1};
+  s.offsets_m = {{0.0, 0.0, 0.0}};
+  s.initial.resize(1);
+  s.duration_s = 600.0;
+  const RunEstimate short_run = EstimateRun(s);
+  EXPECT_EQ(short_run.ticks, 30001);
+  EXPECT_EQ(short_run.links, 1);
+  EXPECT_FALSE(short_run.large());
+  EXPECT_TRUE(LargeRunRefusal(s).empty());
+  const RunEstimate years = EstimateRun(s, 1e8);
+  EXPECT_EQ(years.ticks, 5000000001);
+  EXPECT_TRUE(years.large());
+  EXPECT_GT(years.wall_seconds, 3600.0);
+  EXPECT_NE(LargeRunRefusal(s, 1e8).find("--allow-large"), std::string::npos);
+  s.delay.kind = DelayKind::kConstant;
+  s.delay.base_s = 1e9;  // every sample of the run kept: 5e9 samples
+  EXPECT_GT(EstimateRun(s, 1e8).memory_bytes, 5e9 * sizeof(HistorySample));
 }
 
 }  // namespace

@@ -4,9 +4,15 @@
 #include "scenario/loader.h"
 
 #include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -34,6 +40,12 @@ edges = [[2, 1], [3, 2]]
 k1 = 1.0
 k2 = 2.0
 )";
+
+/// Writes `text` to `path`; returns the path.
+std::string WriteFileAt(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
 
 std::string ReadText(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -368,8 +380,88 @@ TEST(ScenarioLoaderTest, DirectoryCannotBeRead) {
     LoadScenario(dir);
     FAIL() << "expected a ScenarioError";
   } catch (const ScenarioError& e) {
-    EXPECT_TRUE(Contains(e.what(), dir + ": cannot read scenario file (Is a directory)"));
+    EXPECT_TRUE(Contains(e.what(), dir + ": cannot read scenario file: it is a directory, "
+                                         "not a regular file"));
   }
+}
+
+/// The message LoadScenario gives for `path`, or "" if it loads.
+std::string LoadError(const std::string& path) {
+  try {
+    LoadScenario(path);
+  } catch (const ScenarioError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// A FIFO would block forever, /dev/zero never ends: neither is opened for reading as a
+// scenario, nor is a socket, a symbolic link loop or a file above 16 MiB read at all.
+TEST(ScenarioLoaderTest, OnlyRegularFilesOfAtMost16MiBAreRead) {
+  const fs::path dir = fs::temp_directory_path() / ("shoal_special_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string fifo = (dir / "fifo.toml").string(), loop = (dir / "loop.toml").string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  ASSERT_EQ(symlink(loop.c_str(), loop.c_str()), 0);
+  const std::string big = (dir / "big.toml").string();
+  fs::resize_file(WriteFileAt(big, ""), (16u << 20) + 1);
+  const int sock = socket(AF_UNIX, SOCK_STREAM, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  const std::string sock_path = (dir / "sock.toml").string();
+  std::snprintf(addr.sun_path, sizeof(addr.sun_path), "%s", sock_path.c_str());
+  ASSERT_EQ(bind(sock, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {fifo, ": cannot read scenario file: it is a FIFO (named pipe), not a regular file"},
+      {"/dev/zero", ": cannot read scenario file: it is a character device, not a regular file"},
+      {sock_path, ": cannot read scenario file: it is a socket, not a regular file"},
+      {loop, ": cannot read scenario file (Too many levels of symbolic links)"},
+      {big, ": cannot read scenario file: 16777217 bytes, larger than the limit of 16777216"}};
+  for (const auto& [path, message] : cases) {
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_TRUE(Contains(LoadError(path), path + message)) << LoadError(path);
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
+  }
+  close(sock);
+  fs::remove_all(dir);
+}
+
+TEST(ScenarioLoaderTest, UnreadableFileIsRefused) {
+  if (geteuid() == 0) GTEST_SKIP() << "root reads files whatever their mode";
+  const std::string path = WriteFileAt(
+      (fs::temp_directory_path() / ("shoal_unreadable_" + std::to_string(getpid()) + ".toml"))
+          .string(),
+      "[swarm]\n");
+  fs::permissions(path, fs::perms::none);
+  EXPECT_TRUE(Contains(LoadError(path), path + ": cannot read scenario file (Permission denied)"));
+  fs::remove(path);
+}
+
+// A file written by an editor that puts a UTF-8 byte order mark first reads as without it.
+TEST(ScenarioLoaderTest, ByteOrderMarkIsSkipped) {
+  const std::string text =
+      "[swarm]\nfollowers = 1\nleader_links = [1]\n[control]\nk1 = 1\nk2 = 2\n";
+  EXPECT_EQ(ParseScenario("\xEF\xBB\xBF" + text, "bom.toml").followers, 1);
+  EXPECT_TRUE(Contains(ErrorOf("\xEF\xBB\xBF[run]\nduration_s = -1\n" + text, "bom.toml"),
+                       "bom.toml:2: run.duration_s: must be a positive number"));
+}
+
+TEST(ScenarioLoaderTest, RunNameIsAPlainFileName) {
+  const std::string rest =
+      "[swarm]\nfollowers = 1\nleader_links = [1]\n[control]\nk1 = 1\nk2 = 2\n";
+  for (const std::string& name :
+       std::vector<std::string>{"helix_4", "a.b-c", "X", std::string(100, 'n')}) {
+    EXPECT_EQ(ParseScenario("[run]\nname = \"" + name + "\"\n" + rest, "t.toml").name, name);
+  }
+  for (const std::string& name : std::vector<std::string>
+       {"../x", "/tmp/x", "a/b", ".", "..", ".x", "a b", "a\\\\b", "a:b", std::string(101, 'n')}) {
+    EXPECT_TRUE(Contains(ErrorOf("[run]\nname = \"" + name + "\"\n" + rest, "t.toml"),
+                         "t.toml:2: run.name: must be a plain file name"))
+        << name;
+  }
+  // Without run.name, the file's name (which holds no '/') is the scenario's name.
+  EXPECT_EQ(ParseScenario(rest, "/some/dir/my run.toml").name, "my run");
 }
 
 TEST(ScenarioLoaderTest, ExampleInTheDocumentationIsValid) {
