@@ -557,7 +557,6 @@ TEST(Sil, RealtimeVehicleStoppedForOneAndAHalfSecondsFailsTheRun) {
   // 1.5 s at 50 Hz: about 75 periods missed.
   EXPECT_GE(std::atoll(report.c_str() + at + line.size()), 50) << report;
   EXPECT_NE(report.find("overruns", at), std::string::npos) << report;
-  EXPECT_EQ(report.find("LATE (real time): vehicle 1:"), std::string::npos) << report;
 }
 
 // lcm-logger killed during a run (or failing on a full disk): nothing is recorded any more,
