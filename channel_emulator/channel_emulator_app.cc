@@ -17,7 +17,10 @@ namespace shoal {
 
 namespace {
 constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process is gone
-constexpr std::int64_t kRecorderWaitNs = 20000000LL;     // lockstep: most per window
+// Lockstep: most wait for the recorder per window. Only a logger starved of the CPU takes
+// long; giving up then loses states, so the wait is generous (20 ms gave up a few times per
+// 120 s run on a loaded machine).
+constexpr std::int64_t kRecorderWaitNs = 100000000LL;
 // lcm-logger hands messages from LCM's receive thread to its writer through a queue of 30
 // and drops beyond that. The recorder gate lets at most one window's messages pile up, so
 // a window may send the logger at most this many: the clock master's own messages (clock
@@ -455,7 +458,7 @@ int ChannelEmulatorMain(int argc, char** argv) {
       ->capture_default_str();
   pid_t recorder_pid = 0;
   app.add_option("--recorder-pid", recorder_pid,
-                 "lockstep: the run's lcm-logger; before each window wait (at most 20 ms) "
+                 "lockstep: the run's lcm-logger; before each window wait (at most 100 ms) "
                  "until it has handled what it was sent, so that its 30-message queue "
                  "never overflows (0 = do not wait)")
       ->check(CLI::NonNegativeNumber);

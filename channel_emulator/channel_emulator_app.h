@@ -46,7 +46,7 @@ class ChannelEmulatorApp {
   /// answering (named on stderr and in SHOAL_STATUS); 1: interrupted; 3: start-up failed.
   int Run();
   const EmulatorCounters& counters() const { return counters_; }
-  /// Lockstep: before each window, wait (at most 20 ms) until this process -- the run's
+  /// Lockstep: before each window, wait (at most 100 ms) until this process -- the run's
   /// lcm-logger -- has handled what it was sent (channel_emulator/recorder_gate.h).
   void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).

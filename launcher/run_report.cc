@@ -36,16 +36,21 @@ void JudgeTiming(const RunAnalysis& a, RunReport* r) {
   r->timing_ok = r->timing_problems.empty();
 }
 
+std::string Lost(std::int64_t have, std::int64_t expected, const std::string& what) {
+  return "the log holds " + std::to_string(have) + " of " + std::to_string(expected) + " " +
+         what + ": " + std::to_string(expected - have) + " lost (" +
+         std::to_string((expected - have) * 100 / std::max<std::int64_t>(1, expected)) + " %)";
+}
+
 /// What the log lacks: vehicle states (lcm-logger drops what exceeds its 30-message
 /// queue; a process that stopped publishes no more), or everything after the logger died.
-void JudgeLog(RunReport* r) {
+/// `clock_ticks`: lockstep, the clock ticks the log's SHOAL_CLOCK messages cover (one
+/// window each reaches the logger); -1 when not judged.
+void JudgeLog(std::int64_t clock_ticks, std::int64_t expected_ticks, RunReport* r) {
   const std::int64_t states = r->summary.states, expected = r->log_states_expected;
-  if (states < expected) {
-    r->log_problems.push_back(
-        "the log holds " + std::to_string(states) + " of " + std::to_string(expected) +
-        " vehicle states: " + std::to_string(expected - states) + " lost (" +
-        std::to_string((expected - states) * 100 / std::max<std::int64_t>(1, expected)) +
-        " %)");
+  if (states < expected) r->log_problems.push_back(Lost(states, expected, "vehicle states"));
+  if (clock_ticks >= 0 && clock_ticks < expected_ticks) {
+    r->log_problems.push_back(Lost(clock_ticks, expected_ticks, "clock ticks"));
   }
   r->log_complete = r->log_readable && r->log_problems.empty();
 }
@@ -71,12 +76,16 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
   lo.scenario = &s;
   std::string error;
   // Without Shoal data in the log the summary stays all zero.
+  std::int64_t clock_ticks = -1;
   if (r.log_readable && LoadRunLog(r.launch.log, lo, &run, &error)) {
     const RunAnalysis a = AnalyseRun(run);
     r.summary = a.summary;
     r.diverged_follower = a.diverged_follower;
     r.converged = FormationConverged(a);
     if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, &r);
+    if (r.launch.mode == ModeName(Mode::kLockstep)) {
+      clock_ticks = static_cast<std::int64_t>(run.clock.size());
+    }
   }
   if (!r.launch.logger_exited_early.empty()) {
     char text[64];
@@ -84,7 +93,7 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     r.problems.push_back("lcm-logger exited early (" + r.launch.logger_exited_early +
                          "): the log ends at t = " + text + " s");
   }
-  JudgeLog(&r);
+  JudgeLog(clock_ticks, s.final_tick(r.launch.duration_s) + 1, &r);
   return r;
 }
 
