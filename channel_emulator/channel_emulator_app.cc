@@ -17,8 +17,25 @@ namespace shoal {
 
 namespace {
 constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process is gone
-constexpr std::int64_t kRecorderWaitNs = 20000000LL;     // lockstep: most per window
+// Lockstep: most wait for the recorder per window. Only a logger starved of the CPU takes
+// long; giving up then loses states, so the wait is generous (20 ms gave up a few times per
+// 120 s run on a loaded machine).
+constexpr std::int64_t kRecorderWaitNs = 100000000LL;
+// lcm-logger hands messages from LCM's receive thread to its writer through a queue of 30
+// and drops beyond that. The recorder gate lets at most one window's messages pile up, so
+// a window may send the logger at most this many: the clock master's own messages (clock
+// and channel batch) included, with room left for the once-a-second health and status
+// messages of every process that can fall into the same window.
+constexpr std::int64_t kLoggerWindowMessages = 20;
+constexpr std::int64_t kMasterMessagesPerWindow = 2;  // SHOAL_CLOCK + SHOAL_CHANNEL
+
+/// Most ticks per window whose messages to the logger stay within kLoggerWindowMessages:
+/// per tick a state of every vehicle and the deliveries the logger's bus carries.
+std::int64_t LoggerBoundLookahead(int followers, std::int64_t deliveries_per_tick) {
+  const std::int64_t per_tick = followers + 1 + deliveries_per_tick;
+  return std::max<std::int64_t>(1, (kLoggerWindowMessages - kMasterMessagesPerWindow) / per_tick);
 }
+}  // namespace
 
 ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns,
                                        double duration_s, Bus* bus,
@@ -38,15 +55,6 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       have_seq_(s.followers + 1, false),
       alive_(s.followers + 1, true),
       ready_(s.followers + 1, false) {
-  if (mode == Mode::kLockstep) {
-    lookahead_ = std::max<std::int64_t>(
-        1, std::min(channel_.MinLagTicks(), std::max<std::int64_t>(1, max_lookahead_ticks)));
-  }
-  const auto slots = static_cast<std::size_t>(lookahead_ * (n_ + 1));
-  got_tick_.assign(slots, false);
-  tick_state_.resize(slots);
-  tick_seq_.assign(slots, 0);
-  for (int id = 0; id <= n_; ++id) rx_channels_.push_back(channels::Rx(id));
   for (int id = 0; id <= n_; ++id) {
     auto group = std::find_if(bus_groups_.begin(), bus_groups_.end(),
                               [&](const std::vector<int>& g) { return vbus_[g[0]] == vbus_[id]; });
@@ -57,6 +65,20 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
     }
     shared_has_vehicles_ = shared_has_vehicles_ || vbus_[id] == bus_;
   }
+  if (mode == Mode::kLockstep) {
+    // Every state goes to the logger's bus; so does every delivery to a vehicle that
+    // receives there (at most one per link and tick).
+    std::int64_t logged_deliveries = 0;
+    for (const auto& link : channel_.links()) logged_deliveries += vbus_[link.to] == bus_;
+    lookahead_ = std::max<std::int64_t>(
+        1, std::min({channel_.MinLagTicks(), std::max<std::int64_t>(1, max_lookahead_ticks),
+                     LoggerBoundLookahead(n_, logged_deliveries)}));
+  }
+  const auto slots = static_cast<std::size_t>(lookahead_ * (n_ + 1));
+  got_tick_.assign(slots, false);
+  tick_state_.resize(slots);
+  tick_seq_.assign(slots, 0);
+  for (int id = 0; id <= n_; ++id) rx_channels_.push_back(channels::Rx(id));
   outbox_.resize(static_cast<std::size_t>(n_ + 1));
 }
 
@@ -430,12 +452,13 @@ int ChannelEmulatorMain(int argc, char** argv) {
   AddProcessOptions(&app, &opt);
   app.add_option("--max-lookahead", max_lookahead,
                  "lockstep: most ticks released per round trip; the channel's smallest "
-                 "delivery lag bounds it (1 = wait for every state after every tick)")
+                 "delivery lag bounds it, and so does lcm-logger's queue: a window sends "
+                 "the logger at most 20 messages (1 = wait for every state after every tick)")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   pid_t recorder_pid = 0;
   app.add_option("--recorder-pid", recorder_pid,
-                 "lockstep: the run's lcm-logger; before each window wait (at most 20 ms) "
+                 "lockstep: the run's lcm-logger; before each window wait (at most 100 ms) "
                  "until it has handled what it was sent, so that its 30-message queue "
                  "never overflows (0 = do not wait)")
       ->check(CLI::NonNegativeNumber);

@@ -35,7 +35,9 @@ class ChannelEmulatorApp {
   /// `vehicle_buses[id]` is where vehicle id receives (its SHOAL_RX and, in lockstep, the
   /// clock); entries may all be `bus`.
   /// `max_lookahead_ticks` (lockstep): how many ticks the clock master may release before
-  /// it waits for the states; the channel's minimum delivery lag bounds it (see Run).
+  /// it waits for the states; the channel's minimum delivery lag bounds it (see Run), and
+  /// so does the logger: one window sends the logger's bus at most 20 messages (states,
+  /// deliveries it carries, clock, channel batch), below lcm-logger's 30-message queue.
   ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
                      Bus* bus, std::vector<Bus*> vehicle_buses,
                      std::int64_t max_lookahead_ticks = 50);
@@ -44,7 +46,7 @@ class ChannelEmulatorApp {
   /// answering (named on stderr and in SHOAL_STATUS); 1: interrupted; 3: start-up failed.
   int Run();
   const EmulatorCounters& counters() const { return counters_; }
-  /// Lockstep: before each window, wait (at most 20 ms) until this process -- the run's
+  /// Lockstep: before each window, wait (at most 100 ms) until this process -- the run's
   /// lcm-logger -- has handled what it was sent (channel_emulator/recorder_gate.h).
   void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).

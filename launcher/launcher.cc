@@ -369,7 +369,8 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
   const auto wall0 = std::chrono::steady_clock::now();
   auto last_show = wall0;
   bool emulator_done = false;
-  while (!emulator_done && !start_failed_ && !StopSignals::Requested()) {
+  while (!emulator_done && !start_failed_ && !StopSignals::Requested() &&
+         r_->logger_exited_early.empty()) {
     const timespec poll = {0, 50000000};
     nanosleep(&poll, nullptr);  // returns early when a child exits (SIGCHLD)
     for (Child& c : kids_) {
@@ -377,6 +378,10 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
       c.running = false;
       if (c.id == kEmulatorId) {
         emulator_done = true;
+      } else if (c.id == kLoggerId) {
+        // Nothing is recorded any more: going on would only make a run without a log. The
+        // run stops now; the report says where the log ends.
+        r_->logger_exited_early = Describe(c.status);
       } else if (!(WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) {
         r_->problems.push_back(Failure(c));
         if (cb.problem) cb.problem(r_->problems.back());
@@ -440,14 +445,15 @@ void Launch::Stop(bool logger) {
 
 void Launch::Shutdown() {
   // Normal end: give the vehicles a moment to finish their last tick on their own.
-  if (!StopSignals::Requested()) WaitFor(IsRunProcess, std::chrono::seconds(2));
+  if (!StopSignals::Requested() && r_->logger_exited_early.empty()) WaitFor(IsRunProcess, std::chrono::seconds(2));
   // The run's processes first, the logger last so that it records everything they
   // published.
   Stop(false);
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // logger drains its socket
   Stop(true);
   r_->interrupted = StopSignals::Requested();
-  if (r_->interrupted) return;  // the children were stopped: their statuses say nothing
+  // Stopped by shoal run (a stop signal, or the logger gone): their statuses say nothing.
+  if (r_->interrupted || !r_->logger_exited_early.empty()) return;
   for (const Child& c : kids_) {
     if (IsLogger(c) || (WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) continue;
     const std::string msg = Failure(c);

@@ -36,6 +36,9 @@ struct LaunchResult {
   double wall_time_s = 0.0;        // real time: from the common start time t0
   bool interrupted = false;        // SIGINT/SIGTERM/SIGHUP stopped the run
   std::vector<std::string> problems;  // processes that failed, or had to be killed
+  /// How lcm-logger ended when it exited before the run did (then the run was stopped at
+  /// once: nothing after that point is recorded); empty if it ran to the end.
+  std::string logger_exited_early;
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
 };

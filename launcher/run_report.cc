@@ -2,14 +2,60 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "analysis/analysis_json.h"
 #include "analysis/run_data.h"
 #include "analysis/verdict.h"
+#include "runtime/channels.h"
 #include "runtime/process.h"
 
 namespace shoal {
+namespace {
+
+std::string ProcessName(int id) {
+  if (id == kEmulatorId) return "channel emulator";
+  return id == 0 ? "leader" : "vehicle " + std::to_string(id);
+}
+
+/// Real time: each process's last health report (its figures since it started).
+void JudgeTiming(const RunAnalysis& a, RunReport* r) {
+  for (const ProcessAnalysis& p : a.processes) {
+    const HealthRecord& h = p.last;
+    if (h.overruns == 0 && h.lateness_p99_s <= kMaxLatenessP99S) continue;
+    char text[256];
+    std::snprintf(text, sizeof(text),
+                  "%s: %lld overruns, %s p99 %.1f ms (limits: 0 overruns, p99 %.0f ms)",
+                  ProcessName(p.id).c_str(), static_cast<long long>(h.overruns),
+                  p.id == kEmulatorId ? "release error" : "loop lateness",
+                  h.lateness_p99_s * 1e3, kMaxLatenessP99S * 1e3);
+    r->timing_problems.push_back(text);
+  }
+  r->timing_ok = r->timing_problems.empty();
+}
+
+std::string Lost(std::int64_t have, std::int64_t expected, const std::string& what) {
+  return "the log holds " + std::to_string(have) + " of " + std::to_string(expected) + " " +
+         what + ": " + std::to_string(expected - have) + " lost (" +
+         std::to_string((expected - have) * 100 / std::max<std::int64_t>(1, expected)) + " %)";
+}
+
+/// What the log lacks: vehicle states (lcm-logger drops what exceeds its 30-message
+/// queue; a process that stopped publishes no more), or everything after the logger died.
+/// `clock_ticks`: lockstep, the clock ticks the log's SHOAL_CLOCK messages cover (one
+/// window each reaches the logger); -1 when not judged.
+void JudgeLog(std::int64_t clock_ticks, std::int64_t expected_ticks, RunReport* r) {
+  const std::int64_t states = r->summary.states, expected = r->log_states_expected;
+  if (states < expected) r->log_problems.push_back(Lost(states, expected, "vehicle states"));
+  if (clock_ticks >= 0 && clock_ticks < expected_ticks) {
+    r->log_problems.push_back(Lost(clock_ticks, expected_ticks, "clock ticks"));
+  }
+  r->log_complete = r->log_readable && r->log_problems.empty();
+}
+
+}  // namespace
 
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
   RunReport r;
@@ -24,19 +70,30 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
   // The summary is read back from the run's log (the single source of truth), with the
   // same code as shoal analyze.
   r.log_readable = access(r.launch.log.c_str(), R_OK) == 0;
-  if (!r.log_readable) {
-    r.problems.push_back("the log " + r.launch.log + " cannot be read");
-    return r;
-  }
+  if (!r.log_readable) r.problems.push_back("the log " + r.launch.log + " cannot be read");
   RunData run;
   LoadOptions lo;
   lo.scenario = &s;
   std::string error;
-  if (!LoadRunLog(r.launch.log, lo, &run, &error)) return r;  // no Shoal data: all zero
-  const RunAnalysis a = AnalyseRun(run);
-  r.summary = a.summary;
-  r.diverged_follower = a.diverged_follower;
-  r.converged = FormationConverged(a);
+  // Without Shoal data in the log the summary stays all zero.
+  std::int64_t clock_ticks = -1;
+  if (r.log_readable && LoadRunLog(r.launch.log, lo, &run, &error)) {
+    const RunAnalysis a = AnalyseRun(run);
+    r.summary = a.summary;
+    r.diverged_follower = a.diverged_follower;
+    r.converged = FormationConverged(a);
+    if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, &r);
+    if (r.launch.mode == ModeName(Mode::kLockstep)) {
+      clock_ticks = static_cast<std::int64_t>(run.clock.size());
+    }
+  }
+  if (!r.launch.logger_exited_early.empty()) {
+    char text[64];
+    std::snprintf(text, sizeof(text), "%.2f", r.summary.sim_time_s);
+    r.problems.push_back("lcm-logger exited early (" + r.launch.logger_exited_early +
+                         "): the log ends at t = " + text + " s");
+  }
+  JudgeLog(clock_ticks, s.final_tick(r.launch.duration_s) + 1, &r);
   return r;
 }
 
@@ -61,6 +118,10 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["process_output_dir"] = l.process_output_dir;
   j["log_states"] = sum.states;
   j["log_states_expected"] = r.log_states_expected;
+  j["log_complete"] = r.log_complete;
+  j["log_problems"] = r.log_problems;
+  j["timing_ok"] = r.timing_ok;
+  j["timing_problems"] = r.timing_problems;
   j["lcm_url"] = l.lcm_url;
   j["cpu_latency_request"] = l.cpu_latency_request;
   return j;
@@ -99,12 +160,19 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   std::fprintf(out, "  log: %s (URL %s), %lld of %lld vehicle states recorded\n", l.log.c_str(),
                l.lcm_url.c_str(), static_cast<long long>(sum.states),
                static_cast<long long>(r.log_states_expected));
+  for (const std::string& p : r.log_problems) {
+    std::fprintf(out, "  LOG INCOMPLETE: %s\n", p.c_str());
+  }
+  for (const std::string& p : r.timing_problems) {
+    std::fprintf(out, "  LATE (real time): %s\n", p.c_str());
+  }
   std::fprintf(out, "  output of each process: %s/\n", l.process_output_dir.c_str());
 }
 
 int RunExitStatus(const RunReport& r) {
   if (r.launch.interrupted) return kExitInterrupted;
-  return r.all_processes_ok() && r.converged ? kExitOk : kExitFailed;
+  const bool ok = r.all_processes_ok() && r.log_complete && r.timing_ok && r.converged;
+  return ok ? kExitOk : kExitFailed;
 }
 
 }  // namespace shoal

@@ -25,8 +25,21 @@ struct RunReport {
   bool converged = false;     // FormationConverged (analysis/verdict.h)
   std::int64_t log_states_expected = 0;  // (final tick + 1) * (followers + 1)
   std::vector<std::string> problems;     // the launch's, and an unreadable log
+  /// Every expected vehicle state is in the log (log_states >= log_states_expected);
+  /// log_problems says what was lost, and how much, when not.
+  bool log_complete = false;
+  std::vector<std::string> log_problems;
+  /// Real time: no process overran a period, and every process's loop lateness p99 (the
+  /// emulator's: release error p99) stayed within kMaxLatenessP99S; always true in
+  /// lockstep, which reads no clock. timing_problems names each process that did not.
+  bool timing_ok = true;
+  std::vector<std::string> timing_problems;
   bool all_processes_ok() const { return problems.empty() && !launch.interrupted; }
 };
+
+/// Real-time verdict: a loop lateness (or release error) p99 beyond one 50 Hz control
+/// period fails the run, and so does any overrun (docs/run.md).
+constexpr double kMaxLatenessP99S = 0.02;
 
 /// Reads the run's log (launch.log) and builds the report.
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch);
@@ -35,8 +48,9 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch);
 nlohmann::ordered_json RunReportJson(const RunReport& r);
 /// The readable summary.
 void PrintRunReport(const RunReport& r, std::FILE* out);
-/// 130 interrupted; 1 a process failed, the log is unreadable, or the formation did not
-/// converge or diverged; else 0 (docs/cli.md).
+/// 130 interrupted; 1 a process failed, the log is unreadable or incomplete, a real-time
+/// process overran or was late, or the formation did not converge or diverged; else 0
+/// (docs/cli.md).
 int RunExitStatus(const RunReport& r);
 
 }  // namespace shoal
