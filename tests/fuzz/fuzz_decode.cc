@@ -1,10 +1,14 @@
 // Fuzz target: runtime/lcm_bus.h's Decode for every message type of the bus. The first
 // byte chooses the type, the rest is the message. Decode must return false on anything
 // it cannot read (never throw, never read out of bounds, never allocate without bound),
-// and a message it accepts must encode again to exactly `size` bytes that decode too.
+// and a message it accepts must encode again to exactly `size` bytes that decode too --
+// unless a string holds a NUL byte: LCM's decoder keeps the string's bytes as they are,
+// its encoder writes them up to the first NUL (strlen), so such a message re-encodes
+// shorter (and encode() returns less than getEncodedSize()).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
+#include <string>
 #include <vector>
 
 #include <shoal/channel_event_t.hpp>
@@ -19,10 +23,28 @@
 
 namespace {
 
+bool HasNul(const std::string& s) { return s.find('\0') != std::string::npos; }
+
+template <typename Msg>
+bool StringsWithoutNul(const Msg&) {
+  return true;  // no strings
+}
+bool StringsWithoutNul(const shoal::run_status_t& m) {
+  return !HasNul(m.state) && !HasNul(m.scenario_name) && !HasNul(m.scenario_toml) &&
+         !HasNul(m.message);
+}
+bool StringsWithoutNul(const shoal::channel_event_t& m) { return !HasNul(m.reason); }
+bool StringsWithoutNul(const shoal::channel_events_t& m) {
+  for (const shoal::channel_event_t& e : m.events) {
+    if (HasNul(e.reason)) return false;
+  }
+  return true;
+}
+
 template <typename Msg>
 void DecodeOne(const std::uint8_t* data, int size) {
   Msg msg;
-  if (!shoal::Decode(data, size, &msg)) return;
+  if (!shoal::Decode(data, size, &msg) || !StringsWithoutNul(msg)) return;
   // Accepted: the message is whole, so it re-encodes to as many bytes (strings may differ
   // from the input only in bytes after an embedded NUL) and decodes again.
   const int encoded_size = msg.getEncodedSize();
