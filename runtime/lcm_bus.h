@@ -6,9 +6,11 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <shoal/channel_event_t.hpp>
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
 #include <shoal/clock_window_t.hpp>
+#include <shoal/run_status_t.hpp>
 
 #include <cstdint>
 #include <functional>
@@ -106,14 +108,64 @@ inline bool ArrayCountsFit<channel_events_t>(const unsigned char* p, int size) {
   return n >= 0 && n <= (size - kFixed) / kMinEvent;
 }
 
+/// Whether every string a message declares has a length LCM 1.3.1's generated decoder can
+/// take: it reads the length (the NUL included) as an `int`, checks only that it is not
+/// more than the bytes left, and copies length - 1 bytes; a length of INT_MIN overflows
+/// that subtraction (in practice a 2 GB read past the message). A length must be in
+/// [1, bytes left]. Called after ArrayCountsFit (array counts are sane).
+namespace wire_check {
+/// Skips the string at *pos; false if its length is out of range.
+inline bool SkipString(const unsigned char* p, int size, std::int64_t* pos) {
+  if (*pos + 4 > size) return false;
+  const std::int64_t len = wire::I32(p + *pos);
+  *pos += 4;
+  if (len < 1 || len > size - *pos) return false;
+  *pos += len;
+  return true;
+}
+/// channel_event_t's fields before its string `reason` (utime .. status).
+constexpr int kEventBeforeReason = 8 + 4 * 5 + 8 * 3 + 1;
+}  // namespace wire_check
+template <typename Msg>
+bool StringLengthsFit(const unsigned char* /*p*/, int /*size*/) {
+  return true;  // no strings
+}
+template <>
+inline bool StringLengthsFit<run_status_t>(const unsigned char* p, int size) {
+  std::int64_t pos = 8 + 8 + 4 + 4;  // hash .. seq
+  for (int k = 0; k < 3; ++k) {      // state, scenario_name, scenario_toml
+    if (!wire_check::SkipString(p, size, &pos)) return false;
+  }
+  pos += 8 + 4;  // seed, followers
+  return wire_check::SkipString(p, size, &pos);  // message
+}
+template <>
+inline bool StringLengthsFit<channel_event_t>(const unsigned char* p, int size) {
+  std::int64_t pos = 8 + wire_check::kEventBeforeReason;
+  return wire_check::SkipString(p, size, &pos);
+}
+template <>
+inline bool StringLengthsFit<channel_events_t>(const unsigned char* p, int size) {
+  std::int64_t pos = 8 + 8 + 4 + 4 + 4;  // hash .. n_events
+  const std::int64_t n = wire::I32(p + pos - 4);
+  for (std::int64_t k = 0; k < n; ++k) {
+    pos += wire_check::kEventBeforeReason;
+    if (!wire_check::SkipString(p, size, &pos)) return false;
+  }
+  return true;
+}
+
 /// Decodes an LCM message; false (never an exception, never an out-of-bounds read) on a
-/// truncated message, a wrong fingerprint, an array count that does not fit, or garbage.
+/// truncated message, a wrong fingerprint, an array count or a string length that does not
+/// fit, or garbage.
 template <typename Msg>
 bool Decode(const void* data, int size, Msg* out) {
   if (data == nullptr || size < 8) return false;
-  if (!ArrayCountsFit<Msg>(static_cast<const unsigned char*>(data), size)) return false;
-  // LCM's generated string decoder throws std::length_error on a string length <= 0
-  // (a damaged or forged message): inside an LCM handler that would terminate the process.
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  if (!ArrayCountsFit<Msg>(bytes, size) || !StringLengthsFit<Msg>(bytes, size)) return false;
+  // The checks above refuse the string lengths <= 0 on which LCM's generated decoder
+  // throws std::length_error; the catch keeps any exception they do not foresee (an
+  // allocation failure) from terminating a process inside its LCM handler.
   try {
     return out->decode(data, 0, size) == size;
   } catch (...) {

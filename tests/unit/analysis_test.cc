@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -858,16 +859,34 @@ TEST(LogDamage, ForgedArrayCountsAreRefusedNotTrusted) {
   }
 }
 
-// A string length of 0 or less makes LCM's generated decoder throw std::length_error;
-// runtime's Decode() (used in the processes' LCM handlers) must refuse it instead.
+// A string length of 0 or less makes LCM's generated decoder throw std::length_error, and
+// INT_MIN overflows its length - 1 (a 2 GB read past the message); runtime's Decode()
+// (used in the processes' LCM handlers) must refuse them instead.
 TEST(LogDamage, DamagedStringLengthIsRefusedNotThrown) {
+  const auto put = [](std::vector<std::uint8_t>* b, int at, std::int32_t v) {
+    for (int k = 0; k < 4; ++k) (*b)[at + k] = static_cast<std::uint8_t>(static_cast<std::uint32_t>(v) >> (24 - 8 * k));
+  };
+  const std::int32_t kBad[] = {0, -1, -100000, std::numeric_limits<std::int32_t>::min()};
   run_status_t st = Status(0, 1, "ready", "");
   std::vector<std::uint8_t> b(st.getEncodedSize());
   ASSERT_EQ(st.encode(b.data(), 0, static_cast<int>(b.size())), static_cast<int>(b.size()));
-  for (std::int32_t len : {0, -1, -100000}) {
-    for (int k = 0; k < 4; ++k) b[24 + k] = static_cast<std::uint8_t>(static_cast<std::uint32_t>(len) >> (24 - 8 * k));
+  for (std::int32_t len : kBad) {
+    put(&b, 24, len);
     run_status_t out;
     EXPECT_FALSE(Decode(b.data(), static_cast<int>(b.size()), &out)) << len;
+  }
+  ChannelEventBatch batch;
+  batch.Add(Decision(0, 1, 0, 0.1, 100000, 0));
+  std::vector<std::uint8_t> e;
+  batch.Flush([&](const channel_events_t& m) {
+    e.resize(static_cast<std::size_t>(m.getEncodedSize()));
+    m.encode(e.data(), 0, static_cast<int>(e.size()));
+  });
+  const int reason_at = 8 + 8 + 4 + 4 + 4 + 8 + 4 * 5 + 8 * 3 + 1;  // first event's reason
+  for (std::int32_t len : kBad) {
+    put(&e, reason_at, len);
+    channel_events_t out;
+    EXPECT_FALSE(Decode(e.data(), static_cast<int>(e.size()), &out)) << len;
   }
 }
 

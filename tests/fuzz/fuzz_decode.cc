@@ -1,0 +1,74 @@
+// Fuzz target: runtime/lcm_bus.h's Decode for every message type of the bus. The first
+// byte chooses the type, the rest is the message. Decode must return false on anything
+// it cannot read (never throw, never read out of bounds, never allocate without bound),
+// and a message it accepts must encode again to exactly `size` bytes that decode too --
+// unless a string holds a NUL byte: LCM's decoder keeps the string's bytes as they are,
+// its encoder writes them up to the first NUL (strlen), so such a message re-encodes
+// shorter (and encode() returns less than getEncodedSize()).
+#include <cstddef>
+#include <cstdint>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <shoal/channel_event_t.hpp>
+#include <shoal/channel_events_t.hpp>
+#include <shoal/clock_tick_t.hpp>
+#include <shoal/clock_window_t.hpp>
+#include <shoal/health_t.hpp>
+#include <shoal/run_status_t.hpp>
+#include <shoal/vehicle_state_t.hpp>
+
+#include "runtime/lcm_bus.h"
+
+namespace {
+
+bool HasNul(const std::string& s) { return s.find('\0') != std::string::npos; }
+
+template <typename Msg>
+bool StringsWithoutNul(const Msg&) {
+  return true;  // no strings
+}
+bool StringsWithoutNul(const shoal::run_status_t& m) {
+  return !HasNul(m.state) && !HasNul(m.scenario_name) && !HasNul(m.scenario_toml) &&
+         !HasNul(m.message);
+}
+bool StringsWithoutNul(const shoal::channel_event_t& m) { return !HasNul(m.reason); }
+bool StringsWithoutNul(const shoal::channel_events_t& m) {
+  for (const shoal::channel_event_t& e : m.events) {
+    if (HasNul(e.reason)) return false;
+  }
+  return true;
+}
+
+template <typename Msg>
+void DecodeOne(const std::uint8_t* data, int size) {
+  Msg msg;
+  if (!shoal::Decode(data, size, &msg) || !StringsWithoutNul(msg)) return;
+  // Accepted: the message is whole, so it re-encodes to as many bytes (strings may differ
+  // from the input only in bytes after an embedded NUL) and decodes again.
+  const int encoded_size = msg.getEncodedSize();
+  if (encoded_size != size) std::abort();
+  std::vector<std::uint8_t> buf(encoded_size);
+  if (msg.encode(buf.data(), 0, encoded_size) != encoded_size) std::abort();
+  Msg again;
+  if (!shoal::Decode(buf.data(), encoded_size, &again)) std::abort();
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  if (size < 1 || size > (1u << 20)) return 0;
+  const std::uint8_t* msg = data + 1;
+  const int n = static_cast<int>(size - 1);
+  switch (data[0] % 7) {
+    case 0: DecodeOne<shoal::vehicle_state_t>(msg, n); break;
+    case 1: DecodeOne<shoal::clock_window_t>(msg, n); break;
+    case 2: DecodeOne<shoal::clock_tick_t>(msg, n); break;
+    case 3: DecodeOne<shoal::channel_events_t>(msg, n); break;
+    case 4: DecodeOne<shoal::health_t>(msg, n); break;
+    case 5: DecodeOne<shoal::run_status_t>(msg, n); break;
+    case 6: DecodeOne<shoal::channel_event_t>(msg, n); break;
+  }
+  return 0;
+}
