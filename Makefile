@@ -7,14 +7,13 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-# Debian packages the build, the tests and the demo need (clang and libclang-rt-14-dev:
-# libFuzzer, for bench/fuzz.sh).
+# Debian packages the build, the tests and the demo need. (bench/fuzz.sh also needs clang
+# and libclang-rt-14-dev for libFuzzer; the tests replay its corpus without them.)
 DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
   liblcm-dev liblcm-bin libglib2.0-dev \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev \
   libsdp-dev libceres-dev libosmesa6-dev libstb-dev zlib1g-dev fonts-dejavu-core \
-  nlohmann-json3-dev universal-ctags \
-  clang libclang-rt-14-dev
+  nlohmann-json3-dev universal-ctags
 
 .PHONY: demo test deps build configure clean
 
