@@ -43,8 +43,13 @@ std::string RunEstimate::Describe(int followers) const {
   return text;
 }
 
-std::string LargeRunRefusal(const Scenario& s, double duration_s) {
-  const RunEstimate e = EstimateRun(s, duration_s);
+std::string LargeRunRefusal(const Scenario& s, double duration_s, RunPace pace) {
+  RunEstimate e = EstimateRun(s, duration_s);
+  constexpr double kLockstepOverSim = 20.0;  // 600 s of Example 2: 6.1 s against 0.35 s
+  if (pace == RunPace::kLockstep) e.wall_seconds *= kLockstepOverSim;
+  if (pace == RunPace::kRealtime) {
+    e.wall_seconds = static_cast<double>(e.ticks) * static_cast<double>(s.period_us()) * 1e-6;
+  }
   if (!e.large()) return "";
   return "refusing a large run (" + e.Describe(s.followers) +
          "; the limits are 1 h and 4 GiB); shorten run.duration_s or --duration, or pass "

@@ -47,8 +47,14 @@ struct RunEstimate {
 /// The estimate of a run of `duration_s` (< 0: the scenario's) of a validated scenario.
 RunEstimate EstimateRun(const Scenario& s, double duration_s = -1.0);
 
+/// How a run spends wall time against shoal sim's estimate: a lockstep SIL run is a round
+/// of messages between processes every tick (measured on Example 2: about 17x slower
+/// than shoal sim), and a real-time run takes its simulated duration.
+enum class RunPace { kSim, kLockstep, kRealtime };
+
 /// "" if the run is not large, else why it is refused and how to run it anyway.
-std::string LargeRunRefusal(const Scenario& s, double duration_s = -1.0);
+std::string LargeRunRefusal(const Scenario& s, double duration_s = -1.0,
+                            RunPace pace = RunPace::kSim);
 
 class Swarm {
  public:

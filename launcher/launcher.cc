@@ -228,7 +228,8 @@ bool Launch::Prepare(std::string* error) {
     return false;
   }
   if (!opt_.allow_large) {
-    *error = LargeRunRefusal(s_, opt_.duration_s);
+    *error = LargeRunRefusal(s_, opt_.duration_s,
+                             mode_ == Mode::kRealtime ? RunPace::kRealtime : RunPace::kLockstep);
     if (!error->empty()) return false;
   }
   r_->mode = opt_.mode;
@@ -312,7 +313,7 @@ void Launch::StartAll() {
   // states (docs/benchmarks.md, lockstep: 600 s runs, 36-39x against 50-56x).
   const bool root = geteuid() == 0;
   Start("lcm-logger", kLoggerId,
-        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url, "-f", "-q", r_->log},
+        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url, "-f", "-q", "--", r_->log},
         root ? -10 : 0, "logger");
   const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
   for (int i = 0; i < 100 && access(r_->log.c_str(), F_OK) != 0; ++i) {

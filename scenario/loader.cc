@@ -53,7 +53,10 @@ constexpr std::size_t kMaxNameChars = 100;
 
 /// A name that is safe as a file name in the working directory, on every file system.
 bool IsPlainName(std::string_view name) {
-  if (name.empty() || name.size() > kMaxNameChars || name.front() == '.') return false;
+  // Not '.' first (hidden, "..") nor '-' first (read as an option by the tools given it).
+  if (name.empty() || name.size() > kMaxNameChars || name.front() == '.' || name.front() == '-') {
+    return false;
+  }
   return std::all_of(name.begin(), name.end(), [](char c) {
     return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
            c == '_' || c == '-' || c == '.';
@@ -624,7 +627,7 @@ void ReadRun(const Reader& r, const Table& t, Scenario* s) {
       // shoal run names its log and its process output after it: never a path.
       r.FailAt(*node, t.KeyOf("name"),
                "must be a plain file name: letters, digits, '_', '-' and '.', not starting "
-               "with '.', at most " + std::to_string(kMaxNameChars) + " characters",
+               "with '.' or '-', at most " + std::to_string(kMaxNameChars) + " characters",
                hint);
     }
   }
