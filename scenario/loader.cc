@@ -178,6 +178,9 @@ struct Bound {
   double hi;
   bool hi_open;
   std::string_view what;
+  // A magnitude beyond which a value is physically absurd, and the rule in words.
+  double max_abs = kInf;
+  std::string_view too_large = "";
 
   bool Contains(double v) const {
     return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
@@ -193,6 +196,25 @@ constexpr Bound kSeconds{0.0, false, kMaxSeconds, false, "must be a number of se
 constexpr Bound kProbability{0.0, false, 1.0, true, "must be in [0, 1)"};
 constexpr Bound kControlRate{0.0, true, kMaxControlRateHz, false,
                              "must be a positive number <= 10000"};
+// Physical magnitudes. A finite but absurd value (a position of 1e308 m, a gain of 1e300)
+// once ran and overflowed to NaN or inf; these bounds are far beyond any REMUS 100 run
+// (top speed about 2.5 m/s, range about 100 km) and far below any overflow.
+constexpr double kMaxMetres = 1e6;
+constexpr double kMaxSpeed = 100.0;  // m/s, and rad/s for body rates
+constexpr double kMaxGain = 1e6;
+constexpr double kMaxRatePerSecond = 1e6;
+constexpr Bound kCoordinate{-kInf, true, kInf, true, "must be a finite number", kMaxMetres,
+                            "must be a number of metres in [-1e6, 1e6]"};
+constexpr Bound kVelocity{-kInf, true, kInf, true, "must be a finite number", kMaxSpeed,
+                          "must be in [-100, 100]"};
+constexpr Bound kPositiveSpeed{0.0, true, kInf, true, "must be a positive number", kMaxSpeed,
+                               "must be at most 100"};
+constexpr Bound kSpeed{0.0, false, kInf, true, "must be a number >= 0", kMaxSpeed,
+                       "must be at most 100"};
+constexpr Bound kGain{0.0, true, kInf, true, "must be a positive number", kMaxGain,
+                      "must be at most 1e6"};
+constexpr Bound kRatePerSecond{0.0, true, kInf, true, "must be a positive number",
+                               kMaxRatePerSecond, "must be at most 1e6"};
 constexpr Bound kPitch{-kMaxPitchRad, true, kMaxPitchRad, true,
                        "must satisfy |pitch_rad| < 0.5236 (30 deg)"};
 
@@ -302,6 +324,25 @@ std::string Quoted(std::string_view s) {
   return out;
 }
 
+/// A key name as a message shows it: bytes outside printable ASCII as \xNN (no valid key
+/// has any, and a newline or an invisible character in a key must be seen), cut at
+/// kMaxShownChars so that a key of megabytes does not flood the terminal.
+std::string ShownKey(std::string_view name) {
+  std::string out;
+  for (const char c : name) {
+    if (out.size() >= kMaxShownChars) return out + "...";
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte >= 0x20 && byte < 0x7f) {
+      out += c;
+    } else {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\x%02x", static_cast<unsigned>(byte));
+      out += escaped;
+    }
+  }
+  return out;
+}
+
 std::string Index(const std::string& key, std::size_t i) {
   return key + "[" + std::to_string(i) + "]";
 }
@@ -340,6 +381,10 @@ std::optional<std::string_view> Closest(std::string_view word, const Names& cand
   std::optional<std::string_view> best;
   int best_distance = kMaxSuggestionDistance + 1;
   for (const std::string_view candidate : candidates) {
+    // The distance is at least the difference in length: a long word (a key of megabytes)
+    // is never compared character by character.
+    const std::size_t longer = std::max(word.size(), candidate.size());
+    if (longer - std::min(word.size(), candidate.size()) > kMaxSuggestionDistance) continue;
     const int distance = EditDistance(word, candidate);
     if (distance < best_distance) {
       best = candidate;
@@ -450,10 +495,10 @@ class Reader {
       const std::string_view name = key->str();
       if (allowed.Contains(name)) continue;
       const bool is_table = value->is_table() && !value->as_table()->is_inline();
-      const std::string dotted = t.KeyOf(name);
+      const std::string dotted = t.KeyOf(ShownKey(name));
       const std::string where = t.key.empty() ? "at the top level" : "in " + t.label;
       const std::string what = is_table ? "unknown table [" + dotted + "]"
-                                        : "unknown key '" + std::string(name) + "' " + where;
+                                        : "unknown key '" + ShownKey(name) + "' " + where;
       Fail(LineOf(key->source()), dotted, what, std::nullopt,
            UnknownKeyFix(t, name, is_table, allowed));
     }
@@ -511,6 +556,7 @@ class Reader {
     }
     if (!std::isfinite(value)) FailAt(node, key, "must be a finite number", hint);
     if (!bound.Contains(value)) FailAt(node, key, bound.what, hint);
+    if (std::abs(value) > bound.max_abs) FailAt(node, key, bound.too_large, hint);
     return value;
   }
 
@@ -648,6 +694,13 @@ void ReadRun(const Reader& r, const Table& t, Scenario* s) {
              "choose a rate such as 10, 20, 25, 50, 64, 100, 125, 200 or 1000");
     }
   }
+  if (const toml::node* node = t.Get("duration_s"); node && s->duration_s * s->control_rate_hz < 1.0) {
+    // A run of one tick, at t = 0, measures nothing and always reports "not converged".
+    r.FailAt(*node, t.KeyOf("duration_s"),
+             "must be at least one control period (" + FormatNumber(1.0 / s->control_rate_hz) +
+                 " s at " + FormatNumber(s->control_rate_hz) + " Hz)",
+             "the run lasts duration_s seconds, e.g. duration_s = 600");
+  }
   if (const toml::node* node = t.Get("seed")) {
     s->seed = static_cast<std::uint64_t>(
         r.ToInteger(*node, t.KeyOf("seed"),
@@ -723,8 +776,8 @@ void ReadSwarm(const Reader& r, const Table& t, Scenario* s) {
 void ReadControl(const Reader& r, const Table& t, Scenario* s) {
   r.CheckKeys(t, kControlKeys);
   const std::string_view gain_hint = "consensus gains k1, k2 must be > 0";
-  s->k1 = r.RequireNumber(t, "k1", kPositive, gain_hint);
-  s->k2 = r.RequireNumber(t, "k2", kPositive, gain_hint);
+  s->k1 = r.RequireNumber(t, "k1", kGain, gain_hint);
+  s->k2 = r.RequireNumber(t, "k2", kGain, gain_hint);
 
   const std::size_t n = static_cast<std::size_t>(s->followers);
   s->offsets_m.assign(n, Vec3::Zero());
@@ -739,7 +792,7 @@ void ReadControl(const Reader& r, const Table& t, Scenario* s) {
     const toml::array& offsets = r.ToArray(*node, key, what, hint);
     if (offsets.size() != n) r.FailAt(*node, key, what, hint);
     for (std::size_t i = 0; i < n; ++i) {
-      s->offsets_m[i] = r.ToVector<3>(*offsets.get(i), Index(key, i), kFinite, hint);
+      s->offsets_m[i] = r.ToVector<3>(*offsets.get(i), Index(key, i), kCoordinate, hint);
     }
   }
 }
@@ -753,14 +806,14 @@ void ReadWaypoints(const Reader& r, const Table& t, LeaderConfig* leader) {
       r.ToArray(node, key, "must be an array of at least 2 points [x, y, z]", hint);
   if (points.size() < 2) r.FailAt(node, key, "must have at least 2 points", hint);
   for (std::size_t k = 0; k < points.size(); ++k) {
-    const Vec3 p = r.ToVector<3>(*points.get(k), Index(key, k), kFinite, hint);
+    const Vec3 p = r.ToVector<3>(*points.get(k), Index(key, k), kCoordinate, hint);
     if (!leader->waypoints_m.empty() && p == leader->waypoints_m.back()) {
       r.FailAt(*points.get(k), Index(key, k), "repeats the previous waypoint",
                "consecutive waypoints must differ");
     }
     leader->waypoints_m.push_back(p);
   }
-  r.ReadNumber(t, "speed_mps", kPositive, "the leader's along-path speed in m/s",
+  r.ReadNumber(t, "speed_mps", kPositiveSpeed, "the leader's along-path speed in m/s",
                &leader->speed_mps);
   r.ReadBool(t, "loop", "loop = true returns to the first waypoint and repeats", &leader->loop);
   if (leader->loop && leader->waypoints_m.back() == leader->waypoints_m.front()) {
@@ -777,9 +830,9 @@ void ReadLeader(const Reader& r, const Table& t, LeaderConfig* leader) {
     case PathKind::kPaperHelix:
       break;
     case PathKind::kLine:
-      r.ReadVector<3>(t, "start_m", kFinite, "the leader's position [x, y, z] at t = 0, metres",
+      r.ReadVector<3>(t, "start_m", kCoordinate, "the leader's position [x, y, z] at t = 0, metres",
                       &leader->start_m);
-      r.ReadVector<3>(t, "velocity_mps", kFinite,
+      r.ReadVector<3>(t, "velocity_mps", kVelocity,
                       "the leader's constant velocity [vx, vy, vz] in m/s (NED)",
                       &leader->velocity_mps);
       break;
@@ -906,12 +959,12 @@ void ReadDisturbance(const Reader& r, const Table& t, DisturbanceConfig* disturb
   OceanCurrentConfig& c = disturbance->current;
   const std::string_view speed_hint =
       "current speeds are in m/s, min_speed_mps <= speed_mps <= max_speed_mps";
-  r.ReadNumber(t, "speed_mps", kNonNegative, speed_hint, &c.speed_mps);
-  r.ReadNumber(t, "min_speed_mps", kNonNegative, speed_hint, &c.min_speed_mps);
-  r.ReadNumber(t, "max_speed_mps", kNonNegative, speed_hint, &c.max_speed_mps);
-  r.ReadNumber(t, "mu_per_s", kPositive, "1/mu_per_s is the Gauss-Markov time constant",
+  r.ReadNumber(t, "speed_mps", kSpeed, speed_hint, &c.speed_mps);
+  r.ReadNumber(t, "min_speed_mps", kSpeed, speed_hint, &c.min_speed_mps);
+  r.ReadNumber(t, "max_speed_mps", kSpeed, speed_hint, &c.max_speed_mps);
+  r.ReadNumber(t, "mu_per_s", kRatePerSecond, "1/mu_per_s is the Gauss-Markov time constant",
                &c.mu_per_s);
-  r.ReadNumber(t, "noise_mps", kNonNegative,
+  r.ReadNumber(t, "noise_mps", kSpeed,
                "noise_mps is the standard deviation of the white noise", &c.noise_mps);
   r.ReadNumber(t, "direction_rad", kFinite, "direction_rad is the current's direction (NED)",
                &c.direction_rad);
@@ -974,13 +1027,13 @@ void ReadFollowers(const Reader& r, const Table& root, Scenario* s) {
     }
     init.given = true;
     Vec3 position = Vec3::Zero();
-    r.ReadVector<3>(t, "position_m", kFinite, "initial position [x, y, z] in metres (NED)",
+    r.ReadVector<3>(t, "position_m", kCoordinate, "initial position [x, y, z] in metres (NED)",
                     &position);
     init.eta.head<3>() = position;
     r.ReadNumber(t, "pitch_rad", kPitch, "the REMUS 100 pitch limit is 30 deg (0.5236 rad)",
                  &init.eta(3));
     r.ReadNumber(t, "heading_rad", kFinite, "initial heading in radians", &init.eta(4));
-    r.ReadVector<5>(t, "nu", kFinite, "initial body velocities [u, v, w, q, r] in m/s and rad/s",
+    r.ReadVector<5>(t, "nu", kVelocity, "initial body velocities [u, v, w, q, r] in m/s and rad/s",
                     &init.nu);
   }
 }
@@ -1000,6 +1053,92 @@ void ReadScenario(const Reader& r, const toml::table& root, Scenario* s) {
   ReadVehicle(r, child("vehicle"), s);
   ReadMetrics(r, child("metrics"), &s->metrics);
   ReadFollowers(r, top, s);
+}
+
+// ---------------------------------------------------------------------------------------
+// Key depth, before parsing.
+//
+// The TOML parser builds one nested table per component of a dotted key or table header,
+// and both builds and frees them recursively: a header of 100000 components ([a.a.a...])
+// overflows the stack (a crash, no message). It bounds nested arrays and inline tables at
+// 256 levels but not key components, so those are counted here first, along the whole
+// path a key lies on: its table header, the inline tables around it and its own dots.
+constexpr int kMaxKeyDepth = 256;
+
+/// The index just past the string starting at text[i] (basic or literal, single- or
+/// multi-line), counting the newlines it holds into *line.
+std::size_t SkipString(std::string_view text, std::size_t i, int* line) {
+  const char quote = text[i];
+  const bool multi = text.compare(i, 3, std::string(3, quote)) == 0;
+  std::size_t k = i + (multi ? 3 : 1);
+  for (; k < text.size(); ++k) {
+    const char c = text[k];
+    if (c == '\n') {
+      if (!multi) return k;  // unterminated: the parser says so
+      ++*line;
+    } else if (c == '\\' && quote == '"') {
+      ++k;  // the escaped character (a newline after it is a line, counted next round)
+      if (k < text.size() && text[k] == '\n') ++*line;
+    } else if (c == quote && (!multi || text.compare(k, 3, std::string(3, quote)) == 0)) {
+      return k + (multi ? 3 : 1);
+    }
+  }
+  return k;
+}
+
+/// The line of the first key deeper than kMaxKeyDepth tables, 0 if there is none. Just
+/// exact enough for this count: strings, comments and brackets are followed, nothing else
+/// is checked (the parser does that).
+int LineOfTooDeepKey(std::string_view text) {
+  int line = 1;
+  int header = 0;           // depth of the current table header
+  int base = 0;             // depth at which the key being read starts
+  int dots = 0;             // dots in the key being read
+  bool in_key = true;       // reading a key (or a header), not a value
+  bool is_header = false;   // the statement is a table header
+  bool line_start = true;   // nothing but blanks yet in this statement
+  int depth = 0;            // of the value being read
+  std::vector<std::pair<char, int>> open;  // value brackets and the depth inside each
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '"' || c == '\'') {
+      i = SkipString(text, i, &line) - 1;
+      line_start = false;
+      continue;
+    }
+    if (c == '#') {
+      while (i + 1 < text.size() && text[i + 1] != '\n') ++i;
+      continue;
+    }
+    if (c == '\n') {
+      ++line;
+      if (!open.empty()) continue;
+      if (is_header) header = dots + 1;
+      base = header, dots = 0, in_key = true, is_header = false, line_start = true;
+      continue;
+    }
+    if (c == ' ' || c == '\t' || c == '\r') continue;
+    if (line_start && c == '[' && open.empty()) base = 0, is_header = true;
+    line_start = false;
+    if (in_key) {
+      if (c == '.' && base + ++dots + 1 > kMaxKeyDepth) return line;
+      if (c == '=' && !is_header) in_key = false, depth = base + dots + 1;
+      if (c == '}' && !open.empty()) open.pop_back(), in_key = false;
+      continue;
+    }
+    // Nested arrays and inline tables are bounded by the parser, with its own message;
+    // here they only add to the depth of the keys inside them.
+    if (c == '[' || c == '{') {
+      open.emplace_back(c, ++depth);
+      if (c == '{') base = depth, dots = 0, in_key = true;
+    } else if ((c == ']' || c == '}') && !open.empty()) {
+      open.pop_back();
+      depth = open.empty() ? 0 : open.back().second;
+    } else if (c == ',' && !open.empty() && open.back().first == '{') {
+      base = open.back().second, dots = 0, in_key = true;
+    }
+  }
+  return 0;
 }
 
 }  // namespace
@@ -1034,6 +1173,11 @@ Scenario LoadScenario(const std::string& path) {
 
 Scenario ParseScenario(const std::string& text, const std::string& path) {
   const std::string file = path.empty() ? "<scenario>" : path;
+  if (const int line = LineOfTooDeepKey(text)) {
+    throw ScenarioError(file + ":" + std::to_string(line) +
+                        ": TOML syntax error: a key or table nests more than " +
+                        std::to_string(kMaxKeyDepth) + " tables deep");
+  }
   toml::table root;
   try {
     root = toml::parse(std::string_view(text), std::string_view(file));

@@ -529,12 +529,104 @@ std::string WriteScenario(const std::string& name, const std::string& extra) {
   return path;
 }
 
-TEST(SimCli, EveryBadScenarioIsRefusedWithinSeconds) {
+/// `shoal <args>` timed; a second try if the first took a second or more (the machine is
+/// shared: a test on another core can stall one process start). Returns the faster.
+std::pair<testing::RunResult, double> FasterOfTwo(const std::string& args, const std::string& tag) {
+  auto first = TimedShoal(args, tag);
+  if (first.second < 1.0) return first;
+  auto second = TimedShoal(args, tag);
+  return second.second < first.second ? second : first;
+}
+
+// Every command that loads a scenario refuses each malformed one with status 2, naming the
+// file and line, in under a second: shoal sim, shoal run (before any process starts) and
+// shoal design.
+TEST(SimCli, EveryBadScenarioIsRefusedWithinASecondByEveryCommand) {
   for (const std::string& f : BadScenarioFiles()) {
-    const auto [r, s] = TimedShoal("sim '" + f + "'", "bad_timed");
-    EXPECT_EQ(r.status, 2) << f << "\n" << r.err;
-    EXPECT_FALSE(r.err.empty()) << f;
-    EXPECT_LT(s, 5.0) << f;
+    const std::string base = f.substr(f.rfind('/') + 1);
+    for (const std::string& cmd :
+         {"sim '" + f + "'", "run '" + f + "' --out " + TmpPath("bad_run.lcmlog"),
+          "design '" + f + "'"}) {
+      const auto [r, s] = FasterOfTwo(cmd, "bad_timed");
+      EXPECT_EQ(r.status, 2) << cmd << "\n" << r.err;
+      EXPECT_NE(r.err.find(base + ":"), std::string::npos) << cmd << "\n" << r.err;
+      EXPECT_LT(s, 1.0) << cmd;
+    }
+  }
+}
+
+// Hostile files too large, or not text enough, to keep in the repository: written here.
+TEST(SimCli, GeneratedHostileScenariosAreRefusedWithinASecond) {
+  const std::string ok = "[swarm]\nfollowers = 2\nleader_links = [1]\nedges = [[2, 1]]\n"
+                         "[control]\nk1 = 1.0\nk2 = 2.0\n";
+  std::string offsets = "[swarm]\nfollowers = 2\nleader_links = [1]\nedges = [[2, 1]]\n"
+                        "[control]\nk1 = 1.0\nk2 = 2.0\noffsets_m = [";
+  for (int i = 0; i < 1000000; ++i) offsets += i ? ",[0,0,0]" : "[0,0,0]";
+  std::string keys = ok;
+  for (int i = 3; i < 600000; ++i) keys += "k" + std::to_string(i) + " = 1\n";
+  const std::string utf16("\xff\xfe[\0s\0w\0a\0r\0m\0]\0\n\0", 16);
+  const struct {
+    std::string name, text, expect;
+  } cases[] = {
+      {"empty.toml", "", ":1: swarm.followers: missing required key"},
+      {"bom_only.toml", "\xef\xbb\xbf", ":1: swarm.followers: missing required key"},
+      {"double_bom.toml", "\xef\xbb\xbf\xef\xbb\xbf" + ok, ":1: TOML syntax error"},
+      {"utf16.toml", utf16, ":1: TOML syntax error: Encountered invalid utf-8 sequence"},
+      {"binary.toml", std::string("\x7f" "ELF\x02\x01\x01\0\0\0", 10) + ok,
+       ":1: TOML syntax error"},
+      {"key_of_8_mib.toml", ok + "\"" + std::string(8 << 20, 'k') + "\" = 1\n",
+       ":8: control.kkkk"},
+      {"string_of_8_mib.toml", ok + "[channel.delay]\nmodel = \"" + std::string(8 << 20, 'x') +
+       "\"\n", ":9: channel.delay.model: unknown delay model"},
+      {"comment_of_15_mib.toml", "#" + std::string(15 << 20, 'c') + "\n" + ok + "k3 = 1\n",
+       ":9: control.k3: unknown key"},
+      {"million_offsets.toml", offsets + "]\n", ":8: control.offsets_m: must have exactly 2"},
+      {"600000_keys.toml", keys, ":8: control.k3: unknown key 'k3'"},
+      {"header_of_100000_tables.toml", ok + "[" + [] {
+         std::string h = "a";
+         for (int i = 1; i < 100000; ++i) h += ".a";
+         return h;
+       }() + "]\n", ":8: TOML syntax error: a key or table nests more than 256 tables deep"},
+  };
+  for (const auto& c : cases) {
+    const std::string path = TmpPath(c.name);
+    std::ofstream(path, std::ios::binary) << c.text;
+    const auto [r, s] = FasterOfTwo("sim '" + path + "'", "generated");
+    EXPECT_EQ(r.status, 2) << c.name << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.name + c.expect), std::string::npos) << c.name << "\n"
+                                                                   << r.err.substr(0, 300);
+    EXPECT_LT(r.err.size(), 1000u) << c.name;  // a key of megabytes is not echoed whole
+    EXPECT_LT(s, 1.0) << c.name;
+    std::remove(path.c_str());
+  }
+}
+
+// Valid but enormous (tests/data/bad_scenarios/large/): shoal sim and shoal run refuse
+// each with status 2 and the estimate of its wall time and memory, in under a second,
+// unless --allow-large (SimCli.YearsLongRunIsRefusedUnlessAllowed).
+TEST(SimCli, EnormousScenariosAreRefusedWithTheirEstimate) {
+  const std::string dir = SourcePath("tests/data/bad_scenarios/large");
+  std::vector<std::string> files;
+  for (const char* name : {"years_long.toml", "fastest_rate_for_a_week.toml",
+                           "thousand_followers_in_a_chain_for_a_day.toml",
+                           "hundred_dense_followers_with_long_delays.toml"}) {
+    files.push_back(dir + "/" + name);
+  }
+  for (const std::string& f : files) {
+    const std::string text = ReadFile(f);
+    const std::string tag = "# expect: ";
+    ASSERT_EQ(text.rfind(tag, 0), 0u) << f;
+    const std::string expect = text.substr(tag.size(), text.find('\n') - tag.size());
+    for (const std::string& cmd :
+         {"sim '" + f + "'", "run '" + f + "' --out " + TmpPath("large.lcmlog")}) {
+      const auto [r, s] = FasterOfTwo(cmd, "large");
+      EXPECT_EQ(r.status, 2) << cmd << "\n" << r.err;
+      EXPECT_NE(r.err.find(expect), std::string::npos) << cmd << "\n" << r.err;
+      EXPECT_NE(r.err.find(" h and "), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("GiB of memory"), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find("--allow-large"), std::string::npos) << r.err;
+      EXPECT_LT(s, 1.0) << cmd;
+    }
   }
 }
 
