@@ -441,16 +441,20 @@ std::string LoggerExitNote(const std::string& log, const std::string& logger_out
     std::fclose(f);
   }
   if (!last.empty()) note += "; its output ends with \"" + last + "\"";
+  // Full: less room than lcm-logger's write buffers need. Root may also use the blocks a
+  // file system reserves for it (f_bfree), and lcm-logger runs as whoever runs shoal run.
   struct statvfs fs {};
-  const std::string dir = log.find('/') == std::string::npos ? "." : log.substr(0, log.rfind('/') + 1);
+  const std::size_t slash = log.rfind('/');
+  const std::string dir = slash == std::string::npos ? "." : log.substr(0, slash + 1);
   if (statvfs(dir.c_str(), &fs) == 0) {
-    const double free_b = static_cast<double>(fs.f_bavail) * fs.f_frsize;
+    const double free_b =
+        static_cast<double>(geteuid() == 0 ? fs.f_bfree : fs.f_bavail) * fs.f_frsize;
     const double size_b = static_cast<double>(fs.f_blocks) * fs.f_frsize;
-    if (free_b < std::max(65536.0, 0.001 * size_b)) {
-      char text[4200];
-      std::snprintf(text, sizeof(text), "; the disk holding %s is full (%.0f of %.0f kB free)",
-                    log.c_str(), free_b / 1024, size_b / 1024);
-      note += text;
+    if (free_b < 1024.0 * 1024.0) {
+      char sizes[96];
+      std::snprintf(sizes, sizeof(sizes), " is full (%.0f of %.0f kB free)", free_b / 1024,
+                    size_b / 1024);
+      note += "; the disk holding " + log + sizes;
     }
   }
   return note;
