@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -185,28 +186,36 @@ void RunCase(Case* c) {
   // Lockstep: long enough that only a fault ends it. Real time: 20 s, or 8 s when the
   // run must go on past a stopped vehicle.
   const std::string duration = c->mode == "lockstep" ? "100000" : c->keep_going ? "8" : "20";
+  // An earlier run's log would make this one look started before it is.
+  std::remove(c->log.c_str());
   const pid_t run = StartShoal("run " + kExample2 + " --mode " + c->mode + " --duration " +
                                    duration + " --out " + c->log + " --quiet" +
                                    (c->keep_going ? " --keep-going" : ""),
                                c->out);
+  // Started: all 8 children have their programs (a child between fork and exec still has
+  // shoal run's command line) and the log holds half a second of states.
   const auto t_start = Clock::now();
   std::vector<std::pair<pid_t, std::string>> kids;
-  while (Since(t_start) < 30 && (kids.size() < 8 || StatesInLog(c->log) < 6 * 25)) {
+  pid_t logger = -1, victim = -1;
+  const std::string url_key = "239.255.76.67:";
+  std::size_t at = std::string::npos;
+  while (Since(t_start) < 30 && (kids.size() < 8 || victim <= 0 || at == std::string::npos ||
+                                 StatesInLog(c->log) < 6 * 25)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     kids = ChildrenOf(run);
+    logger = VictimOf(kids, "lcm-logger");
+    victim = VictimOf(kids, c->kind);
+    at = logger > 0 ? CmdLine(logger).find(url_key) : std::string::npos;
   }
   for (const auto& k : kids) c->run_pids.insert(k.first);
-  const pid_t logger = VictimOf(kids, "lcm-logger");
-  const std::string url_key = "239.255.76.67:";
-  const std::size_t at = logger > 0 ? CmdLine(logger).find(url_key) : std::string::npos;
   if (at != std::string::npos) c->port_text = ":" + CmdLine(logger).substr(at + url_key.size(), 5);
-  const pid_t victim = VictimOf(kids, c->kind);
   if (kids.size() < 8 || victim <= 0 || c->port_text.empty()) {
     int raw = 0;
     const bool gone = waitpid(run, &raw, WNOHANG) == run;
     c->failure = "the run did not start within 30 s: " + std::to_string(kids.size()) +
                  " processes, " + std::to_string(StatesInLog(c->log)) + " states in the log" +
                  (gone ? ", shoal run exited (raw status " + std::to_string(raw) + ")" : "");
+    for (const auto& [pid, cmd] : kids) c->failure += "\n  " + std::to_string(pid) + ": " + cmd;
     if (!gone) {
       kill(run, SIGKILL);
       waitpid(run, nullptr, 0);
