@@ -6,6 +6,7 @@
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -41,6 +42,8 @@ struct Child {
   pid_t pid = -1;
   bool running = false;
   int status = 0;  // raw waitpid status once exited
+  bool stopped = false;   // stopped by a signal (SIGSTOP, SIGTSTP, ...), not continued yet
+  bool reported = false;  // its fault is already among the problems
 };
 
 std::string ExeDir() {
@@ -67,6 +70,10 @@ std::string Describe(int status) {
   if (WIFSIGNALED(status)) {
     return std::string("killed by signal ") + std::to_string(WTERMSIG(status)) + " (" +
            strsignal(WTERMSIG(status)) + ")";
+  }
+  if (WIFSTOPPED(status)) {
+    return std::string("stopped by signal ") + std::to_string(WSTOPSIG(status)) + " (" +
+           strsignal(WSTOPSIG(status)) + ")";
   }
   return "stopped";
 }
@@ -202,8 +209,15 @@ class Launch {
   /// Waits (polling waitpid) up to `limit` for the children selected by `which` to exit.
   /// Returns true if all did.
   bool WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit);
-  void Stop(bool logger);
+  void Stop(bool logger, std::chrono::milliseconds grace);
   double WallSeconds(std::chrono::steady_clock::time_point wall0) const;
+  /// When a fault is seen: mission time and wall time, as the report says it.
+  std::string When();
+  /// Records child c's fault (`what` happened to it, now) among the problems and tells
+  /// cb. Returns true if it stops the run (it does unless opt_.keep_going lets a vehicle
+  /// or the leader go), and then records it as the cause.
+  bool Fault(Child& c, const std::string& what, const LaunchCallbacks& cb);
+  bool OnChildEvent(Child& c, int status, const LaunchCallbacks& cb);
 
   const Scenario& s_;
   const LaunchOptions& opt_;
@@ -214,6 +228,9 @@ class Launch {
   std::int64_t t0_ns_ = 0;
   Mode mode_ = Mode::kLockstep;  // opt_.mode, parsed by Prepare
   bool start_failed_ = false;    // a process could not be forked
+  bool emulator_done_ = false;   // the channel emulator (the run's clock) ended normally
+  std::unique_ptr<ProgressTracker> tracker_;  // the log as written so far
+  std::chrono::steady_clock::time_point wall0_;  // when supervision started
 };
 
 bool Launch::Prepare(std::string* error) {
@@ -361,48 +378,153 @@ double Launch::WallSeconds(std::chrono::steady_clock::time_point wall0) const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 }
 
+std::string Launch::When() {
+  // Mission time: real time runs on the clock from t0; lockstep's is the newest tick the
+  // log holds (the run waits for a process that is gone or stopped, so its log ends there).
+  double mission_s = 0.0;
+  if (mode_ == Mode::kRealtime) {
+    mission_s = (MonotonicNs() - t0_ns_) * 1e-9;
+  } else {
+    tracker_->Poll();
+    mission_s = tracker_->sim_time_s();
+  }
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
+  // The wall clock too, to match the fault with other records (the system journal, the
+  // processes' output).
+  timespec now {};
+  clock_gettime(CLOCK_REALTIME, &now);
+  tm local {};
+  localtime_r(&now.tv_sec, &local);
+  char clock_text[32];
+  std::strftime(clock_text, sizeof(clock_text), "%H:%M:%S", &local);
+  char text[192];
+  const int ms = static_cast<int>(now.tv_nsec / 1000000);
+  if (mission_s < 0) {
+    std::snprintf(text, sizeof(text),
+                  "%.2f s before the mission started (%s.%03d wall clock, %.2f s into the run)",
+                  -mission_s, clock_text, ms, wall_s);
+  } else {
+    std::snprintf(text, sizeof(text),
+                  "t = %.2f s of the mission (%s.%03d wall clock, %.2f s into the run)",
+                  mission_s, clock_text, ms, wall_s);
+  }
+  return text;
+}
+
+bool Launch::Fault(Child& c, const std::string& what, const LaunchCallbacks& cb) {
+  c.reported = true;
+  const bool stops = !(opt_.keep_going && c.id != kEmulatorId && c.id != kLoggerId);
+  std::string text = c.name + " (pid " + std::to_string(c.pid) + ") " + what + " at " + When();
+  if (stops) {
+    r_->stopped_by = text;
+    text += ": the run was stopped there";
+  }
+  r_->problems.push_back(text);
+  if (cb.problem) cb.problem(text, stops);
+  return stops;
+}
+
+/// The disk under the log: lcm-logger exits when a write fails (status 1, "No space left
+/// on device" on a full disk), and its own output file may then be empty for the same
+/// reason; the free space says it plainly.
+std::string LoggerExitNote(const std::string& log, const std::string& logger_output) {
+  std::string note;
+  std::string last, line;
+  if (FILE* f = std::fopen(logger_output.c_str(), "r")) {
+    char buf[512];
+    while (std::fgets(buf, sizeof(buf), f)) {
+      line = buf;
+      while (!line.empty() && (line.back() == '\n' || line.back() == '\r')) line.pop_back();
+      if (!line.empty()) last = line;
+    }
+    std::fclose(f);
+  }
+  if (!last.empty()) note += "; its output ends with \"" + last + "\"";
+  // Full: less room than lcm-logger's write buffers need. Root may also use the blocks a
+  // file system reserves for it (f_bfree), and lcm-logger runs as whoever runs shoal run.
+  struct statvfs fs {};
+  const std::size_t slash = log.rfind('/');
+  const std::string dir = slash == std::string::npos ? "." : log.substr(0, slash + 1);
+  if (statvfs(dir.c_str(), &fs) == 0) {
+    const double free_b =
+        static_cast<double>(geteuid() == 0 ? fs.f_bfree : fs.f_bavail) * fs.f_frsize;
+    const double size_b = static_cast<double>(fs.f_blocks) * fs.f_frsize;
+    if (free_b < 1024.0 * 1024.0) {
+      char sizes[96];
+      std::snprintf(sizes, sizeof(sizes), " is full (%.0f of %.0f kB free)", free_b / 1024,
+                    size_b / 1024);
+      note += "; the disk holding " + log + sizes;
+    }
+  }
+  return note;
+}
+
+/// One waitpid report of child c: exited, killed, stopped or continued. Returns false
+/// when the run must stop.
+bool Launch::OnChildEvent(Child& c, int status, const LaunchCallbacks& cb) {
+  if (WIFSTOPPED(status)) {
+    // A stopped process holds the run up (lockstep) or misses its periods (real time):
+    // whatever follows, the run is not the one asked for.
+    c.stopped = true;
+    return !Fault(c, "was " + Describe(status), cb);
+  }
+  if (WIFCONTINUED(status)) {
+    c.stopped = false;
+    return true;
+  }
+  c.running = false;
+  c.status = status;
+  const bool clean = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  if (c.id == kEmulatorId && clean) {
+    emulator_done_ = true;
+  } else if (c.id == kLoggerId) {
+    // Nothing is recorded any more: going on would only make a run without a log. The
+    // run stops now; the report says where the log ends.
+    r_->logger_exited_early = Describe(status);
+    r_->logger_exited_at = When();
+    r_->logger_exit_note = LoggerExitNote(r_->log, r_->process_output_dir + "/logger.txt");
+    c.reported = true;
+    return false;
+  } else if (!clean) {
+    return !Fault(c, Describe(status), cb);
+  }
+  return true;
+}
+
 void Launch::Supervise(const LaunchCallbacks& cb) {
-  // Progress from the log as lcm-logger writes it (not from the bus: a listener on the
-  // run's group would receive, and wake up for, every message of the run), process deaths
-  // from waitpid.
-  std::unique_ptr<ProgressTracker> tracker;
-  if (cb.progress) tracker = std::make_unique<ProgressTracker>(s_, r_->log);
-  const auto wall0 = std::chrono::steady_clock::now();
-  auto last_show = wall0;
-  bool emulator_done = false;
-  while (!emulator_done && !start_failed_ && !StopSignals::Requested() &&
-         r_->logger_exited_early.empty()) {
+  // Process deaths and stops from waitpid; progress from the log as lcm-logger writes it
+  // (not from the bus: a listener on the run's group would receive, and wake up for, every
+  // message of the run), read only to show progress or to say when a fault happened.
+  tracker_ = std::make_unique<ProgressTracker>(s_, r_->log);
+  wall0_ = std::chrono::steady_clock::now();
+  auto last_show = wall0_;
+  bool go_on = !start_failed_;
+  while (go_on && !emulator_done_ && !StopSignals::Requested()) {
     const timespec poll = {0, 50000000};
-    nanosleep(&poll, nullptr);  // returns early when a child exits (SIGCHLD)
+    nanosleep(&poll, nullptr);  // returns early when a child exits or stops (SIGCHLD)
     for (Child& c : kids_) {
-      if (!c.running || waitpid(c.pid, &c.status, WNOHANG) != c.pid) continue;
-      c.running = false;
-      if (c.id == kEmulatorId) {
-        emulator_done = true;
-      } else if (c.id == kLoggerId) {
-        // Nothing is recorded any more: going on would only make a run without a log. The
-        // run stops now; the report says where the log ends.
-        r_->logger_exited_early = Describe(c.status);
-      } else if (!(WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) {
-        r_->problems.push_back(Failure(c));
-        if (cb.problem) cb.problem(r_->problems.back());
+      int status = 0;
+      if (!c.running || waitpid(c.pid, &status, WNOHANG | WUNTRACED | WCONTINUED) != c.pid) {
+        continue;
       }
+      if (!OnChildEvent(c, status, cb)) go_on = false;
     }
     const auto now = std::chrono::steady_clock::now();
-    if (tracker && now - last_show > std::chrono::milliseconds(500)) {
+    if (go_on && cb.progress && now - last_show > std::chrono::milliseconds(500)) {
       last_show = now;
-      tracker->Poll();
+      tracker_->Poll();
       LaunchProgress p;
       for (const Child& c : kids_) p.alive += c.running && c.id != kLoggerId;
       p.processes = s_.followers + 2;
-      p.sim_time_s = tracker->sim_time_s();
+      p.sim_time_s = tracker_->sim_time_s();
       p.duration_s = r_->duration_s;
-      p.realtime_factor = p.sim_time_s / std::max(1e-9, WallSeconds(wall0));
-      p.worst_position_error_m = tracker->worst_error();
+      p.realtime_factor = p.sim_time_s / std::max(1e-9, WallSeconds(wall0_));
+      p.worst_position_error_m = tracker_->worst_error();
       cb.progress(p);
     }
   }
-  r_->wall_time_s = std::max(0.0, WallSeconds(wall0));
+  r_->wall_time_s = std::max(0.0, WallSeconds(wall0_));
 }
 
 bool Launch::WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit) {
@@ -426,37 +548,61 @@ bool Launch::WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limi
 bool IsLogger(const Child& c) { return c.id == kLoggerId; }
 bool IsRunProcess(const Child& c) { return c.id != kLoggerId; }
 
+/// Signals a child's process group (each child leads its own), or the child alone while
+/// it has not made its group yet.
+void SignalGroup(pid_t pid, int signal) {
+  if (kill(-pid, signal) != 0) kill(pid, signal);
+}
+
 /// SIGTERM to the run's processes (SIGINT to the logger, which then flushes and closes
-/// the log), SIGKILL to whoever has not stopped 2 s later.
-void Launch::Stop(bool logger) {
+/// the log), SIGCONT after it so that a stopped one gets it too, SIGKILL to the process
+/// group of whoever has not stopped after `grace`. No wait is unbounded: a process that
+/// outlives SIGKILL (stuck in the kernel) is reported, not waited for.
+void Launch::Stop(bool logger, std::chrono::milliseconds grace) {
   for (Child& c : kids_) {
-    if (c.running && IsLogger(c) == logger) kill(c.pid, logger ? SIGINT : SIGTERM);
+    if (!c.running || IsLogger(c) != logger) continue;
+    kill(c.pid, logger ? SIGINT : SIGTERM);
+    if (c.stopped) kill(c.pid, SIGCONT);
+  }
+  if (WaitFor(logger ? IsLogger : IsRunProcess, grace)) return;
+  for (Child& c : kids_) {
+    if (!c.running || IsLogger(c) != logger) continue;
+    SignalGroup(c.pid, SIGKILL);
+    r_->problems.push_back(c.name + " did not stop within " +
+                           std::to_string(grace.count()) + " ms and was killed");
   }
   if (WaitFor(logger ? IsLogger : IsRunProcess, std::chrono::seconds(2))) return;
   for (Child& c : kids_) {
     if (!c.running || IsLogger(c) != logger) continue;
-    kill(c.pid, SIGKILL);
-    // SIGCHLD has a handler without SA_RESTART: an exit elsewhere interrupts this.
-    while (waitpid(c.pid, &c.status, 0) < 0 && errno == EINTR) {
-    }
     c.running = false;
-    r_->problems.push_back(c.name + " did not stop within 2 s and was killed");
+    r_->problems.push_back(c.name + " (pid " + std::to_string(c.pid) +
+                           ") did not exit 2 s after SIGKILL");
   }
 }
 
 void Launch::Shutdown() {
-  // Normal end: give the vehicles a moment to finish their last tick on their own.
-  if (!StopSignals::Requested() && r_->logger_exited_early.empty()) WaitFor(IsRunProcess, std::chrono::seconds(2));
+  // Normal end: give the vehicles a moment to finish their last tick on their own. Stopped
+  // by a fault: at once, with shorter graces, so that shoal run has exited within 2 s of
+  // the fault (docs/reliability.md; they exit within about 0.1 s when they can). The
+  // logger's is the longer one: killed, it would lose what it has not written yet.
+  const bool fault = !r_->logger_exited_early.empty() || !r_->stopped_by.empty() ||
+                     start_failed_;
+  const bool stopped_early = fault || StopSignals::Requested();
+  if (!stopped_early) WaitFor(IsRunProcess, std::chrono::seconds(2));
+  using std::chrono::milliseconds;
   // The run's processes first, the logger last so that it records everything they
-  // published.
-  Stop(false);
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // logger drains its socket
-  Stop(true);
+  // published; it drains its socket in between.
+  Stop(false, milliseconds(fault ? 700 : 2000));
+  std::this_thread::sleep_for(milliseconds(fault ? 100 : 200));
+  Stop(true, milliseconds(fault ? 1000 : 2000));
   r_->interrupted = StopSignals::Requested();
-  // Stopped by shoal run (a stop signal, or the logger gone): their statuses say nothing.
-  if (r_->interrupted || !r_->logger_exited_early.empty()) return;
+  // Stopped by shoal run (a stop signal, a fault, or the logger gone): the others'
+  // statuses say nothing.
+  if (stopped_early) return;
   for (const Child& c : kids_) {
-    if (IsLogger(c) || (WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) continue;
+    if (IsLogger(c) || c.reported || (WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) {
+      continue;
+    }
     const std::string msg = Failure(c);
     if (std::find(r_->problems.begin(), r_->problems.end(), msg) == r_->problems.end()) {
       r_->problems.push_back(msg);

@@ -24,6 +24,10 @@ struct LaunchOptions {
   long long max_lookahead = 50;   // lockstep: most ticks the clock master releases at once
   bool allow_large = false;  // run even when the estimate exceeds 1 h or 4 GiB (core/swarm.h)
   bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
+  /// A vehicle or the leader that dies or is stopped (SIGSTOP) does not stop the run: it
+  /// is reported and the others go on (the verdict fails all the same). Without it, any
+  /// process that dies, fails or is stopped stops the whole run at once.
+  bool keep_going = false;
 };
 
 /// The processes' side of a run.
@@ -39,6 +43,13 @@ struct LaunchResult {
   /// How lcm-logger ended when it exited before the run did (then the run was stopped at
   /// once: nothing after that point is recorded); empty if it ran to the end.
   std::string logger_exited_early;
+  std::string logger_exited_at;  // then: when (mission time, wall clock, time into the run)
+  /// then: its last line of output, and whether the disk holding the log is full; each
+  /// part starts with "; ".
+  std::string logger_exit_note;
+  /// The fault that made shoal run stop the run before its end: which process, what
+  /// happened to it and when (mission time and wall time); empty if none did.
+  std::string stopped_by;
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
 };
@@ -54,8 +65,9 @@ struct LaunchProgress {
 struct LaunchCallbacks {
   /// Every 0.5 s wall; when empty the log is not followed during the run.
   std::function<void(const LaunchProgress&)> progress;
-  /// A process died before the end (the others keep running).
-  std::function<void(const std::string& problem)> problem;
+  /// A process died, failed or was stopped before the end; `stops_run`: the run is being
+  /// stopped because of it (else the others keep running, LaunchOptions::keep_going).
+  std::function<void(const std::string& problem, bool stops_run)> problem;
 };
 
 /// Runs scenario `s` (loaded from opt.scenario) as separate processes. Returns false with

@@ -90,8 +90,9 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
   if (!r.launch.logger_exited_early.empty()) {
     char text[64];
     std::snprintf(text, sizeof(text), "%.2f", r.summary.sim_time_s);
-    r.problems.push_back("lcm-logger exited early (" + r.launch.logger_exited_early +
-                         "): the log ends at t = " + text + " s");
+    r.problems.push_back("lcm-logger exited early (" + r.launch.logger_exited_early + ") at " +
+                         r.launch.logger_exited_at + r.launch.logger_exit_note +
+                         ": the log ends at t = " + text + " s");
   }
   JudgeLog(clock_ticks, s.final_tick(r.launch.duration_s) + 1, &r);
   return r;
@@ -113,6 +114,7 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["loop"] = {{"lateness_p99_s", sum.lateness_p99_s}, {"overruns", sum.overruns}};
   j["all_processes_ok"] = r.all_processes_ok();
   j["problems"] = r.problems;
+  j["stopped_by"] = l.stopped_by;
   j["interrupted"] = l.interrupted;
   j["log"] = l.log;
   j["process_output_dir"] = l.process_output_dir;

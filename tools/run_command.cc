@@ -27,9 +27,9 @@ int RunRun(const RunOptions& opt) {
     };
   }
   if (!opt.json) {
-    cb.problem = [show](const std::string& problem) {
-      std::fprintf(stderr, "%sshoal run: %s; the others keep running\n", show ? "\n" : "",
-                   problem.c_str());
+    cb.problem = [show](const std::string& problem, bool stops_run) {
+      std::fprintf(stderr, "%sshoal run: %s%s\n", show ? "\n" : "", problem.c_str(),
+                   stops_run ? "" : "; the others keep running (--keep-going)");
     };
   }
   LaunchResult launch;

@@ -62,6 +62,9 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
   c->add_flag("--deep-idle", run->launch.deep_idle,
               "Let idle CPUs halt during the run (by default, as root, shoal run holds "
               "a 0 us CPU latency request: idle CPUs poll, wake-ups are cheaper)");
+  c->add_flag("--keep-going", run->launch.keep_going,
+              "A vehicle or the leader that dies or is stopped does not stop the run "
+              "(it is reported, and the run fails); by default any such fault stops it");
   c->add_flag("--json", run->json, "Print one JSON object instead of the summary");
   c->add_flag("--quiet", run->quiet, "No progress line");
   return c;

@@ -290,11 +290,13 @@ TEST(Sil, KillingShoalRunLeavesNoOrphans) {
   EXPECT_EQ(CountProcessesWith(":" + std::to_string(port)), 0);
 }
 
+// With --keep-going a vehicle that dies is reported and the others run to the end (without
+// it, the run stops at once: tests/integration/fault_matrix_test.cc).
 TEST(Sil, KilledVehicleIsReportedByIdAndTheOthersFinish) {
   const int port = 31141;
   const std::string log = TmpPath("sil_kill.lcmlog"), out = TmpPath("sil_kill.out");
-  const pid_t pid = StartShoal("run " + kExample2 + " --duration 120 --out " + log +
-                                   " --lcm-url '" + Url(port) + "'", out);
+  const pid_t pid = StartShoal("run " + kExample2 + " --duration 120 --keep-going --out " +
+                                   log + " --lcm-url '" + Url(port) + "'", out);
   const std::string victim = "shoal_vehicle.*" + std::to_string(port) + ".*--id 3";
   const auto up0 = std::chrono::steady_clock::now();
   while (CountProcessesWith(victim) < 1 &&
@@ -537,14 +539,15 @@ TEST(Sil, LongDelayLockstepRunLogsEveryState) {
 }
 
 // Real time: a vehicle that loses the CPU for 1.5 s (SIGSTOP, then SIGCONT) overruns its
-// periods. Every process still runs to the end, but the run fails, naming the vehicle and
-// its overruns. (Example 2 does not converge within 6 s either: the assertions on the
+// periods. With --keep-going every process still runs to the end, but the run fails, naming
+// the vehicle and its overruns. (Example 2 does not converge within 6 s either: the assertions on the
 // report's lines are what tell the late vehicle apart.)
 TEST(Sil, RealtimeVehicleStoppedForOneAndAHalfSecondsFailsTheRun) {
   const int port = 31161;
   const std::string log = TmpPath("sil_stop.lcmlog"), out = TmpPath("sil_stop.out");
-  const pid_t pid = StartShoal("run " + kExample2 + " --mode realtime --duration 6 --out " +
-                                   log + " --lcm-url '" + Url(port) + "'", out);
+  const pid_t pid = StartShoal("run " + kExample2 + " --mode realtime --duration 6 " +
+                                   "--keep-going --out " + log + " --lcm-url '" + Url(port) +
+                                   "'", out);
   const pid_t vehicle = WaitForPidWith("shoal_vehicle.*" + std::to_string(port) + ".*--id 2");
   ASSERT_GT(vehicle, 0);
   // The loops start 4 s after the processes (shoal run's start margin): stop it about 1 s
