@@ -5,10 +5,12 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/scenario.h"
+#include "runtime/bus_auth.h"
 #include "runtime/process.h"
 
 namespace shoal {
@@ -24,6 +26,7 @@ struct LaunchOptions {
   long long max_lookahead = 50;   // lockstep: most ticks the clock master releases at once
   bool allow_large = false;  // run even when the estimate exceeds 1 h or 4 GiB (core/swarm.h)
   bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
+  bool insecure = false;   // no bus authentication (else a per-run key, docs/run.md)
 };
 
 /// The processes' side of a run.
@@ -41,6 +44,9 @@ struct LaunchResult {
   std::string logger_exited_early;
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
+  /// The run's bus key (none with --insecure), and the file next to the log that holds it.
+  std::optional<bus_auth::Key> key;
+  std::string key_file;
 };
 
 /// Shown while the run goes on.

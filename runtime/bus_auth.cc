@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -150,6 +151,18 @@ bool SettingFromEnvironment(bool insecure, Setting* setting, std::string* error)
   }
   setting->key = k;
   return true;
+}
+
+bool SettingOrReport(bool insecure, const std::string& name, Setting* setting) {
+  std::string error;
+  if (SettingFromEnvironment(insecure, setting, &error)) return true;
+  std::fprintf(stderr, "%s: %s\n", name.c_str(), error.c_str());
+  return false;
+}
+
+std::string ExitNote(const Setting& setting, std::int64_t rejected) {
+  if (setting.insecure) return kInsecureNote;
+  return std::to_string(rejected) + " message(s) failed authentication (dropped)";
 }
 
 }  // namespace shoal::bus_auth

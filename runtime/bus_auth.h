@@ -54,6 +54,9 @@ int Verify(const Key& key, std::string_view channel, const void* data, int size)
 /// Whether `data` ends with a trailer's magic (unverified: for readers without the key).
 bool HasTrailer(const void* data, int size);
 
+/// What an unauthenticated run's status messages say (the analysis of a log looks for it).
+constexpr const char* kInsecureNote = "bus not authenticated (--insecure)";
+
 /// What a process was told about authentication: its key, or --insecure.
 struct Setting {
   bool insecure = false;
@@ -63,5 +66,9 @@ struct Setting {
 /// the user in *error that says how to give a key) if neither is there or the key is
 /// malformed.
 bool SettingFromEnvironment(bool insecure, Setting* setting, std::string* error);
+/// SettingFromEnvironment for a process's main(): says why on stderr ("<name>: ...").
+bool SettingOrReport(bool insecure, const std::string& name, Setting* setting);
+/// What a process writes to its log on exit: how many messages failed authentication.
+std::string ExitNote(const Setting& setting, std::int64_t rejected);
 
 }  // namespace shoal::bus_auth
