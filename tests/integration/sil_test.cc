@@ -379,11 +379,13 @@ TEST(Sil, PerVehicleBusesCarryOnlyTheirOwnTraffic) {
 }
 
 // Bad input on every channel the processes listen to is dropped and counted, never a
-// crash and never in the control law: the run still equals shoal sim exactly.
+// crash and never in the control law: the run still equals shoal sim exactly. With
+// --insecure, so that the input reaches the decoders (authenticated, the bus drops it
+// before: tests/integration/auth_test.cc).
 TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
   const int port = 31151;
   const std::string log = TmpPath("sil_bad.lcmlog"), out = TmpPath("sil_bad.out");
-  const pid_t pid = StartShoal("run " + kExample2 + " --duration 40 --out " + log +
+  const pid_t pid = StartShoal("run " + kExample2 + " --insecure --duration 40 --out " + log +
                                    " --lcm-url '" + Url(port) + "'", out);
   lcm::LCM bus(Url(port));
   ASSERT_TRUE(bus.good());
