@@ -367,12 +367,12 @@ void RunDataBuilder::Finish() {
 int LogVerifier::Check(std::string_view channel, const std::uint8_t* data, int size) {
   // Other channels (LCM's own LCM_SELF_TEST, foreign tools) are not read: not checked.
   if (channels::Parse(channel).kind == channels::Kind::kOther) return size;
-  if (!key_) {
+  if (!auth_) {
     if (!bus_auth::HasTrailer(data, size)) return size;
     ++d_->unverified;
     return size - bus_auth::kTrailerBytes;
   }
-  const int payload = bus_auth::Verify(*key_, channel, data, size);
+  const int payload = auth_->Verify(channel, data, size);
   if (payload < 0) {
     ++d_->unauthenticated;
     // Per channel while few channels are involved (a forger inventing names gets one

@@ -157,13 +157,15 @@ struct LoadOptions {
 class LogVerifier {
  public:
   LogVerifier(const std::optional<bus_auth::Key>& key, RunData* counts)
-      : key_(key), d_(counts) {}
+      : d_(counts) {
+    if (key) auth_.emplace(*key);
+  }
   /// The size of the event's message (its trailer stripped), or -1 to drop it (counted).
   /// Events on non-Shoal channels are passed on as they are.
   int Check(std::string_view channel, const std::uint8_t* data, int size);
 
  private:
-  std::optional<bus_auth::Key> key_;
+  std::optional<bus_auth::Authenticator> auth_;
   RunData* d_;
 };
 

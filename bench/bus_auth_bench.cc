@@ -8,12 +8,24 @@
 
 namespace {
 
-using shoal::bus_auth::Key;
-
 // A vehicle_state_t is 228 bytes; a lockstep clock window of 3 ticks listing 30 deliveries
 // about 900; 8000 bytes is near a large channel batch.
 void BM_SignAndVerify(benchmark::State& st) {
-  const Key key = shoal::bus_auth::NewKey();
+  const shoal::bus_auth::Authenticator auth(shoal::bus_auth::NewKey());
+  const int size = static_cast<int>(st.range(0));
+  std::vector<unsigned char> msg(static_cast<std::size_t>(size) + shoal::bus_auth::kTrailerBytes, 7);
+  for (auto _ : st) {
+    auth.Sign("SHOAL_STATE_1", msg.data(), size, msg.data() + size);
+    const int n = auth.Verify("SHOAL_STATE_1", msg.data(), static_cast<int>(msg.size()));
+    benchmark::DoNotOptimize(n);
+  }
+  st.SetItemsProcessed(st.iterations());
+}
+BENCHMARK(BM_SignAndVerify)->Arg(228)->Arg(900)->Arg(8000);
+
+// The same, keying HMAC anew for each message (what the pads precomputed save).
+void BM_SignAndVerifyRekeyed(benchmark::State& st) {
+  const shoal::bus_auth::Key key = shoal::bus_auth::NewKey();
   const int size = static_cast<int>(st.range(0));
   std::vector<unsigned char> msg(static_cast<std::size_t>(size) + shoal::bus_auth::kTrailerBytes, 7);
   for (auto _ : st) {
@@ -24,7 +36,7 @@ void BM_SignAndVerify(benchmark::State& st) {
   }
   st.SetItemsProcessed(st.iterations());
 }
-BENCHMARK(BM_SignAndVerify)->Arg(228)->Arg(900)->Arg(8000);
+BENCHMARK(BM_SignAndVerifyRekeyed)->Arg(228);
 
 }  // namespace
 

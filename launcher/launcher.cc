@@ -183,7 +183,9 @@ class ProgressTracker {
  public:
   ProgressTracker(const Scenario& s, const std::string& log,
                   const std::optional<bus_auth::Key>& key)
-      : s_(s), tail_(log), key_(key), follower_error_(s.followers + 1, 0.0) {}
+      : s_(s), tail_(log), follower_error_(s.followers + 1, 0.0) {
+    if (key) auth_.emplace(*key);
+  }
   void Poll() {
     tail_.Poll([this](const std::string& ch, const void* d, int n) { OnEvent(ch, d, n); });
   }
@@ -195,7 +197,7 @@ class ProgressTracker {
  private:
   void OnEvent(const std::string& ch, const void* d, int n) {
     if (!channels::ParseStateId(ch)) return;
-    if (key_) n = bus_auth::Verify(*key_, ch, d, n);  // forged states move nothing
+    if (auth_) n = auth_->Verify(ch, d, n);  // forged states move nothing
     vehicle_state_t m{};
     if (!Decode(d, n, &m) || m.vehicle_id < 0 || m.vehicle_id > s_.followers) return;
     const StateMsg st = FromLcm(m);
@@ -213,7 +215,7 @@ class ProgressTracker {
   }
   const Scenario& s_;
   LogTail tail_;
-  std::optional<bus_auth::Key> key_;
+  std::optional<bus_auth::Authenticator> auth_;
   std::int64_t last_tick_utime_ = 0;
   std::map<Micros, StateMsg> leader_states_;  // recent ones only
   std::vector<double> follower_error_;

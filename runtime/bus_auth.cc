@@ -22,10 +22,18 @@ void EnsureSodium() {
   if (ok < 0) throw std::runtime_error("libsodium cannot be initialised");
 }
 
-void Mac(const Key& key, std::string_view channel, const void* data, int size,
-         unsigned char* out) {
-  crypto_auth_hmacsha512256_state st;
-  crypto_auth_hmacsha512256_init(&st, key.data(), key.size());
+using State = crypto_auth_hmacsha512256_state;
+
+}  // namespace
+
+Authenticator::Authenticator(const Key& key) {
+  EnsureSodium();
+  crypto_auth_hmacsha512256_init(&keyed_, key.data(), key.size());
+}
+
+void Authenticator::Mac(std::string_view channel, const void* data, int size,
+                        unsigned char* out) const {
+  State st = keyed_;
   crypto_auth_hmacsha512256_update(&st, reinterpret_cast<const unsigned char*>(channel.data()),
                                    channel.size());
   const unsigned char separator = 0;  // channel names hold no NUL: no two inputs collide
@@ -35,7 +43,20 @@ void Mac(const Key& key, std::string_view channel, const void* data, int size,
   crypto_auth_hmacsha512256_final(&st, out);
 }
 
-}  // namespace
+void Authenticator::Sign(std::string_view channel, const void* data, int size,
+                         unsigned char* out) const {
+  std::memcpy(out, kMagic, kMagicBytes);
+  Mac(channel, data, size, out + kMagicBytes);
+}
+
+int Authenticator::Verify(std::string_view channel, const void* data, int size) const {
+  if (!HasTrailer(data, size)) return -1;
+  const int payload = size - kTrailerBytes;
+  unsigned char mac[kMacBytes];
+  Mac(channel, data, payload, mac);
+  const auto* got = static_cast<const unsigned char*>(data) + payload + kMagicBytes;
+  return sodium_memcmp(mac, got, kMacBytes) == 0 ? payload : -1;
+}
 
 Key NewKey() {
   EnsureSodium();
@@ -111,17 +132,11 @@ bool WriteKeyFile(const std::string& path, const Key& key, std::string* error) {
 
 void Sign(const Key& key, std::string_view channel, const void* data, int size,
           unsigned char* out) {
-  std::memcpy(out, kMagic, kMagicBytes);
-  Mac(key, channel, data, size, out + kMagicBytes);
+  Authenticator(key).Sign(channel, data, size, out);
 }
 
 int Verify(const Key& key, std::string_view channel, const void* data, int size) {
-  if (!HasTrailer(data, size)) return -1;
-  const int payload = size - kTrailerBytes;
-  unsigned char mac[kMacBytes];
-  Mac(key, channel, data, payload, mac);
-  const auto* got = static_cast<const unsigned char*>(data) + payload + kMagicBytes;
-  return sodium_memcmp(mac, got, kMacBytes) == 0 ? payload : -1;
+  return Authenticator(key).Verify(channel, data, size);
 }
 
 bool HasTrailer(const void* data, int size) {

@@ -71,18 +71,18 @@ class LcmBus : public Bus {
   std::int64_t rejected() const override { return rejected_; }
   int fileno() { return lcm_.getFileno(); }
   const std::string& url() const { return url_; }
-  bool authenticated() const { return key_.has_value(); }
+  bool authenticated() const { return auth_.has_value(); }
 
  private:
   struct Sub {
     Handler handler;
-    const std::optional<bus_auth::Key>* key;
+    const std::optional<bus_auth::Authenticator>* auth;
     std::int64_t* rejected;
     void On(const lcm::ReceiveBuffer* rb, const std::string& channel);
   };
   std::string url_;
   lcm::LCM lcm_;
-  std::optional<bus_auth::Key> key_;
+  std::optional<bus_auth::Authenticator> auth_;
   std::int64_t rejected_ = 0;
   std::vector<unsigned char> signed_;  // a message and its trailer, reused
   std::vector<std::unique_ptr<Sub>> subs_;
