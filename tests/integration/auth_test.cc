@@ -274,6 +274,20 @@ TEST(Auth, WithInsecureTheSameForgerChangesTheRun) {
   EXPECT_NE(ana.out.find("--insecure"), std::string::npos) << ana.out;
 }
 
+// shoal sim writing its log where a run's log was removes that run's key file: the
+// new log then reads as a log without a bus, not as a log of forgeries.
+TEST(Auth, ShoalSimReplacingARunLogRemovesItsKey) {
+  const std::string log = TmpPath("auth_sim_over_run.lcmlog");
+  std::string err;
+  ASSERT_TRUE(bus_auth::WriteKeyFile(log + ".key", bus_auth::NewKey(), &err)) << err;
+  RunShoal("sim " + kExample2 + " --duration 2 --out " + log, "auth_sim_over_run");
+  EXPECT_NE(access((log + ".key").c_str(), F_OK), 0);
+  const auto ana = RunShoal("analyze " + log + " --json", "auth_sim_over_run_ana");
+  ASSERT_EQ(ana.status, 0) << ana.err;
+  EXPECT_EQ(ParseJson(ana.out)["authentication"]["unverified"], 0);
+  EXPECT_EQ(ParseJson(ana.out)["authentication"]["unauthenticated"], 0);
+}
+
 // A process started by hand needs the run's key (SHOAL_BUS_KEY) or --insecure: without
 // one, or with a malformed one, it refuses to start and says how to give it.
 TEST(Auth, ProcessStartedByHandWithoutAKeyRefusesToStart) {
