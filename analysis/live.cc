@@ -95,6 +95,11 @@ bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, st
   if (!error->empty()) return false;
   const bool any = run->state_messages() > 0 || !run->channel_events.empty() ||
                    !run->health.empty() || !run->statuses.empty() || !run->clock.empty();
+  if (!any && run->unauthenticated > 0) {
+    *error = std::to_string(run->unauthenticated) + " Shoal messages received on " +
+             run->source + ", none of them authenticated with the key given (another run's?)";
+    return false;
+  }
   if (!any) {
     *error = "nothing from a Shoal run received on " + run->source +
              " (is shoal run, shoal sim's log in lcm-logplayer, or a swarm publishing there? "

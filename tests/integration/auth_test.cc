@@ -288,6 +288,53 @@ TEST(Auth, ShoalSimReplacingARunLogRemovesItsKey) {
   EXPECT_EQ(ParseJson(ana.out)["authentication"]["unauthenticated"], 0);
 }
 
+/// True once some process has a UDP socket bound to `port` (LCM udpm binds its port).
+bool WaitForUdpListener(int port, double timeout_s) {
+  char hex[8];
+  std::snprintf(hex, sizeof(hex), ":%04X ", port);
+  const auto t0 = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::duration<double>(timeout_s)) {
+    if (ReadFile("/proc/net/udp").find(hex) != std::string::npos) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return false;
+}
+
+// shoal analyze --live checks what it hears with the run's key (--key FILE here;
+// SHOAL_BUS_KEY works alike): a replay of an authenticated log verifies, and the
+// analysis equals the log's; with another run's key nothing is taken.
+TEST(Auth, LiveAnalysisVerifiesWithTheRunsKey) {
+  const std::string log = TmpPath("auth_live.lcmlog");
+  const auto run = RunShoal("run " + kExample2 + " --duration 4 --quiet --out " + log, "auth_live_run");
+  ASSERT_TRUE(run.status == 0 || run.status == 1) << run.out << run.err;
+  const auto file = ParseJson(RunShoal("analyze " + log + " --json", "auth_live_file").out);
+  const std::string other = TmpPath("auth_live_other.key");
+  std::string err;
+  ASSERT_TRUE(bus_auth::WriteKeyFile(other, bus_auth::NewKey(), &err)) << err;
+  for (const std::string& key : {log + ".key", other}) {
+    const int port = 31451;
+    const std::string out = TmpPath("auth_live.out");
+    const pid_t ana = StartShoal("analyze --live --json --duration 8 --key " + key +
+                                     " --lcm-url '" + Url(port) + "'", out);
+    ASSERT_TRUE(WaitForUdpListener(port, 10));
+    const std::string play = "lcm-logplayer --speed 4 --lcm-url='" + Url(port) + "' " + log +
+                             " >/dev/null 2>&1";
+    ASSERT_EQ(std::system(play.c_str()), 0);
+    const int status = WaitExit(ana, 20, nullptr);
+    const std::string text = ReadFile(out);
+    if (key == other) {
+      EXPECT_EQ(status, 2) << text;
+      EXPECT_NE(text.find("none of them authenticated"), std::string::npos) << text;
+      continue;
+    }
+    ASSERT_EQ(status, 0) << text;
+    const auto j = ParseJson(text.substr(std::min(text.find('{'), text.size())));
+    EXPECT_EQ(j["bus_authenticated"], true) << text;
+    EXPECT_EQ(j["authentication"]["unauthenticated"], 0) << text;
+    EXPECT_EQ(j["log_states"], file["log_states"]) << text;
+  }
+}
+
 // A process started by hand needs the run's key (SHOAL_BUS_KEY) or --insecure: without
 // one, or with a malformed one, it refuses to start and says how to give it.
 TEST(Auth, ProcessStartedByHandWithoutAKeyRefusesToStart) {
