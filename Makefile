@@ -13,7 +13,7 @@ DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
   liblcm-dev liblcm-bin libglib2.0-dev \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev \
   libsdp-dev libceres-dev libosmesa6-dev libstb-dev zlib1g-dev fonts-dejavu-core \
-  nlohmann-json3-dev universal-ctags
+  nlohmann-json3-dev universal-ctags libsodium-dev
 
 .PHONY: demo test deps build configure clean
 

@@ -166,6 +166,13 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
                      {"start_m", Vec3Json(a.leader_start_m)},
                      {"end_m", Vec3Json(a.leader_end_m)}};
   j["damaged"] = run.damaged;
+  j["bus_authenticated"] = run.bus_authenticated();
+  j["authentication"] = Json{{"key", run.key_used},
+                             {"verified", run.verified},
+                             {"unauthenticated", run.unauthenticated},
+                             {"unauthenticated_by_channel", run.unauthenticated_by_channel},
+                             {"unverified", run.unverified},
+                             {"insecure_run", run.insecure_run}};
   j["warnings"] = run.warnings;
   return j;
 }

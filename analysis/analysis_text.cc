@@ -5,6 +5,27 @@
 #include "analysis/verdict.h"
 
 namespace shoal {
+namespace {
+
+/// Whether the log's messages were checked against the run's key, and what failed.
+void PrintAuthentication(std::FILE* out, const RunData& run) {
+  if (run.key_used) {
+    std::fprintf(out, "  authentication: %lld events verified, %lld did not (dropped)%s\n",
+                 static_cast<long long>(run.verified),
+                 static_cast<long long>(run.unauthenticated),
+                 run.key_file.empty() ? "" : (" -- key " + run.key_file).c_str());
+    for (const auto& [channel, n] : run.unauthenticated_by_channel) {
+      std::fprintf(out, "    unauthenticated on %s: %lld\n", channel.c_str(),
+                   static_cast<long long>(n));
+    }
+  } else if (run.unverified > 0) {
+    std::fprintf(out, "  authentication: NOT VERIFIED (%lld events carry a trailer; no key)\n",
+                 static_cast<long long>(run.unverified));
+  }
+  if (run.insecure_run) std::fprintf(out, "  bus not authenticated (--insecure)\n");
+}
+
+}  // namespace
 
 void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
                        const AnalysisSource& source) {
@@ -81,6 +102,7 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
   }
   if (a.interrupted) std::fprintf(out, "  the run was interrupted\n");
   for (const std::string& p : a.problems) std::fprintf(out, "  PROBLEM: %s\n", p.c_str());
+  PrintAuthentication(out, run);
 }
 
 

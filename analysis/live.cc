@@ -44,10 +44,18 @@ bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, st
   *run = RunData();
   run->source = opt.url.empty() ? "LCM default URL" : opt.url;
   RunDataBuilder b(run, lo);
+  run->key_used = opt.key.has_value();
+  LogVerifier verifier(opt.key, run);
   bool ended = false;
   std::size_t statuses_seen = 0;
   bus->Subscribe(channels::kAllPattern, [&](const std::string& ch, const void* d, int n) {
-    b.Add(ch, static_cast<const std::uint8_t*>(d), n, WallMicros());
+    const auto* bytes = static_cast<const std::uint8_t*>(d);
+    const int size = verifier.Check(ch, bytes, n);
+    if (size < 0) {
+      ++run->events;  // received, but not the run's
+      return;
+    }
+    b.Add(ch, bytes, size, WallMicros());
     for (; statuses_seen < run->statuses.size(); ++statuses_seen) {
       ended = ended || RunEnded(run->statuses[statuses_seen]);
     }
@@ -83,9 +91,15 @@ bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, st
   }
   if (show) std::fprintf(stderr, "\r%100s\r", "");
   b.Finish();
+  NoteAuthentication(run);
   if (!error->empty()) return false;
   const bool any = run->state_messages() > 0 || !run->channel_events.empty() ||
                    !run->health.empty() || !run->statuses.empty() || !run->clock.empty();
+  if (!any && run->unauthenticated > 0) {
+    *error = std::to_string(run->unauthenticated) + " Shoal messages received on " +
+             run->source + ", none of them authenticated with the key given (another run's?)";
+    return false;
+  }
   if (!any) {
     *error = "nothing from a Shoal run received on " + run->source +
              " (is shoal run, shoal sim's log in lcm-logplayer, or a swarm publishing there? "

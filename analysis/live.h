@@ -11,6 +11,9 @@ struct LiveOptions {
   std::string url;                  // LCM URL; "" = LCM's default
   double duration_s = 0;            // stop after this many wall seconds; <= 0 or NaN: no limit
   bool progress = false;            // a progress line on stderr (only on a terminal)
+  /// The run's key: every message must verify with it (the others are dropped and
+  /// counted). None: trailers are stripped unchecked (and counted as unverified).
+  std::optional<bus_auth::Key> key;
 };
 
 /// Subscribes to every Shoal channel on `opt.url` until SIGINT/SIGTERM, a run-level end

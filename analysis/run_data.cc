@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 
+#include <unistd.h>
+
 #include <shoal/channel_event_t.hpp>
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
@@ -362,25 +364,96 @@ void RunDataBuilder::Finish() {
   }
 }
 
+int LogVerifier::Check(std::string_view channel, const std::uint8_t* data, int size) {
+  // Other channels (LCM's own LCM_SELF_TEST, foreign tools) are not read: not checked.
+  if (channels::Parse(channel).kind == channels::Kind::kOther) return size;
+  if (!auth_) {
+    if (!bus_auth::HasTrailer(data, size)) return size;
+    ++d_->unverified;
+    return size - bus_auth::kTrailerBytes;
+  }
+  const int payload = auth_->Verify(channel, data, size);
+  if (payload < 0) {
+    ++d_->unauthenticated;
+    // Per channel while few channels are involved (a forger inventing names gets one
+    // bucket rather than unbounded memory).
+    auto& by = d_->unauthenticated_by_channel;
+    const std::string name(channel);
+    if (by.size() < 256 || by.count(name) > 0) {
+      ++by[name];
+    } else {
+      ++by["(other channels)"];
+    }
+    return -1;
+  }
+  ++d_->verified;
+  return payload;
+}
+
+bool KeyForLog(const std::string& path, const std::string& key_file,
+               std::optional<bus_auth::Key>* key, std::string* used_file, std::string* error) {
+  key->reset();
+  used_file->clear();
+  std::string file = key_file;
+  if (file.empty() && access((path + ".key").c_str(), F_OK) == 0) file = path + ".key";
+  if (file.empty()) return true;
+  bus_auth::Key k;
+  if (!bus_auth::ReadKeyFile(file, &k, error)) return false;
+  *key = k;
+  *used_file = file;
+  return true;
+}
+
+void NoteAuthentication(RunData* d) {
+  for (const StatusRecord& st : d->statuses) {
+    if (st.message.find(bus_auth::kInsecureNote) != std::string::npos) d->insecure_run = true;
+  }
+  if (d->unauthenticated > 0) {
+    d->warnings.push_back(std::to_string(d->unauthenticated) +
+                          " events did not authenticate with the run's key (forged, from "
+                          "another run, or damaged) and were dropped");
+  }
+  if (d->unverified > 0) {
+    d->warnings.push_back(std::to_string(d->unverified) +
+                          " events carry an authentication trailer that could not be "
+                          "checked (no key: give --key FILE, or keep <log>.key next to the "
+                          "log); they were read unverified");
+  }
+  if (d->insecure_run) {
+    d->warnings.push_back("the run's bus was not authenticated (--insecure): anyone on the "
+                          "host could have published into it");
+  }
+}
+
 bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out,
                 std::string* error) {
   *out = RunData();
   out->source = path;
+  std::optional<bus_auth::Key> key = opt.key;
+  if (!key && !KeyForLog(path, opt.key_file, &key, &out->key_file, error)) return false;
+  out->key_used = key.has_value();
   LcmLogReader reader;
   if (!reader.Open(path, error)) return false;
   RunDataBuilder b(out, opt);
+  LogVerifier verifier(key, out);
   LogEventView ev;
   // Big logs: once 2 % is read, reserve for the rest (logs are homogeneous in time).
   const std::int64_t reserve_at = reader.file_size() > (64 << 20) ? reader.file_size() / 50 : -1;
   bool reserved = false;
   while (reader.Next(&ev)) {
-    b.Add(ev.channel, ev.data, ev.size, ev.timestamp);
+    const int size = verifier.Check(ev.channel, ev.data, ev.size);
+    if (size < 0) {
+      ++out->events;  // read, but not the run's
+      continue;
+    }
+    b.Add(ev.channel, ev.data, size, ev.timestamp);
     if (!reserved && reserve_at > 0 && ev.offset >= reserve_at) {
       b.ReserveByExtrapolation(static_cast<double>(ev.offset) / static_cast<double>(reader.file_size()));
       reserved = true;
     }
   }
   b.Finish();
+  NoteAuthentication(out);
   out->warnings.insert(out->warnings.begin(), reader.warnings().begin(), reader.warnings().end());
   out->damaged = reader.damaged_regions() > 0;
   if (out->events == 0) {
@@ -390,6 +463,13 @@ bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out,
   }
   const bool any_shoal = out->state_messages() > 0 || !out->channel_events.empty() ||
                          !out->health.empty() || !out->clock.empty() || !out->statuses.empty();
+  if (!any_shoal && out->unauthenticated > 0) {
+    *error = path + ": none of its " + std::to_string(out->events) +
+             " events authenticates with the key" +
+             (out->key_file.empty() ? std::string() : " in " + out->key_file) +
+             " (the log of another run, or of a run with --insecure?)";
+    return false;
+  }
   if (!any_shoal) {
     *error = path + ": an LCM log with " + std::to_string(out->events) +
              " events but no Shoal message (no valid SHOAL_* channel); analyse a log written "

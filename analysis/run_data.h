@@ -15,18 +15,24 @@
 //   SHOAL_CLOCK       every tick
 //   SHOAL_RX_<id>     counted per receiver only (the same data as SHOAL_CHANNEL + states)
 // Messages that do not decode, carry the wrong fingerprint, name an id that does not
-// match their channel or is out of range are counted, never kept. States holding NaN/Inf
+// match their channel or is out of range are counted, never kept.
+// Authentication (runtime/bus_auth.h): with the run's key (LoadOptions::key, by default
+// <log>.key when it exists) every event must verify; what does not is counted per
+// channel (unauthenticated) and read no further. Without a key, a message that carries
+// an authentication trailer is read without it, unverified (counted). States holding NaN/Inf
 // are kept (a diverging vehicle) and counted in VehicleTrack::nonfinite.
 #pragma once
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "core/scenario.h"
 #include "core/state_msg.h"
+#include "runtime/bus_auth.h"
 
 namespace shoal {
 
@@ -106,6 +112,17 @@ struct RunData {
   std::int64_t undecodable = 0;     // Shoal channel, but the bytes do not decode
   std::int64_t rejected = 0;        // decoded, but inconsistent (id mismatch / out of range)
   Micros first_timestamp = 0, last_timestamp = 0;  // [us] event timestamps (recorder's clock)
+  // Authentication (runtime/bus_auth.h).
+  bool key_used = false;              // events were checked against the run's key
+  std::string key_file;               // where that key came from ("" if given otherwise)
+  std::int64_t verified = 0;          // events whose trailer verified
+  std::int64_t unauthenticated = 0;   // events dropped: no trailer, or it did not verify
+  std::map<std::string, std::int64_t> unauthenticated_by_channel;
+  std::int64_t unverified = 0;        // no key: events read with their trailer unchecked
+  bool insecure_run = false;          // a status says the bus was not authenticated
+  /// The log's messages were authenticated and checked: a key, every Shoal message read
+  /// verified, and no status says --insecure.
+  bool bus_authenticated() const { return key_used && verified > 0 && !insecure_run; }
   std::vector<std::string> warnings;  // damage and problems, one user-facing sentence each
   bool damaged = false;               // the log was truncated or corrupt
 
@@ -130,7 +147,37 @@ struct LoadOptions {
   /// Largest vehicle id accepted when the scenario does not say (protects against
   /// absurd ids in damaged data).
   int max_vehicle_id = 1023;
+  /// The run's key: every event must verify with it. Unset: `key_file`, else <log>.key if
+  /// that file exists, else no verification (trailers are stripped unchecked).
+  std::optional<bus_auth::Key> key;
+  std::string key_file;
 };
+
+/// Checks the events of a log against a run's key, or (no key) strips their trailers.
+class LogVerifier {
+ public:
+  LogVerifier(const std::optional<bus_auth::Key>& key, RunData* counts)
+      : d_(counts) {
+    if (key) auth_.emplace(*key);
+  }
+  /// The size of the event's message (its trailer stripped), or -1 to drop it (counted).
+  /// Events on non-Shoal channels are passed on as they are.
+  int Check(std::string_view channel, const std::uint8_t* data, int size);
+
+ private:
+  std::optional<bus_auth::Authenticator> auth_;
+  RunData* d_;
+};
+
+/// After the last event: whether a status says --insecure, and the warnings that the
+/// authentication counts call for.
+void NoteAuthentication(RunData* d);
+
+/// The key for the log at `path`: read from `key_file` if given (any problem is an error),
+/// else from <path>.key if that exists; none otherwise. False with *error if a key file
+/// cannot be read or is malformed. *used_file says which file gave the key.
+bool KeyForLog(const std::string& path, const std::string& key_file,
+               std::optional<bus_auth::Key>* key, std::string* used_file, std::string* error);
 
 /// Decodes events into a RunData. Add() never throws and never keeps a pointer to `data`.
 class RunDataBuilder {

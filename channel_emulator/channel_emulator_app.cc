@@ -251,7 +251,7 @@ void ChannelEmulatorApp::PublishHealth(Micros utime) {
   h.lateness_max_s = release_error_.max();
   h.overruns = 0;
   h.msgs_received = counters_.states_accepted;
-  h.msgs_dropped_invalid = counters_.states_invalid;
+  h.msgs_dropped_invalid = counters_.states_invalid + bus_->rejected();
   h.msgs_dropped_old = counters_.states_old;
   h.neighbour_timeouts = 0;
   int alive = 0;
@@ -274,7 +274,10 @@ void ChannelEmulatorApp::PublishStatus(RunState state, const std::string& messag
   st.scenario_name = s_.name;
   st.seed = static_cast<std::int64_t>(s_.seed);
   st.followers = n_;
-  st.message = message;
+  // An unauthenticated run says so in every status, so that its log does.
+  st.message = insecure_ ? (message.empty() ? std::string(bus_auth::kInsecureNote)
+                                            : message + "; " + bus_auth::kInsecureNote)
+                         : message;
   bus_->Publish(channels::Status(), st);
 }
 
@@ -468,6 +471,8 @@ int ChannelEmulatorMain(int argc, char** argv) {
   Scenario s;
   const int started = StartProcess(&app, argc, argv, "shoal_channel_emulator", opt, &s);
   if (started >= 0) return started;
+  bus_auth::Setting auth;
+  if (!bus_auth::SettingOrReport(opt.insecure, "shoal_channel_emulator", &auth)) return 2;
   if (!vehicle_urls.empty() && static_cast<int>(vehicle_urls.size()) != s.followers + 1) {
     std::cerr << "shoal_channel_emulator: --vehicle-urls needs " << s.followers + 1
               << " URLs (leader and followers), got " << vehicle_urls.size() << "\n";
@@ -481,7 +486,7 @@ int ChannelEmulatorMain(int argc, char** argv) {
     std::cerr << "shoal_channel_emulator: " << EnableBatchScheduling() << "\n";
   }
   try {
-    LcmBus bus(opt.lcm_url);
+    LcmBus bus(opt.lcm_url, auth.key);
     std::vector<std::unique_ptr<LcmBus>> own;
     std::vector<Bus*> vbus;
     // One bus object per distinct URL: vehicles that share a URL share a bus, and get one
@@ -494,7 +499,7 @@ int ChannelEmulatorMain(int argc, char** argv) {
       const std::string& u = vehicle_urls.empty() ? opt.lcm_url : vehicle_urls[id];
       auto found = by_url.find(address(u));
       if (found == by_url.end()) {
-        own.push_back(std::make_unique<LcmBus>(u));
+        own.push_back(std::make_unique<LcmBus>(u, auth.key));
         found = by_url.emplace(address(u), own.back().get()).first;
       }
       vbus.push_back(found->second);
@@ -506,8 +511,11 @@ int ChannelEmulatorMain(int argc, char** argv) {
                 << " tick(s) per round trip\n";
     }
     if (opt.parsed_mode() == Mode::kLockstep && recorder_pid > 0) app_.SetRecorder(recorder_pid);
+    if (auth.insecure) app_.SetInsecure();
     app_.Init();
-    return app_.Run();
+    const int status = app_.Run();
+    std::cerr << "shoal_channel_emulator: " << bus_auth::ExitNote(auth, bus.rejected()) << "\n";
+    return status;
   } catch (const std::exception& e) {
     std::cerr << "shoal_channel_emulator: " << e.what() << "\n";
     return 2;

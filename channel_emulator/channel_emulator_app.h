@@ -51,6 +51,8 @@ class ChannelEmulatorApp {
   void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
   std::int64_t lookahead_ticks() const { return lookahead_; }
+  /// The run's bus is not authenticated (--insecure): every status says so.
+  void SetInsecure() { insecure_ = true; }
 
  private:
   using Bytes = std::vector<unsigned char>;
@@ -136,6 +138,7 @@ class ChannelEmulatorApp {
   std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
   std::size_t inbox_size_ = 0;
   bool lost_any_ = false;  // lockstep: some process stopped answering
+  bool insecure_ = false;
 };
 
 /// The whole main() of shoal_channel_emulator: parse flags, load, open the buses, run.

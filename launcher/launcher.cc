@@ -82,7 +82,10 @@ std::string Failure(const Child& c) {
   return c.name + " (pid " + std::to_string(c.pid) + ") " + Describe(c.status);
 }
 
-pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::string& output) {
+/// `envp`: the child's environment (the run's key is handed over there, not on the
+/// command line, which every user of the host can read).
+pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::string& output,
+            char* const* envp) {
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid != 0) return pid;
@@ -103,7 +106,7 @@ pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::strin
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
-  execv(args[0], args.data());
+  execve(args[0], args.data(), envp);
   std::fprintf(stderr, "cannot exec %s: %s\n", args[0], std::strerror(errno));
   _exit(127);
 }
@@ -150,13 +153,46 @@ bool PrepareOutputDir(const std::string& dir, std::string* error) {
   return true;
 }
 
+/// The bus key of the run: a new one, written to <log>.key (mode 0600) so that the log can
+/// be verified later; with --insecure none, and a key file an earlier run left there is
+/// removed (it would make the new log's messages look forged).
+bool PrepareKey(const LaunchOptions& opt, LaunchResult* r, std::string* error) {
+  r->key_file = r->log + ".key";
+  if (opt.insecure) {
+    if (unlink(r->key_file.c_str()) != 0 && errno != ENOENT) {
+      *error = r->key_file + ": cannot remove an earlier run's key file (" +
+               std::strerror(errno) + ")";
+      return false;
+    }
+    r->key_file.clear();
+    return true;
+  }
+  r->key = bus_auth::NewKey();
+  return bus_auth::WriteKeyFile(r->key_file, *r->key, error);
+}
+
+/// The environment of the run's processes: shoal run's, with SHOAL_BUS_KEY set to the
+/// run's key (`key` null: without SHOAL_BUS_KEY).
+std::vector<std::string> ChildEnvironment(const std::optional<bus_auth::Key>* key) {
+  std::vector<std::string> env;
+  const std::string name = std::string(bus_auth::kKeyEnv) + "=";
+  for (char** e = environ; e != nullptr && *e != nullptr; ++e) {
+    if (std::strncmp(*e, name.c_str(), name.size()) != 0) env.emplace_back(*e);
+  }
+  if (key != nullptr && key->has_value()) env.push_back(name + bus_auth::ToHex(**key));
+  return env;
+}
+
 /// Follows the log as lcm-logger writes it, for the progress line: the newest tick and the
 /// worst formation error, each follower's newest error against the leader's state at the
 /// same time (the log interleaves ticks, so the leader's recent states are kept).
 class ProgressTracker {
  public:
-  ProgressTracker(const Scenario& s, const std::string& log)
-      : s_(s), tail_(log), follower_error_(s.followers + 1, 0.0) {}
+  ProgressTracker(const Scenario& s, const std::string& log,
+                  const std::optional<bus_auth::Key>& key)
+      : s_(s), tail_(log), follower_error_(s.followers + 1, 0.0) {
+    if (key) auth_.emplace(*key);
+  }
   void Poll() {
     tail_.Poll([this](const std::string& ch, const void* d, int n) { OnEvent(ch, d, n); });
   }
@@ -168,6 +204,7 @@ class ProgressTracker {
  private:
   void OnEvent(const std::string& ch, const void* d, int n) {
     if (!channels::ParseStateId(ch)) return;
+    if (auth_) n = auth_->Verify(ch, d, n);  // forged states move nothing
     vehicle_state_t m{};
     if (!Decode(d, n, &m) || m.vehicle_id < 0 || m.vehicle_id > s_.followers) return;
     const StateMsg st = FromLcm(m);
@@ -185,6 +222,7 @@ class ProgressTracker {
   }
   const Scenario& s_;
   LogTail tail_;
+  std::optional<bus_auth::Authenticator> auth_;
   std::int64_t last_tick_utime_ = 0;
   std::map<Micros, StateMsg> leader_states_;  // recent ones only
   std::vector<double> follower_error_;
@@ -268,7 +306,7 @@ bool Launch::Prepare(std::string* error) {
   // Everything that can refuse the run is checked before anything is written: a refused
   // run leaves an earlier log and its process output as they were.
   return ChooseUrls(error) && CheckLogWritable(r_->log, error) &&
-         PrepareOutputDir(r_->process_output_dir, error);
+         PrepareOutputDir(r_->process_output_dir, error) && PrepareKey(opt_, r_, error);
 }
 
 bool Launch::ChooseUrls(std::string* error) {
@@ -303,7 +341,12 @@ void Launch::Start(const std::string& name, int id, const std::vector<std::strin
   Child c;
   c.name = name;
   c.id = id;
-  c.pid = Spawn(argv, nice_inc, r_->process_output_dir + "/" + tag + ".txt");
+  // lcm-logger records bytes as they are: it is not given the key.
+  std::vector<std::string> env = ChildEnvironment(id == kLoggerId ? nullptr : &r_->key);
+  std::vector<char*> envp;
+  for (std::string& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  c.pid = Spawn(argv, nice_inc, r_->process_output_dir + "/" + tag + ".txt", envp.data());
   c.running = c.pid > 0;
   if (c.pid < 0) {  // no process to supervise: the run cannot go on
     r_->problems.push_back("cannot start " + name + " (fork: " + std::strerror(errno) + ")");
@@ -317,6 +360,7 @@ std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
   std::vector<std::string> a = {exe, "--scenario", opt_.scenario, "--lcm-url", r_->lcm_url,
                                 "--mode", opt_.mode, "--t0-ns", std::to_string(t0_ns_),
                                 "--duration", std::to_string(r_->duration_s)};
+  if (opt_.insecure) a.push_back("--insecure");
   a.insert(a.end(), more.begin(), more.end());
   return a;
 }
@@ -496,7 +540,7 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
   // Process deaths and stops from waitpid; progress from the log as lcm-logger writes it
   // (not from the bus: a listener on the run's group would receive, and wake up for, every
   // message of the run), read only to show progress or to say when a fault happened.
-  tracker_ = std::make_unique<ProgressTracker>(s_, r_->log);
+  tracker_ = std::make_unique<ProgressTracker>(s_, r_->log, r_->key);
   wall0_ = std::chrono::steady_clock::now();
   auto last_show = wall0_;
   bool go_on = !start_failed_;

@@ -5,10 +5,12 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/scenario.h"
+#include "runtime/bus_auth.h"
 #include "runtime/process.h"
 
 namespace shoal {
@@ -28,6 +30,7 @@ struct LaunchOptions {
   /// is reported and the others go on (the verdict fails all the same). Without it, any
   /// process that dies, fails or is stopped stops the whole run at once.
   bool keep_going = false;
+  bool insecure = false;   // no bus authentication (else a per-run key, docs/run.md)
 };
 
 /// The processes' side of a run.
@@ -52,6 +55,9 @@ struct LaunchResult {
   std::string stopped_by;
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
+  /// The run's bus key (none with --insecure), and the file next to the log that holds it.
+  std::optional<bus_auth::Key> key;
+  std::string key_file;
 };
 
 /// Shown while the run goes on.

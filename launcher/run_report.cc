@@ -74,6 +74,7 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
   RunData run;
   LoadOptions lo;
   lo.scenario = &s;
+  lo.key = r.launch.key;  // the key shoal run holds: forged states cannot fill the log
   std::string error;
   // Without Shoal data in the log the summary stays all zero.
   std::int64_t clock_ticks = -1;
@@ -82,6 +83,9 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     r.summary = a.summary;
     r.diverged_follower = a.diverged_follower;
     r.converged = FormationConverged(a);
+    r.bus_authenticated = run.bus_authenticated();
+    r.unauthenticated = run.unauthenticated;
+    r.unauthenticated_by_channel = run.unauthenticated_by_channel;
     if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, &r);
     if (r.launch.mode == ModeName(Mode::kLockstep)) {
       clock_ticks = static_cast<std::int64_t>(run.clock.size());
@@ -125,6 +129,10 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["timing_ok"] = r.timing_ok;
   j["timing_problems"] = r.timing_problems;
   j["lcm_url"] = l.lcm_url;
+  j["bus_authenticated"] = r.bus_authenticated;
+  j["key_file"] = l.key_file;
+  j["unauthenticated"] = r.unauthenticated;
+  j["unauthenticated_by_channel"] = r.unauthenticated_by_channel;
   j["cpu_latency_request"] = l.cpu_latency_request;
   return j;
 }
@@ -167,6 +175,13 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   }
   for (const std::string& p : r.timing_problems) {
     std::fprintf(out, "  LATE (real time): %s\n", p.c_str());
+  }
+  if (!l.key) {
+    std::fprintf(out, "  bus NOT authenticated (--insecure): anyone on the host could publish into the run\n");
+  } else if (r.unauthenticated > 0) {
+    std::fprintf(out, "  authentication: %lld messages on the bus did not authenticate "
+                 "(forged or another run's): dropped, never used\n",
+                 static_cast<long long>(r.unauthenticated));
   }
   std::fprintf(out, "  output of each process: %s/\n", l.process_output_dir.c_str());
 }

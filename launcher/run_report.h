@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <map>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -34,6 +35,11 @@ struct RunReport {
   /// lockstep, which reads no clock. timing_problems names each process that did not.
   bool timing_ok = true;
   std::vector<std::string> timing_problems;
+  /// The log was read with the run's key: what did not authenticate (forged, another
+  /// run's) was dropped before anything above counted it (docs/run.md).
+  bool bus_authenticated = false;
+  std::int64_t unauthenticated = 0;
+  std::map<std::string, std::int64_t> unauthenticated_by_channel;
   bool all_processes_ok() const { return problems.empty() && !launch.interrupted; }
 };
 

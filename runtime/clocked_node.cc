@@ -159,6 +159,7 @@ void ClockedNode::Step(std::int64_t tick) {
 void ClockedNode::PublishHealth(Micros utime) {
   health_t h = Health(utime);
   h.seq = health_seq_++;
+  h.msgs_dropped_invalid += rx_bus_->rejected();  // forged, or another run's
   h.lateness_p50_s = lateness_.Quantile(0.5);
   h.lateness_p99_s = lateness_.Quantile(0.99);
   h.lateness_max_s = lateness_.max();
@@ -248,6 +249,8 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
   const int started = StartProcess(app, argc, argv, name, opt, &s);
   if (started >= 0) return started;
   if (!valid(s)) return 2;
+  bus_auth::Setting auth;
+  if (!bus_auth::SettingOrReport(opt.insecure, name, &auth)) return 2;
   // Before LCM starts its receive thread, so that the thread inherits the policy.
   if (opt.parsed_mode() == Mode::kRealtime) {
     std::cerr << name << ": " << EnableRealtimeScheduling(40) << "\n";
@@ -255,15 +258,19 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
     std::cerr << name << ": " << EnableBatchScheduling() << "\n";
   }
   try {
-    LcmBus bus(opt.lcm_url);
+    LcmBus bus(opt.lcm_url, auth.key);
     std::unique_ptr<LcmBus> rx;
-    if (!opt.rx_url.empty() && opt.rx_url != opt.lcm_url) rx = std::make_unique<LcmBus>(opt.rx_url);
+    if (!opt.rx_url.empty() && opt.rx_url != opt.lcm_url) {
+      rx = std::make_unique<LcmBus>(opt.rx_url, auth.key);
+    }
     const NodeContext c{s,         opt.parsed_mode(),
                         opt.t0_ns, opt.duration_s,
                         &bus,      rx ? static_cast<Bus*>(rx.get()) : &bus};
     std::unique_ptr<ClockedNode> node = make(c);
     node->Init();
-    return node->Run();
+    const int status = node->Run();
+    std::cerr << name << ": " << bus_auth::ExitNote(auth, c.rx_bus->rejected()) << "\n";
+    return status;
   } catch (const std::exception& e) {
     std::cerr << name << ": " << e.what() << "\n";
     return 2;

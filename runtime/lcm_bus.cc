@@ -3,13 +3,16 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstring>
 #include <cstdlib>
 #include <random>
 #include <stdexcept>
 
 namespace shoal {
 
-LcmBus::LcmBus(const std::string& url) : url_(url), lcm_(url) {
+LcmBus::LcmBus(const std::string& url, std::optional<bus_auth::Key> key)
+    : url_(url), lcm_(url) {
+  if (key) auth_.emplace(*key);
   if (!lcm_.good()) {
     throw std::runtime_error("cannot open LCM at '" + url +
                              "' (for udpm on loopback, multicast must be routed to lo: "
@@ -18,11 +21,30 @@ LcmBus::LcmBus(const std::string& url) : url_(url), lcm_(url) {
 }
 
 bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) {
-  return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  if (!auth_) return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  if (size < 0 || (size > 0 && data == nullptr)) return false;
+  signed_.resize(static_cast<std::size_t>(size) + bus_auth::kTrailerBytes);
+  if (size > 0) std::memcpy(signed_.data(), data, static_cast<std::size_t>(size));
+  auth_->Sign(channel, data, size, signed_.data() + size);
+  return lcm_.publish(channel, signed_.data(), static_cast<unsigned int>(signed_.size())) == 0;
+}
+
+void LcmBus::Sub::On(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+  const int size = static_cast<int>(rb->data_size);
+  if (!auth->has_value()) {
+    handler(channel, rb->data, size);
+    return;
+  }
+  const int payload = (*auth)->Verify(channel, rb->data, size);
+  if (payload < 0) {
+    ++*rejected;  // forged, from another run, damaged, or without a trailer
+    return;
+  }
+  handler(channel, rb->data, payload);
 }
 
 void LcmBus::Subscribe(const std::string& channel, Handler handler) {
-  subs_.push_back(std::make_unique<Sub>(Sub{std::move(handler)}));
+  subs_.push_back(std::make_unique<Sub>(Sub{std::move(handler), &auth_, &rejected_}));
   lcm::Subscription* s = lcm_.subscribe(channel, &Sub::On, subs_.back().get());
   // Lockstep bursts (a tick's deliveries) must never be dropped by LCM's default
   // 30-message queue; real-time consumers read the newest anyway.

@@ -15,10 +15,12 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "lcmtypes/wire.h"
+#include "runtime/bus_auth.h"
 
 namespace shoal {
 
@@ -38,6 +40,8 @@ class Bus {
   /// buffers between two calls without bound; the rest waits, in order, for the next call.
   /// Returns the number of messages handled (0 on timeout), or -1 on error.
   virtual int Handle(int timeout_ms) = 0;
+  /// Messages dropped because they did not authenticate (runtime/bus_auth.h).
+  virtual std::int64_t rejected() const { return 0; }
 
   template <typename Msg>
   bool Publish(const std::string& channel, const Msg& msg) {
@@ -52,25 +56,35 @@ class Bus {
 };
 
 /// LCM over any provider URL (udpm://... for processes, memq:// for in-process tests).
+/// With a key, every message published carries an authentication trailer, and a handler
+/// receives only messages whose trailer verifies, without the trailer (so that decoding,
+/// size checks and lockstep digests see the message's own bytes); the others are dropped
+/// and counted in rejected(). Without a key (--insecure, in-process tests) messages go
+/// out and come in as they are.
 class LcmBus : public Bus {
  public:
   /// Throws std::runtime_error if LCM cannot be initialised for `url`.
-  explicit LcmBus(const std::string& url);
+  explicit LcmBus(const std::string& url, std::optional<bus_auth::Key> key = std::nullopt);
   bool PublishRaw(const std::string& channel, const void* data, int size) override;
   void Subscribe(const std::string& channel, Handler handler) override;
   int Handle(int timeout_ms) override;
+  std::int64_t rejected() const override { return rejected_; }
   int fileno() { return lcm_.getFileno(); }
   const std::string& url() const { return url_; }
+  bool authenticated() const { return auth_.has_value(); }
 
  private:
   struct Sub {
     Handler handler;
-    void On(const lcm::ReceiveBuffer* rb, const std::string& channel) {
-      handler(channel, rb->data, static_cast<int>(rb->data_size));
-    }
+    const std::optional<bus_auth::Authenticator>* auth;
+    std::int64_t* rejected;
+    void On(const lcm::ReceiveBuffer* rb, const std::string& channel);
   };
   std::string url_;
   lcm::LCM lcm_;
+  std::optional<bus_auth::Authenticator> auth_;
+  std::int64_t rejected_ = 0;
+  std::vector<unsigned char> signed_;  // a message and its trailer, reused
   std::vector<std::unique_ptr<Sub>> subs_;
 };
 

@@ -27,6 +27,9 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
       ->check(CLI::IsMember({ModeName(Mode::kLockstep), ModeName(Mode::kRealtime)}));
   app->add_option("--t0-ns", opt->t0_ns, "realtime: CLOCK_MONOTONIC ns of tick 0");
   app->add_option("--duration", opt->duration_s, "Simulated seconds (default: the scenario's)");
+  app->add_flag("--insecure", opt->insecure,
+                "Do not authenticate the bus's messages (else the run's key is read from "
+                "SHOAL_BUS_KEY, docs/run.md)");
 }
 
 int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,

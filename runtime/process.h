@@ -30,6 +30,7 @@ struct ProcessOptions {
   std::string mode = ModeName(Mode::kLockstep);
   std::int64_t t0_ns = 0;    // realtime: CLOCK_MONOTONIC time of tick 0
   double duration_s = -1.0;  // < 0: the scenario's
+  bool insecure = false;     // no bus authentication (else the key comes from SHOAL_BUS_KEY)
   Mode parsed_mode() const { return ParseMode(mode).value_or(Mode::kLockstep); }
 };
 

@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 
@@ -19,6 +20,29 @@
 #include "tools/json_text.h"
 
 namespace shoal {
+namespace {
+
+/// --live: the key of --key FILE, else of SHOAL_BUS_KEY, else none. False (said on
+/// stderr) if that key is unreadable or malformed.
+bool LiveKey(const std::string& key_file, std::optional<bus_auth::Key>* key) {
+  bus_auth::Key k;
+  std::string error;
+  const char* env = std::getenv(bus_auth::kKeyEnv);
+  bool ok = true;
+  if (!key_file.empty()) {
+    ok = bus_auth::ReadKeyFile(key_file, &k, &error);
+  } else if (env != nullptr) {
+    ok = bus_auth::ParseKey(env, &k, &error);
+    if (!ok) error = std::string(bus_auth::kKeyEnv) + ": " + error;
+  } else {
+    return true;
+  }
+  if (ok) *key = k;
+  if (!ok) std::cerr << "shoal analyze: " << error << "\n";
+  return ok;
+}
+
+}  // namespace
 
 int RunAnalyze(const AnalyzeOptions& opt) {
   const char* who = "shoal analyze: ";
@@ -60,6 +84,8 @@ int RunAnalyze(const AnalyzeOptions& opt) {
   RunData run;
   std::string error;
   LiveOptions live;
+  if (opt.live && !LiveKey(opt.key_file, &live.key)) return kExitBadInput;
+  lo.key_file = opt.key_file;
   live.url = opt.lcm_url;
   live.duration_s = opt.duration_s;
   live.progress = !opt.quiet && !opt.json;

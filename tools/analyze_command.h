@@ -15,6 +15,8 @@ struct AnalyzeOptions {
   /// --live: stop after this many wall-clock seconds (NaN: not given, no limit).
   double duration_s = std::numeric_limits<double>::quiet_NaN();
   bool quiet = false;     // no progress line (--live)
+  /// The run's key file (default: <log>.key if it exists; --live: SHOAL_BUS_KEY).
+  std::string key_file;
 };
 
 /// `shoal analyze`: metrics of a run from its log (or live from a bus), --json, --csv.

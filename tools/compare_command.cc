@@ -7,11 +7,13 @@
 #include <iostream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "analysis/run_data.h"
 #include "analysis/verdict.h"
 #include "runtime/channels.h"
 #include "runtime/lcm_bus.h"
@@ -32,18 +34,32 @@ using States = std::map<Key, Sample>;
 /// or truncated log is read up to the damage and said to be so (the reader's warnings,
 /// which name the file). False, with a message, if the file cannot be read, is empty, or holds
 /// no complete LCM event.
-bool ReadStates(const std::string& path, States* out, std::vector<std::string>* warnings,
-                std::string* err) {
+bool ReadStates(const std::string& path, const std::string& key_file, States* out,
+                std::vector<std::string>* warnings, std::string* err) {
+  std::optional<bus_auth::Key> key;
+  std::string used;
+  if (!KeyForLog(path, key_file, &key, &used, err)) return false;
   LcmLogReader reader;
   if (!reader.Open(path, err)) return false;
+  RunData counts;  // authentication counts only
+  LogVerifier verifier(key, &counts);
   LogEventView ev;
   while (reader.Next(&ev)) {
     if (!channels::ParseStateId(ev.channel)) continue;
+    const int size = verifier.Check(ev.channel, ev.data, ev.size);
     vehicle_state_t m{};
-    if (!Decode(ev.data, ev.size, &m)) continue;
+    if (size < 0 || !Decode(ev.data, size, &m)) continue;
     (*out)[{m.vehicle_id, m.utime}] = Sample{Load5(m.eta), Load5(m.eta_dot)};
   }
   warnings->insert(warnings->end(), reader.warnings().begin(), reader.warnings().end());
+  if (counts.unauthenticated > 0) {
+    warnings->push_back(path + ": " + std::to_string(counts.unauthenticated) +
+                        " states did not authenticate with " + used + " and were ignored");
+  }
+  if (counts.unverified > 0) {
+    warnings->push_back(path + ": " + std::to_string(counts.unverified) +
+                        " states were read unverified (no key file)");
+  }
   if (reader.events() == 0) {
     *err = path + ": no complete LCM event in the file" +
            (reader.warnings().empty() ? std::string() : " (" + reader.warnings().front() + ")");
@@ -154,7 +170,8 @@ int RunCompare(const CompareOptions& opt) {
   States a, b;
   std::vector<std::string> warnings;
   std::string err;
-  if (!ReadStates(opt.a, &a, &warnings, &err) || !ReadStates(opt.b, &b, &warnings, &err)) {
+  if (!ReadStates(opt.a, opt.key_a, &a, &warnings, &err) ||
+      !ReadStates(opt.b, opt.key_b, &b, &warnings, &err)) {
     std::cerr << "shoal compare: " << err << "\n";
     return kExitBadInput;
   }

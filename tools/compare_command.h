@@ -16,6 +16,9 @@ struct CompareOptions {
   /// partial (lcm-logger may drop states of a run on a shared bus).
   bool allow_missing = false;
   bool json = false;
+  /// The runs' key files (default: <log>.key next to each log if it exists): with a key,
+  /// only the states that authenticate are compared.
+  std::string key_a, key_b;
 };
 
 /// `shoal compare A B`: vehicle states of two logs at matching (vehicle, time).

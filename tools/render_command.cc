@@ -46,6 +46,7 @@ int RunRender(const RenderOptions& opt) {
     if (!LoadScenarioOrReport("shoal render", opt.scenario, &scenario)) return 2;
     lo.scenario = &scenario;
   }
+  lo.key_file = opt.key_file;
   const auto t0 = std::chrono::steady_clock::now();
   RunData run;
   if (!LoadRunLog(opt.log, lo, &run, &error)) {

@@ -11,6 +11,7 @@ struct RenderOptions {
   std::string scenario;    // overrides the log's scenario
   bool linear_errors = false;  // tracking errors on a linear instead of a log axis
   bool quiet = false;
+  std::string key_file;    // the run's key (default: <log>.key if it exists)
 };
 
 /// `shoal render LOG --out DIR`: the run's figures as PNG, drawn off-screen with OSMesa:

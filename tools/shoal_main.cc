@@ -57,6 +57,9 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
                 "lag of the channel bounds it; 1 = a round trip every tick)")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  c->add_flag("--insecure", run->launch.insecure,
+              "Do not authenticate the run's messages (for foreign LCM tools on its bus); "
+              "the log's statuses and the report say so");
   c->add_flag("--allow-large", run->launch.allow_large,
               "Run even if the run is estimated to take over 1 h or 4 GiB of memory");
   c->add_flag("--deep-idle", run->launch.deep_idle,
@@ -85,6 +88,8 @@ CLI::App* AddCompare(CLI::App* app, shoal::CompareOptions* cmp) {
               "Compare only the states both logs hold (a log known to be partial); without "
               "it a state in only one log fails the comparison");
   c->add_flag("--json", cmp->json, "Print one JSON object");
+  c->add_option("--key-a", cmp->key_a, "Key file of the first log's run (default: a.key if it exists)");
+  c->add_option("--key-b", cmp->key_b, "Key file of the second log's run (default: b.key if it exists)");
   return c;
 }
 
@@ -105,6 +110,9 @@ CLI::App* AddAnalyze(CLI::App* app, shoal::AnalyzeOptions* ana) {
   c->add_option("--lcm-url", ana->lcm_url, "With --live: LCM URL (default: LCM's default)");
   c->add_option("--duration", ana->duration_s, "With --live: stop after S wall-clock seconds");
   c->add_flag("--quiet", ana->quiet, "No progress line (--live)");
+  c->add_option("--key", ana->key_file,
+                "The run's key file: every message must authenticate with it (default: "
+                "<log>.key if it exists; --live: SHOAL_BUS_KEY if set)");
   return c;
 }
 
@@ -165,6 +173,9 @@ CLI::App* AddRender(CLI::App* app, shoal::RenderOptions* ren) {
   c->add_flag("--linear-errors", ren->linear_errors,
               "Tracking errors on a linear axis (default: logarithmic)");
   c->add_flag("--quiet", ren->quiet, "Do not list the files written");
+  c->add_option("--key", ren->key_file,
+                "The run's key file: every message must authenticate with it (default: "
+                "<log>.key if it exists)");
   return c;
 }
 

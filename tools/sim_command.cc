@@ -43,6 +43,9 @@ int RunSim(const SimOptions& opt) {
       return kExitBadInput;
     }
   }
+  // The log replaced one of shoal run's? Its key file belongs to that log (docs/run.md),
+  // and would make every message of this one look forged.
+  if (!opt.out.empty()) unlink((opt.out + ".key").c_str());
   if (!report.log_error.empty()) std::cerr << "shoal sim: " << report.log_error << "\n";
   if (opt.json) {
     std::cout << JsonText(SimReportJson(report)) << "\n";

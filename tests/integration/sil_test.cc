@@ -262,18 +262,23 @@ TEST(Sil, SigintStopsEverythingWithinTwoSecondsWithAReadableLog) {
   EXPECT_EQ(WaitExit(pid, 10, &took), 130) << ReadFile(out);
   EXPECT_LT(took, 2.5) << "shutdown took " << took << " s";
   EXPECT_EQ(CountProcessesWith(":" + std::to_string(port)), 0) << "processes left behind";
+  bus_auth::Key key;
+  std::string err;
+  ASSERT_TRUE(bus_auth::ReadKeyFile(log + ".key", &key, &err)) << err;
   lcm::LogFile lf(log, "r");
   ASSERT_TRUE(lf.good());
   int states = 0, events = 0;
   while (const lcm::LogEvent* ev = lf.readNextEvent()) {
     ++events;
     if (ev->channel == "SHOAL_STATE_1") {
+      // The state, then its authentication trailer (docs/run.md).
+      const int size = bus_auth::Verify(key, ev->channel, ev->data, ev->datalen);
       vehicle_state_t m{};
-      EXPECT_EQ(m.decode(ev->data, 0, ev->datalen), ev->datalen);
+      EXPECT_EQ(m.decode(ev->data, 0, size), size);
       ++states;
     }
   }
-  EXPECT_GT(states, 0);  // the run had started; every recorded state decodes
+  EXPECT_GT(states, 0);  // the run had started; every recorded state verifies and decodes
   EXPECT_GT(events, states);
 }
 
@@ -381,11 +386,13 @@ TEST(Sil, PerVehicleBusesCarryOnlyTheirOwnTraffic) {
 }
 
 // Bad input on every channel the processes listen to is dropped and counted, never a
-// crash and never in the control law: the run still equals shoal sim exactly.
+// crash and never in the control law: the run still equals shoal sim exactly. With
+// --insecure, so that the input reaches the decoders (authenticated, the bus drops it
+// before: tests/integration/auth_test.cc).
 TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
   const int port = 31151;
   const std::string log = TmpPath("sil_bad.lcmlog"), out = TmpPath("sil_bad.out");
-  const pid_t pid = StartShoal("run " + kExample2 + " --duration 40 --out " + log +
+  const pid_t pid = StartShoal("run " + kExample2 + " --insecure --duration 40 --out " + log +
                                    " --lcm-url '" + Url(port) + "'", out);
   lcm::LCM bus(Url(port));
   ASSERT_TRUE(bus.good());

@@ -1,0 +1,183 @@
+#include "runtime/bus_auth.h"
+
+#include <fcntl.h>
+#include <sodium.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace shoal::bus_auth {
+namespace {
+
+constexpr unsigned char kMagic[kMagicBytes] = {'S', 'H', 'O', 'A', 'L', 'M', 'A', 'C'};
+
+void EnsureSodium() {
+  static const int ok = sodium_init();  // thread-safe, idempotent; < 0 only if unusable
+  if (ok < 0) throw std::runtime_error("libsodium cannot be initialised");
+}
+
+using State = crypto_auth_hmacsha512256_state;
+
+}  // namespace
+
+Authenticator::Authenticator(const Key& key) {
+  EnsureSodium();
+  crypto_auth_hmacsha512256_init(&keyed_, key.data(), key.size());
+}
+
+void Authenticator::Mac(std::string_view channel, const void* data, int size,
+                        unsigned char* out) const {
+  State st = keyed_;
+  crypto_auth_hmacsha512256_update(&st, reinterpret_cast<const unsigned char*>(channel.data()),
+                                   channel.size());
+  const unsigned char separator = 0;  // channel names hold no NUL: no two inputs collide
+  crypto_auth_hmacsha512256_update(&st, &separator, 1);
+  crypto_auth_hmacsha512256_update(&st, static_cast<const unsigned char*>(data),
+                                   static_cast<unsigned long long>(size > 0 ? size : 0));
+  crypto_auth_hmacsha512256_final(&st, out);
+}
+
+void Authenticator::Sign(std::string_view channel, const void* data, int size,
+                         unsigned char* out) const {
+  std::memcpy(out, kMagic, kMagicBytes);
+  Mac(channel, data, size, out + kMagicBytes);
+}
+
+int Authenticator::Verify(std::string_view channel, const void* data, int size) const {
+  if (!HasTrailer(data, size)) return -1;
+  const int payload = size - kTrailerBytes;
+  unsigned char mac[kMacBytes];
+  Mac(channel, data, payload, mac);
+  const auto* got = static_cast<const unsigned char*>(data) + payload + kMagicBytes;
+  return sodium_memcmp(mac, got, kMacBytes) == 0 ? payload : -1;
+}
+
+Key NewKey() {
+  EnsureSodium();
+  Key k;
+  randombytes_buf(k.data(), k.size());
+  return k;
+}
+
+std::string ToHex(const Key& key) {
+  char hex[2 * kKeyBytes + 1];
+  sodium_bin2hex(hex, sizeof(hex), key.data(), key.size());
+  return hex;
+}
+
+bool ParseKey(std::string_view text, Key* key, std::string* error) {
+  const auto first = text.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos) {
+    *error = "the key is empty (64 hex digits expected)";
+    return false;
+  }
+  text = text.substr(first, text.find_last_not_of(" \t\r\n") - first + 1);
+  size_t got = 0;
+  const char* end = nullptr;
+  Key k;
+  if (text.size() != 2 * kKeyBytes ||
+      sodium_hex2bin(k.data(), k.size(), text.data(), text.size(), nullptr, &got, &end) != 0 ||
+      got != k.size() || end != text.data() + text.size()) {
+    *error = "the key is not 64 hex digits (got " + std::to_string(text.size()) + " characters)";
+    return false;
+  }
+  *key = k;
+  return true;
+}
+
+bool ReadKeyFile(const std::string& path, Key* key, std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    *error = path + ": cannot read the key file (" + std::strerror(errno) + ")";
+    return false;
+  }
+  std::stringstream text;
+  text << in.rdbuf();
+  if (text.str().size() > 4096) {
+    *error = path + ": not a key file (64 hex digits expected)";
+    return false;
+  }
+  if (!ParseKey(text.str(), key, error)) {
+    *error = path + ": " + *error;
+    return false;
+  }
+  return true;
+}
+
+bool WriteKeyFile(const std::string& path, const Key& key, std::string* error) {
+  if (unlink(path.c_str()) != 0 && errno != ENOENT) {
+    *error = path + ": cannot replace the key file (" + std::strerror(errno) + ")";
+    return false;
+  }
+  const int fd = open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    *error = path + ": cannot create the key file (" + std::strerror(errno) + ")";
+    return false;
+  }
+  const std::string text = ToHex(key) + "\n";
+  const bool ok = write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
+  if (close(fd) != 0 || !ok) {
+    *error = path + ": cannot write the key file";
+    unlink(path.c_str());
+    return false;
+  }
+  return true;
+}
+
+void Sign(const Key& key, std::string_view channel, const void* data, int size,
+          unsigned char* out) {
+  Authenticator(key).Sign(channel, data, size, out);
+}
+
+int Verify(const Key& key, std::string_view channel, const void* data, int size) {
+  return Authenticator(key).Verify(channel, data, size);
+}
+
+bool HasTrailer(const void* data, int size) {
+  return data != nullptr && size >= kTrailerBytes &&
+         std::memcmp(static_cast<const unsigned char*>(data) + size - kTrailerBytes, kMagic,
+                     kMagicBytes) == 0;
+}
+
+bool SettingFromEnvironment(bool insecure, Setting* setting, std::string* error) {
+  *setting = Setting();
+  if (insecure) {
+    setting->insecure = true;
+    return true;
+  }
+  const char* env = std::getenv(kKeyEnv);
+  if (env == nullptr) {
+    *error = std::string("no bus key: shoal run hands its processes the run's key in the "
+                         "environment; a process started by hand needs the same, e.g. ") +
+             kKeyEnv + "=$(cat RUN.lcmlog.key), or --insecure to run without "
+             "authentication (docs/run.md)";
+    return false;
+  }
+  Key k;
+  if (!ParseKey(env, &k, error)) {
+    *error = std::string(kKeyEnv) + ": " + *error;
+    return false;
+  }
+  setting->key = k;
+  return true;
+}
+
+bool SettingOrReport(bool insecure, const std::string& name, Setting* setting) {
+  std::string error;
+  if (SettingFromEnvironment(insecure, setting, &error)) return true;
+  std::fprintf(stderr, "%s: %s\n", name.c_str(), error.c_str());
+  return false;
+}
+
+std::string ExitNote(const Setting& setting, std::int64_t rejected) {
+  if (setting.insecure) return kInsecureNote;
+  return std::to_string(rejected) + " message(s) failed authentication (dropped)";
+}
+
+}  // namespace shoal::bus_auth
