@@ -13,6 +13,7 @@
 #include <shoal/run_status_t.hpp>
 
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -128,12 +129,19 @@ inline bool ArrayCountsFit<channel_events_t>(const unsigned char* p, int size) {
 /// that subtraction (in practice a 2 GB read past the message). A length must be in
 /// [1, bytes left]. Called after ArrayCountsFit (array counts are sane).
 namespace wire_check {
-/// Skips the string at *pos; false if its length is out of range.
+/// Skips the string at *pos; false if its length is out of range or its bytes are not
+/// what LCM's encoder writes: the text without NUL, then one NUL. The generated decoder
+/// keeps an embedded NUL and drops the last byte unseen, so a damaged or forged string
+/// would otherwise reach the analysis as text that C functions and TOML read differently.
 inline bool SkipString(const unsigned char* p, int size, std::int64_t* pos) {
   if (*pos + 4 > size) return false;
   const std::int64_t len = wire::I32(p + *pos);
   *pos += 4;
   if (len < 1 || len > size - *pos) return false;
+  const unsigned char* s = p + *pos;
+  if (s[len - 1] != 0 || std::memchr(s, 0, static_cast<std::size_t>(len - 1)) != nullptr) {
+    return false;
+  }
   *pos += len;
   return true;
 }
