@@ -561,25 +561,35 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
   return b;
 }
 
-std::int64_t DropImpossibleStates(RunData* run) {
+std::int64_t DropImpossibleTimes(RunData* run) {
   const StateTimeBounds b = StateTimeBoundsOf(*run);
-  std::int64_t dropped = 0;
+  std::int64_t states = 0;
   for (VehicleTrack& v : run->vehicles) {
     const Span s(v.samples, 0, b.limit_us);
-    dropped += static_cast<std::int64_t>(v.samples.size() - s.size());
+    states += static_cast<std::int64_t>(v.samples.size() - s.size());
     if (s.size() == v.samples.size()) continue;
     const auto first = v.samples.begin() + static_cast<std::ptrdiff_t>(s.first());
     v.samples.erase(first + static_cast<std::ptrdiff_t>(s.size()), v.samples.end());
     v.samples.erase(v.samples.begin(), first);
   }
-  if (dropped > 0) {
+  std::vector<ChannelEventRecord>& ev = run->channel_events;
+  const auto impossible = [&](const ChannelEventRecord& e) {
+    return e.send_utime < 0 || e.send_utime > b.limit_us ||
+           (e.status == kDelivered && e.deliver_utime < e.send_utime);
+  };
+  const std::size_t before = ev.size();
+  ev.erase(std::remove_if(ev.begin(), ev.end(), impossible), ev.end());
+  const auto events = static_cast<std::int64_t>(before - ev.size());
+  if (states + events > 0) {
     char end[32];
     std::snprintf(end, sizeof(end), "%.6g", ToSeconds(b.limit_us));
-    run->warnings.push_back(std::to_string(dropped) +
-                            " vehicle states at impossible times (negative, or after the "
-                            "run's end at " + end + " s) are damaged and left out");
+    run->warnings.push_back(std::to_string(states) + " vehicle states and " +
+                            std::to_string(events) +
+                            " channel events at impossible times (negative, after the run's "
+                            "end at " + end + " s, or delivered before sent) are damaged and "
+                            "left out");
   }
-  return dropped;
+  return states + events;
 }
 
 RunAnalysis AnalyseRun(const RunData& run) {

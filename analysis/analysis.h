@@ -136,9 +136,10 @@ struct StateTimeBounds {
 };
 StateTimeBounds StateTimeBoundsOf(const RunData& run);
 
-/// Removes from run's tracks the states outside StateTimeBoundsOf(run) (for a plot, whose
-/// axes one state at 9e12 s would stretch) and says so in run->warnings. Returns how many.
-std::int64_t DropImpossibleStates(RunData* run);
+/// Removes from `run` the states outside StateTimeBoundsOf(run), and the channel events
+/// sent outside them or delivered before they were sent (for a plot, whose axes one state
+/// at 9e12 s would stretch), and says so in run->warnings. Returns how many.
+std::int64_t DropImpossibleTimes(RunData* run);
 
 /// Metrics of the states within StateTimeBoundsOf(run); the others are counted only.
 RunAnalysis AnalyseRun(const RunData& run);

@@ -54,7 +54,7 @@ int RunRender(const RenderOptions& opt) {
     return 2;
   }
   // A state at a damaged time would stretch every time axis to it (9e12 s for INT64_MAX).
-  DropImpossibleStates(&run);
+  DropImpossibleTimes(&run);
   for (const std::string& warn : run.warnings) std::cerr << kWho << "warning: " << warn << "\n";
   render::RunFigureReport report;
   if (!render::WriteRunFigures(run, opt.out_dir, fo, &report, &error)) {

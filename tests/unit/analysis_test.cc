@@ -1078,20 +1078,21 @@ TEST(ImpossibleTimes, WithoutAScenarioMostVehiclesSetTheEnd) {
 }
 
 // For a plot: the damaged states are removed from the tracks, and a warning says so.
-TEST(ImpossibleTimes, DropImpossibleStatesLeavesTheRunAsItRan) {
+TEST(ImpossibleTimes, DropImpossibleTimesLeavesTheRunAsItRan) {
   constexpr Micros kMax = std::numeric_limits<Micros>::max();
   RunData run = Load(WriteLogWithExtraStates("drop.lcmlog", 501, {FarOff(1, kMax), FarOff(0, -1)}));
-  EXPECT_EQ(DropImpossibleStates(&run), 2);
+  EXPECT_EQ(DropImpossibleTimes(&run), 2);
   for (const VehicleTrack& v : run.vehicles) {
     ASSERT_EQ(v.samples.size(), 501u) << v.id;
     EXPECT_EQ(v.samples.front().utime, 0);
     EXPECT_EQ(v.samples.back().utime, 500 * kPeriod);
   }
   ASSERT_FALSE(run.warnings.empty());
-  EXPECT_NE(run.warnings.back().find("2 vehicle states at impossible times"), std::string::npos)
+  EXPECT_NE(run.warnings.back().find("2 vehicle states and 0 channel events at impossible times"),
+            std::string::npos)
       << run.warnings.back();
   EXPECT_EQ(AnalyseRun(run).states_damaged, 0);
-  EXPECT_EQ(DropImpossibleStates(&run), 0);
+  EXPECT_EQ(DropImpossibleTimes(&run), 0);
 }
 
 // ---- CSV ---------------------------------------------------------------------------------
