@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <map>
 #include <utility>
 
@@ -18,21 +19,58 @@ constexpr std::int8_t kDelivered = 0, kLoss = 1, kQueue = 2, kInvalid = 3;
 
 FormationErrors NaNErrors() { return FormationErrors{kNaN, kNaN, kNaN}; }
 
-/// Samples of vehicle `id`; empty if the run has none (RunData built by hand).
-const std::vector<StateMsg>& Samples(const RunData& run, int id) {
-  static const std::vector<StateMsg> kNone;
-  if (id < 0 || id >= static_cast<int>(run.vehicles.size())) return kNone;
-  return run.vehicles[static_cast<std::size_t>(id)].samples;
-}
+/// The states of one vehicle within the run's time bounds: samples[first, first + size()).
+/// The tracks are sorted by time, so these are one contiguous range.
+class Span {
+ public:
+  Span() = default;
+  Span(const std::vector<StateMsg>& s, Micros lo, Micros hi) {
+    const auto by_time = [](const StateMsg& m, Micros t) { return m.utime < t; };
+    const auto b = std::lower_bound(s.begin(), s.end(), lo, by_time);
+    auto e = std::lower_bound(b, s.end(), hi, by_time);
+    if (e != s.end() && e->utime == hi) ++e;
+    first_ = static_cast<std::size_t>(b - s.begin());
+    b_ = s.data() + first_;
+    e_ = s.data() + (e - s.begin());
+  }
+  const StateMsg* begin() const { return b_; }
+  const StateMsg* end() const { return e_; }
+  std::size_t size() const { return static_cast<std::size_t>(e_ - b_); }
+  bool empty() const { return b_ == e_; }
+  const StateMsg& operator[](std::size_t k) const { return b_[k]; }
+  const StateMsg& front() const { return *b_; }
+  const StateMsg& back() const { return e_[-1]; }
+  std::size_t first() const { return first_; }  // index of front() in the track
 
-void AnalyseFollowers(const RunData& run, RunAnalysis* a) {
+ private:
+  const StateMsg* b_ = nullptr;
+  const StateMsg* e_ = nullptr;
+  std::size_t first_ = 0;
+};
+
+/// Every vehicle's Span; an empty one for an id the run has no track for.
+class ValidStates {
+ public:
+  ValidStates(const RunData& run, const StateTimeBounds& b) {
+    for (const VehicleTrack& v : run.vehicles) spans_.emplace_back(v.samples, 0, b.limit_us);
+  }
+  Span operator()(int id) const {
+    if (id < 0 || id >= static_cast<int>(spans_.size())) return Span();
+    return spans_[static_cast<std::size_t>(id)];
+  }
+
+ private:
+  std::vector<Span> spans_;
+};
+
+void AnalyseFollowers(const RunData& run, const ValidStates& valid, RunAnalysis* a) {
   const int n = run.followers;
-  const std::vector<StateMsg>& lead = Samples(run, 0);
+  const Span lead = valid(0);
   a->followers.resize(n);
   for (int i = 1; i <= n; ++i) {
     FollowerAnalysis& f = a->followers[i - 1];
     f.id = i;
-    const std::vector<StateMsg>& s = Samples(run, i);
+    const Span s = valid(i);
     f.samples = static_cast<std::int64_t>(s.size());
     bool prev_stale = false;
     for (const StateMsg& m : s) {
@@ -44,8 +82,10 @@ void AnalyseFollowers(const RunData& run, RunAnalysis* a) {
     }
     if (!s.empty()) f.saturation_fraction = static_cast<double>(f.saturated_ticks) / s.size();
     if (!a->has_formation) continue;
-    ReserveHuge(&f.errors, s.size());
-    f.errors.assign(s.size(), NaNErrors());
+    // Aligned with the whole track: NaN for the states left out.
+    const std::size_t track = run.vehicles[static_cast<std::size_t>(i)].samples.size();
+    ReserveHuge(&f.errors, track);
+    f.errors.assign(track, NaNErrors());
     FormationMetrics one({run.scenario.offsets_m[i - 1]}, run.scenario.metrics);
     std::vector<const StateMsg*> ptr(1);
     std::size_t l = 0;
@@ -53,7 +93,7 @@ void AnalyseFollowers(const RunData& run, RunAnalysis* a) {
       while (l < lead.size() && lead[l].utime < s[k].utime) ++l;
       if (l == lead.size()) break;
       if (lead[l].utime != s[k].utime) continue;
-      f.errors[k] = ErrorsOf(s[k], run.scenario.offsets_m[i - 1], lead[l]);
+      f.errors[s.first() + k] = ErrorsOf(s[k], run.scenario.offsets_m[i - 1], lead[l]);
       ptr[0] = &s[k];
       one.Add(lead[l], ptr);
     }
@@ -71,16 +111,16 @@ void AnalyseFollowers(const RunData& run, RunAnalysis* a) {
 
 /// The swarm-level metrics of shoal sim / shoal run: only times at which the leader and
 /// every follower have a state.
-void AnalyseFormation(const RunData& run, RunAnalysis* a) {
+void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis* a) {
   const int n = run.followers;
-  const std::vector<StateMsg>& lead = Samples(run, 0);
+  const Span lead = valid(0);
   FormationMetrics m(run.scenario.offsets_m, run.scenario.metrics);
   std::vector<std::size_t> idx(n + 1, 0);
   std::vector<const StateMsg*> ptr(n);
   for (const StateMsg& l : lead) {
     bool complete = true;
     for (int i = 1; i <= n; ++i) {
-      const std::vector<StateMsg>& s = Samples(run, i);
+      const Span s = valid(i);
       std::size_t& k = idx[i];
       while (k < s.size() && s[k].utime < l.utime) ++k;
       if (k == s.size() || s[k].utime != l.utime) {
@@ -247,8 +287,8 @@ void DelayQuantiles(const std::vector<ChannelEventRecord>& ev, const EventsByLin
 /// Age at use: at each of the receiver's ticks (its state samples), the newest message
 /// delivered so far (largest send time: the follower keeps only newer messages) and its
 /// age; a message older than the neighbour timeout is not used (a stale tick).
-void AgeAtUse(const RunData& run, const EventsByLink& by_link, PerLinkValues* v,
-              ChannelAnalysis* c) {
+void AgeAtUse(const RunData& run, const ValidStates& valid, const EventsByLink& by_link,
+              PerLinkValues* v, ChannelAnalysis* c) {
   const std::vector<ChannelEventRecord>& ev = run.channel_events;
   const double timeout_s = run.has_scenario ? run.scenario.neighbour_timeout_s : kNaN;
   v->buf.clear();
@@ -268,7 +308,7 @@ void AgeAtUse(const RunData& run, const EventsByLink& by_link, PerLinkValues* v,
     std::size_t d = 0;
     Micros newest = -1;
     bool have = false;
-    for (const StateMsg& m : Samples(run, l.to)) {
+    for (const StateMsg& m : valid(l.to)) {
       while (d < deliveries.size() && deliveries[d].first <= m.utime) {
         if (!have || deliveries[d].second > newest) newest = deliveries[d].second;
         have = true;
@@ -290,7 +330,7 @@ void AgeAtUse(const RunData& run, const EventsByLink& by_link, PerLinkValues* v,
   v->Quantify(&c->links, &LinkAnalysis::age_at_use_s, &c->age_at_use_s);
 }
 
-void AnalyseChannel(const RunData& run, RunAnalysis* a) {
+void AnalyseChannel(const RunData& run, const ValidStates& valid, RunAnalysis* a) {
   ChannelAnalysis& c = a->channel;
   LinkTable table(run, &c.links);
   std::vector<std::uint32_t> link_of_event = CountChannelEvents(run.channel_events, &table, &c);
@@ -298,7 +338,7 @@ void AnalyseChannel(const RunData& run, RunAnalysis* a) {
   std::vector<std::uint32_t>().swap(link_of_event);
   PerLinkValues values(c.links.size());
   DelayQuantiles(run.channel_events, by_link, &values, &c);
-  AgeAtUse(run, by_link, &values, &c);
+  AgeAtUse(run, valid, by_link, &values, &c);
 
   for (const LinkAnalysis& l : c.links) {
     c.sent += l.sent;
@@ -353,35 +393,69 @@ void AnalyseStatuses(const RunData& run, RunAnalysis* a) {
   }
 }
 
-/// Control period: the scenario's, else the clock's, else the leader's sample spacing.
-void SetControlPeriod(const RunData& run, RunAnalysis* a) {
-  if (run.has_scenario) {
-    a->period_us = run.scenario.period_us();
-  } else if (!run.clock.empty() && run.clock.front().period_us > 0) {
-    a->period_us = run.clock.front().period_us;
-  } else {
-    const auto& s = Samples(run, 0);
-    std::vector<Micros> dt;
-    for (std::size_t k = 1; k < s.size() && k < 1000; ++k) dt.push_back(s[k].utime - s[k - 1].utime);
-    if (!dt.empty()) {
-      std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
-      a->period_us = dt[dt.size() / 2];
-    }
+/// Control period: the scenario's, else the clock's, else the leader's sample spacing
+/// (the median of its first steps, which one state at a damaged time cannot move).
+Micros ControlPeriodOf(const RunData& run) {
+  if (run.has_scenario) return run.scenario.period_us();
+  if (!run.clock.empty() && run.clock.front().period_us > 0) return run.clock.front().period_us;
+  if (run.vehicles.empty()) return 0;
+  const std::vector<StateMsg>& s = run.vehicles.front().samples;
+  std::vector<Micros> dt;
+  for (std::size_t k = 1; k < s.size() && k < 1000; ++k) {
+    if (s[k - 1].utime >= 0) dt.push_back(s[k].utime - s[k - 1].utime);
   }
+  if (dt.empty()) return 0;
+  std::nth_element(dt.begin(), dt.begin() + dt.size() / 2, dt.end());
+  return dt[dt.size() / 2];
 }
 
-/// Ticks run, states the log should hold, and the recording's wall-clock span.
-void AnalyseTicks(const RunData& run, RunAnalysis* a) {
-  Micros last_utime = -1;
-  std::int64_t max_samples = 0;
+/// How far a vehicle's states run without a gap of more than a minute (and 1000 periods):
+/// a state that damage or forgery put far away is not part of it. -1 if it has no state
+/// at a non-negative time.
+Micros ContiguousReach(const std::vector<StateMsg>& s, Micros period) {
+  constexpr Micros kMinGap = 60000000;  // 1 min
+  const Micros gap = period <= kMinGap / 1000 ? kMinGap
+                     : period < kMinGap        ? 1000 * period
+                                               : std::numeric_limits<Micros>::max();
+  auto it = std::lower_bound(s.begin(), s.end(), Micros{0},
+                             [](const StateMsg& m, Micros t) { return m.utime < t; });
+  if (it == s.end()) return -1;
+  Micros reach = it->utime;
+  for (++it; it != s.end() && it->utime - reach <= gap; ++it) reach = it->utime;
+  return reach;
+}
+
+/// The largest time that a majority of the vehicles with states reach (-1: none): one
+/// vehicle's damaged or forged times cannot move it while two or more vehicles report.
+Micros MajorityEnd(const RunData& run, Micros period) {
+  std::vector<Micros> last;
   for (const VehicleTrack& v : run.vehicles) {
-    if (!v.samples.empty()) last_utime = std::max(last_utime, v.samples.back().utime);
-    max_samples = std::max<std::int64_t>(max_samples, v.samples.size());
+    const Micros r = ContiguousReach(v.samples, period);
+    if (r >= 0) last.push_back(r);
   }
-  for (const ClockRecord& c : run.clock) last_utime = std::max(last_utime, c.utime);
+  if (last.empty()) return -1;
+  std::sort(last.begin(), last.end());
+  const std::size_t majority = last.size() / 2 + 1;
+  return last[last.size() - majority];
+}
+
+/// Ticks run, states the log should hold, states at impossible times, and the recording's
+/// wall-clock span.
+void AnalyseTicks(const RunData& run, const StateTimeBounds& b, const ValidStates& valid,
+                  RunAnalysis* a) {
+  std::int64_t max_samples = 0;
+  for (std::size_t id = 0; id < run.vehicles.size(); ++id) {
+    const std::vector<StateMsg>& all = run.vehicles[id].samples;
+    const Span s = valid(static_cast<int>(id));
+    max_samples = std::max<std::int64_t>(max_samples, s.size());
+    a->states_negative_time += static_cast<std::int64_t>(s.first());
+    a->states_after_end += static_cast<std::int64_t>(all.size() - s.first() - s.size());
+  }
+  a->states_damaged = a->states_negative_time + a->states_after_end;
+  a->end_s = b.limit_us >= 0 ? ToSeconds(b.limit_us) : kNaN;
   a->ticks = run.clock.empty() ? max_samples : static_cast<std::int64_t>(run.clock.size());
-  if (a->period_us > 0 && last_utime >= 0) {
-    a->states_expected = (last_utime / a->period_us + 1) * (run.followers + 1);
+  if (a->period_us > 0 && b.expected_end_us >= 0) {
+    a->states_expected = (b.expected_end_us / a->period_us + 1) * (run.followers + 1);
   }
   // lcm-logger stamps events with the wall clock (us since 1970); shoal sim with
   // simulated time. Only the former gives a recording span.
@@ -392,19 +466,15 @@ void AnalyseTicks(const RunData& run, RunAnalysis* a) {
 
 /// The follower that diverged first, as shoal sim defines it: non-finite state or
 /// |pitch| > 80 deg.
-void FindDivergence(const RunData& run, RunAnalysis* a) {
+void FindDivergence(const RunData& run, const ValidStates& valid, RunAnalysis* a) {
   Micros first = -1;
   for (int i = 1; i <= run.followers && i < static_cast<int>(run.vehicles.size()); ++i) {
-    const VehicleTrack& v = run.vehicles[i];
     Micros t = -1;
-    for (const StateMsg& m : v.samples) {
+    for (const StateMsg& m : valid(i)) {
       if (!m.AllFinite() || std::abs(m.eta(3)) > kPitchLimitRad) {
         t = m.utime;
         break;
       }
-    }
-    if (v.first_nonfinite_utime >= 0 && (t < 0 || v.first_nonfinite_utime < t)) {
-      t = v.first_nonfinite_utime;
     }
     if (t >= 0 && (first < 0 || t < first)) {
       first = t;
@@ -413,13 +483,14 @@ void FindDivergence(const RunData& run, RunAnalysis* a) {
   }
 }
 
-void AnalyseRunLevel(const RunData& run, RunAnalysis* a) {
+void AnalyseRunLevel(const RunData& run, const StateTimeBounds& b, const ValidStates& valid,
+                     RunAnalysis* a) {
   AnalyseStatuses(run, a);
-  SetControlPeriod(run, a);
-  AnalyseTicks(run, a);
-  FindDivergence(run, a);
+  a->period_us = ControlPeriodOf(run);
+  AnalyseTicks(run, b, valid, a);
+  FindDivergence(run, valid, a);
 
-  const auto& lead = Samples(run, 0);
+  const Span lead = valid(0);
   if (!lead.empty()) {
     double len = 0.0;
     for (std::size_t k = 1; k < lead.size(); ++k) {
@@ -460,23 +531,86 @@ Quantiles QuantilesOf(double* begin, double* end) {
 
 Quantiles QuantilesOf(std::vector<double>* v) { return QuantilesOf(v->data(), v->data() + v->size()); }
 
+StateTimeBounds StateTimeBoundsOf(const RunData& run) {
+  constexpr Micros kMax = std::numeric_limits<Micros>::max();
+  StateTimeBounds b;
+  const Micros period = ControlPeriodOf(run);
+  const Micros majority = MajorityEnd(run, period);
+  if (run.has_scenario) {
+    // The scenario's last tick, or later if most vehicles ran longer: shoal sim and shoal
+    // run --duration lengthen a run but log the scenario's own text.
+    b.declared = true;
+    b.limit_us = std::max(run.scenario.final_tick() * run.scenario.period_us(), majority);
+    b.expected_end_us = b.limit_us;
+  } else if (majority >= 0) {
+    // Nothing declared: a vehicle may outlive the others (the others were lost), but not
+    // by more than the run's whole length again; a state beyond that is damaged.
+    const Micros slack = std::max<Micros>(majority, period);
+    b.limit_us = majority > kMax - slack ? kMax : majority + slack;
+    b.expected_end_us = majority;
+  }
+  // A run that ran its final tick says where it ended (sim and lockstep clocks): the
+  // expectation of a run shortened with --duration; a final tick beyond the limit is
+  // damaged and ignored.
+  for (auto c = run.clock.rbegin(); c != run.clock.rend(); ++c) {
+    if (c->final_tick && c->utime >= 0 && c->utime <= b.limit_us) {
+      b.expected_end_us = c->utime;
+      break;
+    }
+  }
+  return b;
+}
+
+std::int64_t DropImpossibleTimes(RunData* run) {
+  const StateTimeBounds b = StateTimeBoundsOf(*run);
+  std::int64_t states = 0;
+  for (VehicleTrack& v : run->vehicles) {
+    const Span s(v.samples, 0, b.limit_us);
+    states += static_cast<std::int64_t>(v.samples.size() - s.size());
+    if (s.size() == v.samples.size()) continue;
+    const auto first = v.samples.begin() + static_cast<std::ptrdiff_t>(s.first());
+    v.samples.erase(first + static_cast<std::ptrdiff_t>(s.size()), v.samples.end());
+    v.samples.erase(v.samples.begin(), first);
+  }
+  std::vector<ChannelEventRecord>& ev = run->channel_events;
+  const auto impossible = [&](const ChannelEventRecord& e) {
+    return e.send_utime < 0 || e.send_utime > b.limit_us ||
+           (e.status == kDelivered && e.deliver_utime < e.send_utime);
+  };
+  const std::size_t before = ev.size();
+  ev.erase(std::remove_if(ev.begin(), ev.end(), impossible), ev.end());
+  const auto events = static_cast<std::int64_t>(before - ev.size());
+  if (states + events > 0) {
+    char end[32];
+    std::snprintf(end, sizeof(end), "%.6g", ToSeconds(b.limit_us));
+    run->warnings.push_back(std::to_string(states) + " vehicle states and " +
+                            std::to_string(events) +
+                            " channel events at impossible times (negative, after the run's "
+                            "end at " + end + " s, or delivered before sent) are damaged and "
+                            "left out");
+  }
+  return states + events;
+}
+
 RunAnalysis AnalyseRun(const RunData& run) {
   RunAnalysis a;
-  a.summary.states = run.state_samples();
-  a.has_formation = run.has_scenario && !Samples(run, 0).empty() &&
+  const StateTimeBounds bounds = StateTimeBoundsOf(run);
+  const ValidStates valid(run, bounds);
+  a.has_formation = run.has_scenario && !valid(0).empty() &&
                     static_cast<int>(run.scenario.offsets_m.size()) == run.followers;
-  AnalyseRunLevel(run, &a);
-  AnalyseFollowers(run, &a);
+  AnalyseRunLevel(run, bounds, valid, &a);
+  a.summary.states = run.state_samples() - a.states_damaged;
+  AnalyseFollowers(run, valid, &a);
   if (a.has_formation) {
-    AnalyseFormation(run, &a);
+    AnalyseFormation(run, valid, &a);
   } else {  // no formation metrics: the latest state time instead
     Micros t = 0;
-    for (const VehicleTrack& v : run.vehicles) {
-      if (!v.samples.empty()) t = std::max(t, v.samples.back().utime);
+    for (int id = 0; id < static_cast<int>(run.vehicles.size()); ++id) {
+      if (!valid(id).empty()) t = std::max(t, valid(id).back().utime);
     }
     a.summary.sim_time_s = ToSeconds(t);
   }
-  AnalyseChannel(run, &a);
+  AnalyseChannel(run, valid, &a);
   AnalyseHealth(run, &a);
   return a;
 }

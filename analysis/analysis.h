@@ -111,7 +111,12 @@ struct RunAnalysis {
   ChannelAnalysis channel;
   std::vector<ProcessAnalysis> processes;  // sorted by id
   std::int64_t ticks = 0;                  // clock ticks in the log (else leader samples)
-  std::int64_t states_expected = 0;        // (last tick + 1) * (n + 1)
+  std::int64_t states_expected = 0;        // (expected last tick + 1) * (n + 1)
+  /// States whose time the run cannot have produced (StateTimeBoundsOf): negative, or
+  /// after the run's end. Counted here, left out of every metric.
+  std::int64_t states_damaged = 0;
+  std::int64_t states_negative_time = 0, states_after_end = 0;
+  double end_s = kNaN;  // the last time a state may have (NaN: no state in the log)
   double wall_time_s = kNaN;  // recording span if the log's timestamps are wall clock
   bool interrupted = false;   // a run-level status said "interrupted"
   std::vector<std::string> problems;  // failed / vehicle_lost statuses
@@ -120,6 +125,23 @@ struct RunAnalysis {
   Vec3 leader_start_m = Vec3::Constant(kNaN), leader_end_m = Vec3::Constant(kNaN);
 };
 
+/// The times a vehicle state of `run` can have: [0, limit_us]. From what the run declares
+/// (the scenario's duration and period) where the log carries it, else from what most
+/// vehicles show; never from the largest time in the log, which one damaged or forged
+/// state can set to anything.
+struct StateTimeBounds {
+  Micros limit_us = -1;         // the last possible state time (-1: no state possible)
+  Micros expected_end_us = -1;  // the last tick the run should have recorded
+  bool declared = false;        // limit from the scenario's run.duration_s
+};
+StateTimeBounds StateTimeBoundsOf(const RunData& run);
+
+/// Removes from `run` the states outside StateTimeBoundsOf(run), and the channel events
+/// sent outside them or delivered before they were sent (for a plot, whose axes one state
+/// at 9e12 s would stretch), and says so in run->warnings. Returns how many.
+std::int64_t DropImpossibleTimes(RunData* run);
+
+/// Metrics of the states within StateTimeBoundsOf(run); the others are counted only.
 RunAnalysis AnalyseRun(const RunData& run);
 
 /// shoal run's summary of its own log, with the given scenario. False only if the log

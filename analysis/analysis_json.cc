@@ -160,6 +160,10 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   j["log_events"] = run.events;
   j["log_states"] = s.states;
   j["log_states_expected"] = a.states_expected;
+  j["log_states_damaged"] = a.states_damaged;
+  j["log_states_negative_time"] = a.states_negative_time;
+  j["log_states_after_end"] = a.states_after_end;
+  j["log_end_s"] = a.end_s;
   j["lcm_url"] = source.live ? Json(run.source) : Json(nullptr);
   j["complete_samples"] = a.complete_samples;
   j["leader"] = Json{{"path_length_m", a.leader_path_length_m},

@@ -27,8 +27,11 @@ void PrintAuthentication(std::FILE* out, const RunData& run) {
 
 }  // namespace
 
-void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
-                       const AnalysisSource& source) {
+namespace {
+
+/// The run, its states (and those at impossible times) and its length.
+void PrintHeader(std::FILE* out, const RunData& run, const RunAnalysis& a,
+                 const AnalysisSource& source) {
   const RunSummary& s = a.summary;
   std::fprintf(out, "shoal analyze: %s (%s, %d followers, mode %s)\n",
               run.scenario_name.empty() ? "unnamed run" : run.scenario_name.c_str(),
@@ -38,6 +41,22 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
               static_cast<long long>(a.states_expected), s.sim_time_s);
   if (a.wall_time_s > 0) std::fprintf(out, ", recorded over %.2f s wall", a.wall_time_s);
   std::fprintf(out, "\n");
+  if (a.states_damaged > 0) {
+    std::fprintf(out,
+                 "  DAMAGED: %lld vehicle states at impossible times (%lld negative, %lld after "
+                 "the run's end at %.2f s), left out of the metrics\n",
+                 static_cast<long long>(a.states_damaged),
+                 static_cast<long long>(a.states_negative_time),
+                 static_cast<long long>(a.states_after_end), a.end_s);
+  }
+}
+
+}  // namespace
+
+void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
+                       const AnalysisSource& source) {
+  const RunSummary& s = a.summary;
+  PrintHeader(out, run, a, source);
   if (!a.has_formation) {
     std::fprintf(out, "  formation: not computed (%s)\n",
                 run.has_scenario ? "no leader states in the log"

@@ -7,11 +7,28 @@
 namespace shoal {
 
 // Cost of a tick, a follower-tick and a link-tick of shoal sim, fitted (within a factor of
-// two) to scenarios/paper_example2.toml (5 followers: 30001 ticks in 0.35 s) and to 200
-// followers with 3891 links (3001 ticks in 0.7 s) on a current PC.
+// two) to scenarios/paper_example2.toml (5 followers: 30001 ticks in 0.35 s), to 200
+// followers with 3891 links (3001 ticks in 0.7 s) on a current PC, and to densely linked
+// swarms (every follower hears every other, 0.1 s delay) on a 2-vCPU AMD EPYC VM, shared,
+// 2026-12-01 (docs/benchmarks.md), seconds per tick:
+//   followers (links)   100 (9901)   200 (39801)    400 (159601)   1000 (999001)
+//   measured            0.00042      0.0028-0.0033  0.018-0.025    0.058-0.12
+// and 1000 chained followers (1000 links): 0.00075. A link-tick costs more as the links
+// grow (their pending deliveries and the neighbours' histories leave the caches): from
+// 0.04 us to 0.1 us at 150000 links and beyond (a constant 0.03 us put 1000 dense
+// followers at a quarter of their time).
+namespace {
 constexpr double kSecondsPerTick = 3e-6;
 constexpr double kSecondsPerFollowerTick = 1.2e-6;
-constexpr double kSecondsPerLinkTick = 0.03e-6;
+constexpr double kSecondsPerLinkTickSmall = 0.04e-6;
+constexpr double kSecondsPerLinkTickLarge = 0.1e-6;
+constexpr double kLinksLarge = 150000.0;
+
+double SecondsPerLinkTick(double links) {
+  return kSecondsPerLinkTickSmall + (kSecondsPerLinkTickLarge - kSecondsPerLinkTickSmall) *
+                                        std::min(1.0, links / kLinksLarge);
+}
+}  // namespace
 // Per pending delivery: its payload, its queue entry and their bookkeeping.
 constexpr double kBytesPerPending = sizeof(StateMsg) + 64.0;
 constexpr double kMaxPending = 1 << 20;  // Channel's default max_pending
@@ -28,7 +45,8 @@ RunEstimate EstimateRun(const Scenario& s, double duration_s) {
   const double pending = std::min(kMaxPending, delay_ticks * static_cast<double>(e.links));
   e.memory_bytes = s.followers * history * sizeof(HistorySample) + pending * kBytesPerPending;
   const double per_tick = kSecondsPerTick + s.followers * kSecondsPerFollowerTick +
-                          static_cast<double>(e.links) * kSecondsPerLinkTick;
+                          static_cast<double>(e.links) *
+                              SecondsPerLinkTick(static_cast<double>(e.links));
   e.wall_seconds = static_cast<double>(e.ticks) * per_tick;
   return e;
 }

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "core/topology.h"
 #include "design/format.h"
@@ -66,6 +67,8 @@ void Progress(const DesignRequest& q, const std::string& what) {
   if (q.progress) q.progress(what);
 }
 
+void DescribeDelaysAndFactor(const Scenario& s, const DesignRequest& q, DesignReport* r);
+
 /// Gains, topology, delays and the uncertain factor: the data every result below uses.
 void DescribeProblem(const Scenario& s, const DesignRequest& q, DesignReport* r) {
   r->scenario_name = s.name;
@@ -84,7 +87,11 @@ void DescribeProblem(const Scenario& s, const DesignRequest& q, DesignReport* r)
   r->H = topo.H();
   r->eigenvalues = theory::HEigenvalues(r->H);
   r->unreachable_followers = topo.UnreachableFollowers();
+  DescribeDelaysAndFactor(s, q, r);
+}
 
+/// The delay bounds and the uncertain factor (cheap: no matrix of the topology).
+void DescribeDelaysAndFactor(const Scenario& s, const DesignRequest& q, DesignReport* r) {
   // Delays: the scenario's, or h (and kappa) from the flags describing one common delay.
   r->delay_model = s.delay.kind;
   r->per_link_overrides = !s.links.empty();
@@ -251,6 +258,49 @@ bool DesignRequest::IsValid(const Scenario& s, std::string* why) const {
 
 const Theorem3Result& Theorem3Section::CertificateResult() const {
   return at_h.certifies() || !max_delay.feasible_at_zero ? at_h : max_delay.at_max;
+}
+
+// Theorem 3 at h and its bisection: the whole of `shoal design` measured on a 2-vCPU AMD
+// EPYC VM, shared, 2026-12-01 (docs/benchmarks.md), chains (n - 1 edges) and dense
+// swarms (every follower hears every other), seconds [peak memory]:
+//   n        5           8            10           12           15
+//   chain    0.7-1.0     1.3          2.9-4.2      11.6 [97 MB]  34.4 [137 MB]
+//   dense    0.2-0.3     3.5          13.3-14.0    50.4 [97 MB]
+// (chain 20 ran past 300 s.) Fitted as n^4 (a n^2 + b links), links = edges + leader
+// links, within 25 % from n = 8 on; memory as the Schur complement plus the process.
+// 10 min is reached at about 22 chained or 18 dense followers.
+constexpr double kSecondsPerN6 = 2.6e-6;
+constexpr double kSecondsPerN4Link = 1.55e-5;
+constexpr double kBaseBytes = 64.0 * (1 << 20);  // the process without the SDP
+constexpr double kSchurBytesPerEntry = 8.8;      // the dense m x m matrix and CSDP's extras
+
+DesignEstimate EstimateDesign(const Scenario& s, const DesignRequest& q) {
+  DesignEstimate e;
+  DesignReport r;
+  DescribeDelaysAndFactor(s, q, &r);
+  e.theorem3 = Theorem3NotApplicable(r).empty();
+  if (!e.theorem3) return e;
+  const double n = s.followers;
+  const double links = static_cast<double>(s.edges.size() + s.leader_links.size());
+  const double m = 12.0 * n * n + 5.0 * n;
+  e.lmi_variables = static_cast<std::int64_t>(m);
+  e.wall_seconds = n * n * n * n * (kSecondsPerN6 * n * n + kSecondsPerN4Link * links);
+  e.memory_bytes = kBaseBytes + kSchurBytesPerEntry * m * m;
+  return e;
+}
+
+std::string LargeDesignRefusal(const Scenario& s, const DesignRequest& q) {
+  const DesignEstimate e = EstimateDesign(s, q);
+  if (!e.large()) return "";
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "refusing a large design (Theorem 3's LMI for %d followers and %zu links: "
+                "%lld variables, about %.3g h and %.3g GiB of memory; the limits are 10 min "
+                "and 4 GiB); use fewer followers, or pass --allow-large to run it anyway",
+                s.followers, s.edges.size() + s.leader_links.size(),
+                static_cast<long long>(e.lmi_variables), e.wall_seconds / 3600.0,
+                e.memory_bytes / (1 << 30));
+  return text;
 }
 
 DesignReport BuildDesignReport(const Scenario& scenario, const DesignRequest& q) {

@@ -4,6 +4,7 @@
 // only parses flags, calls BuildDesignReport and prints one of the two renderings.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -117,6 +118,27 @@ struct DesignReport {
   std::optional<AdviceSection> advice;
   Verdict verdict;
 };
+
+/// What BuildDesignReport will cost, estimated before it starts: Theorem 3's LMI has
+/// 12 n^2 + 5 n variables (Q, Psi, Z, X symmetric 2n x 2n, Y 2n x 2n, Phi diagonal), and
+/// CSDP's Schur complement is a dense matrix of that side, factorised at every iteration:
+/// memory grows as n^4, time as n^6 (and faster with more links: H is denser).
+struct DesignEstimate {
+  bool theorem3 = false;         ///< Theorem 3 will be solved (else no SDP, little work)
+  std::int64_t lmi_variables = 0;
+  double wall_seconds = 0.0;     ///< Theorem 3 at h and its bisection, on one core
+  double memory_bytes = 0.0;     ///< peak, mostly the Schur complement
+  /// Beyond these a design is refused unless the user allows it (--allow-large).
+  static constexpr double kMaxWallSeconds = 600.0;
+  static constexpr double kMaxMemoryBytes = 4.0 * (1 << 30);
+  bool large() const { return wall_seconds > kMaxWallSeconds || memory_bytes > kMaxMemoryBytes; }
+};
+
+/// Precondition: request.IsValid(s). Cheap: neither builds H nor solves anything.
+DesignEstimate EstimateDesign(const Scenario& s, const DesignRequest& request);
+
+/// "" if the design is not large, else why it is refused and how to run it anyway.
+std::string LargeDesignRefusal(const Scenario& s, const DesignRequest& request);
 
 /// Precondition: request.IsValid(s). Runs every analysis the request asks for; never
 /// prints (progress goes to request.progress) and writes no file.

@@ -102,6 +102,13 @@ int RunDesign(const DesignOptions& opt) {
     std::cerr << "shoal design: " << why << "\n";
     return 2;
   }
+  if (!opt.allow_large) {
+    const std::string refusal = design::LargeDesignRefusal(s, request);
+    if (!refusal.empty()) {
+      std::cerr << "shoal design: " << opt.scenario << ": " << refusal << "\n";
+      return 2;
+    }
+  }
   if (!CheckWritable("--certificate", opt.certificate) ||
       !CheckWritable("--write-scenario", opt.write_scenario)) {
     return 2;

@@ -23,6 +23,7 @@ struct DesignOptions {
   std::string tune_cost = "itse";  // itse, ise or position_ise (design/sim_eval.h)
   bool advise = false;         // --advise: gains Theorem 3 certifies (design/advise.h)
   std::string write_scenario;  // --write-scenario FILE: the scenario with the advised gains
+  bool allow_large = false;    // --allow-large: run a design estimated beyond the limits
 };
 
 /// `shoal design` (docs/theory.md): exit status 0 certified, 1 not certified, 2 bad input.

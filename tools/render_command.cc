@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <iostream>
 
+#include "analysis/analysis.h"
 #include "analysis/run_data.h"
 #include "render/run_figures.h"
 #include "scenario/loader.h"
@@ -53,6 +54,8 @@ int RunRender(const RenderOptions& opt) {
     std::cerr << kWho << error << "\n";
     return 2;
   }
+  // A state at a damaged time would stretch every time axis to it (9e12 s for INT64_MAX).
+  DropImpossibleTimes(&run);
   for (const std::string& warn : run.warnings) std::cerr << kWho << "warning: " << warn << "\n";
   render::RunFigureReport report;
   if (!render::WriteRunFigures(run, opt.out_dir, fo, &report, &error)) {

@@ -156,6 +156,8 @@ CLI::App* AddDesign(CLI::App* app, shoal::DesignOptions* design) {
   c->add_option("--write-scenario", design->write_scenario,
                 "With the advised gains (implies --advise), write the scenario to this TOML "
                 "file");
+  c->add_flag("--allow-large", design->allow_large,
+              "Run even if Theorem 3 is estimated to take over 10 min or 4 GiB of memory");
   return c;
 }
 

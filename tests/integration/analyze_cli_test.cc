@@ -11,6 +11,9 @@
 #include <string>
 #include <vector>
 
+#include "runtime/channels.h"
+#include "runtime/log_writer.h"
+#include "runtime/messages.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -215,6 +218,67 @@ TEST(AnalyzeCli, ALogConcatenatedWithItselfCountsEachStateOnce) {
   EXPECT_EQ(j["log_states"], 6 * 1001) << r.out;
   EXPECT_EQ(j["log_states_expected"], 6 * 1001) << r.out;
   EXPECT_NE(r.err.find("6006 vehicle states appear more than once"), std::string::npos) << r.err;
+}
+
+// A 20 s Example 2 log followed by three states at impossible times, far from any slot:
+// follower 3 at utime = INT64_MAX, the leader at -1 s, follower 2 at 1e9 s. Returns the
+// damaged log; *clean is the log as shoal sim wrote it.
+std::string DamagedTimesLog(const std::string& tag, std::string* clean) {
+  *clean = TmpPath(tag + "_clean.lcmlog");
+  const std::string forged = TmpPath(tag + "_forged.lcmlog"), damaged = TmpPath(tag + ".lcmlog");
+  EXPECT_EQ(RunShoal("sim " + kExample2 + " --duration 20 --quiet --out " + *clean, tag + "_sim")
+                .status, 1);  // not converged in 20 s
+  {
+    LogWriter log(forged);
+    const std::pair<int, std::int64_t> bad[] = {
+        {3, std::numeric_limits<std::int64_t>::max()}, {0, -1000000}, {2, 1000000000000000}};
+    for (const auto& [id, utime] : bad) {
+      StateMsg m;
+      m.vehicle_id = id;
+      m.utime = utime;
+      m.eta = Vec5::Constant(1e6);
+      m.eta_dot = m.nu = Vec5::Constant(1e3);
+      log.Write(channels::State(id), 20000000, ToLcm(m));
+    }
+  }
+  EXPECT_EQ(std::system(("cat '" + *clean + "' '" + forged + "' > '" + damaged + "'").c_str()), 0);
+  return damaged;
+}
+
+// Taken as the run's end, one state at utime = INT64_MAX would make the expectation 2.8e15
+// states: the scenario in the log (duration, period) and the run's final clock tick give
+// it, and the states at impossible times are counted as damaged, left out of every metric.
+TEST(AnalyzeCli, StatesAtImpossibleTimesAreDamagedNotTheRunsLength) {
+  std::string clean;
+  const std::string damaged = DamagedTimesLog("impossible_times", &clean);
+  const auto r = RunShoal("analyze " + damaged + " --json", "impossible_ana");
+  const auto c = RunShoal("analyze " + clean + " --json", "impossible_clean");
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(c.status, 0) << c.err;
+  const auto j = ParseJson(r.out), cj = ParseJson(c.out);
+  EXPECT_EQ(j["log_states_expected"], 6 * 1001) << r.out;
+  EXPECT_EQ(j["log_states"], 6 * 1001);
+  EXPECT_EQ(j["log_states_damaged"], 3);
+  EXPECT_EQ(j["log_states_negative_time"], 1);
+  EXPECT_EQ(j["log_states_after_end"], 2);
+  EXPECT_EQ(j["log_end_s"], 600.0);  // the scenario's run.duration_s
+  EXPECT_EQ(cj["log_states_damaged"], 0);
+  for (const char* key : {"sim_time_s", "ticks", "final_position_error_m", "max_position_error_m",
+                          "converged", "followers", "leader", "complete_samples"}) {
+    EXPECT_EQ(j[key], cj[key]) << key;
+  }
+  const auto t = RunShoal("analyze " + damaged, "impossible_text");
+  EXPECT_NE(t.out.find("of 6006 expected"), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("DAMAGED: 3 vehicle states at impossible times (1 negative, 2 after"),
+            std::string::npos) << t.out;
+  // shoal compare holds the forged states against the clean log: in A only, so the logs
+  // differ (exit 1) and agree on everything else.
+  const auto cmp = RunShoal("compare " + damaged + " " + clean + " --json", "impossible_cmp");
+  EXPECT_EQ(cmp.status, 1) << cmp.err;
+  EXPECT_EQ(ParseJson(cmp.out)["only_in_a"], 3) << cmp.out;
+  EXPECT_EQ(ParseJson(cmp.out)["max_position_diff_m"], 0.0) << cmp.out;
+  EXPECT_EQ(RunShoal("compare " + damaged + " " + clean + " --allow-missing", "impossible_cmp2")
+                .status, 0);
 }
 
 }  // namespace

@@ -6,10 +6,16 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
 #include <set>
 #include <string>
 
 #include "render/figure.h"
+#include "runtime/channels.h"
+#include "runtime/log_writer.h"
+#include "runtime/messages.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -75,6 +81,63 @@ TEST(RenderCli, EveryFigureOfASimLogAtTheRequestedSizeAndNotBlank) {
     }
   }
   EXPECT_TRUE(Load(dir + "/trajectory.png").has_colour(render::VehicleColor(0)));
+}
+
+std::string Bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// States at impossible times (utime = INT64_MAX, negative, 1e9 s) appended to a 20 s log
+// would stretch every time axis to 9e12 s, and a channel event sent at 1e9 s the delay
+// curve: they are left out, with a warning, and every figure is the clean log's, byte for
+// byte.
+TEST(RenderCli, StatesAtImpossibleTimesDoNotStretchTheAxes) {
+  const std::string clean = TmpPath("render_impossible_clean.lcmlog");
+  const std::string forged = TmpPath("render_impossible_forged.lcmlog");
+  const std::string damaged = TmpPath("render_impossible.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +
+                         " --duration 20 --quiet --out " + clean, "ri_sim").status, 1);
+  {
+    LogWriter log(forged);
+    const std::pair<int, std::int64_t> bad[] = {
+        {3, std::numeric_limits<std::int64_t>::max()}, {0, -1000000}, {2, 1000000000000000}};
+    for (const auto& [id, utime] : bad) {
+      StateMsg m;
+      m.vehicle_id = id;
+      m.utime = utime;
+      m.eta = Vec5::Constant(1e6);
+      m.eta_dot = m.nu = Vec5::Constant(1e3);
+      log.Write(channels::State(id), 20000000, ToLcm(m));
+    }
+    // Channel events sent at 1e9 s (a delay curve drawn up to it took 8e11 bytes) and
+    // delivered before they were sent.
+    ChannelDecision late, early;
+    late.sender = early.sender = 1;
+    late.receiver = early.receiver = 2;
+    late.send_utime = 1000000000000000;
+    late.deliver_utime = late.send_utime + 100000;
+    early.send_utime = 10000000;
+    early.deliver_utime = 5000000;
+    log.Write(channels::ChannelEvents(), 20000000, ToLcm(late, 0));
+    log.Write(channels::ChannelEvents(), 20000000, ToLcm(early, 1));
+  }
+  ASSERT_EQ(std::system(("cat '" + clean + "' '" + forged + "' > '" + damaged + "'").c_str()), 0);
+  const std::string dir_c = TmpPath("render_impossible_clean"), dir_d = TmpPath("render_impossible");
+  std::filesystem::remove_all(dir_c);
+  std::filesystem::remove_all(dir_d);
+  ASSERT_EQ(RunShoal("render " + clean + " --out " + dir_c, "ri_clean").status, 0);
+  const auto r = RunShoal("render " + damaged + " --out " + dir_d, "ri_damaged");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("3 vehicle states and 2 channel events at impossible times"),
+            std::string::npos) << r.err;
+  for (const char* name : {"trajectory", "states", "errors", "channel"}) {
+    const std::string a = Bytes(dir_c + "/" + name + ".png"), b = Bytes(dir_d + "/" + name + ".png");
+    EXPECT_FALSE(a.empty()) << name;
+    EXPECT_TRUE(a == b) << name;
+  }
 }
 
 TEST(RenderCli, BadInputExitsTwoWithAMessage) {

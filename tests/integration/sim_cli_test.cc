@@ -609,7 +609,8 @@ TEST(SimCli, EnormousScenariosAreRefusedWithTheirEstimate) {
   std::vector<std::string> files;
   for (const char* name : {"years_long.toml", "fastest_rate_for_a_week.toml",
                            "thousand_followers_in_a_chain_for_a_day.toml",
-                           "hundred_dense_followers_with_long_delays.toml"}) {
+                           "hundred_dense_followers_with_long_delays.toml",
+                           "four_hundred_dense_followers_for_100_minutes.toml"}) {
     files.push_back(dir + "/" + name);
   }
   for (const std::string& f : files) {

@@ -980,6 +980,121 @@ TEST(RunSummaryTest, MatchesTheAnalysisAndToleratesMissingOrEmptyLogs) {
   EXPECT_FALSE(s.converged);
 }
 
+// ---- States at impossible times ----------------------------------------------------------
+
+// The leader and both followers in their slots for `ticks` ticks (of the 10 s scenario:
+// 501 ticks), then `extra` states, as a damaged or forged log would hold them. Without
+// `toml` the log declares no scenario.
+std::string WriteLogWithExtraStates(const std::string& name, int ticks,
+                                    const std::vector<StateMsg>& extra,
+                                    const char* toml = kScenario) {
+  const std::string path = Tmp(name);
+  LogWriter log(path);
+  log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", toml));
+  const Vec5 z = Vec5::Zero();
+  const Vec3 slot[3] = {Vec3::Zero(), Vec3(6, 0, 0), Vec3(0, 6, 0)};
+  for (int k = 0; k < ticks; ++k) {
+    const Micros t = k * kPeriod;
+    for (int id = 0; id <= 2; ++id) {
+      Vec5 eta = z;
+      eta.head<3>() = slot[id] + Vec3(ToSeconds(t), 0, 0);
+      log.Write(channels::State(id), t, ToLcm(State(id, t, eta, z)));
+    }
+  }
+  for (const StateMsg& m : extra) log.Write(channels::State(m.vehicle_id), 0, ToLcm(m));
+  return path;
+}
+
+StateMsg FarOff(int id, Micros t) {
+  return State(id, t, Vec5::Constant(1e6), Vec5::Constant(1e3));  // far from any slot
+}
+
+// Taken as the run's end, one state at utime = INT64_MAX would make the expectation
+// 2.8e15 states and stretch every time axis to 9e12 s: the run's declared duration and
+// period give the expectation, the state is counted as damaged and left out of every metric.
+TEST(ImpossibleTimes, Int64MaxUtimeIsDamagedNotTheRunsEnd) {
+  constexpr Micros kMax = std::numeric_limits<Micros>::max();
+  const RunData run = Load(WriteLogWithExtraStates("int64max.lcmlog", 501, {FarOff(1, kMax)}));
+  ASSERT_TRUE(run.has_scenario);
+  const RunAnalysis a = AnalyseRun(run);
+  EXPECT_EQ(a.states_expected, 501 * 3);  // 10 s at 50 Hz: ticks 0..500, three vehicles
+  EXPECT_EQ(a.states_damaged, 1);
+  EXPECT_EQ(a.states_after_end, 1);
+  EXPECT_EQ(a.states_negative_time, 0);
+  EXPECT_DOUBLE_EQ(a.end_s, 10.0);
+  EXPECT_EQ(a.summary.states, 501 * 3);
+  EXPECT_DOUBLE_EQ(a.summary.sim_time_s, 10.0);
+  EXPECT_NEAR(a.summary.max_position_error_m, 0.0, 1e-12);  // the far-off state is not used
+  EXPECT_TRUE(a.summary.converged);
+  EXPECT_EQ(a.followers[0].samples, 501);
+  // Still aligned with the whole track, NaN at the damaged state.
+  ASSERT_EQ(a.followers[0].errors.size(), 502u);
+  EXPECT_TRUE(std::isnan(a.followers[0].errors[501].position_m));
+  EXPECT_NEAR(a.followers[0].errors[500].position_m, 0.0, 1e-12);
+  EXPECT_EQ(a.diverged_follower, 0);
+}
+
+TEST(ImpossibleTimes, NegativeAndFarAfterTheEndAreDamaged) {
+  constexpr Micros kMin = std::numeric_limits<Micros>::min();
+  const RunData run = Load(WriteLogWithExtraStates(
+      "negative.lcmlog", 501,
+      {FarOff(2, -5000000), FarOff(0, kMin), FarOff(0, 1000000LL * 1000000), FarOff(2, 10020000)}));
+  const RunAnalysis a = AnalyseRun(run);
+  EXPECT_EQ(a.states_negative_time, 2);
+  EXPECT_EQ(a.states_after_end, 2);  // 1e6 s, and one tick after the 10 s end
+  EXPECT_EQ(a.states_damaged, 4);
+  EXPECT_EQ(a.states_expected, 501 * 3);
+  EXPECT_EQ(a.summary.states, 501 * 3);
+  EXPECT_DOUBLE_EQ(a.summary.sim_time_s, 10.0);
+  EXPECT_DOUBLE_EQ(a.leader_start_m.x(), 0.0);
+  EXPECT_DOUBLE_EQ(a.leader_end_m.x(), 10.0);
+  EXPECT_NEAR(a.summary.max_position_error_m, 0.0, 1e-12);
+  EXPECT_EQ(a.complete_samples, 501);
+}
+
+// shoal sim --duration lengthens a run but logs the scenario's own text: when most
+// vehicles ran past the scenario's end, they did, and nothing is damaged.
+TEST(ImpossibleTimes, ARunLongerThanItsScenarioTextIsNotDamaged) {
+  const RunAnalysis a = AnalyseRun(Load(WriteLogWithExtraStates("longer.lcmlog", 1001, {})));
+  EXPECT_EQ(a.states_damaged, 0);
+  EXPECT_EQ(a.states_expected, 1001 * 3);
+  EXPECT_DOUBLE_EQ(a.summary.sim_time_s, 20.0);
+}
+
+// Without a scenario the expectation is the time most vehicles reach, never the largest
+// time in the log; a time beyond twice that is damaged.
+TEST(ImpossibleTimes, WithoutAScenarioMostVehiclesSetTheEnd) {
+  constexpr Micros kMax = std::numeric_limits<Micros>::max();
+  const RunData run =
+      Load(WriteLogWithExtraStates("no_scenario.lcmlog", 500, {FarOff(1, kMax), FarOff(2, -1)}, ""));
+  ASSERT_FALSE(run.has_scenario);
+  const RunAnalysis a = AnalyseRun(run);
+  EXPECT_EQ(a.period_us, kPeriod);
+  EXPECT_EQ(a.states_expected, 500 * 3);
+  EXPECT_EQ(a.states_after_end, 1);
+  EXPECT_EQ(a.states_negative_time, 1);
+  EXPECT_DOUBLE_EQ(a.summary.sim_time_s, ToSeconds(499 * kPeriod));
+  EXPECT_EQ(a.ticks, 500);
+}
+
+// For a plot: the damaged states are removed from the tracks, and a warning says so.
+TEST(ImpossibleTimes, DropImpossibleTimesLeavesTheRunAsItRan) {
+  constexpr Micros kMax = std::numeric_limits<Micros>::max();
+  RunData run = Load(WriteLogWithExtraStates("drop.lcmlog", 501, {FarOff(1, kMax), FarOff(0, -1)}));
+  EXPECT_EQ(DropImpossibleTimes(&run), 2);
+  for (const VehicleTrack& v : run.vehicles) {
+    ASSERT_EQ(v.samples.size(), 501u) << v.id;
+    EXPECT_EQ(v.samples.front().utime, 0);
+    EXPECT_EQ(v.samples.back().utime, 500 * kPeriod);
+  }
+  ASSERT_FALSE(run.warnings.empty());
+  EXPECT_NE(run.warnings.back().find("2 vehicle states and 0 channel events at impossible times"),
+            std::string::npos)
+      << run.warnings.back();
+  EXPECT_EQ(AnalyseRun(run).states_damaged, 0);
+  EXPECT_EQ(DropImpossibleTimes(&run), 0);
+}
+
 // ---- CSV ---------------------------------------------------------------------------------
 
 std::vector<std::vector<std::string>> ReadCsv(const std::string& path) {
