@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include <unistd.h>
 
@@ -238,10 +239,13 @@ void RunDataBuilder::AddClock(const std::uint8_t* data, int size) {
     return;
   }
   // One record per tick covered (a lockstep clock message covers a window of ticks; at
-  // most --max-lookahead's 100000). Checked before any arithmetic on the fields.
+  // most --max-lookahead's 100000). Checked before any arithmetic on the fields: the
+  // window's last tick times its period must fit in 64 bits (2^40 ticks of 1e9 us do not).
   constexpr std::int64_t kMaxTick = std::int64_t{1} << 40;
+  constexpr std::int64_t kMaxUtime = std::numeric_limits<std::int64_t>::max() / 2;
   if (c.n_ticks < 1 || c.n_ticks > 100000 || c.period_us <= 0 || c.period_us > 1000000000 ||
-      c.tick < 0 || c.tick > kMaxTick || c.utime != c.tick * c.period_us) {
+      c.tick < 0 || c.tick > kMaxTick || c.tick > kMaxUtime / c.period_us - c.n_ticks ||
+      c.utime != c.tick * c.period_us) {
     ++d_->rejected;
     return;
   }

@@ -589,7 +589,7 @@ TEST(Sil, LoggerExitingEarlyStopsTheRunAtOnce) {
     // Real time: 2 s into the run (after the 4 s start margin); lockstep: 2 s of run.
     std::this_thread::sleep_for(std::chrono::seconds(mode == "realtime" ? 6 : 2));
     const pid_t logger = PidWith("lcm-logger.*" + std::to_string(port));
-    ASSERT_GT(logger, 0) << mode;
+    ASSERT_GT(logger, 0) << mode << ": no lcm-logger; the run said:\n" << ReadFile(out);
     ASSERT_EQ(kill(logger, SIGKILL), 0);
     double took = 0;
     EXPECT_EQ(WaitExit(pid, 20, &took), 1) << mode << ReadFile(out);

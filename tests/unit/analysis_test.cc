@@ -325,7 +325,8 @@ TEST(RunData, WindowClocksAndEventBatchesReadLikeSingleOnes) {
   EXPECT_EQ(AnalyseRun(legacy).ticks, ticks);
 }
 
-// A damaged batch is refused whole and counted once; a window clock covering no tick too.
+// A damaged batch is refused whole and counted once; a window clock covering no tick, or
+// ticks whose times overflow, too.
 TEST(RunData, DamagedBatchOrEmptyWindowIsCountedNotKept) {
   const std::string path = Tmp("damaged_batch.lcmlog");
   {
@@ -357,11 +358,18 @@ TEST(RunData, DamagedBatchOrEmptyWindowIsCountedNotKept) {
     c.period_us = kPeriod;
     c.n_ticks = 0;
     log.Write(channels::Clock(), 0, c);
+    // The largest tick and period each check allows: their product does not fit in 64
+    // bits, so it must be refused before it is computed (UBSan builds catch the overflow).
+    c.n_ticks = 1;
+    c.tick = std::int64_t{1} << 40;
+    c.period_us = 1000000000;
+    c.utime = 0;
+    log.Write(channels::Clock(), 0, c);
   }
   const RunData run = Load(path);
   EXPECT_EQ(run.channel_events.size(), 2u);
   EXPECT_EQ(run.undecodable, 3);
-  EXPECT_EQ(run.rejected, 1);
+  EXPECT_EQ(run.rejected, 2);
   EXPECT_TRUE(run.clock.empty());
 }
 
