@@ -186,10 +186,15 @@ class LinkTable {
   std::map<std::pair<int, int>, std::size_t> index_;
 };
 
-/// Per event: its configured delay (checked against the drawn one) and its link's counts.
-/// Returns each event's link index.
+/// Link index of an event left out (at an impossible time).
+constexpr std::uint32_t kNoLink = std::numeric_limits<std::uint32_t>::max();
+
+/// Per event: its configured delay (checked against the drawn one) and its link's counts;
+/// an event at an impossible time is counted as damaged only. Returns each event's link
+/// index (kNoLink for a damaged one).
 std::vector<std::uint32_t> CountChannelEvents(const std::vector<ChannelEventRecord>& ev,
-                                              LinkTable* table, ChannelAnalysis* c) {
+                                              const StateTimeBounds& b, LinkTable* table,
+                                              ChannelAnalysis* c) {
   ReserveHuge(&c->configured_delay_s, ev.size());
   c->configured_delay_s.resize(ev.size());
   std::vector<std::uint32_t> link_of_event(ev.size());
@@ -197,6 +202,14 @@ std::vector<std::uint32_t> CountChannelEvents(const std::vector<ChannelEventReco
   int last_from = -1, last_to = -1;
   for (std::size_t k = 0; k < ev.size(); ++k) {
     const ChannelEventRecord& e = ev[k];
+    const EventTime when = ChannelEventTimeOf(e, b);
+    if (when != EventTime::kPossible) {
+      ++(when == EventTime::kSendImpossible ? c->events_sent_impossible
+                                            : c->events_delivered_impossible);
+      c->configured_delay_s[k] = kNaN;
+      link_of_event[k] = kNoLink;
+      continue;
+    }
     if (e.sender != last_from || e.receiver != last_to) {
       last_from = e.sender;
       last_to = e.receiver;
@@ -225,18 +238,21 @@ std::vector<std::uint32_t> CountChannelEvents(const std::vector<ChannelEventReco
 }
 
 /// Event indices grouped by link (a counting sort): link li's events, in log order, are
-/// order[start[li]] .. order[start[li + 1] - 1].
+/// order[start[li]] .. order[start[li + 1] - 1]. Events of no link (kNoLink) are left out.
 struct EventsByLink {
   std::vector<std::size_t> start;
   std::vector<std::uint32_t> order;
 
   EventsByLink(const std::vector<std::uint32_t>& link_of_event, std::size_t links)
-      : start(links + 1, 0), order(link_of_event.size()) {
-    for (std::uint32_t li : link_of_event) ++start[li + 1];
+      : start(links + 1, 0) {
+    for (std::uint32_t li : link_of_event) {
+      if (li != kNoLink) ++start[li + 1];
+    }
     for (std::size_t li = 0; li < links; ++li) start[li + 1] += start[li];
+    order.resize(start[links]);
     std::vector<std::size_t> fill(start.begin(), start.end() - 1);
     for (std::size_t k = 0; k < link_of_event.size(); ++k) {
-      order[fill[link_of_event[k]]++] = static_cast<std::uint32_t>(k);
+      if (link_of_event[k] != kNoLink) order[fill[link_of_event[k]]++] = static_cast<std::uint32_t>(k);
     }
   }
 };
@@ -333,7 +349,9 @@ void AgeAtUse(const RunData& run, const ValidStates& valid, const EventsByLink& 
 void AnalyseChannel(const RunData& run, const ValidStates& valid, RunAnalysis* a) {
   ChannelAnalysis& c = a->channel;
   LinkTable table(run, &c.links);
-  std::vector<std::uint32_t> link_of_event = CountChannelEvents(run.channel_events, &table, &c);
+  std::vector<std::uint32_t> link_of_event =
+      CountChannelEvents(run.channel_events, a->bounds, &table, &c);
+  c.events_damaged = c.events_sent_impossible + c.events_delivered_impossible;
   const EventsByLink by_link(link_of_event, c.links.size());
   std::vector<std::uint32_t>().swap(link_of_event);
   PerLinkValues values(c.links.size());
@@ -437,6 +455,37 @@ Micros MajorityEnd(const RunData& run, Micros period) {
   std::sort(last.begin(), last.end());
   const std::size_t majority = last.size() / 2 + 1;
   return last[last.size() - majority];
+}
+
+/// a + b for b >= 0, at most the largest Micros.
+Micros SaturatingAdd(Micros a, Micros b) {
+  constexpr Micros kMax = std::numeric_limits<Micros>::max();
+  return a > kMax - b ? kMax : a + b;
+}
+
+/// The largest delay [us] any link of the scenario can draw (each link's own model or the
+/// default), rounded up, plus 1 us for DeliveryTime's rounding of tau to microseconds.
+Micros LargestDelayUs(const Scenario& s) {
+  double worst = 0.0;
+  const auto add = [&](const DelayConfig& c) {
+    if (c.kind == DelayKind::kNone) return;
+    // MaxDelaySeconds is base + amplitude; |amplitude| keeps a negative one a bound too.
+    worst = std::max({worst, MaxDelaySeconds(c), c.base_s + std::fabs(c.amplitude_s)});
+  };
+  add(s.delay);
+  for (const Link& l : BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links))) {
+    add(l.delay);
+  }
+  const double us = std::ceil(worst * 1e6) + 1.0;
+  return us < 9e18 ? static_cast<Micros>(us) : std::numeric_limits<Micros>::max();
+}
+
+/// The last possible delivery time of a run whose states end at limit_us: see
+/// StateTimeBounds::deliver_limit_us.
+Micros DeliverLimitOf(const RunData& run, Micros limit_us, Micros period) {
+  if (limit_us < 0) return -1;
+  const Micros delay = run.has_scenario ? LargestDelayUs(run.scenario) : limit_us;
+  return SaturatingAdd(SaturatingAdd(limit_us, delay), std::max<Micros>(period, 0));
 }
 
 /// Ticks run, states the log should hold, states at impossible times, and the recording's
@@ -558,7 +607,20 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
       break;
     }
   }
+  b.deliver_limit_us = DeliverLimitOf(run, b.limit_us, period);
   return b;
+}
+
+EventTime ChannelEventTimeOf(const ChannelEventRecord& e, const StateTimeBounds& b) {
+  if (e.send_utime < 0 || (b.limit_us >= 0 && e.send_utime > b.limit_us)) {
+    return EventTime::kSendImpossible;
+  }
+  if (e.status != kDelivered) return EventTime::kPossible;
+  if (e.deliver_utime < e.send_utime ||
+      (b.deliver_limit_us >= 0 && e.deliver_utime > b.deliver_limit_us)) {
+    return EventTime::kDeliveryImpossible;
+  }
+  return EventTime::kPossible;
 }
 
 std::int64_t DropImpossibleTimes(RunData* run) {
@@ -574,20 +636,19 @@ std::int64_t DropImpossibleTimes(RunData* run) {
   }
   std::vector<ChannelEventRecord>& ev = run->channel_events;
   const auto impossible = [&](const ChannelEventRecord& e) {
-    return e.send_utime < 0 || e.send_utime > b.limit_us ||
-           (e.status == kDelivered && e.deliver_utime < e.send_utime);
+    return ChannelEventTimeOf(e, b) != EventTime::kPossible;
   };
   const std::size_t before = ev.size();
   ev.erase(std::remove_if(ev.begin(), ev.end(), impossible), ev.end());
   const auto events = static_cast<std::int64_t>(before - ev.size());
   if (states + events > 0) {
-    char end[32];
-    std::snprintf(end, sizeof(end), "%.6g", ToSeconds(b.limit_us));
+    char end[96];
+    std::snprintf(end, sizeof(end), "the run's end at %.6g s, or delivered after %.6g s",
+                  ToSeconds(b.limit_us), ToSeconds(b.deliver_limit_us));
     run->warnings.push_back(std::to_string(states) + " vehicle states and " +
                             std::to_string(events) +
-                            " channel events at impossible times (negative, after the run's "
-                            "end at " + end + " s, or delivered before sent) are damaged and "
-                            "left out");
+                            " channel events at impossible times (negative, after " + end +
+                            " or before sent) are damaged and left out");
   }
   return states + events;
 }
@@ -595,6 +656,7 @@ std::int64_t DropImpossibleTimes(RunData* run) {
 RunAnalysis AnalyseRun(const RunData& run) {
   RunAnalysis a;
   const StateTimeBounds bounds = StateTimeBoundsOf(run);
+  a.bounds = bounds;
   const ValidStates valid(run, bounds);
   a.has_formation = run.has_scenario && !valid(0).empty() &&
                     static_cast<int>(run.scenario.offsets_m.size()) == run.followers;

@@ -68,13 +68,20 @@ struct ChannelAnalysis {
   /// the emulator ran another delay model than the scenario says.
   std::int64_t model_mismatches = 0;
   std::int64_t unknown_links = 0;  // events on links the scenario's topology does not have
+  /// Events at times the run cannot have produced (ChannelEventTimeOf): counted here, left
+  /// out of every other figure (counts, delays, ages, mismatches, links).
+  std::int64_t events_damaged = 0;
+  std::int64_t events_sent_impossible = 0;       // sent at a negative time or after the end
+  std::int64_t events_delivered_impossible = 0;  // delivered before sent or after the last
+                                                 // possible delivery
   /// Real time: the emulator's release error p99 (release time - due time) from its last
   /// health report, as shoal run reports it; 0 in lockstep and shoal sim (no emulator
   /// health or exact tick releases).
   double release_error_p99_s = 0.0;
   /// Configured tau(send time) of each event, aligned with RunData::channel_events: the
   /// scenario's delay model of that link for none/constant/sinusoid; the drawn delay_s for
-  /// uniform jitter (the scenario only gives its distribution) or without a scenario.
+  /// uniform jitter (the scenario only gives its distribution) or without a scenario;
+  /// NaN for a damaged event.
   std::vector<double> configured_delay_s;
   std::vector<LinkAnalysis> links;  // sorted by (from, to)
 };
@@ -99,6 +106,24 @@ struct RunSummary {
   double release_error_p99_s = 0.0;  // the emulator's (real time)
 };
 
+/// The times a vehicle state of `run` can have: [0, limit_us]. From what the run declares
+/// (the scenario's duration and period) where the log carries it, else from what most
+/// vehicles show; never from the largest time in the log, which one damaged or forged
+/// state can set to anything.
+struct StateTimeBounds {
+  /// The last possible state time, and send time of a channel event. -1: no state is
+  /// possible (and the channel events' end is unknown).
+  Micros limit_us = -1;
+  Micros expected_end_us = -1;  // the last tick the run should have recorded
+  bool declared = false;        // limit from the scenario's run.duration_s
+  /// The last possible delivery time of a channel event (-1: unknown, when limit_us is):
+  /// a message sent at limit_us, delayed by the largest delay any link of the scenario can
+  /// draw (rounded up to whole microseconds), delivered at the first control tick after
+  /// that (so one period more). Without a scenario the largest delay is unknown and the
+  /// run's own length (limit_us) stands in for it.
+  Micros deliver_limit_us = -1;
+};
+
 struct RunAnalysis {
   std::string mode;  // "sim", "lockstep", "realtime" or "unknown", inferred from the log
   Micros period_us = 0;
@@ -116,6 +141,7 @@ struct RunAnalysis {
   /// after the run's end. Counted here, left out of every metric.
   std::int64_t states_damaged = 0;
   std::int64_t states_negative_time = 0, states_after_end = 0;
+  StateTimeBounds bounds;  // of the states and channel events: StateTimeBoundsOf(run)
   double end_s = kNaN;  // the last time a state may have (NaN: no state in the log)
   double wall_time_s = kNaN;  // recording span if the log's timestamps are wall clock
   bool interrupted = false;   // a run-level status said "interrupted"
@@ -125,23 +151,22 @@ struct RunAnalysis {
   Vec3 leader_start_m = Vec3::Constant(kNaN), leader_end_m = Vec3::Constant(kNaN);
 };
 
-/// The times a vehicle state of `run` can have: [0, limit_us]. From what the run declares
-/// (the scenario's duration and period) where the log carries it, else from what most
-/// vehicles show; never from the largest time in the log, which one damaged or forged
-/// state can set to anything.
-struct StateTimeBounds {
-  Micros limit_us = -1;         // the last possible state time (-1: no state possible)
-  Micros expected_end_us = -1;  // the last tick the run should have recorded
-  bool declared = false;        // limit from the scenario's run.duration_s
-};
 StateTimeBounds StateTimeBoundsOf(const RunData& run);
 
-/// Removes from `run` the states outside StateTimeBoundsOf(run), and the channel events
-/// sent outside them or delivered before they were sent (for a plot, whose axes one state
-/// at 9e12 s would stretch), and says so in run->warnings. Returns how many.
+/// Whether a channel event's times are possible in a run with bounds `b`. Sent: in
+/// [0, limit_us]. Delivered (status delivered only; a drop has no delivery time): in
+/// [send_utime, deliver_limit_us]. Where a limit is unknown (-1) only the sign and the
+/// order of the times are checked. The one rule for shoal analyze and shoal render.
+enum class EventTime { kPossible, kSendImpossible, kDeliveryImpossible };
+EventTime ChannelEventTimeOf(const ChannelEventRecord& e, const StateTimeBounds& b);
+
+/// Removes from `run` the states outside StateTimeBoundsOf(run) and the channel events at
+/// impossible times (ChannelEventTimeOf): for a plot, whose axes one state at 9e12 s or one
+/// delivery at 1e9 s would stretch. Says so in run->warnings. Returns how many.
 std::int64_t DropImpossibleTimes(RunData* run);
 
-/// Metrics of the states within StateTimeBoundsOf(run); the others are counted only.
+/// Metrics of the states and channel events within StateTimeBoundsOf(run); the others are
+/// counted only.
 RunAnalysis AnalyseRun(const RunData& run);
 
 /// shoal run's summary of its own log, with the given scenario. False only if the log

@@ -164,6 +164,11 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   j["log_states_negative_time"] = a.states_negative_time;
   j["log_states_after_end"] = a.states_after_end;
   j["log_end_s"] = a.end_s;
+  j["channel_events_damaged"] = a.channel.events_damaged;
+  j["channel_events_sent_at_impossible_time"] = a.channel.events_sent_impossible;
+  j["channel_events_delivered_at_impossible_time"] = a.channel.events_delivered_impossible;
+  j["log_last_delivery_s"] =
+      a.bounds.deliver_limit_us >= 0 ? ToSeconds(a.bounds.deliver_limit_us) : kNaN;
   j["lcm_url"] = source.live ? Json(run.source) : Json(nullptr);
   j["complete_samples"] = a.complete_samples;
   j["leader"] = Json{{"path_length_m", a.leader_path_length_m},

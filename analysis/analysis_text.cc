@@ -49,6 +49,17 @@ void PrintHeader(std::FILE* out, const RunData& run, const RunAnalysis& a,
                  static_cast<long long>(a.states_negative_time),
                  static_cast<long long>(a.states_after_end), a.end_s);
   }
+  const ChannelAnalysis& c = a.channel;
+  if (c.events_damaged > 0) {
+    std::fprintf(out,
+                 "  DAMAGED: %lld channel events at impossible times (%lld sent at a negative "
+                 "time or after %.2f s, %lld delivered before sent or after %.2f s), left out "
+                 "of the metrics\n",
+                 static_cast<long long>(c.events_damaged),
+                 static_cast<long long>(c.events_sent_impossible), a.end_s,
+                 static_cast<long long>(c.events_delivered_impossible),
+                 ToSeconds(a.bounds.deliver_limit_us));
+  }
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
@@ -87,6 +88,11 @@ constexpr const char* kErrorColumns =
     ",position_error_m,velocity_error_mps,attitude_error_rad,"
     "position_error_x_m,position_error_y_m,position_error_z_m";
 
+/// A state the run can have produced (the analysis leaves the others out, so does the CSV).
+bool PossibleTime(const StateMsg& m, const StateTimeBounds& b) {
+  return m.utime >= 0 && m.utime <= b.limit_us;
+}
+
 bool WriteVehicle(const RunData& run, const RunAnalysis& a, int id, const std::string& path,
                   std::string* error) {
   CsvFile f;
@@ -105,6 +111,7 @@ bool WriteVehicle(const RunData& run, const RunAnalysis& a, int id, const std::s
   std::size_t l = 0;
   for (std::size_t k = 0; k < s.size(); ++k) {
     const StateMsg& m = s[k];
+    if (!PossibleTime(m, a.bounds)) continue;
     f.Num(ToSeconds(m.utime)).Int(m.utime).Int(m.seq);
     for (const Vec5* v : {&m.eta, &m.nu, &m.eta_dot, &m.accel_cmd, &m.tau}) {
       for (int c = 0; c < 5; ++c) f.Num((*v)(c));
@@ -136,6 +143,7 @@ bool WriteChannel(const RunData& run, const RunAnalysis& a, const std::string& p
       "realised_delay_s,drawn_delay_s,configured_delay_s,delay_error_s");
   for (std::size_t k = 0; k < run.channel_events.size(); ++k) {
     const ChannelEventRecord& e = run.channel_events[k];
+    if (ChannelEventTimeOf(e, a.bounds) != EventTime::kPossible) continue;
     const bool ok = e.status == 0;
     const double cfg = k < a.channel.configured_delay_s.size() ? a.channel.configured_delay_s[k] : kNaN;
     const double real = ok ? ToSeconds(e.deliver_utime - e.send_utime) : kNaN;
@@ -178,7 +186,9 @@ bool WriteRunCsv(const RunData& run, const RunAnalysis& a, const std::string& di
     return false;
   }
   for (std::size_t id = 0; id < run.vehicles.size(); ++id) {
-    if (run.vehicles[id].samples.empty()) continue;
+    const std::vector<StateMsg>& s = run.vehicles[id].samples;
+    const auto possible = [&](const StateMsg& m) { return PossibleTime(m, a.bounds); };
+    if (std::none_of(s.begin(), s.end(), possible)) continue;
     const std::string p = dir + "/vehicle_" + std::to_string(id) + ".csv";
     if (!WriteVehicle(run, a, static_cast<int>(id), p, error)) return false;
     files->push_back(p);

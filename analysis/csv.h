@@ -13,7 +13,8 @@
 namespace shoal {
 
 /// Writes into `dir` (created if missing): vehicle_<id>.csv for every vehicle with states,
-/// channel_events.csv, health.csv. False with *error (user-facing) if the directory or a
+/// channel_events.csv, health.csv. States and channel events at impossible times
+/// (a.bounds, ChannelEventTimeOf) are left out, as the analysis leaves them out. False with *error (user-facing) if the directory or a
 /// file cannot be written. *files receives the paths written.
 bool WriteRunCsv(const RunData& run, const RunAnalysis& a, const std::string& dir,
                  std::vector<std::string>* files, std::string* error);

@@ -221,8 +221,9 @@ TEST(AnalyzeCli, ALogConcatenatedWithItselfCountsEachStateOnce) {
 }
 
 // A 20 s Example 2 log followed by three states at impossible times, far from any slot:
-// follower 3 at utime = INT64_MAX, the leader at -1 s, follower 2 at 1e9 s. Returns the
-// damaged log; *clean is the log as shoal sim wrote it.
+// follower 3 at utime = INT64_MAX, the leader at -1 s, follower 2 at 1e9 s; and four
+// channel events at impossible times. Returns the damaged log; *clean is the log as shoal
+// sim wrote it.
 std::string DamagedTimesLog(const std::string& tag, std::string* clean) {
   *clean = TmpPath(tag + "_clean.lcmlog");
   const std::string forged = TmpPath(tag + "_forged.lcmlog"), damaged = TmpPath(tag + ".lcmlog");
@@ -239,6 +240,23 @@ std::string DamagedTimesLog(const std::string& tag, std::string* clean) {
       m.eta = Vec5::Constant(1e6);
       m.eta_dot = m.nu = Vec5::Constant(1e3);
       log.Write(channels::State(id), 20000000, ToLcm(m));
+    }
+    // Channel events on link 1 -> 2 sent at 1e9 s and at -1 s, delivered 1e9 s after
+    // sending (the last possible delivery is 600 s + 0.15 s + a period), and delivered
+    // before sending.
+    const std::pair<std::int64_t, std::int64_t> times[] = {{1000000000000000, 1000000000100000},
+                                                           {-1000000, 0},
+                                                           {10000000, 1000000010000000},
+                                                           {12000000, 11000000}};
+    std::int32_t seq = 0;
+    for (const auto& [send, deliver] : times) {
+      ChannelDecision d;
+      d.sender = 1;
+      d.receiver = 2;
+      d.send_utime = send;
+      d.deliver_utime = deliver;
+      d.delay_s = 0.1;
+      log.Write(channels::ChannelEvents(), 20000000, ToLcm(d, seq++));
     }
   }
   EXPECT_EQ(std::system(("cat '" + *clean + "' '" + forged + "' > '" + damaged + "'").c_str()), 0);
@@ -279,6 +297,54 @@ TEST(AnalyzeCli, StatesAtImpossibleTimesAreDamagedNotTheRunsLength) {
   EXPECT_EQ(ParseJson(cmp.out)["max_position_diff_m"], 0.0) << cmp.out;
   EXPECT_EQ(RunShoal("compare " + damaged + " " + clean + " --allow-missing", "impossible_cmp2")
                 .status, 0);
+}
+
+
+// Rows of a CSV file (without its header).
+std::vector<std::string> CsvRows(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::string> rows;
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) rows.push_back(line);
+  return rows;
+}
+
+// Taken as the log holds them, a delivery 1e9 s after sending would be the realised
+// delay's maximum and one before sending a negative delay: channel events at impossible
+// times are counted as damaged, every channel figure is the clean log's, and the CSV files
+// hold the run's rows only.
+TEST(AnalyzeCli, ChannelEventsAtImpossibleTimesAreDamagedNotMeasured) {
+  std::string clean;
+  const std::string damaged = DamagedTimesLog("impossible_events", &clean);
+  const auto r = RunShoal("analyze " + damaged + " --json", "impossible_ev_ana");
+  const auto c = RunShoal("analyze " + clean + " --json", "impossible_ev_clean");
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(c.status, 0) << c.err;
+  const auto j = ParseJson(r.out), cj = ParseJson(c.out);
+  EXPECT_EQ(j["channel_events_damaged"], 4) << r.out;
+  EXPECT_EQ(j["channel_events_sent_at_impossible_time"], 2);
+  EXPECT_EQ(j["channel_events_delivered_at_impossible_time"], 2);
+  // Example 2: 600 s declared, tau at most 0.1 + 0.05 s (0.15000000000000002 in doubles,
+  // rounded up to 150001 us; + 1 us for the rounding of tau), 50 Hz.
+  EXPECT_NEAR(j["log_last_delivery_s"].get<double>(), 600.170002, 1e-9);
+  EXPECT_EQ(cj["channel_events_damaged"], 0) << c.out;  // a real run's sinusoidal delays
+  for (const char* key : {"channel", "channel_delivered", "channel_dropped"}) {
+    EXPECT_EQ(j[key], cj[key]) << key;
+  }
+  const auto t = RunShoal("analyze " + damaged, "impossible_ev_text");
+  EXPECT_NE(t.out.find("DAMAGED: 4 channel events at impossible times (2 sent at a negative "
+                       "time or after 600.00 s, 2 delivered before sent or after 600.17 s)"),
+            std::string::npos) << t.out;
+  const std::string dir_d = TmpPath("impossible_ev_csv"), dir_c = TmpPath("impossible_ev_csv_c");
+  std::system(("rm -rf " + dir_d + " " + dir_c).c_str());
+  ASSERT_EQ(RunShoal("analyze " + damaged + " --csv " + dir_d, "impossible_ev_csv").status, 0);
+  ASSERT_EQ(RunShoal("analyze " + clean + " --csv " + dir_c, "impossible_ev_csv_c").status, 0);
+  for (const std::string f : {"vehicle_0", "vehicle_2", "vehicle_3", "channel_events"}) {
+    const auto d = CsvRows(dir_d + "/" + f + ".csv"), cl = CsvRows(dir_c + "/" + f + ".csv");
+    EXPECT_FALSE(cl.empty()) << f;
+    EXPECT_TRUE(d == cl) << f << ": " << d.size() << " rows, clean " << cl.size();
+  }
 }
 
 }  // namespace

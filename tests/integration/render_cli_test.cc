@@ -91,9 +91,10 @@ std::string Bytes(const std::string& path) {
 }
 
 // States at impossible times (utime = INT64_MAX, negative, 1e9 s) appended to a 20 s log
-// would stretch every time axis to 9e12 s, and a channel event sent at 1e9 s the delay
-// curve: they are left out, with a warning, and every figure is the clean log's, byte for
-// byte.
+// would stretch every time axis to 9e12 s, a channel event sent at 1e9 s the delay curve,
+// one delivered 1e9 s after sending the delay panel: they are left out (the rule of shoal
+// analyze, ChannelEventTimeOf), with a warning, and every figure is the clean log's, byte
+// for byte.
 TEST(RenderCli, StatesAtImpossibleTimesDoNotStretchTheAxes) {
   const std::string clean = TmpPath("render_impossible_clean.lcmlog");
   const std::string forged = TmpPath("render_impossible_forged.lcmlog");
@@ -112,17 +113,24 @@ TEST(RenderCli, StatesAtImpossibleTimesDoNotStretchTheAxes) {
       m.eta_dot = m.nu = Vec5::Constant(1e3);
       log.Write(channels::State(id), 20000000, ToLcm(m));
     }
-    // Channel events sent at 1e9 s (a delay curve drawn up to it took 8e11 bytes) and
-    // delivered before they were sent.
-    ChannelDecision late, early;
-    late.sender = early.sender = 1;
-    late.receiver = early.receiver = 2;
+    // Channel events sent at 1e9 s (a delay curve drawn up to it took 8e11 bytes), at
+    // -1 s, delivered before they were sent, and delivered 1e9 s after sending (a delay
+    // panel scaled to it shows the run's delays as one flat line).
+    ChannelDecision late, early, negative, far;
+    late.sender = early.sender = negative.sender = far.sender = 1;
+    late.receiver = early.receiver = negative.receiver = far.receiver = 2;
     late.send_utime = 1000000000000000;
     late.deliver_utime = late.send_utime + 100000;
     early.send_utime = 10000000;
     early.deliver_utime = 5000000;
-    log.Write(channels::ChannelEvents(), 20000000, ToLcm(late, 0));
-    log.Write(channels::ChannelEvents(), 20000000, ToLcm(early, 1));
+    negative.send_utime = -1000000;
+    negative.deliver_utime = -900000;
+    far.send_utime = 3000000;
+    far.deliver_utime = far.send_utime + 1000000000000000;
+    std::int32_t seq = 0;
+    for (const ChannelDecision* d : {&late, &early, &negative, &far}) {
+      log.Write(channels::ChannelEvents(), 20000000, ToLcm(*d, seq++));
+    }
   }
   ASSERT_EQ(std::system(("cat '" + clean + "' '" + forged + "' > '" + damaged + "'").c_str()), 0);
   const std::string dir_c = TmpPath("render_impossible_clean"), dir_d = TmpPath("render_impossible");
@@ -131,7 +139,7 @@ TEST(RenderCli, StatesAtImpossibleTimesDoNotStretchTheAxes) {
   ASSERT_EQ(RunShoal("render " + clean + " --out " + dir_c, "ri_clean").status, 0);
   const auto r = RunShoal("render " + damaged + " --out " + dir_d, "ri_damaged");
   ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_NE(r.err.find("3 vehicle states and 2 channel events at impossible times"),
+  EXPECT_NE(r.err.find("3 vehicle states and 4 channel events at impossible times"),
             std::string::npos) << r.err;
   for (const char* name : {"trajectory", "states", "errors", "channel"}) {
     const std::string a = Bytes(dir_c + "/" + name + ".png"), b = Bytes(dir_d + "/" + name + ".png");

@@ -1153,5 +1153,177 @@ TEST(Csv, EveryVehicleAndEventWithExactNumbers) {
   EXPECT_NE(err.find("not a directory"), std::string::npos) << err;
 }
 
+
+// ---- Channel events at impossible times --------------------------------------------------
+
+// 400 ticks (7.98 s of the 10 s scenario) of states and of the channel of WriteChannelLog
+// (0 -> 1: 0.1 s, every 4th lost; 1 -> 2: delivered 0.04 s after sending), written as
+// single events, then `extra_events` and `extra_states` as a damaged or forged log would
+// hold them. Without `toml` the log declares no scenario.
+std::string WriteDamagedChannelLog(const std::string& name,
+                                   const std::vector<ChannelDecision>& extra_events,
+                                   const std::vector<StateMsg>& extra_states = {},
+                                   const char* toml = kScenario) {
+  const std::string path = Tmp(name);
+  LogWriter log(path);
+  log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", toml));
+  std::int32_t seq = 0;
+  for (int k = 0; k < 400; ++k) {
+    const Micros t = k * kPeriod;
+    for (int id = 0; id <= 2; ++id) {
+      log.Write(channels::State(id), t, ToLcm(State(id, t, Vec5::Zero(), Vec5::Zero())));
+    }
+    const std::int8_t s01 = k % 4 == 3 ? 1 : 0;
+    log.Write(channels::ChannelEvents(), t,
+              ToLcm(Decision(0, 1, t, 0.1, s01 == 0 ? t + 100000 : 0, s01), seq++));
+    log.Write(channels::ChannelEvents(), t, ToLcm(Decision(1, 2, t, 0.03, t + 40000, 0), seq++));
+  }
+  for (const ChannelDecision& d : extra_events) log.Write(channels::ChannelEvents(), 0, ToLcm(d, seq++));
+  for (const StateMsg& m : extra_states) log.Write(channels::State(m.vehicle_id), 0, ToLcm(m));
+  return path;
+}
+
+// Sent at 1e9 s, at -1 s, on a link the scenario does not have at 1e9 s; delivered 1e9 s
+// after it was sent, and delivered a second before it was sent.
+std::vector<ChannelDecision> ForgedEvents() {
+  constexpr Micros kFar = 1000000LL * 1000000000;  // 1e9 s
+  return {Decision(1, 2, kFar, 0.03, kFar + 40000, 0), Decision(0, 1, -1000000, 0.1, 0, 1),
+          Decision(2, 0, kFar, 0.1, kFar + 100000, 0), Decision(1, 2, 2000000, 0.03, kFar, 0),
+          Decision(0, 1, 3000000, 0.1, 2000000, 0)};
+}
+
+void ExpectSameQuantiles(const Quantiles& a, const Quantiles& b, const char* what) {
+  EXPECT_EQ(a.count, b.count) << what;
+  for (auto f : {&Quantiles::min, &Quantiles::p50, &Quantiles::p99, &Quantiles::max,
+                 &Quantiles::mean}) {
+    EXPECT_EQ(a.*f, b.*f) << what;
+  }
+}
+
+// Taken as they are, an event delivered 1e9 s after it was sent would be the realised
+// delay's maximum, one delivered before it was sent a negative message age: events at
+// impossible times are counted as damaged and every channel figure is the clean run's.
+TEST(ImpossibleTimes, ChannelEventsAtImpossibleTimesAreDamagedNotMeasured) {
+  const RunData clean_run = Load(WriteDamagedChannelLog("ch_clean.lcmlog", {}));
+  const RunData run = Load(WriteDamagedChannelLog("ch_forged.lcmlog", ForgedEvents()));
+  ASSERT_EQ(run.channel_events.size(), clean_run.channel_events.size() + 5);
+  const ChannelAnalysis clean = AnalyseRun(clean_run).channel;
+  const RunAnalysis a = AnalyseRun(run);
+  const ChannelAnalysis& c = a.channel;
+  EXPECT_EQ(clean.events_damaged, 0);
+  EXPECT_EQ(c.events_damaged, 5);
+  EXPECT_EQ(c.events_sent_impossible, 3);
+  EXPECT_EQ(c.events_delivered_impossible, 2);
+  EXPECT_EQ(c.sent, clean.sent);
+  EXPECT_EQ(c.delivered, clean.delivered);
+  EXPECT_EQ(c.dropped_loss, clean.dropped_loss);
+  EXPECT_EQ(a.summary.delivered, clean.delivered);
+  EXPECT_EQ(c.unknown_links, 0);  // the forged 2 -> 0 is no link of the run
+  EXPECT_EQ(c.model_mismatches, 0);
+  ExpectSameQuantiles(c.realised_delay_s, clean.realised_delay_s, "realised delay");
+  ExpectSameQuantiles(c.delay_error_s, clean.delay_error_s, "delay error");
+  ExpectSameQuantiles(c.age_at_use_s, clean.age_at_use_s, "age at use");
+  EXPECT_NEAR(c.realised_delay_s.max, 0.1, 1e-12);
+  EXPECT_GE(c.age_at_use_s.min, 0.0);
+  ASSERT_EQ(c.links.size(), clean.links.size());
+  for (std::size_t li = 0; li < c.links.size(); ++li) {
+    EXPECT_EQ(c.links[li].sent, clean.links[li].sent) << li;
+    EXPECT_EQ(c.links[li].delivered, clean.links[li].delivered) << li;
+    EXPECT_EQ(c.links[li].ticks_before_first, clean.links[li].ticks_before_first) << li;
+    ExpectSameQuantiles(c.links[li].realised_delay_s, clean.links[li].realised_delay_s, "link");
+    ExpectSameQuantiles(c.links[li].age_at_use_s, clean.links[li].age_at_use_s, "link age");
+  }
+  // Still aligned with the events, NaN at the damaged ones.
+  ASSERT_EQ(c.configured_delay_s.size(), run.channel_events.size());
+  for (std::size_t k = 0; k < run.channel_events.size(); ++k) {
+    EXPECT_EQ(std::isnan(c.configured_delay_s[k]), k >= clean_run.channel_events.size()) << k;
+  }
+}
+
+// The last possible delivery: a message sent at the run's end (10 s), delayed by the
+// largest delay of any link (0.1 s, + 1 us for rounding tau to microseconds), delivered at
+// the next tick (+ one period). Without a scenario the run's own length stands in for the
+// largest delay.
+TEST(ImpossibleTimes, TheLastPossibleDeliveryIsTheEndPlusTheLargestDelayAndAPeriod) {
+  const StateTimeBounds b = StateTimeBoundsOf(Load(WriteDamagedChannelLog("ch_bound.lcmlog", {})));
+  EXPECT_EQ(b.limit_us, 10000000);
+  EXPECT_EQ(b.deliver_limit_us, 10000000 + 100001 + kPeriod);
+  const auto when = [&](Micros send, Micros deliver, std::int8_t status = 0) {
+    return ChannelEventTimeOf(ChannelEventRecord{send, deliver, 0.1, 0, 0, 1, status}, b);
+  };
+  EXPECT_EQ(when(10000000, b.deliver_limit_us), EventTime::kPossible);
+  EXPECT_EQ(when(10000000, b.deliver_limit_us + 1), EventTime::kDeliveryImpossible);
+  EXPECT_EQ(when(10000001, 10000001), EventTime::kSendImpossible);
+  EXPECT_EQ(when(0, 0), EventTime::kPossible);  // no delay at all
+  EXPECT_EQ(when(-1, 0), EventTime::kSendImpossible);
+  EXPECT_EQ(when(500000, 499999), EventTime::kDeliveryImpossible);
+  EXPECT_EQ(when(500000, 0, 1), EventTime::kPossible);  // a drop has no delivery time
+  EXPECT_EQ(when(500000, -7, 2), EventTime::kPossible);
+
+  const StateTimeBounds n =
+      StateTimeBoundsOf(Load(WriteDamagedChannelLog("ch_bound_none.lcmlog", {}, {}, "")));
+  EXPECT_EQ(n.limit_us, 2 * 399 * kPeriod);  // twice what most vehicles reach
+  EXPECT_EQ(n.deliver_limit_us, 2 * n.limit_us + kPeriod);
+  // Nothing to judge an end by (no scenario, no state): only the order of the times.
+  const StateTimeBounds unknown;
+  EXPECT_EQ(ChannelEventTimeOf(ChannelEventRecord{kPeriod << 40, (kPeriod << 40) + 1}, unknown),
+            EventTime::kPossible);
+  EXPECT_EQ(ChannelEventTimeOf(ChannelEventRecord{kPeriod, 0}, unknown),
+            EventTime::kDeliveryImpossible);
+}
+
+// For a plot: the same events are removed (one rule), and the warning says how many.
+TEST(ImpossibleTimes, DropImpossibleTimesRemovesTheSameChannelEvents) {
+  const RunData clean = Load(WriteDamagedChannelLog("ch_drop_clean.lcmlog", {}));
+  RunData run = Load(WriteDamagedChannelLog("ch_drop.lcmlog", ForgedEvents()));
+  EXPECT_EQ(DropImpossibleTimes(&run), 5);
+  ASSERT_EQ(run.channel_events.size(), clean.channel_events.size());
+  for (std::size_t k = 0; k < run.channel_events.size(); ++k) {
+    EXPECT_EQ(run.channel_events[k].send_utime, clean.channel_events[k].send_utime) << k;
+    EXPECT_EQ(run.channel_events[k].deliver_utime, clean.channel_events[k].deliver_utime) << k;
+  }
+  ASSERT_FALSE(run.warnings.empty());
+  EXPECT_NE(run.warnings.back().find("0 vehicle states and 5 channel events at impossible times"),
+            std::string::npos)
+      << run.warnings.back();
+  EXPECT_NE(run.warnings.back().find("delivered after 10.12 s"), std::string::npos)
+      << run.warnings.back();
+  EXPECT_EQ(AnalyseRun(run).channel.events_damaged, 0);
+}
+
+// A user importing the CSV gets the run's rows only: states and channel events at
+// impossible times would otherwise be rows at 1e9 s or -1 s (with NaN errors) that
+// stretch every plot of the file.
+TEST(Csv, StatesAndChannelEventsAtImpossibleTimesAreLeftOut) {
+  constexpr Micros kMax = std::numeric_limits<Micros>::max();
+  const RunData run = Load(WriteDamagedChannelLog(
+      "csv_damaged.lcmlog", ForgedEvents(), {FarOff(1, kMax), FarOff(1, -1), FarOff(0, 10020000)}));
+  const RunAnalysis a = AnalyseRun(run);
+  ASSERT_EQ(a.states_damaged, 3);
+  std::vector<std::string> files;
+  std::string err;
+  const std::string dir = Tmp("csv_damaged");
+  ASSERT_TRUE(WriteRunCsv(run, a, dir, &files, &err)) << err;
+  for (int id = 0; id <= 2; ++id) {
+    const auto rows = ReadCsv(dir + "/vehicle_" + std::to_string(id) + ".csv");
+    ASSERT_EQ(rows.size(), 401u) << id;  // header + the 400 ticks
+    for (std::size_t r = 1; r < rows.size(); ++r) {
+      EXPECT_EQ(std::stoll(rows[r][1]), static_cast<Micros>(r - 1) * kPeriod) << id;
+      if (id >= 1) {
+        EXPECT_NE(rows[r][30], "NaN") << id << " row " << r;
+      }
+    }
+  }
+  const auto ch = ReadCsv(dir + "/channel_events.csv");
+  ASSERT_EQ(ch.size(), 1u + 800u);
+  for (std::size_t r = 1; r < ch.size(); ++r) {
+    const Micros send = std::stoll(ch[r][1]);
+    EXPECT_TRUE(send >= 0 && send < 400 * kPeriod) << r;
+    if (ch[r][6] == "1") {
+      EXPECT_LE(std::stod(ch[r][8]), 0.1 + 1e-12) << r;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace shoal
