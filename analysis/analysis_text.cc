@@ -51,14 +51,19 @@ void PrintHeader(std::FILE* out, const RunData& run, const RunAnalysis& a,
   }
   const ChannelAnalysis& c = a.channel;
   if (c.events_damaged > 0) {
+    // Without an end to judge by (no scenario, no state) only the sign and order count.
+    char sent_end[40] = "", deliver_end[40] = "";
+    if (a.bounds.limit_us >= 0) {
+      std::snprintf(sent_end, sizeof(sent_end), " or after %.2f s", a.end_s);
+      std::snprintf(deliver_end, sizeof(deliver_end), " or after %.2f s",
+                    ToSeconds(a.bounds.deliver_limit_us));
+    }
     std::fprintf(out,
                  "  DAMAGED: %lld channel events at impossible times (%lld sent at a negative "
-                 "time or after %.2f s, %lld delivered before sent or after %.2f s), left out "
-                 "of the metrics\n",
+                 "time%s, %lld delivered before sent%s), left out of the metrics\n",
                  static_cast<long long>(c.events_damaged),
-                 static_cast<long long>(c.events_sent_impossible), a.end_s,
-                 static_cast<long long>(c.events_delivered_impossible),
-                 ToSeconds(a.bounds.deliver_limit_us));
+                 static_cast<long long>(c.events_sent_impossible), sent_end,
+                 static_cast<long long>(c.events_delivered_impossible), deliver_end);
   }
 }
 

@@ -16,6 +16,7 @@
 #include <shoal/clock_window_t.hpp>
 
 #include "analysis/analysis.h"
+#include "analysis/analysis_text.h"
 #include "analysis/csv.h"
 #include "analysis/run_data.h"
 #include "runtime/channels.h"
@@ -1323,6 +1324,30 @@ TEST(Csv, StatesAndChannelEventsAtImpossibleTimesAreLeftOut) {
       EXPECT_LE(std::stod(ch[r][8]), 0.1 + 1e-12) << r;
     }
   }
+}
+
+// With no scenario and no state there is no end to judge by: only an event sent at a
+// negative time or delivered before it was sent is damaged, and the DAMAGED line names no
+// end (it once printed "after nan s").
+TEST(ImpossibleTimes, WithoutAnEndOnlyTheSignAndOrderOfTheTimesCount) {
+  RunData run;
+  run.channel_events = {ChannelEventRecord{kPeriod << 40, (kPeriod << 40) + 1, 0.0, 0, 0, 1, 0},
+                        ChannelEventRecord{-1, 0, 0.0, 0, 0, 1, 1},
+                        ChannelEventRecord{kPeriod, 0, 0.0, 0, 0, 1, 0}};
+  const RunAnalysis a = AnalyseRun(run);
+  EXPECT_EQ(a.channel.events_sent_impossible, 1);
+  EXPECT_EQ(a.channel.events_delivered_impossible, 1);
+  EXPECT_EQ(a.channel.sent, 1);
+  const std::string path = Tmp("no_end.txt");
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  ASSERT_NE(f, nullptr);
+  PrintAnalysisText(f, run, a, AnalysisSource{false, "no_end.lcmlog"});
+  std::fclose(f);
+  const std::string text = ReadBytes(path);
+  EXPECT_NE(text.find("DAMAGED: 2 channel events at impossible times (1 sent at a negative "
+                      "time, 1 delivered before sent)"),
+            std::string::npos) << text;
+  EXPECT_EQ(text.find("nan"), std::string::npos) << text;
 }
 
 }  // namespace
