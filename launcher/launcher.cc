@@ -373,12 +373,15 @@ void Launch::StartAll() {
   // The logger first. lcm-logger's subscription queue holds 30 messages and drops beyond
   // that (LCM's default; lcm-logger has no option for it): the logger must not wait long
   // for the CPU while the run saturates it. As root it runs at nice -10 against the run's
-  // +5 (CFS weight 9548 against 335), else at 0. Not SCHED_FIFO: a real-time logger
+  // +5 (CFS weight 9548 against 335), else at 0. It records the run's channels only: LCM
+  // queues only what some subscription takes, so datagrams on other channels (another
+  // program on the same port, a flood) never take a place in that queue (docs/run.md). Not SCHED_FIFO: a real-time logger
   // preempts the run at every message, and with SHOAL_CHANNEL batched it loses no fewer
   // states (docs/benchmarks.md, lockstep: 600 s runs, 36-39x against 50-56x).
   const bool root = geteuid() == 0;
   Start("lcm-logger", kLoggerId,
-        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url, "-f", "-q", "--", r_->log},
+        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url,
+         std::string("--channel=") + channels::kAllPattern, "-f", "-q", "--", r_->log},
         root ? -10 : 0, "logger");
   const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
   for (int i = 0; i < 100 && access(r_->log.c_str(), F_OK) != 0; ++i) {
