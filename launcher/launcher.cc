@@ -44,6 +44,7 @@ struct Child {
   int status = 0;  // raw waitpid status once exited
   bool stopped = false;   // stopped by a signal (SIGSTOP, SIGTSTP, ...), not continued yet
   bool reported = false;  // its fault is already among the problems
+  std::string output;     // its output file, <log>.d/<tag>.txt
 };
 
 std::string ExeDir() {
@@ -237,6 +238,8 @@ class Launch {
   void StartAll();
   void Supervise(const LaunchCallbacks& cb);
   void Shutdown();
+  /// Once every process has exited: what each dropped for failed authentication.
+  void GatherRejections();
 
  private:
   bool ChooseUrls(std::string* error);
@@ -346,7 +349,8 @@ void Launch::Start(const std::string& name, int id, const std::vector<std::strin
   std::vector<char*> envp;
   for (std::string& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);
-  c.pid = Spawn(argv, nice_inc, r_->process_output_dir + "/" + tag + ".txt", envp.data());
+  c.output = r_->process_output_dir + "/" + tag + ".txt";
+  c.pid = Spawn(argv, nice_inc, c.output, envp.data());
   c.running = c.pid > 0;
   if (c.pid < 0) {  // no process to supervise: the run cannot go on
     r_->problems.push_back("cannot start " + name + " (fork: " + std::strerror(errno) + ")");
@@ -369,12 +373,15 @@ void Launch::StartAll() {
   // The logger first. lcm-logger's subscription queue holds 30 messages and drops beyond
   // that (LCM's default; lcm-logger has no option for it): the logger must not wait long
   // for the CPU while the run saturates it. As root it runs at nice -10 against the run's
-  // +5 (CFS weight 9548 against 335), else at 0. Not SCHED_FIFO: a real-time logger
+  // +5 (CFS weight 9548 against 335), else at 0. It records the run's channels only: LCM
+  // queues only what some subscription takes, so datagrams on other channels (another
+  // program on the same port, a flood) never take a place in that queue (docs/run.md). Not SCHED_FIFO: a real-time logger
   // preempts the run at every message, and with SHOAL_CHANNEL batched it loses no fewer
   // states (docs/benchmarks.md, lockstep: 600 s runs, 36-39x against 50-56x).
   const bool root = geteuid() == 0;
   Start("lcm-logger", kLoggerId,
-        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url, "-f", "-q", "--", r_->log},
+        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url,
+         std::string("--channel=") + channels::kAllPattern, "-f", "-q", "--", r_->log},
         root ? -10 : 0, "logger");
   const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
   for (int i = 0; i < 100 && access(r_->log.c_str(), F_OK) != 0; ++i) {
@@ -467,6 +474,22 @@ bool Launch::Fault(Child& c, const std::string& what, const LaunchCallbacks& cb)
   r_->problems.push_back(text);
   if (cb.problem) cb.problem(text, stops);
   return stops;
+}
+
+/// The last `max_bytes` of a file ("" if it cannot be read): a process's exit lines.
+std::string ReadTail(const std::string& path, long max_bytes) {
+  std::string text;
+  if (FILE* f = std::fopen(path.c_str(), "rb")) {
+    if (std::fseek(f, 0, SEEK_END) == 0) {
+      const long size = std::ftell(f);
+      std::fseek(f, std::max(0L, size - max_bytes), SEEK_SET);
+    }
+    char buf[4096];
+    std::size_t n = 0;
+    while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) text.append(buf, n);
+    std::fclose(f);
+  }
+  return text;
 }
 
 /// The disk under the log: lcm-logger exits when a write fails (status 1, "No space left
@@ -654,6 +677,16 @@ void Launch::Shutdown() {
   }
 }
 
+void Launch::GatherRejections() {
+  if (opt_.insecure) return;
+  for (const Child& c : kids_) {
+    if (IsLogger(c) || c.pid <= 0) continue;
+    std::int64_t n = -1;
+    if (!bus_auth::ParseExitNote(ReadTail(c.output, 1 << 16), &n)) n = -1;
+    r_->unauthenticated_by_process[c.name] = n;
+  }
+}
+
 }  // namespace
 
 bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallbacks& callbacks,
@@ -670,6 +703,7 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   launch.StartAll();
   launch.Supervise(callbacks);
   launch.Shutdown();
+  launch.GatherRejections();
   return true;
 }
 

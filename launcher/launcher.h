@@ -4,7 +4,9 @@
 // from its log (launcher/run_report.h).
 #pragma once
 
+#include <cstdint>
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -58,6 +60,11 @@ struct LaunchResult {
   /// The run's bus key (none with --insecure), and the file next to the log that holds it.
   std::optional<bus_auth::Key> key;
   std::string key_file;
+  /// What each run process ("vehicle 3", "leader", "channel emulator") dropped because it
+  /// did not authenticate, as it said on exit in its output file; -1 if it did not say
+  /// (killed before its end). Empty with --insecure. Forgeries sent straight to a
+  /// vehicle's own group reach that vehicle only: the log never sees them.
+  std::map<std::string, std::int64_t> unauthenticated_by_process;
 };
 
 /// Shown while the run goes on.

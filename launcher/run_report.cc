@@ -55,6 +55,36 @@ void JudgeLog(std::int64_t clock_ticks, std::int64_t expected_ticks, RunReport* 
   r->log_complete = r->log_readable && r->log_problems.empty();
 }
 
+/// What did not authenticate: in the log (the shared bus), and as each process dropped
+/// it (its own group included); processes that dropped nothing are not named.
+void PrintAuthentication(const RunReport& r, std::FILE* out) {
+  if (!r.launch.key) {
+    std::fprintf(out, "  bus NOT authenticated (--insecure): anyone on the host could publish into the run\n");
+    return;
+  }
+  if (r.unauthenticated > 0) {
+    std::fprintf(out, "  authentication: %lld messages on the bus did not authenticate "
+                 "(forged or another run's): dropped, never used\n",
+                 static_cast<long long>(r.unauthenticated));
+  }
+  std::string named, silent;
+  std::int64_t total = 0;
+  for (const auto& [name, n] : r.launch.unauthenticated_by_process) {
+    if (n < 0) silent += (silent.empty() ? "" : ", ") + name;
+    if (n <= 0) continue;
+    total += n;
+    named += (named.empty() ? "" : ", ") + name + " " + std::to_string(n);
+  }
+  if (total > 0) {
+    std::fprintf(out, "  authentication: the processes dropped %lld messages that did not "
+                 "authenticate (%s)\n", static_cast<long long>(total), named.c_str());
+  }
+  if (!silent.empty()) {
+    std::fprintf(out, "  authentication: not known what %s dropped (no exit line)\n",
+                 silent.c_str());
+  }
+}
+
 }  // namespace
 
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
@@ -133,6 +163,12 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["key_file"] = l.key_file;
   j["unauthenticated"] = r.unauthenticated;
   j["unauthenticated_by_channel"] = r.unauthenticated_by_channel;
+  // null: the process did not say (it was killed before its end).
+  nlohmann::ordered_json by_process = nlohmann::ordered_json::object();
+  for (const auto& [name, n] : l.unauthenticated_by_process) {
+    by_process[name] = n >= 0 ? nlohmann::ordered_json(n) : nlohmann::ordered_json();
+  }
+  j["unauthenticated_by_process"] = by_process;
   j["cpu_latency_request"] = l.cpu_latency_request;
   return j;
 }
@@ -176,13 +212,7 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   for (const std::string& p : r.timing_problems) {
     std::fprintf(out, "  LATE (real time): %s\n", p.c_str());
   }
-  if (!l.key) {
-    std::fprintf(out, "  bus NOT authenticated (--insecure): anyone on the host could publish into the run\n");
-  } else if (r.unauthenticated > 0) {
-    std::fprintf(out, "  authentication: %lld messages on the bus did not authenticate "
-                 "(forged or another run's): dropped, never used\n",
-                 static_cast<long long>(r.unauthenticated));
-  }
+  PrintAuthentication(r, out);
   std::fprintf(out, "  output of each process: %s/\n", l.process_output_dir.c_str());
 }
 

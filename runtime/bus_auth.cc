@@ -175,9 +175,26 @@ bool SettingOrReport(bool insecure, const std::string& name, Setting* setting) {
   return false;
 }
 
+namespace {
+constexpr const char* kExitNoteTail = " message(s) failed authentication (dropped)";
+}  // namespace
+
 std::string ExitNote(const Setting& setting, std::int64_t rejected) {
   if (setting.insecure) return kInsecureNote;
-  return std::to_string(rejected) + " message(s) failed authentication (dropped)";
+  return std::to_string(rejected) + kExitNoteTail;
+}
+
+bool ParseExitNote(const std::string& output, std::int64_t* rejected) {
+  const std::size_t tail = output.rfind(kExitNoteTail);
+  if (tail == std::string::npos) return false;
+  // The digits just before the tail, after ": " (the process's name).
+  std::size_t begin = tail;
+  while (begin > 0 && output[begin - 1] >= '0' && output[begin - 1] <= '9') --begin;
+  if (begin == tail || tail - begin > 18 || begin < 2 || output.compare(begin - 2, 2, ": ") != 0) {
+    return false;
+  }
+  *rejected = std::stoll(output.substr(begin, tail - begin));
+  return true;
 }
 
 }  // namespace shoal::bus_auth

@@ -87,5 +87,9 @@ bool SettingFromEnvironment(bool insecure, Setting* setting, std::string* error)
 bool SettingOrReport(bool insecure, const std::string& name, Setting* setting);
 /// What a process writes to its log on exit: how many messages failed authentication.
 std::string ExitNote(const Setting& setting, std::int64_t rejected);
+/// The count of the last ExitNote line in a process's output (shoal run reads it back from
+/// each process's output file: forgeries sent to a vehicle's own port reach no one else).
+/// False if `output` holds none (the process was killed, or ran with --insecure).
+bool ParseExitNote(const std::string& output, std::int64_t* rejected);
 
 }  // namespace shoal::bus_auth
