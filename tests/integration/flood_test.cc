@@ -407,12 +407,13 @@ TEST(Flood, RealtimeRunUnderAFloodIsCompleteOrSaysWhatWasLost) {
 // log never sees them, the report counts them from the vehicle's own count, exactly.
 TEST(Flood, ForgeriesOnAVehiclesOwnPortAreCountedByThatVehicle) {
   const std::string log = TmpPath("flood_own.lcmlog"), out = TmpPath("flood_own.out");
-  const pid_t pid = StartShoal("run " + kExample2 + " --per-vehicle-urls --duration 60 --out " +
+  // 600 s of mission: 5-25 s of lockstep here, long after the last forgery (0.5 s).
+  const pid_t pid = StartShoal("run " + kExample2 + " --per-vehicle-urls --duration 600 --out " +
                                    log, out);
   const std::vector<sockaddr_in> groups = RunGroups(pid);
   ASSERT_EQ(groups.size(), 2u + kFollowers);
   // 2000 states of vehicle 1 as deliveries to vehicle 3, half without a trailer, half
-  // signed with another key, over 0.5 s, well before the run (about 2.5 s) ends.
+  // signed with another key, over 0.5 s, well before the run ends.
   const bus_auth::Key other = bus_auth::NewKey();
   const int fd = socket(AF_INET, SOCK_DGRAM, 0);
   const unsigned char ttl = 0;
