@@ -960,6 +960,43 @@ TEST(LogReader, FollowsALogThatIsStillBeingWritten) {
   EXPECT_EQ(seen.size(), static_cast<std::size_t>(n));
 }
 
+// A header whose data length is damaged (or not written yet) and says 128 MB: following
+// waits for the rest without making its buffer that big (it used to zero-fill a buffer of
+// the declared size on every log like that); the event, once complete, is handed over.
+TEST(LogReader, FollowingAnEventDeclaredHugeDoesNotAllocateIt) {
+  const std::string path = Tmp("follow_huge.lcmlog");
+  const auto big_endian = [](std::uint64_t v, int bytes) {
+    std::string s;
+    for (int k = bytes - 1; k >= 0; --k) s.push_back(static_cast<char>((v >> (8 * k)) & 0xFF));
+    return s;
+  };
+  const std::string channel = "SHOAL_OTHER";
+  const std::uint32_t declared = 128u << 20;
+  WriteBytes(path, big_endian(LcmLogReader::kSync, 4) + big_endian(0, 8) + big_endian(0, 8) +
+                       big_endian(channel.size(), 4) + big_endian(declared, 4) + channel +
+                       std::string(1000, 'x'));
+  const auto resident_mb = [] {
+    std::ifstream statm("/proc/self/statm");
+    long pages = 0, resident = 0;
+    statm >> pages >> resident;
+    return resident * 4096.0 / (1 << 20);
+  };
+  const double before = resident_mb();
+  LogTail tail(path);
+  int handled = 0;
+  const LogTail::Handler on = [&](const std::string&, const void*, int size) {
+    EXPECT_EQ(size, static_cast<int>(declared));
+    ++handled;
+  };
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(tail.Poll(on), 0);
+  EXPECT_LT(resident_mb() - before, 48.0);
+  EXPECT_FALSE(tail.damaged());
+  std::ofstream(path, std::ios::binary | std::ios::app) << std::string(declared - 1000, 'y');
+  EXPECT_EQ(tail.Poll(on), 1);
+  EXPECT_EQ(handled, 1);
+  std::remove(path.c_str());
+}
+
 // ---- Summary shared with shoal run -------------------------------------------------------
 
 TEST(RunSummaryTest, MatchesTheAnalysisAndToleratesMissingOrEmptyLogs) {
