@@ -236,10 +236,15 @@ void RunDataBuilder::AddClock(const std::uint8_t* data, int size) {
     return;
   }
   // One record per tick covered (a lockstep clock message covers a window of ticks; at
-  // most --max-lookahead's 100000). Checked before any arithmetic on the fields.
+  // most --max-lookahead's 100000). Checked before any arithmetic on the fields; the
+  // window's first and last times must fit in 64 bits (a tick of 2^40 times a period of
+  // 1e9 us does not).
   constexpr std::int64_t kMaxTick = std::int64_t{1} << 40;
+  std::int64_t first_utime = 0, last_utime = 0;
   if (c.n_ticks < 1 || c.n_ticks > 100000 || c.period_us <= 0 || c.period_us > 1000000000 ||
-      c.tick < 0 || c.tick > kMaxTick || c.utime != c.tick * c.period_us) {
+      c.tick < 0 || c.tick > kMaxTick ||
+      __builtin_mul_overflow(c.tick, c.period_us, &first_utime) || c.utime != first_utime ||
+      __builtin_mul_overflow(c.tick + c.n_ticks - 1, c.period_us, &last_utime)) {
     ++d_->rejected;
     return;
   }

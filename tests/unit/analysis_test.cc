@@ -567,6 +567,37 @@ TEST(Analysis, ModeAndProblemsFromStatuses) {
   EXPECT_FALSE(a.interrupted);
 }
 
+// A clock window whose times do not fit in 64 bits (tick 2^39 at a period of 2^24 us, or
+// a window running past the largest time) is rejected, without computing the overflowing
+// product (signed overflow: undefined; the ASan+UBSan build stops on it). Found by
+// fuzz_log_reader (tests/fuzz/regressions/fuzz_log_reader/clock_window_tick_times_period_overflows).
+TEST(RunData, ClockWindowWhoseTimesOverflowIsRejected) {
+  const std::string path = Tmp("clock_overflow.lcmlog");
+  {
+    LogWriter log(path);
+    clock_window_t c{};
+    c.vehicle_id = kEmulatorId;
+    c.n_ticks = 1;
+    c.period_us = std::int64_t{1} << 24;
+    c.tick = std::int64_t{1} << 39;
+    c.utime = 0;  // what a wrapped product would not match either
+    log.Write(channels::Clock(), 0, c);
+    c.tick = (std::int64_t{1} << 39) - 1;  // fits: (2^39 - 1) * 2^24 < 2^63
+    c.utime = c.tick * c.period_us;
+    c.n_ticks = 100000;  // but its last tick does not
+    log.Write(channels::Clock(), 0, c);
+    c.tick = 3;
+    c.n_ticks = 2;
+    c.period_us = kPeriod;
+    c.utime = 3 * kPeriod;
+    log.Write(channels::Clock(), 0, c);
+  }
+  const RunData run = Load(path);
+  EXPECT_EQ(run.rejected, 2);
+  ASSERT_EQ(run.clock.size(), 2u);
+  EXPECT_EQ(run.clock[1].utime, 4 * kPeriod);
+}
+
 TEST(RunData, KeepsEveryStateFieldSortsAndDeduplicates) {
   const std::string path = Tmp("fields.lcmlog");
   std::mt19937_64 rng(7);
