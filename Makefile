@@ -7,15 +7,22 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-# Debian packages the build, the tests and the demo need. (bench/fuzz.sh also needs clang
-# and libclang-rt-14-dev for libFuzzer; the tests replay its corpus without them.)
+# Debian packages the build, the tests and the demo need.
 DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
   liblcm-dev liblcm-bin libglib2.0-dev \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev \
   libsdp-dev libceres-dev libosmesa6-dev libstb-dev zlib1g-dev fonts-dejavu-core \
   nlohmann-json3-dev universal-ctags libsodium-dev
+# make test also runs each libFuzzer target briefly (bench/fuzz.sh): clang and its runtime,
+# about 45 MB to download. PACKAGES: what `deps` installs (make test adds these).
+FUZZ_PACKAGES := clang libclang-rt-14-dev
+PACKAGES = $(DEB_PACKAGES)
+test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES)
+# Executions per fuzz target in make test (a few seconds each; bench/fuzz.sh 10000000 is
+# the campaign of docs/benchmarks.md).
+FUZZ_SHORT_RUNS ?= 50000
 
-.PHONY: demo test deps build configure clean
+.PHONY: demo test test-asan test-tsan deps build configure clean
 
 # shoal design exits 1 when the gains are not certified: for the paper's Example 2 that is
 # the honest answer (Theorem 3 is only sufficient), so the demo says so instead of failing;
@@ -45,10 +52,29 @@ demo: build
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
+	bench/fuzz.sh $(FUZZ_SHORT_RUNS)
+
+# Sanitizer builds (CMakePresets.json), each in its own build directory (build-asan,
+# build-tsan): the whole suite under AddressSanitizer + UndefinedBehaviorSanitizer +
+# LeakSanitizer, and the tests that start Shoal's LCM processes through shoal run (labels
+# sil, replay; only their executables are built) under ThreadSanitizer. The processes
+# they start are the instrumented builds too. SAN_CMAKE_FLAGS: extra configure flags
+# (e.g. ccache as compiler launcher).
+SAN_CMAKE_FLAGS ?=
+
+test-asan: deps
+	cmake --preset asan $(SAN_CMAKE_FLAGS)
+	cmake --build --preset asan -j $(JOBS)
+	ctest --preset asan -j $(JOBS)
+
+test-tsan: deps
+	cmake --preset tsan $(SAN_CMAKE_FLAGS)
+	cmake --build --preset tsan -j $(JOBS) --target sil_test replay_test
+	ctest --preset tsan -j $(JOBS) -L 'sil|replay'
 
 deps:
 	@missing=""; \
-	for p in $(DEB_PACKAGES); do \
+	for p in $(PACKAGES); do \
 	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
 	done; \
 	if [ -z "$$missing" ]; then exit 0; fi; \
@@ -70,4 +96,4 @@ build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
 
 clean:
-	rm -rf $(BUILD_DIR)
+	rm -rf $(BUILD_DIR) build-asan build-tsan

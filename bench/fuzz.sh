@@ -5,6 +5,8 @@
 # ParseScenario). libFuzzer with ASan + UBSan + LeakSanitizer, clang++ (Debian: clang,
 # libclang-rt-14-dev).
 # Usage: bench/fuzz.sh [EXECUTIONS (1000000)] [TARGET...]
+#   make test runs it with FUZZ_SHORT_RUNS (50000) executions per target; the campaign
+#   figures of docs/benchmarks.md are `nice -n 19 bench/fuzz.sh 10000000 TARGET`.
 #   FUZZ_BUILD (build-fuzz): the build directory (configured here, SHOAL_FUZZ=ON)
 #   FUZZ_TIMEOUT (10): seconds after which one input counts as a timeout
 # Each target runs EXECUTIONS inputs, one process, from its seed corpus
@@ -35,7 +37,9 @@ for t in "${targets[@]}"; do
 done
 
 echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg); $(clang++ --version | head -1)"
-printf '%-16s %12s %9s %9s %7s %6s %9s %8s\n' target executions time_s exec/s crashes leaks timeouts rss_mb
+# time_s: wall clock; cpu_s: the fuzzer's own CPU time (what counts on a shared machine).
+printf '%-16s %12s %9s %9s %9s %7s %6s %9s %8s\n' target executions time_s cpu_s exec/s \
+  crashes leaks timeouts rss_mb
 found=0
 for t in "${targets[@]}"; do
   work="$build/fuzz-work/$t"
@@ -46,19 +50,22 @@ for t in "${targets[@]}"; do
   log="$build/fuzz-$t.log"
   start=$(date +%s%N)
   # New inputs go to the first directory (the work corpus); the others are read only.
-  "$build/tests/fuzz/$t" -runs="$runs" -timeout="$timeout" -rss_limit_mb=2048 \
+  /usr/bin/time -f '%U %S' -o "$build/fuzz-$t.cpu" \
+    "$build/tests/fuzz/$t" -runs="$runs" -timeout="$timeout" -rss_limit_mb=2048 \
     -print_final_stats=1 -artifact_prefix="$artifacts/" \
     "$work" "tests/fuzz/corpus/$t" "$regressions" > "$log" 2>&1 || true
   end=$(date +%s%N)
-  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
-  rss=$(grep -o 'stat::peak_rss_mb: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
+  execs=$(grep -a -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
+  cpu=$(tail -n 1 "$build/fuzz-$t.cpu" | awk '{ print $1 + $2 }')  # after time's exit note
+  rss=$(grep -a -o 'stat::peak_rss_mb: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
   count() { find "$artifacts" -name "$1-*" | wc -l; }
   crashes=$(( $(count crash) + $(count oom) ))
   leaks=$(count leak)
   timeouts=$(count timeout)
-  awk -v t="$t" -v n="${execs:-0}" -v ns=$((end - start)) -v c="$crashes" -v l="$leaks" \
-    -v o="$timeouts" -v r="${rss:-0}" \
-    'BEGIN { s = ns / 1e9; printf "%-16s %12d %9.1f %9.0f %7d %6d %9d %8d\n", t, n, s, n / s, c, l, o, r }'
+  awk -v t="$t" -v n="${execs:-0}" -v ns=$((end - start)) -v u="${cpu:-0}" -v c="$crashes" \
+    -v l="$leaks" -v o="$timeouts" -v r="${rss:-0}" \
+    'BEGIN { s = ns / 1e9; printf "%-16s %12d %9.1f %9.1f %9.0f %7d %6d %9d %8d\n",
+             t, n, s, u, n / s, c, l, o, r }'
   for a in "$artifacts"/crash-* "$artifacts"/oom-* "$artifacts"/leak-* "$artifacts"/timeout-*; do
     [ -e "$a" ] || continue
     cp "$a" "$regressions/"

@@ -262,7 +262,9 @@ int LcmLogReader::ReadAppended(const EventHandler& on) {
     }
     const std::size_t total =
         kHeaderBytes + static_cast<std::size_t>(cl) + static_cast<std::size_t>(dl);
-    if (!Ensure(total)) break;  // not completely written yet
+    // Not completely written yet. Checked against the file's size first, so that a damaged
+    // or half-written length never makes the buffer grow to it (up to kMaxData).
+    if (static_cast<std::int64_t>(total) > file_size_ - FileOffset() || !Ensure(total)) break;
     h = buf_.data() + pos_;     // Ensure may have moved the buffer
     on(std::string_view(reinterpret_cast<const char*>(h + kHeaderBytes),
                         static_cast<std::size_t>(cl)),

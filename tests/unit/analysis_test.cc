@@ -576,6 +576,37 @@ TEST(Analysis, ModeAndProblemsFromStatuses) {
   EXPECT_FALSE(a.interrupted);
 }
 
+// A clock window whose times do not fit in 64 bits (tick 2^39 at a period of 2^24 us, or
+// a window running past the largest time) is rejected, without computing the overflowing
+// product (signed overflow: undefined; the ASan+UBSan build stops on it). Found by
+// fuzz_log_reader (tests/fuzz/regressions/fuzz_log_reader/clock_window_tick_times_period_overflows).
+TEST(RunData, ClockWindowWhoseTimesOverflowIsRejected) {
+  const std::string path = Tmp("clock_overflow.lcmlog");
+  {
+    LogWriter log(path);
+    clock_window_t c{};
+    c.vehicle_id = kEmulatorId;
+    c.n_ticks = 1;
+    c.period_us = std::int64_t{1} << 24;
+    c.tick = std::int64_t{1} << 39;
+    c.utime = 0;  // what a wrapped product would not match either
+    log.Write(channels::Clock(), 0, c);
+    c.tick = (std::int64_t{1} << 39) - 1;  // fits: (2^39 - 1) * 2^24 < 2^63
+    c.utime = c.tick * c.period_us;
+    c.n_ticks = 100000;  // but its last tick does not
+    log.Write(channels::Clock(), 0, c);
+    c.tick = 3;
+    c.n_ticks = 2;
+    c.period_us = kPeriod;
+    c.utime = 3 * kPeriod;
+    log.Write(channels::Clock(), 0, c);
+  }
+  const RunData run = Load(path);
+  EXPECT_EQ(run.rejected, 2);
+  ASSERT_EQ(run.clock.size(), 2u);
+  EXPECT_EQ(run.clock[1].utime, 4 * kPeriod);
+}
+
 TEST(RunData, KeepsEveryStateFieldSortsAndDeduplicates) {
   const std::string path = Tmp("fields.lcmlog");
   std::mt19937_64 rng(7);
@@ -967,6 +998,43 @@ TEST(LogReader, FollowsALogThatIsStillBeingWritten) {
   EXPECT_TRUE(tail.damaged());
   EXPECT_EQ(tail.Poll(on), -1);
   EXPECT_EQ(seen.size(), static_cast<std::size_t>(n));
+}
+
+// A header whose data length is damaged (or not written yet) and says 128 MB: following
+// waits for the rest without making its buffer that big (it used to zero-fill a buffer of
+// the declared size on every log like that); the event, once complete, is handed over.
+TEST(LogReader, FollowingAnEventDeclaredHugeDoesNotAllocateIt) {
+  const std::string path = Tmp("follow_huge.lcmlog");
+  const auto big_endian = [](std::uint64_t v, int bytes) {
+    std::string s;
+    for (int k = bytes - 1; k >= 0; --k) s.push_back(static_cast<char>((v >> (8 * k)) & 0xFF));
+    return s;
+  };
+  const std::string channel = "SHOAL_OTHER";
+  const std::uint32_t declared = 128u << 20;
+  WriteBytes(path, big_endian(LcmLogReader::kSync, 4) + big_endian(0, 8) + big_endian(0, 8) +
+                       big_endian(channel.size(), 4) + big_endian(declared, 4) + channel +
+                       std::string(1000, 'x'));
+  const auto resident_mb = [] {
+    std::ifstream statm("/proc/self/statm");
+    long pages = 0, resident = 0;
+    statm >> pages >> resident;
+    return resident * 4096.0 / (1 << 20);
+  };
+  const double before = resident_mb();
+  LogTail tail(path);
+  int handled = 0;
+  const LogTail::Handler on = [&](const std::string&, const void*, int size) {
+    EXPECT_EQ(size, static_cast<int>(declared));
+    ++handled;
+  };
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(tail.Poll(on), 0);
+  EXPECT_LT(resident_mb() - before, 48.0);
+  EXPECT_FALSE(tail.damaged());
+  std::ofstream(path, std::ios::binary | std::ios::app) << std::string(declared - 1000, 'y');
+  EXPECT_EQ(tail.Poll(on), 1);
+  EXPECT_EQ(handled, 1);
+  std::remove(path.c_str());
 }
 
 // ---- Summary shared with shoal run -------------------------------------------------------
