@@ -502,7 +502,7 @@ void AnalyseTicks(const RunData& run, const StateTimeBounds& b, const ValidState
   }
   a->states_damaged = a->states_negative_time + a->states_after_end;
   a->end_s = b.limit_us >= 0 ? ToSeconds(b.limit_us) : kNaN;
-  a->ticks = run.clock.empty() ? max_samples : static_cast<std::int64_t>(run.clock.size());
+  a->ticks = run.clock.empty() ? max_samples : ClockTicks(run);
   if (a->period_us > 0 && b.expected_end_us >= 0) {
     a->states_expected = (b.expected_end_us / a->period_us + 1) * (run.followers + 1);
   }
@@ -602,8 +602,8 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
   // expectation of a run shortened with --duration; a final tick beyond the limit is
   // damaged and ignored.
   for (auto c = run.clock.rbegin(); c != run.clock.rend(); ++c) {
-    if (c->final_tick && c->utime >= 0 && c->utime <= b.limit_us) {
-      b.expected_end_us = c->utime;
+    if (c->final_tick && c->last_utime() >= 0 && c->last_utime() <= b.limit_us) {
+      b.expected_end_us = c->last_utime();
       break;
     }
   }

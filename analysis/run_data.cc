@@ -249,10 +249,27 @@ void RunDataBuilder::AddClock(const std::uint8_t* data, int size) {
     ++d_->rejected;
     return;
   }
-  for (std::int32_t k = 0; k < c.n_ticks; ++k) {
-    d_->clock.push_back(ClockRecord{c.utime + k * c.period_us, c.tick + k, c.period_us,
-                                    c.final_tick != 0 && k == c.n_ticks - 1});
+  ClockRecord r;
+  r.utime = c.utime;
+  r.tick = c.tick;
+  r.n_ticks = c.n_ticks;
+  r.period_us = c.period_us;
+  r.final_tick = c.final_tick != 0;
+  d_->clock.push_back(r);
+}
+
+std::int64_t ClockTicks(const RunData& run) {
+  std::vector<std::pair<std::int64_t, std::int64_t>> spans;  // [first, last] ticks
+  spans.reserve(run.clock.size());
+  for (const ClockRecord& c : run.clock) spans.emplace_back(c.tick, c.last_tick());
+  std::sort(spans.begin(), spans.end());
+  std::int64_t ticks = 0, covered_to = -1;  // ticks up to covered_to are counted
+  for (const auto& [first, last] : spans) {
+    if (last <= covered_to) continue;
+    ticks += last - std::max(first, covered_to + 1) + 1;
+    covered_to = last;
   }
+  return ticks;
 }
 
 void RunDataBuilder::AddState(int id, const std::uint8_t* data, int size) {

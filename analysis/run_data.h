@@ -61,11 +61,17 @@ struct HealthRecord {
   double saturation_fraction = 0.0;
 };
 
+/// One clock message: a window of n_ticks ticks from `tick` on, at utime + k * period_us.
+/// Kept as a window, not a record per tick: a damaged or forged log of a few kB could
+/// otherwise declare 10^5 ticks per message and fill gigabytes.
 struct ClockRecord {
-  Micros utime = 0;
-  std::int64_t tick = 0;
+  Micros utime = 0;            // of the first tick
+  std::int64_t tick = 0;       // the first tick
+  std::int32_t n_ticks = 1;
   Micros period_us = 0;
-  bool final_tick = false;
+  bool final_tick = false;     // the last tick covered is the run's last
+  std::int64_t last_tick() const { return tick + n_ticks - 1; }
+  Micros last_utime() const { return utime + (n_ticks - 1) * period_us; }
 };
 
 struct StatusRecord {
@@ -102,7 +108,7 @@ struct RunData {
   std::vector<VehicleTrack> vehicles;            // index = vehicle id (0 = leader)
   std::vector<ChannelEventRecord> channel_events;  // in log order
   std::vector<HealthRecord> health;              // in log order
-  std::vector<ClockRecord> clock;                // in log order
+  std::vector<ClockRecord> clock;                // in log order; see ClockTicks
   std::vector<StatusRecord> statuses;            // in log order
   std::map<int, std::int64_t> rx_messages;       // SHOAL_RX_<id>: messages per receiver
 
@@ -205,6 +211,10 @@ class RunDataBuilder {
   bool have_time_ = false;
   int max_status_followers_ = 0;
 };
+
+/// The distinct ticks the clock messages of a run cover (a window repeated, as in a log
+/// recorded twice, counts once).
+std::int64_t ClockTicks(const RunData& run);
 
 /// Reads an LCM log into *out. False (with *error, a user-facing message) if the file is
 /// unreadable, empty, not an LCM log, or holds no complete Shoal message; a damaged log

@@ -118,7 +118,7 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     r.unauthenticated_by_channel = run.unauthenticated_by_channel;
     if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, &r);
     if (r.launch.mode == ModeName(Mode::kLockstep)) {
-      clock_ticks = static_cast<std::int64_t>(run.clock.size());
+      clock_ticks = ClockTicks(run);
     }
   }
   if (!r.launch.logger_exited_early.empty()) {

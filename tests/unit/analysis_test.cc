@@ -10,6 +10,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <shoal/clock_tick_t.hpp>
@@ -299,13 +300,27 @@ TEST(RunData, WindowClocksAndEventBatchesReadLikeSingleOnes) {
   const int ticks = 400;
   const RunData batched = Load(WriteChannelLog(ticks));
   const RunData legacy = Load(WriteChannelLog(ticks, true, true));
-  ASSERT_EQ(batched.clock.size(), static_cast<std::size_t>(ticks));
-  ASSERT_EQ(legacy.clock.size(), batched.clock.size());
+  // Each window as its ticks: (tick, time, whether it is the run's last).
+  const auto per_tick = [](const RunData& run) {
+    std::vector<std::tuple<std::int64_t, Micros, bool>> t;
+    for (const ClockRecord& c : run.clock) {
+      for (std::int32_t k = 0; k < c.n_ticks; ++k) {
+        t.emplace_back(c.tick + k, c.utime + k * c.period_us,
+                       c.final_tick && k == c.n_ticks - 1);
+      }
+    }
+    return t;
+  };
+  const auto b = per_tick(batched), l = per_tick(legacy);
+  EXPECT_EQ(ClockTicks(batched), ticks);
+  EXPECT_EQ(ClockTicks(legacy), ticks);
+  ASSERT_EQ(b.size(), static_cast<std::size_t>(ticks));
+  ASSERT_EQ(l.size(), b.size());
   for (int k = 0; k < ticks; ++k) {
-    EXPECT_EQ(batched.clock[k].tick, k);
-    EXPECT_EQ(batched.clock[k].utime, k * kPeriod);
-    EXPECT_EQ(batched.clock[k].final_tick, k == ticks - 1) << k;
-    EXPECT_EQ(legacy.clock[k].final_tick, batched.clock[k].final_tick) << k;
+    EXPECT_EQ(std::get<0>(b[k]), k);
+    EXPECT_EQ(std::get<1>(b[k]), k * kPeriod);
+    EXPECT_EQ(std::get<2>(b[k]), k == ticks - 1) << k;
+    EXPECT_EQ(l[k], b[k]) << k;
   }
   ASSERT_EQ(batched.channel_events.size(), 2u * ticks);
   ASSERT_EQ(legacy.channel_events.size(), batched.channel_events.size());
@@ -603,8 +618,32 @@ TEST(RunData, ClockWindowWhoseTimesOverflowIsRejected) {
   }
   const RunData run = Load(path);
   EXPECT_EQ(run.rejected, 2);
-  ASSERT_EQ(run.clock.size(), 2u);
-  EXPECT_EQ(run.clock[1].utime, 4 * kPeriod);
+  ASSERT_EQ(run.clock.size(), 1u);
+  EXPECT_EQ(run.clock[0].last_utime(), 4 * kPeriod);
+  EXPECT_EQ(ClockTicks(run), 2);
+}
+
+// Clock messages are kept as windows: a log of a few kB whose messages each declare the
+// largest window (10^5 ticks) once filled 1.1 GB with a record per tick. Windows repeated
+// or overlapping count their ticks once.
+TEST(RunData, ClockWindowsAreKeptAsWindowsAndTheirTicksCountedOnce) {
+  const std::string path = Tmp("huge_windows.lcmlog");
+  {
+    LogWriter log(path);
+    clock_window_t c{};
+    c.vehicle_id = kEmulatorId;
+    c.n_ticks = 100000;
+    c.period_us = kPeriod;
+    for (int k = 0; k < 2000; ++k) {
+      c.tick = (k % 1000) * 50000;  // each overlaps the next by half, and all come twice
+      c.utime = c.tick * kPeriod;
+      log.Write(channels::Clock(), 0, c);
+    }
+  }
+  const RunData run = Load(path);
+  EXPECT_EQ(run.rejected, 0);
+  EXPECT_EQ(run.clock.size(), 2000u);
+  EXPECT_EQ(ClockTicks(run), 999 * 50000 + 100000);
 }
 
 TEST(RunData, KeepsEveryStateFieldSortsAndDeduplicates) {
