@@ -202,6 +202,7 @@ struct Link {
   Rng rng;
   Rng loss_rng;        // Gilbert-Elliott only: its own stream
   bool ge_bad = false;  // Gilbert-Elliott state; every link starts good
+  int delay_id = -1;    // set by Channel: links with equal delay models share an id
 };
 
 /// Builds the links of the topology with the scenario's defaults and per-link overrides.
@@ -270,6 +271,7 @@ class Channel {
       uses_positions_ = uses_positions_ || links_[k].delay.kind == DelayKind::kAcoustic;
       ids_ = std::max({ids_, links_[k].from + 1, links_[k].to + 1});
     }
+    NumberDelayModels();
     modem_interval_us_.resize(static_cast<std::size_t>(ids_), 0);
     last_tx_us_.assign(static_cast<std::size_t>(ids_), -1);
     if (uses_positions_) where_.resize(static_cast<std::size_t>(ids_));
@@ -319,17 +321,15 @@ class Channel {
                                 &l.ge_bad);
       if (l.delay.kind == DelayKind::kAcoustic) {
         d.status = Acoustic(&l, send_utime, sender_pos, &d.delay_s);
-      } else if (l.delay.kind != DelayKind::kUniform && have_last_ && last_t_ == send_utime &&
-                 SameDelay(l.delay, last_cfg_)) {
+      } else if (l.delay_id >= 0 && l.delay_id == last_id_ && last_t_ == send_utime) {
         // Links usually share one deterministic model and senders one send time: evaluate
         // tau(t) once per (model, t), not once per message and link.
         d.delay_s = last_delay_;
       } else {
         d.delay_s = DelaySeconds(l.delay, t_s, &l.rng);
-        last_cfg_ = l.delay;
         last_delay_ = d.delay_s;
         last_t_ = send_utime;
-        have_last_ = DeterministicDelay(l.delay.kind);
+        last_id_ = DeterministicDelay(l.delay.kind) ? l.delay_id : -1;
       }
       if (lost && d.status == ChannelDecision::kDelivered) {
         d.status = ChannelDecision::kDroppedLoss;
@@ -404,6 +404,26 @@ class Channel {
   const std::vector<Link>& links() const { return links_; }
 
  private:
+  // Numbers the links' delay models: equal deterministic models get one id (so that
+  // tau(t) is computed once per model and send time), every other link an id of its own.
+  // Links are compared with the first few distinct models only: a scenario rarely has
+  // more, and a file with thousands of overrides must not cost links x models.
+  void NumberDelayModels() {
+    constexpr std::size_t kMaxShared = 16;
+    std::vector<std::size_t> firsts;  // first link of each shared model
+    int next = 0;
+    for (Link& l : links_) {
+      l.delay_id = -1;
+      if (!DeterministicDelay(l.delay.kind)) continue;  // never shared: stays -1
+      for (std::size_t f : firsts) {
+        if (SameDelay(links_[f].delay, l.delay)) l.delay_id = links_[f].delay_id;
+      }
+      if (l.delay_id >= 0) continue;
+      l.delay_id = next++;
+      if (firsts.size() < kMaxShared) firsts.push_back(static_cast<std::size_t>(&l - links_.data()));
+    }
+  }
+
   // A vehicle's two newest positions (the newest may be of the tick being submitted).
   struct Where {
     Vec3 p_new = Vec3::Zero(), p_old = Vec3::Zero();
@@ -532,11 +552,11 @@ class Channel {
   std::vector<Where> where_;
   std::uint64_t order_ = 0;
   std::size_t pending_ = 0;
-  std::int64_t next_tick_ = 0;
-  bool have_last_ = false;  // cache of the last deterministic tau(t)
+  std::int64_t next_tick_ = 0;  // wheel: first tick not yet delivered
+  // Cache of the last deterministic tau(t): model id (-1: none) and send time.
+  int last_id_ = -1;
   Micros last_t_ = 0;
-  DelayConfig last_cfg_;
-  double last_delay_ = 0.0;  // wheel: first tick not yet delivered
+  double last_delay_ = 0.0;
   std::vector<std::vector<Pending>> wheel_;
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> heap_;
   // A delivery beyond the wheel, ordered by (tick, submission order).
