@@ -480,6 +480,7 @@ TEST(ScenarioLoaderTest, ExampleInTheDocumentationIsValid) {
 // Acoustic, trace, Gilbert-Elliott and modem keys load as written.
 TEST(ScenarioLoaderTest, AcousticTraceGilbertElliottAndModemsLoad) {
   const fs::path dir = fs::path(::testing::TempDir()) / "shoal_trace_ok";
+  fs::remove_all(dir);  // what an earlier run left
   fs::create_directories(dir / "traces");
   WriteFileAt((dir / "traces/trial.csv").string(),
               "# from a sea trial\nt_s, delay_s\n0, 0.8\n10.5, 1.2\n\n20,0.9\n");
@@ -524,6 +525,7 @@ TEST(ScenarioLoaderTest, AcousticTraceGilbertElliottAndModemsLoad) {
 // A bad trace is refused with the CSV's file and line, inside the scenario's located message.
 TEST(ScenarioLoaderTest, BadTraceRowsAreRefusedAtTheirCsvLine) {
   const fs::path dir = fs::path(::testing::TempDir()) / "shoal_trace_bad";
+  fs::remove_all(dir);  // what an earlier run left
   fs::create_directories(dir);
   const std::string scenario = std::string(kSwarmAndControl) +
                                "[channel.delay]\nmodel = \"trace\"\nfile = \"t.csv\"\n";
