@@ -1364,8 +1364,12 @@ Scenario ParseScenario(const std::string& text, const std::string& path) {
   s.source_text = text;
   s.name = std::filesystem::path(path).stem().string();
   if (s.name.empty()) s.name = "scenario";  // a file name holds no '/': never a path
-  // Trace files are relative to the scenario file's directory.
-  ReadScenario(Reader(file, std::filesystem::path(path).parent_path().string()), root, &s);
+  // Trace files are relative to the scenario file's directory; text that does not come
+  // from a file (a log's copy, named by a label) resolves them in the working directory.
+  std::error_code error;
+  const bool is_file = !path.empty() && std::filesystem::is_regular_file(path, error);
+  const std::string base = is_file ? std::filesystem::path(path).parent_path().string() : "";
+  ReadScenario(Reader(file, base), root, &s);
   return s;
 }
 

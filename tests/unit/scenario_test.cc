@@ -522,6 +522,30 @@ TEST(ScenarioLoaderTest, AcousticTraceGilbertElliottAndModemsLoad) {
   EXPECT_FALSE(fs::exists("traces/trial.csv"));
 }
 
+// Text that does not come from a file (a log's copy) resolves a trace in the working
+// directory.
+TEST(ScenarioLoaderTest, TraceOfTextWithoutAFileIsReadFromTheWorkingDirectory) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "shoal_trace_cwd";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  WriteFileAt((dir / "cwd_trace.csv").string(), "0, 0.4\n");
+  const std::string text = std::string(kSwarmAndControl) +
+                           "[channel.delay]\nmodel = \"trace\"\nfile = \"cwd_trace.csv\"\n";
+  const fs::path before = fs::current_path();
+  fs::current_path(dir);
+  Scenario s;
+  std::string error;
+  try {
+    s = ParseScenario(text, "scenario text in x.lcmlog (SHOAL_STATUS)");
+  } catch (const ScenarioError& e) {
+    error = e.what();
+  }
+  fs::current_path(before);
+  ASSERT_EQ(error, "");
+  ASSERT_TRUE(s.delay.trace);
+  EXPECT_EQ(s.delay.trace->delay_s, std::vector<double>{0.4});
+}
+
 // A bad trace is refused with the CSV's file and line, inside the scenario's located message.
 TEST(ScenarioLoaderTest, BadTraceRowsAreRefusedAtTheirCsvLine) {
   const fs::path dir = fs::path(::testing::TempDir()) / "shoal_trace_bad";
