@@ -16,6 +16,7 @@ namespace {
 
 constexpr double kPitchLimitRad = 80.0 * 3.14159265358979323846 / 180.0;  // as shoal sim
 constexpr std::int8_t kDelivered = 0, kLoss = 1, kQueue = 2, kInvalid = 3;
+constexpr std::int8_t kBusy = ChannelDecision::kSkippedBusy, kRange = ChannelDecision::kDroppedRange;
 
 FormationErrors NaNErrors() { return FormationErrors{kNaN, kNaN, kNaN}; }
 
@@ -189,6 +190,24 @@ class LinkTable {
 /// Link index of an event left out (at an impossible time).
 constexpr std::uint32_t kNoLink = std::numeric_limits<std::uint32_t>::max();
 
+/// The scenario's tau for event e, counting a mismatch with the drawn delay. Uniform: the
+/// drawn one (a draw cannot be recomputed). Acoustic: the drawn one, checked only against
+/// the model's bounds [processing_s, max_range_m / sound_speed_mps + processing_s +
+/// jitter_s]: the range it used is not recomputed from the logged states.
+double ConfiguredDelay(const DelayConfig& cfg, const ChannelEventRecord& e,
+                       std::int64_t* mismatches) {
+  if (cfg.kind == DelayKind::kUniform) return e.delay_s;
+  if (cfg.kind == DelayKind::kAcoustic) {
+    if (!(e.delay_s >= MinDelaySeconds(cfg) - 1e-9 && e.delay_s <= MaxDelaySeconds(cfg) + 1e-9)) {
+      ++*mismatches;
+    }
+    return e.delay_s;
+  }
+  const double tau = DelaySeconds(cfg, ToSeconds(e.send_utime), nullptr);
+  if (!(std::abs(tau - e.delay_s) <= 1e-9)) ++*mismatches;
+  return tau;
+}
+
 /// Per event: its configured delay (checked against the drawn one) and its link's counts;
 /// an event at an impossible time is counted as damaged only. Returns each event's link
 /// index (kNoLink for a damaged one).
@@ -215,22 +234,24 @@ std::vector<std::uint32_t> CountChannelEvents(const std::vector<ChannelEventReco
       last_to = e.receiver;
       last_cfg = table->Model(e.sender, e.receiver);
     }
-    double cfg = e.delay_s;
-    if (last_cfg == nullptr) {
-      ++c->unknown_links;
-    } else if (last_cfg->kind != DelayKind::kUniform) {
-      cfg = DelaySeconds(*last_cfg, ToSeconds(e.send_utime), nullptr);
-      if (!(std::abs(cfg - e.delay_s) <= 1e-9)) ++c->model_mismatches;
-    }
+    const double cfg = last_cfg == nullptr || e.status == kBusy
+                           ? e.delay_s
+                           : ConfiguredDelay(*last_cfg, e, &c->model_mismatches);
+    if (last_cfg == nullptr) ++c->unknown_links;
     c->configured_delay_s[k] = cfg;
     const std::size_t li = table->Of(e.sender, e.receiver);
     link_of_event[k] = static_cast<std::uint32_t>(li);
     LinkAnalysis& l = c->links[li];
+    if (e.status == kBusy) {  // never transmitted: not sent
+      ++l.skipped_busy;
+      continue;
+    }
     ++l.sent;
     switch (e.status) {
       case kDelivered: ++l.delivered; break;
       case kLoss: ++l.dropped_loss; break;
       case kQueue: ++l.dropped_queue; break;
+      case kRange: ++l.dropped_range; break;
       default: ++l.dropped_invalid; break;
     }
   }
@@ -364,8 +385,10 @@ void AnalyseChannel(const RunData& run, const ValidStates& valid, RunAnalysis* a
     c.dropped_loss += l.dropped_loss;
     c.dropped_queue += l.dropped_queue;
     c.dropped_invalid += l.dropped_invalid;
+    c.dropped_range += l.dropped_range;
+    c.skipped_busy += l.skipped_busy;
   }
-  c.dropped = c.dropped_loss + c.dropped_queue + c.dropped_invalid;
+  c.dropped = c.dropped_loss + c.dropped_queue + c.dropped_invalid + c.dropped_range;
   a->summary.delivered = c.delivered;
   a->summary.dropped = c.dropped;
 }

@@ -53,6 +53,8 @@ struct LinkAnalysis {
   int from = 0, to = 0;
   bool in_scenario = false;  // the scenario's topology has this link
   std::int64_t sent = 0, delivered = 0, dropped_loss = 0, dropped_queue = 0, dropped_invalid = 0;
+  std::int64_t dropped_range = 0;  // acoustic: receiver beyond max_range_m (counted as sent)
+  std::int64_t skipped_busy = 0;   // the sender's modem was busy: never transmitted, not sent
   Quantiles realised_delay_s;      // deliver - send, delivered only
   Quantiles delay_error_s;         // realised - configured tau(send time)
   Quantiles age_at_use_s;          // receiver tick time - send time of the newest message held
@@ -62,7 +64,8 @@ struct LinkAnalysis {
 
 struct ChannelAnalysis {
   std::int64_t sent = 0, delivered = 0, dropped = 0;
-  std::int64_t dropped_loss = 0, dropped_queue = 0, dropped_invalid = 0;
+  std::int64_t dropped_loss = 0, dropped_queue = 0, dropped_invalid = 0, dropped_range = 0;
+  std::int64_t skipped_busy = 0;  // decisions "modem busy": not in sent
   Quantiles realised_delay_s, delay_error_s, age_at_use_s;
   /// Events whose drawn delay differs (> 1 ns) from the scenario's deterministic tau(t):
   /// the emulator ran another delay model than the scenario says.

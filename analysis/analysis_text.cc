@@ -106,6 +106,10 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
               static_cast<long long>(c.sent), static_cast<long long>(c.delivered),
               static_cast<long long>(c.dropped), static_cast<long long>(c.dropped_loss),
               static_cast<long long>(c.dropped_queue), static_cast<long long>(c.dropped_invalid));
+  if (c.dropped_range > 0 || c.skipped_busy > 0) {
+    std::fprintf(out, "  acoustic: %lld dropped out of range (in the dropped above), %lld not sent: modem busy\n",
+                static_cast<long long>(c.dropped_range), static_cast<long long>(c.skipped_busy));
+  }
   if (c.delay_error_s.count > 0) {
     std::fprintf(out, "  realised delay - configured tau: p50 %.3f ms, p99 %.3f ms, max %.3f ms (%s)\n",
                 c.delay_error_s.p50 * 1e3, c.delay_error_s.p99 * 1e3, c.delay_error_s.max * 1e3,

@@ -49,7 +49,8 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       bus_(bus),
       vbus_(std::move(vehicle_buses)),
       channel_(BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links)),
-               mode == Mode::kLockstep ? s.period_us() : 0),
+               mode == Mode::kLockstep ? s.period_us() : 0, std::size_t{1} << 20,
+               ModemIntervals(s)),
       n_(s.followers),
       last_seq_(s.followers + 1, 0),
       have_seq_(s.followers + 1, false),
@@ -78,6 +79,7 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
   got_tick_.assign(slots, false);
   tick_state_.resize(slots);
   tick_seq_.assign(slots, 0);
+  tick_pos_.assign(slots, Vec3::Zero());
   for (int id = 0; id <= n_; ++id) rx_channels_.push_back(channels::Rx(id));
   outbox_.resize(static_cast<std::size_t>(n_ + 1));
 }
@@ -152,6 +154,7 @@ void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char
     got_tick_[slot] = true;
     tick_state_[slot].assign(data, data + size);
     tick_seq_[slot] = m.seq;
+    tick_pos_[slot] = FromLcm(m).eta.head<3>();
   } else {
     // Real time: a state must be about now (forged or replayed times are refused).
     const Micros now = (MonotonicNs() - t0_ns_) / 1000;
@@ -159,22 +162,23 @@ void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char
       ++counters_.states_old;
       return;
     }
-    Submit(id, Bytes(data, data + size), m.seq, m.utime);
+    Submit(id, Bytes(data, data + size), m.seq, m.utime, FromLcm(m).eta.head<3>());
   }
   have_seq_[id] = true;
   last_seq_[id] = m.seq;
   ++counters_.states_accepted;
 }
 
-void ChannelEmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime) {
+void ChannelEmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime,
+                                const Vec3& position) {
   decisions_.clear();
   const std::int64_t digest =
       mode_ == Mode::kLockstep ? Digest64(raw.data(), static_cast<int>(raw.size())) : 0;
-  channel_.Submit(id, seq, utime, Datagram{id, seq, digest, raw}, &decisions_);
+  channel_.Submit(id, seq, utime, Datagram{id, seq, digest, raw}, &decisions_, position);
   for (const ChannelDecision& d : decisions_) {
     if (d.status == ChannelDecision::kDelivered) {
       ++counters_.delivered;
-    } else {
+    } else if (d.status != ChannelDecision::kSkippedBusy) {
       ++counters_.dropped;
     }
     if (mode_ == Mode::kRealtime && events_.empty()) events_since_ns_ = MonotonicNs();
@@ -392,7 +396,7 @@ void ChannelEmulatorApp::SubmitWindow() {
     const Micros now = j * period_us_;
     for (int id = 0; id <= n_; ++id) {
       const auto slot = static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id);
-      if (got_tick_[slot]) Submit(id, tick_state_[slot], tick_seq_[slot], now);
+      if (got_tick_[slot]) Submit(id, tick_state_[slot], tick_seq_[slot], now, tick_pos_[slot]);
     }
     tick_ = j;
     if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);

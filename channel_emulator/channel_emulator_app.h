@@ -76,7 +76,9 @@ class ChannelEmulatorApp {
   int HandleBus(int timeout_ms);
   void OnState(const std::string& channel, const unsigned char* data, int size);
   void OnStatus(const unsigned char* data, int size);
-  void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime);
+  /// `position`: the state's (eta x, y, z), which the acoustic model's range needs: the
+  /// emulator knows every vehicle's position from the states it forwards.
+  void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime, const Vec3& position);
   void ReleaseWindow();
   void PublishEvents();  // the decisions not yet published, on SHOAL_CHANNEL
   clock_window_t WindowClock() const;  // ticks [win_first_, win_last_], no deliveries listed
@@ -128,6 +130,7 @@ class ChannelEmulatorApp {
   std::vector<bool> got_tick_;
   std::vector<Bytes> tick_state_;
   std::vector<std::int32_t> tick_seq_;
+  std::vector<Vec3> tick_pos_;
   std::vector<bool> alive_;
   std::vector<bool> ready_;
   std::int64_t tick_ = -1;  // lockstep: current tick

@@ -1,5 +1,7 @@
 #include "core/channel_model.h"
 
+#include <cmath>
+
 namespace shoal {
 
 std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo) {
@@ -18,9 +20,21 @@ std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo) {
     }
     l.rng = Rng(s.seed, 0x11A4ULL + static_cast<std::uint64_t>(from),
                 static_cast<std::uint64_t>(to));
+    l.loss_rng = Rng(s.seed, 0x6E11ULL + static_cast<std::uint64_t>(from),
+                     static_cast<std::uint64_t>(to));
     links.push_back(l);
   }
   return links;
+}
+
+std::vector<Micros> ModemIntervals(const Scenario& s) {
+  const auto us = [](double seconds) { return static_cast<Micros>(std::llround(seconds * 1e6)); };
+  std::vector<Micros> interval(static_cast<std::size_t>(s.followers + 1),
+                               us(s.modem_min_interval_s));
+  for (const ModemConfig& m : s.modems) {
+    if (m.id >= 0 && m.id <= s.followers) interval[static_cast<std::size_t>(m.id)] = us(m.min_interval_s);
+  }
+  return interval;
 }
 
 }  // namespace shoal

@@ -16,9 +16,26 @@
 
 namespace shoal {
 
-/// tau(t) in seconds for a message sent at t (seconds). Draws from `rng` only for the
-/// uniform model. Never negative.
-inline double DelaySeconds(const DelayConfig& c, double t_s, Rng* rng) {
+/// A trace's delay at t: zero-order hold (the row at or before t) or linear interpolation
+/// between the rows around t; before the first row the first delay, after the last row
+/// the last delay.
+inline double TraceDelaySeconds(const DelayTrace& tr, double t_s) {
+  const std::vector<double>& t = tr.t_s;
+  if (t.empty()) return 0.0;
+  if (!(t_s > t.front())) return tr.delay_s.front();
+  if (t_s >= t.back()) return tr.delay_s.back();
+  const auto k = static_cast<std::size_t>(std::upper_bound(t.begin(), t.end(), t_s) - t.begin());
+  // t[k - 1] <= t_s < t[k]
+  const double d0 = tr.delay_s[k - 1];
+  if (tr.hold) return d0;
+  const double f = (t_s - t[k - 1]) / (t[k] - t[k - 1]);
+  return d0 + f * (tr.delay_s[k] - d0);
+}
+
+/// tau(t) in seconds for a message sent at t (seconds) over `range_m` metres (only the
+/// acoustic model uses the range). Draws from `rng` only for the uniform model and the
+/// acoustic model's jitter (jitter_s > 0). Never negative.
+inline double DelaySeconds(const DelayConfig& c, double t_s, Rng* rng, double range_m = 0.0) {
   double tau = 0.0;
   switch (c.kind) {
     case DelayKind::kNone:
@@ -32,26 +49,65 @@ inline double DelaySeconds(const DelayConfig& c, double t_s, Rng* rng) {
     case DelayKind::kUniform:
       tau = c.base_s + c.amplitude_s * (2.0 * rng->Uniform() - 1.0);
       break;
+    case DelayKind::kAcoustic:
+      tau = range_m / c.sound_speed_mps + c.processing_s;
+      if (c.jitter_s > 0.0) tau += c.jitter_s * rng->Uniform();
+      break;
+    case DelayKind::kTrace:
+      tau = c.trace ? TraceDelaySeconds(*c.trace, t_s) : 0.0;
+      break;
   }
   return std::max(tau, 0.0);
 }
 
+/// True if tau(t) depends on nothing but the model and t (no draw, no range): such a
+/// value can be computed once per (model, t) and shared by links.
+inline bool DeterministicDelay(DelayKind k) {
+  return k != DelayKind::kUniform && k != DelayKind::kAcoustic;
+}
+
 /// The deterministic part of tau(t), used where a single delay value is needed without
-/// a draw (the delayed arguments of the paper's uncertain factor): uniform -> base_s.
+/// a draw (the delayed arguments of the paper's uncertain factor): uniform -> base_s,
+/// acoustic -> its delay at half its maximum range, without jitter.
 inline double NominalDelaySeconds(const DelayConfig& c, double t_s) {
   if (c.kind == DelayKind::kUniform) return c.base_s;
+  if (c.kind == DelayKind::kAcoustic) {
+    return 0.5 * c.max_range_m / c.sound_speed_mps + c.processing_s;
+  }
   return DelaySeconds(c, t_s, nullptr);
 }
 
 inline bool SameDelay(const DelayConfig& a, const DelayConfig& b) {
   return a.kind == b.kind && a.base_s == b.base_s && a.amplitude_s == b.amplitude_s &&
-         a.omega_rad_s == b.omega_rad_s;
+         a.omega_rad_s == b.omega_rad_s && a.trace == b.trace &&
+         a.sound_speed_mps == b.sound_speed_mps && a.processing_s == b.processing_s &&
+         a.jitter_s == b.jitter_s && a.max_range_m == b.max_range_m &&
+         a.loss_at_max_range == b.loss_at_max_range;
 }
 
-/// True if the loss model drops this message.
-inline bool Dropped(const LossConfig& c, Rng* rng) {
-  if (c.kind == LossKind::kNone) return false;
-  return rng->Uniform() < c.probability;
+/// True if the loss model drops this message. `bad` is the link's Gilbert-Elliott state
+/// (moved first, then the loss drawn in the new state); the other models ignore it.
+inline bool Dropped(const LossConfig& c, Rng* rng, bool* bad = nullptr) {
+  switch (c.kind) {
+    case LossKind::kNone:
+      return false;
+    case LossKind::kBernoulli:
+      return rng->Uniform() < c.probability;
+    case LossKind::kGilbertElliott: {
+      const double move = rng->Uniform();
+      *bad = *bad ? !(move < c.p_bad_to_good) : move < c.p_good_to_bad;
+      return rng->Uniform() < (*bad ? c.loss_bad : c.loss_good);
+    }
+  }
+  return false;
+}
+
+/// The acoustic model's chance of losing a message over `range_m` within max_range_m:
+/// 0 up to half the range, rising linearly to loss_at_max_range at max_range_m.
+inline double AcousticRangeLoss(const DelayConfig& c, double range_m) {
+  const double half = 0.5 * c.max_range_m;
+  if (!(range_m > half) || half <= 0.0) return 0.0;
+  return c.loss_at_max_range * std::min(1.0, (range_m - half) / half);
 }
 
 /// Upper bound h of tau(t) for a delay model.
@@ -61,18 +117,32 @@ inline double MaxDelaySeconds(const DelayConfig& c) {
       return 0.0;
     case DelayKind::kConstant:
       return c.base_s;
+    case DelayKind::kAcoustic:
+      return c.max_range_m / c.sound_speed_mps + c.processing_s + c.jitter_s;
+    case DelayKind::kTrace:
+      return c.trace && !c.trace->delay_s.empty()
+                 ? *std::max_element(c.trace->delay_s.begin(), c.trace->delay_s.end())
+                 : 0.0;
     default:
       return c.base_s + c.amplitude_s;
   }
 }
 
 /// Lower bound of tau(t) for a delay model (never negative: DelaySeconds clips at 0).
+/// Acoustic: processing_s (the range can be about 0).
 inline double MinDelaySeconds(const DelayConfig& c) {
   switch (c.kind) {
     case DelayKind::kNone:
       return 0.0;
     case DelayKind::kConstant:
       return std::max(c.base_s, 0.0);
+    case DelayKind::kAcoustic:
+      return std::max(c.processing_s, 0.0);
+    case DelayKind::kTrace:
+      return c.trace && !c.trace->delay_s.empty()
+                 ? std::max(0.0, *std::min_element(c.trace->delay_s.begin(),
+                                                   c.trace->delay_s.end()))
+                 : 0.0;
     default:
       return std::max(c.base_s - std::fabs(c.amplitude_s), 0.0);
   }
@@ -95,8 +165,15 @@ struct ChannelDecision {
   Micros send_utime = 0;
   double delay_s = 0.0;
   Micros deliver_utime = 0;
-  enum Status : std::int8_t { kDelivered = 0, kDroppedLoss = 1, kDroppedQueue = 2 } status =
-      kDelivered;
+  // Values of channel_event_t.status. 3 (invalid) is the analysis's own; 4 and 5 came
+  // with the acoustic models: a new value of the int8 field, not a new layout.
+  enum Status : std::int8_t {
+    kDelivered = 0,
+    kDroppedLoss = 1,
+    kDroppedQueue = 2,
+    kSkippedBusy = 4,   // the sender's modem was busy: the state was never transmitted
+    kDroppedRange = 5,  // acoustic: the receiver was beyond max_range_m
+  } status = kDelivered;
 };
 
 /// Why a decision dropped its message, as channel_event_t.reason says it ("" delivered).
@@ -106,6 +183,10 @@ inline const char* DropReason(ChannelDecision::Status s) {
       return "loss model";
     case ChannelDecision::kDroppedQueue:
       return "pending queue full";
+    case ChannelDecision::kSkippedBusy:
+      return "modem busy";
+    case ChannelDecision::kDroppedRange:
+      return "out of acoustic range";
     case ChannelDecision::kDelivered:
       break;
   }
@@ -119,11 +200,18 @@ struct Link {
   DelayConfig delay;
   LossConfig loss;
   Rng rng;
+  Rng loss_rng;        // Gilbert-Elliott only: its own stream
+  bool ge_bad = false;  // Gilbert-Elliott state; every link starts good
+  int delay_id = -1;    // set by Channel: links with equal delay models share an id
 };
 
 /// Builds the links of the topology with the scenario's defaults and per-link overrides.
-/// Each link's random stream depends only on (seed, from, to).
+/// Each link's random streams depend only on (seed, from, to).
 std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo);
+
+/// Each sender's modem interval in whole microseconds, index = vehicle id 0..n (all 0
+/// without a rate limit).
+std::vector<Micros> ModemIntervals(const Scenario& s);
 
 /// Lookahead of a set of links (period > 0): no message is delivered fewer than this many
 /// ticks after its send tick, on any of them (1 without links).
@@ -167,17 +255,26 @@ inline Micros DeliveryTime(Micros send_utime, double delay_s, Micros period_us) 
 template <typename Payload>
 class Channel {
  public:
-  Channel(std::vector<Link> links, Micros period_us, std::size_t max_pending = 1 << 20)
+  /// `modem_interval_us[id]`: sender id's modem interval (ModemIntervals); empty: none.
+  Channel(std::vector<Link> links, Micros period_us, std::size_t max_pending = 1 << 20,
+          std::vector<Micros> modem_interval_us = {})
       : links_(std::move(links)),
         min_lag_ticks_(shoal::MinLagTicks(links_, period_us)),
         period_us_(period_us),
-        max_pending_(max_pending) {
+        max_pending_(max_pending),
+        modem_interval_us_(std::move(modem_interval_us)) {
     const double max_delay_s = MaxDelaySeconds(links_);
     for (std::size_t k = 0; k < links_.size(); ++k) {
       const int from = links_[k].from;
       if (from >= static_cast<int>(by_sender_.size())) by_sender_.resize(from + 1);
       by_sender_[from].push_back(k);
+      uses_positions_ = uses_positions_ || links_[k].delay.kind == DelayKind::kAcoustic;
+      ids_ = std::max({ids_, links_[k].from + 1, links_[k].to + 1});
     }
+    NumberDelayModels();
+    modem_interval_us_.resize(static_cast<std::size_t>(ids_), 0);
+    last_tx_us_.assign(static_cast<std::size_t>(ids_), -1);
+    if (uses_positions_) where_.resize(static_cast<std::size_t>(ids_));
     if (period_us_ > 0) {
       // Pending deliveries span at most max delay + 2 ticks ahead of the delivered tick.
       // Deliveries further ahead than the wheel wait in overflow_ (a delay of years must
@@ -190,12 +287,22 @@ class Channel {
     }
   }
 
-  /// A message from `sender` sent at `send_utime`: decides for every outgoing link,
-  /// appends one decision per link to `decisions` and queues the deliveries.
+  /// A message from `sender` sent at `send_utime` from `sender_pos` (NED, m; only the
+  /// acoustic model uses positions): decides for every outgoing link, appends one
+  /// decision per link to `decisions` and queues the deliveries.
   void Submit(int sender, std::int32_t seq, Micros send_utime, const Payload& payload,
-              std::vector<ChannelDecision>* decisions) {
+              std::vector<ChannelDecision>* decisions, const Vec3& sender_pos = Vec3::Zero()) {
+    // A receiver that sends to nobody still has its position known.
+    if (uses_positions_ && sender >= 0 && sender < ids_) Place(sender, send_utime, sender_pos);
     if (sender < 0 || sender >= static_cast<int>(by_sender_.size()) ||
         by_sender_[sender].empty()) {
+      return;
+    }
+    if (ModemBusy(sender, send_utime)) {
+      for (std::size_t k : by_sender_[sender]) {
+        decisions->push_back(Decision(sender, links_[k].to, seq, send_utime));
+        decisions->back().status = ChannelDecision::kSkippedBusy;
+      }
       return;
     }
     const double t_s = ToSeconds(send_utime);
@@ -206,31 +313,30 @@ class Channel {
     const int slot = Store(payload);
     for (std::size_t k : by_sender_[sender]) {
       Link& l = links_[k];
-      ChannelDecision d;
-      d.sender = sender;
-      d.receiver = l.to;
-      d.msg_seq = seq;
-      d.send_utime = send_utime;
-      // Both draws happen for every message so that a link's stream does not depend on
+      ChannelDecision d = Decision(sender, l.to, seq, send_utime);
+      // Every draw happens for every message so that a link's stream does not depend on
       // the other model's outcome.
-      const bool lost = Dropped(l.loss, &l.rng);
-      // Links usually share one deterministic model and senders one send time: evaluate
-      // tau(t) once per (model, t), not once per message and link.
-      if (l.delay.kind != DelayKind::kUniform && have_last_ && last_t_ == send_utime &&
-          SameDelay(l.delay, last_cfg_)) {
+      const bool lost = Dropped(l.loss, l.loss.kind == LossKind::kGilbertElliott ? &l.loss_rng
+                                                                                : &l.rng,
+                                &l.ge_bad);
+      if (l.delay.kind == DelayKind::kAcoustic) {
+        d.status = Acoustic(&l, send_utime, sender_pos, &d.delay_s);
+      } else if (l.delay_id >= 0 && l.delay_id == last_id_ && last_t_ == send_utime) {
+        // Links usually share one deterministic model and senders one send time: evaluate
+        // tau(t) once per (model, t), not once per message and link.
         d.delay_s = last_delay_;
       } else {
         d.delay_s = DelaySeconds(l.delay, t_s, &l.rng);
-        last_cfg_ = l.delay;
         last_delay_ = d.delay_s;
         last_t_ = send_utime;
-        have_last_ = l.delay.kind != DelayKind::kUniform;
+        last_id_ = DeterministicDelay(l.delay.kind) ? l.delay_id : -1;
       }
-      if (lost) {
+      if (lost && d.status == ChannelDecision::kDelivered) {
         d.status = ChannelDecision::kDroppedLoss;
-      } else if (pending_ >= max_pending_) {
+      } else if (d.status == ChannelDecision::kDelivered && pending_ >= max_pending_) {
         d.status = ChannelDecision::kDroppedQueue;
-      } else {
+      }
+      if (d.status == ChannelDecision::kDelivered) {
         d.deliver_utime = DeliveryTime(send_utime, d.delay_s, period_us_);
         Push(Pending{d.deliver_utime, order_++, l.to, slot});
         ++refs_[slot];
@@ -238,6 +344,21 @@ class Channel {
       decisions->push_back(d);
     }
     if (refs_[slot] == 0) free_.push_back(slot);
+  }
+
+  /// The position the acoustic model uses for `receiver` for a message sent at
+  /// `send_utime`, false if none is known. With a control period (shoal sim, lockstep):
+  /// the receiver's newest state sent strictly before send_utime, so that the states of
+  /// one tick may enter in any order; in real time: its newest state.
+  bool ReceiverPosition(int receiver, Micros send_utime, Vec3* pos) const {
+    if (!uses_positions_ || receiver < 0 || receiver >= ids_) return false;
+    const Where& w = where_[static_cast<std::size_t>(receiver)];
+    if (w.have_new && (period_us_ <= 0 || w.t_new < send_utime)) {
+      *pos = w.p_new;
+      return true;
+    }
+    if (w.have_old) *pos = w.p_old;
+    return w.have_old;
   }
 
   /// Lookahead (period > 0): no message is ever delivered fewer than this many ticks after
@@ -283,6 +404,79 @@ class Channel {
   const std::vector<Link>& links() const { return links_; }
 
  private:
+  // Numbers the links' delay models: equal deterministic models get one id (so that
+  // tau(t) is computed once per model and send time), every other link an id of its own.
+  // Links are compared with the first few distinct models only: a scenario rarely has
+  // more, and a file with thousands of overrides must not cost links x models.
+  void NumberDelayModels() {
+    constexpr std::size_t kMaxShared = 16;
+    std::vector<std::size_t> firsts;  // first link of each shared model
+    int next = 0;
+    for (Link& l : links_) {
+      l.delay_id = -1;
+      if (!DeterministicDelay(l.delay.kind)) continue;  // never shared: stays -1
+      for (std::size_t f : firsts) {
+        if (SameDelay(links_[f].delay, l.delay)) l.delay_id = links_[f].delay_id;
+      }
+      if (l.delay_id >= 0) continue;
+      l.delay_id = next++;
+      if (firsts.size() < kMaxShared) firsts.push_back(static_cast<std::size_t>(&l - links_.data()));
+    }
+  }
+
+  // A vehicle's two newest positions (the newest may be of the tick being submitted).
+  struct Where {
+    Vec3 p_new = Vec3::Zero(), p_old = Vec3::Zero();
+    Micros t_new = 0;
+    bool have_new = false, have_old = false;
+  };
+
+  static ChannelDecision Decision(int sender, int receiver, std::int32_t seq, Micros send_utime) {
+    ChannelDecision d;
+    d.sender = sender;
+    d.receiver = receiver;
+    d.msg_seq = seq;
+    d.send_utime = send_utime;
+    return d;
+  }
+
+  void Place(int id, Micros t, const Vec3& p) {
+    Where& w = where_[static_cast<std::size_t>(id)];
+    if (w.have_new && w.t_new < t) {
+      w.p_old = w.p_new;
+      w.have_old = true;
+    }
+    w.p_new = p;
+    w.t_new = t;
+    w.have_new = true;
+  }
+
+  // True if the sender's modem is still busy with its previous transmission; else the
+  // message is transmitted now.
+  bool ModemBusy(int sender, Micros send_utime) {
+    const Micros interval = modem_interval_us_[static_cast<std::size_t>(sender)];
+    if (interval <= 0) return false;
+    Micros& last = last_tx_us_[static_cast<std::size_t>(sender)];
+    if (last >= 0 && send_utime - last < interval) return true;
+    last = send_utime;
+    return false;
+  }
+
+  // The acoustic model on link l: delay over the sender-receiver range, then the range
+  // losses. An unknown receiver position (before its first state) counts as range 0.
+  ChannelDecision::Status Acoustic(Link* l, Micros send_utime, const Vec3& sender_pos,
+                                   double* delay) {
+    Vec3 rx = sender_pos;
+    ReceiverPosition(l->to, send_utime, &rx);
+    const double range = (rx - sender_pos).norm();
+    *delay = DelaySeconds(l->delay, ToSeconds(send_utime), &l->rng, range);
+    const bool draw = l->delay.loss_at_max_range > 0.0;
+    const double u = draw ? l->rng.Uniform() : 1.0;
+    if (range > l->delay.max_range_m) return ChannelDecision::kDroppedRange;
+    return u < AcousticRangeLoss(l->delay, range) ? ChannelDecision::kDroppedLoss
+                                                   : ChannelDecision::kDelivered;
+  }
+
   struct Pending {
     Micros due;
     std::uint64_t order;
@@ -351,13 +545,18 @@ class Channel {
   std::vector<std::vector<std::size_t>> by_sender_;  // sender id -> its links
   Micros period_us_;
   std::size_t max_pending_;
+  std::vector<Micros> modem_interval_us_;  // per sender id
+  std::vector<Micros> last_tx_us_;         // per sender id, -1: never transmitted
+  bool uses_positions_ = false;            // some link is acoustic
+  int ids_ = 0;                            // vehicle ids 0..ids_-1
+  std::vector<Where> where_;
   std::uint64_t order_ = 0;
   std::size_t pending_ = 0;
-  std::int64_t next_tick_ = 0;
-  bool have_last_ = false;  // cache of the last deterministic tau(t)
+  std::int64_t next_tick_ = 0;  // wheel: first tick not yet delivered
+  // Cache of the last deterministic tau(t): model id (-1: none) and send time.
+  int last_id_ = -1;
   Micros last_t_ = 0;
-  DelayConfig last_cfg_;
-  double last_delay_ = 0.0;  // wheel: first tick not yet delivered
+  double last_delay_ = 0.0;
   std::vector<std::vector<Pending>> wheel_;
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> heap_;
   // A delivery beyond the wheel, ordered by (tick, submission order).

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -14,26 +15,70 @@
 
 namespace shoal {
 
-enum class DelayKind { kNone, kConstant, kSinusoid, kUniform };
+enum class DelayKind { kNone, kConstant, kSinusoid, kUniform, kAcoustic, kTrace };
+
+/// A measured delay series (from a sea trial or another tool): delay_s[k] applies to a
+/// message sent at t_s[k]. t_s strictly increasing, every value finite and >= 0.
+struct DelayTrace {
+  std::string file;  // as written in the scenario (relative to the scenario file)
+  std::vector<double> t_s;
+  std::vector<double> delay_s;
+  bool hold = false;  // true: zero-order hold; false: linear interpolation
+};
 
 /// tau(t) for one directed link.
 ///   none:      tau = 0
 ///   constant:  tau = base_s
 ///   sinusoid:  tau = base_s + amplitude_s * cos(omega_rad_s * t)   (paper Example 2)
 ///   uniform:   tau = base_s + U(-amplitude_s, amplitude_s), drawn per message (seeded)
+///   acoustic:  tau = range / sound_speed_mps + processing_s + U(0, jitter_s) (seeded);
+///              range beyond max_range_m: the message is lost; range in
+///              (max_range_m / 2, max_range_m]: lost with a probability rising linearly
+///              from 0 to loss_at_max_range
+///   trace:     tau = the trace at t (held or interpolated; before its first row the
+///              first delay, after its last row the last delay)
 struct DelayConfig {
+  DelayConfig() = default;
+  /// The models of the paper (none, constant, sinusoid, uniform).
+  DelayConfig(DelayKind k, double base, double amplitude, double omega)
+      : kind(k), base_s(base), amplitude_s(amplitude), omega_rad_s(omega) {}
+
   DelayKind kind = DelayKind::kNone;
   double base_s = 0.0;
   double amplitude_s = 0.0;
   double omega_rad_s = 0.0;
+  // acoustic
+  double sound_speed_mps = 1500.0;
+  double processing_s = 0.0;
+  double jitter_s = 0.0;
+  double max_range_m = 0.0;
+  double loss_at_max_range = 0.0;
+  // trace (shared: every link that uses one file holds the same table)
+  std::shared_ptr<const DelayTrace> trace;
 };
 
-enum class LossKind { kNone, kBernoulli };
+enum class LossKind { kNone, kBernoulli, kGilbertElliott };
 
-/// Message loss for one directed link: none, or independent drops with `probability`.
+/// Message loss for one directed link: none, independent drops with `probability`, or
+/// the two-state Gilbert-Elliott chain: before each message the link's state moves
+/// good -> bad with p_good_to_bad and bad -> good with p_bad_to_good, then the message is
+/// lost with loss_good or loss_bad. Stationary loss rate
+/// (p_gb * loss_bad + p_bg * loss_good) / (p_gb + p_bg); a bad burst lasts 1 / p_bg
+/// messages on average.
 struct LossConfig {
   LossKind kind = LossKind::kNone;
   double probability = 0.0;
+  double p_good_to_bad = 0.0;
+  double p_bad_to_good = 1.0;
+  double loss_good = 0.0;
+  double loss_bad = 1.0;
+};
+
+/// A sender's acoustic modem: it transmits a state only if at least min_interval_s has
+/// passed since its last transmission (0: every state).
+struct ModemConfig {
+  int id = 0;
+  double min_interval_s = 0.0;
 };
 
 /// A per-link override of the channel defaults; `from` 0 is the leader.
@@ -124,6 +169,8 @@ struct Scenario {
   DelayConfig delay;            // [channel.delay], default for every link
   LossConfig loss;              // [channel.loss]
   std::vector<LinkOverride> links;  // [[channel.link]]
+  double modem_min_interval_s = 0.0;  // [channel] default of every sender
+  std::vector<ModemConfig> modems;    // [[channel.modem]] per-sender overrides
   DisturbanceConfig disturbance;
   VehicleConfig vehicle;
   MetricsConfig metrics;

@@ -79,7 +79,7 @@ Swarm::Swarm(const Scenario& s, double duration_s)
       period_us_(s.period_us()),
       final_tick_(s.final_tick(duration_s)),
       leader_(s),
-      channel_(BuildLinks(s, topo_), period_us_),
+      channel_(BuildLinks(s, topo_), period_us_, std::size_t{1} << 20, ModemIntervals(s)),
       metrics_(s.offsets_m, s.metrics),
       env_(std::make_shared<Environment>(s.leader, s.delay, s.disturbance.relative_to_leader)),
       warm_env_(s.disturbance.kind == DisturbanceKind::kPaperExample2) {
@@ -111,11 +111,11 @@ bool Swarm::Step(SwarmObserver* obs) {
   auto publish = [&](const StateMsg& m) {
     if (obs) obs->OnState(m);
     decisions_.clear();
-    channel_.Submit(m.vehicle_id, m.seq, m.utime, m, &decisions_);
+    channel_.Submit(m.vehicle_id, m.seq, m.utime, m, &decisions_, m.eta.head<3>());
     for (const ChannelDecision& d : decisions_) {
       if (d.status == ChannelDecision::kDelivered) {
         ++delivered_;
-      } else {
+      } else if (d.status != ChannelDecision::kSkippedBusy) {
         ++dropped_;
       }
       if (obs) obs->OnChannel(d);

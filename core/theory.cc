@@ -239,6 +239,15 @@ DelayBounds DelayBoundsOf(const DelayConfig& c) {
       b.constant = !b.time_varying;
       if (!b.time_varying) b.kappa = 0.0;  // amplitude 0: a constant delay
       break;
+    case DelayKind::kAcoustic:
+    case DelayKind::kTrace:
+      // Treated as a delay bounded by its maximum; its rate follows the vehicles' range
+      // rate or the measured series, so Assumption 3 is not guaranteed: kappa unbounded.
+      b.h_s = MaxDelaySeconds(c);
+      b.time_varying = MaxDelaySeconds(c) > MinDelaySeconds(c);
+      b.constant = !b.time_varying;
+      if (!b.time_varying) b.kappa = 0.0;
+      break;
   }
   return b;
 }

@@ -115,7 +115,8 @@ Lipschitz LipschitzOf(const DisturbanceConfig& d);
 struct DelayBounds {
   double h_s = 0.0;
   /// Empty when tau(t) has no bounded derivative (uniform: a new random delay per
-  /// message, so tau jumps and Assumption 3 cannot hold).
+  /// message, so tau jumps and Assumption 3 cannot hold; acoustic and trace: nothing
+  /// bounds the rate of the range or of the series).
   std::optional<double> kappa;
   bool time_varying = false;  ///< any link (or the uncertain factor) has a varying delay
   bool constant = true;       ///< every delay is one constant value (or zero)

@@ -334,6 +334,10 @@ const char* DelayKindName(DelayKind k) {
       return "sinusoid";
     case DelayKind::kUniform:
       return "uniform";
+    case DelayKind::kAcoustic:
+      return "acoustic";
+    case DelayKind::kTrace:
+      return "trace";
   }
   return "?";
 }

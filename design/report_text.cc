@@ -48,7 +48,11 @@ void DelayAndFactorText(const DesignReport& r, std::ostream& txt) {
       << (!r.per_link_overrides || r.delay_from_flags ? ""
                                                       : " (with per-link overrides: max over links)")
       << ": h = " << G4(d.h_s) << " s, kappa = "
-      << (d.kappa ? G4(*d.kappa) : std::string("unbounded (a new random delay per message: tau jumps)"))
+      << (d.kappa ? G4(*d.kappa)
+          : r.delay_model == DelayKind::kAcoustic || r.delay_model == DelayKind::kTrace
+              ? std::string("unbounded (tau follows the range or the trace; Assumption 3 is "
+                            "not guaranteed)")
+              : std::string("unbounded (a new random delay per message: tau jumps)"))
       << (d.time_varying ? " (time-varying)"
           : d.constant   ? " (one constant delay)"
                          : " (different constant delays)")

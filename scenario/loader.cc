@@ -93,10 +93,15 @@ constexpr std::array<std::string_view, 4> kSwarmKeys = {"followers", "edges", "l
 constexpr std::array<std::string_view, 3> kControlKeys = {"k1", "k2", "offsets_m"};
 constexpr std::array<std::string_view, 6> kLeaderKeys = {"path",        "start_m",   "velocity_mps",
                                                          "waypoints_m", "speed_mps", "loop"};
-constexpr std::array<std::string_view, 3> kChannelKeys = {"delay", "loss", "link"};
-constexpr std::array<std::string_view, 4> kDelayKeys = {"model", "base_s", "amplitude_s",
-                                                        "omega_rad_s"};
-constexpr std::array<std::string_view, 2> kLossKeys = {"model", "probability"};
+constexpr std::array<std::string_view, 5> kChannelKeys = {"delay", "loss", "link",
+                                                          "modem_min_interval_s", "modem"};
+constexpr std::array<std::string_view, 11> kDelayKeys = {
+    "model",        "base_s",   "amplitude_s", "omega_rad_s",       "sound_speed_mps",
+    "processing_s", "jitter_s", "max_range_m", "loss_at_max_range", "file",
+    "interpolation"};
+constexpr std::array<std::string_view, 6> kLossKeys = {
+    "model", "probability", "p_good_to_bad", "p_bad_to_good", "loss_good", "loss_bad"};
+constexpr std::array<std::string_view, 2> kModemKeys = {"id", "min_interval_s"};
 constexpr std::array<std::string_view, 4> kLinkKeys = {"from", "to", "delay", "loss"};
 constexpr std::array<std::string_view, 8> kDisturbanceKeys = {
     "model",    "speed_mps", "min_speed_mps", "max_speed_mps",
@@ -111,7 +116,7 @@ struct TableSchema {
   std::string_view label;
   KeySet keys;
 };
-constexpr std::array<TableSchema, 11> kTables = {{
+constexpr std::array<TableSchema, 12> kTables = {{
     {"[run]", kRunKeys},
     {"[swarm]", kSwarmKeys},
     {"[control]", kControlKeys},
@@ -119,6 +124,7 @@ constexpr std::array<TableSchema, 11> kTables = {{
     {"[channel.delay]", kDelayKeys},
     {"[channel.loss]", kLossKeys},
     {"[[channel.link]]", kLinkKeys},
+    {"[[channel.modem]]", kModemKeys},
     {"[disturbance]", kDisturbanceKeys},
     {"[vehicle]", kVehicleKeys},
     {"[metrics]", kMetricsKeys},
@@ -146,17 +152,25 @@ constexpr std::array<std::string_view, 1> kConstantDelayKeys = {"base_s"};
 constexpr std::array<std::string_view, 3> kSinusoidDelayKeys = {"base_s", "amplitude_s",
                                                                 "omega_rad_s"};
 constexpr std::array<std::string_view, 2> kUniformDelayKeys = {"base_s", "amplitude_s"};
-constexpr std::array<Variant<DelayKind>, 4> kDelayModels = {{
+constexpr std::array<std::string_view, 5> kAcousticDelayKeys = {
+    "sound_speed_mps", "processing_s", "jitter_s", "max_range_m", "loss_at_max_range"};
+constexpr std::array<std::string_view, 2> kTraceDelayKeys = {"file", "interpolation"};
+constexpr std::array<Variant<DelayKind>, 6> kDelayModels = {{
     {"none", DelayKind::kNone, {}},
     {"constant", DelayKind::kConstant, kConstantDelayKeys},
     {"sinusoid", DelayKind::kSinusoid, kSinusoidDelayKeys},
     {"uniform", DelayKind::kUniform, kUniformDelayKeys},
+    {"acoustic", DelayKind::kAcoustic, kAcousticDelayKeys},
+    {"trace", DelayKind::kTrace, kTraceDelayKeys},
 }};
 
 constexpr std::array<std::string_view, 1> kBernoulliLossKeys = {"probability"};
-constexpr std::array<Variant<LossKind>, 2> kLossModels = {{
+constexpr std::array<std::string_view, 4> kGilbertElliottLossKeys = {
+    "p_good_to_bad", "p_bad_to_good", "loss_good", "loss_bad"};
+constexpr std::array<Variant<LossKind>, 3> kLossModels = {{
     {"none", LossKind::kNone, {}},
     {"bernoulli", LossKind::kBernoulli, kBernoulliLossKeys},
+    {"gilbert_elliott", LossKind::kGilbertElliott, kGilbertElliottLossKeys},
 }};
 
 constexpr std::array<std::string_view, 6> kOceanCurrentKeys = {
@@ -194,6 +208,8 @@ constexpr Bound kPositiveSeconds{0.0, true, kMaxSeconds, false,
                                  "must be a positive number of seconds, at most 1e9"};
 constexpr Bound kSeconds{0.0, false, kMaxSeconds, false, "must be a number of seconds in [0, 1e9]"};
 constexpr Bound kProbability{0.0, false, 1.0, true, "must be in [0, 1)"};
+constexpr Bound kClosedProbability{0.0, false, 1.0, false, "must be in [0, 1]"};
+constexpr Bound kTransitionProbability{0.0, true, 1.0, false, "must be in (0, 1]"};
 constexpr Bound kControlRate{0.0, true, kMaxControlRateHz, false,
                              "must be a positive number <= 10000"};
 // Physical magnitudes. A finite but absurd value (a position of 1e308 m, a gain of 1e300)
@@ -430,7 +446,16 @@ struct Table {
 /// Converts TOML nodes to checked values; every failure throws a located ScenarioError.
 class Reader {
  public:
-  explicit Reader(std::string file) : file_(std::move(file)) {}
+  /// `base_dir`: where relative paths in the scenario (trace files) start.
+  Reader(std::string file, std::string base_dir)
+      : file_(std::move(file)), base_dir_(std::move(base_dir)) {}
+
+  const std::string& file() const { return file_; }
+  /// A path written in the scenario, as the process opens it.
+  std::string Resolve(const std::string& path) const {
+    const std::filesystem::path p(path);
+    return p.is_absolute() || base_dir_.empty() ? path : (std::filesystem::path(base_dir_) / p).string();
+  }
 
   /// "<file>:<line>: <key>: <what> (got <got>); <fix>"
   [[noreturn]] void Fail(int line, const std::string& key, std::string_view what,
@@ -658,6 +683,7 @@ class Reader {
   }
 
   std::string file_;
+  std::string base_dir_;
 };
 
 // ---------------------------------------------------------------------------------------
@@ -842,11 +868,149 @@ void ReadLeader(const Reader& r, const Table& t, LeaderConfig* leader) {
   }
 }
 
+/// The whole of a regular file of at most kMaxScenarioBytes; throws ScenarioError
+/// ("<path>: cannot read <what> ...").
+std::string ReadLimitedFile(const std::string& path, const std::string& what) {
+  std::string error;
+  const int fd = OpenRegularFile(path, what, kMaxScenarioBytes, &error);
+  if (fd < 0) throw ScenarioError(error);
+  std::string text;
+  char buffer[1 << 16];
+  for (;;) {
+    const ssize_t count = read(fd, buffer, sizeof(buffer));
+    if (count < 0 && errno == EINTR) continue;
+    if (count <= 0) {
+      const int e = errno;
+      close(fd);
+      if (count < 0) {
+        throw ScenarioError(path + ": cannot read " + what + " (" +
+                            std::error_code(e, std::generic_category()).message() + ")");
+      }
+      break;
+    }
+    text.append(buffer, static_cast<std::size_t>(count));
+    if (text.size() > kMaxScenarioBytes) {  // grew since it was opened
+      close(fd);
+      throw ScenarioError(path + ": cannot read " + what +
+                          ": it grew beyond the limit of " +
+                          std::to_string(kMaxScenarioBytes) + " bytes while being read");
+    }
+  }
+  return text;
+}
+
+/// One number of a trace row: the whole field must be a finite number in [0, 1e9].
+bool ParseTraceNumber(std::string field, double* out) {
+  const auto blank = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
+  while (!field.empty() && blank(field.back())) field.pop_back();
+  std::size_t first = 0;
+  while (first < field.size() && blank(field[first])) ++first;
+  field = field.substr(first);
+  if (field.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(field.c_str(), &end);
+  if (end != field.c_str() + field.size() || errno == ERANGE) return false;
+  *out = v;
+  return std::isfinite(v) && v >= 0.0 && v <= kMaxSeconds;
+}
+
+/// The rows of a delay trace CSV: "t_s, delay_s" per line, an optional header line
+/// "t_s, delay_s", '#' comments and blank lines. Problems are reported at the CSV's line.
+void ParseTraceText(const std::string& text, const std::string& csv, DelayTrace* trace) {
+  std::istringstream in(text);
+  std::string line;
+  const std::string fix = "each line is \"t_s, delay_s\": seconds, t_s strictly increasing, "
+                          "delays finite and in [0, 1e9]";
+  for (int number = 1; std::getline(in, line); ++number) {
+    const auto hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const auto fail = [&](const std::string& what) {
+      throw ScenarioError(csv + ":" + std::to_string(number) + ": " + what + " (got " +
+                          Quoted(line.substr(0, kMaxShownChars)) + "); " + fix);
+    };
+    const auto comma = line.find(',');
+    if (comma == std::string::npos || line.find(',', comma + 1) != std::string::npos) {
+      fail("a trace row needs exactly two fields, t_s and delay_s");
+    }
+    double t = 0.0, d = 0.0;
+    const bool t_ok = ParseTraceNumber(line.substr(0, comma), &t);
+    const bool d_ok = ParseTraceNumber(line.substr(comma + 1), &d);
+    if (!t_ok || !d_ok) {
+      std::string compact;
+      for (char c : line) {
+        if (c != ' ' && c != '\t' && c != '\r') compact += c;
+      }
+      if (trace->t_s.empty() && compact == "t_s,delay_s") continue;  // the header
+      fail(t_ok ? "delay_s must be a number of seconds in [0, 1e9]"
+                : "t_s must be a number of seconds in [0, 1e9]");
+    }
+    if (!trace->t_s.empty() && !(t > trace->t_s.back())) {
+      fail("t_s must increase strictly from row to row");
+    }
+    trace->t_s.push_back(t);
+    trace->delay_s.push_back(d);
+  }
+  if (trace->t_s.empty()) {
+    throw ScenarioError(csv + ":1: the trace has no rows; " + fix);
+  }
+}
+
+void ReadTraceDelay(const Reader& r, const Table& t, DelayConfig* delay) {
+  auto trace = std::make_shared<DelayTrace>();
+  const std::string hint = "file is a CSV of \"t_s, delay_s\" rows, relative to the scenario file";
+  const toml::node& node = r.Require(t, "file", hint);
+  trace->file = r.ToString(node, t.KeyOf("file"), hint);
+  if (trace->file.empty()) r.FailAt(node, t.KeyOf("file"), "must not be empty", hint);
+  if (const toml::node* how = t.Get("interpolation")) {
+    const std::string key = t.KeyOf("interpolation");
+    const std::string fix = "use \"linear\" (between rows) or \"hold\" (the row at or before t)";
+    const std::string v = r.ToString(*how, key, fix);
+    if (v != "linear" && v != "hold") r.FailAt(*how, key, "unknown interpolation", fix);
+    trace->hold = v == "hold";
+  }
+  const std::string csv = r.Resolve(trace->file);
+  try {
+    ParseTraceText(ReadLimitedFile(csv, "delay trace"), csv, trace.get());
+  } catch (const ScenarioError& e) {
+    r.Fail(LineOf(node), t.KeyOf("file"), e.what(), std::nullopt,
+           "fix the trace, or the path (relative to the scenario file)");
+  }
+  delay->trace = std::move(trace);
+}
+
+constexpr Bound kSoundSpeed{0.0, true, 1e5, false, "must be a positive speed, at most 1e5 m/s"};
+constexpr Bound kRange{0.0, true, 1e7, false, "must be a positive distance, at most 1e7 m"};
+
+void ReadAcousticDelay(const Reader& r, const Table& t, DelayConfig* delay) {
+  r.ReadNumber(t, "sound_speed_mps", kSoundSpeed, "the speed of sound in water is about 1500 m/s",
+               &delay->sound_speed_mps);
+  r.ReadNumber(t, "processing_s", kSeconds, "processing_s is the modem's latency in seconds",
+               &delay->processing_s);
+  r.ReadNumber(t, "jitter_s", kSeconds,
+               "jitter_s adds a seeded U(0, jitter_s) to every message's delay",
+               &delay->jitter_s);
+  delay->max_range_m = r.RequireNumber(
+      t, "max_range_m", kRange, "max_range_m is the modem's range: beyond it a message is lost");
+  r.ReadNumber(t, "loss_at_max_range", kClosedProbability,
+               "the loss probability rises from 0 at half the range to this at max_range_m",
+               &delay->loss_at_max_range);
+}
+
 DelayConfig ReadDelay(const Reader& r, const Table& t) {
   r.CheckKeys(t, kDelayKeys);
   DelayConfig delay;
   delay.kind = r.ReadVariant(t, "model", kDelayModels, "delay model");
   if (delay.kind == DelayKind::kNone) return delay;
+  if (delay.kind == DelayKind::kAcoustic) {
+    ReadAcousticDelay(r, t, &delay);
+    return delay;
+  }
+  if (delay.kind == DelayKind::kTrace) {
+    ReadTraceDelay(r, t, &delay);
+    return delay;
+  }
   delay.base_s = r.RequireNumber(t, "base_s", kSeconds, "base_s is the mean delay in seconds");
   if (delay.kind == DelayKind::kConstant) return delay;
 
@@ -880,6 +1044,16 @@ LossConfig ReadLoss(const Reader& r, const Table& t) {
     loss.probability = r.RequireNumber(
         t, "probability", kProbability,
         "probability is the chance that a message is dropped; 1 would drop every message");
+  }
+  if (loss.kind == LossKind::kGilbertElliott) {
+    const std::string_view move = "the chance per message of moving between the good and bad state";
+    loss.p_good_to_bad = r.RequireNumber(t, "p_good_to_bad", kTransitionProbability, move);
+    loss.p_bad_to_good = r.RequireNumber(t, "p_bad_to_good", kTransitionProbability, move);
+    loss.loss_good = r.RequireNumber(
+        t, "loss_good", kProbability,
+        "loss_good is the loss probability in the good state; 1 would drop every message");
+    loss.loss_bad = r.RequireNumber(t, "loss_bad", kClosedProbability,
+                                    "loss_bad is the loss probability in the bad state");
   }
   return loss;
 }
@@ -931,11 +1105,33 @@ void ReadLinks(const Reader& r, const Table& channel, Scenario* s) {
   }
 }
 
+void ReadModems(const Reader& r, const Table& channel, Scenario* s) {
+  const std::string_view hint = "the modem transmits at most one state per min_interval_s";
+  r.ReadNumber(channel, "modem_min_interval_s", kSeconds, hint, &s->modem_min_interval_s);
+  std::set<int> seen;
+  for (const Table& t : r.ArrayOfTables(channel, "modem")) {
+    r.CheckKeys(t, kModemKeys);
+    ModemConfig m;
+    m.id = static_cast<int>(r.RequireInteger(
+        t, "id",
+        {0, s->followers,
+         "must be 0 (the leader) or a follower id in 1.." + std::to_string(s->followers)},
+        "id is the sending vehicle: 0 for the leader or a follower id"));
+    if (!seen.insert(m.id).second) {
+      r.FailAt(*t.Get("id"), t.KeyOf("id"), "duplicate modem id",
+               "give each vehicle at most one [[channel.modem]] table");
+    }
+    m.min_interval_s = r.RequireNumber(t, "min_interval_s", kSeconds, hint);
+    s->modems.push_back(m);
+  }
+}
+
 void ReadChannel(const Reader& r, const Table& t, Scenario* s) {
   r.CheckKeys(t, kChannelKeys);
   s->delay = ReadDelay(r, r.Child(t, "delay", "write [channel.delay] with model = ..."));
   s->loss = ReadLoss(r, r.Child(t, "loss", "write [channel.loss] with model = ..."));
   ReadLinks(r, t, s);
+  ReadModems(r, t, s);
 }
 
 /// The line of the first of `keys` present in `t`, else the table's line.
@@ -1144,31 +1340,7 @@ int LineOfTooDeepKey(std::string_view text) {
 }  // namespace
 
 Scenario LoadScenario(const std::string& path) {
-  std::string error;
-  const int fd = OpenRegularFile(path, "scenario file", kMaxScenarioBytes, &error);
-  if (fd < 0) throw ScenarioError(error);
-  std::string text;
-  char buffer[1 << 16];
-  for (;;) {
-    const ssize_t count = read(fd, buffer, sizeof(buffer));
-    if (count < 0 && errno == EINTR) continue;
-    if (count <= 0) {
-      const int e = errno;
-      close(fd);
-      if (count < 0) {
-        throw ScenarioError(path + ": cannot read scenario file (" +
-                            std::error_code(e, std::generic_category()).message() + ")");
-      }
-      break;
-    }
-    text.append(buffer, static_cast<std::size_t>(count));
-    if (text.size() > kMaxScenarioBytes) {  // grew since it was opened
-      close(fd);
-      throw ScenarioError(path + ": cannot read scenario file: it grew beyond the limit of " +
-                          std::to_string(kMaxScenarioBytes) + " bytes while being read");
-    }
-  }
-  return ParseScenario(text, path);
+  return ParseScenario(ReadLimitedFile(path, "scenario file"), path);
 }
 
 Scenario ParseScenario(const std::string& text, const std::string& path) {
@@ -1192,7 +1364,12 @@ Scenario ParseScenario(const std::string& text, const std::string& path) {
   s.source_text = text;
   s.name = std::filesystem::path(path).stem().string();
   if (s.name.empty()) s.name = "scenario";  // a file name holds no '/': never a path
-  ReadScenario(Reader(file), root, &s);
+  // Trace files are relative to the scenario file's directory; text that does not come
+  // from a file (a log's copy, named by a label) resolves them in the working directory.
+  std::error_code error;
+  const bool is_file = !path.empty() && std::filesystem::is_regular_file(path, error);
+  const std::string base = is_file ? std::filesystem::path(path).parent_path().string() : "";
+  ReadScenario(Reader(file, base), root, &s);
   return s;
 }
 

@@ -22,7 +22,9 @@ Scenario LoadScenario(const std::string& path);
 /// returns false (the caller exits with status 2).
 bool LoadScenarioOrReport(const std::string& who, const std::string& path, Scenario* out);
 
-/// Parses scenario text; `path` is used in messages, for source_path and for the default name.
+/// Parses scenario text; `path` is used in messages, for source_path and for the default
+/// name. Relative trace files are read from the directory of `path` if it names a regular
+/// file, else from the working directory (the text of a log).
 Scenario ParseScenario(const std::string& text, const std::string& path);
 
 }  // namespace shoal

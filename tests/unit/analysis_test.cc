@@ -494,6 +494,33 @@ TEST(Analysis, DrawnDelayOtherThanTheScenarioModelIsAMismatch) {
   EXPECT_NEAR(a.channel.delay_error_s.max, 0.16, 1e-12);   // 0.26 realised - 0.1
 }
 
+// Acoustic: a drawn delay outside [processing_s, max_range / c + processing_s + jitter_s]
+// is a mismatch; "modem busy" decisions are counted apart and not as sent, "out of
+// range" ones as dropped.
+TEST(Analysis, AcousticBoundsBusyAndRangeStatuses) {
+  std::string toml = kScenario;
+  const std::string from = "model = \"constant\"\nbase_s = 0.1\n";
+  toml.replace(toml.find(from), from.size(),
+               "model = \"acoustic\"\nmax_range_m = 1500\nprocessing_s = 0.1\n");
+  const std::string path = Tmp("acoustic.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", toml));
+    log.Write(channels::ChannelEvents(), 0, Event(0, 1, 0, 0.5, 500000, 0, 0));     // in bounds
+    log.Write(channels::ChannelEvents(), 20000, Event(0, 1, 20000, 1.2, 1220000, 0, 1));  // > 1.1
+    log.Write(channels::ChannelEvents(), 40000, Event(0, 1, 40000, 0.0, 0, 4, 2));  // busy
+    log.Write(channels::ChannelEvents(), 60000, Event(0, 1, 60000, 0.9, 0, 5, 3));  // range
+  }
+  const RunAnalysis a = AnalyseRun(Load(path));
+  EXPECT_EQ(a.channel.model_mismatches, 1);
+  EXPECT_EQ(a.channel.skipped_busy, 1);
+  EXPECT_EQ(a.channel.dropped_range, 1);
+  EXPECT_EQ(a.channel.sent, 3);
+  EXPECT_EQ(a.channel.delivered, 2);
+  EXPECT_EQ(a.channel.dropped, 1);
+  EXPECT_EQ(a.channel.dropped_invalid, 0);
+}
+
 TEST(Analysis, SinusoidConfiguredDelayIsTauAtSendTime) {
   std::string toml = kScenario;
   const std::string from = "model = \"constant\"\nbase_s = 0.1\n";

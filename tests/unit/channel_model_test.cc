@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -713,6 +714,244 @@ TEST(ChannelWheelRegression, DelaysBeyondTheWheelWaitAsideAndKeepTheirOrder) {
   Channel<int> huge(std::vector<Link>{links[0]}, kPeriod);
   huge.Submit(0, 1, 0, 1, &d);
   EXPECT_EQ(huge.pending(), 1u);
+}
+
+// ---------------------------------------------------------------------------------------
+// Acoustic, trace, Gilbert-Elliott and modem rate limit
+
+DelayConfig Acoustic(double max_range, double processing, double jitter = 0.0,
+                     double loss_at_max = 0.0) {
+  DelayConfig c;
+  c.kind = DelayKind::kAcoustic;
+  c.sound_speed_mps = 1500.0;
+  c.processing_s = processing;
+  c.jitter_s = jitter;
+  c.max_range_m = max_range;
+  c.loss_at_max_range = loss_at_max;
+  return c;
+}
+
+Link OneLink(int from, int to, const DelayConfig& delay, const LossConfig& loss = {}) {
+  Link l;
+  l.from = from;
+  l.to = to;
+  l.delay = delay;
+  l.loss = loss;
+  l.rng = Rng(3, 0x11A4ULL + from, to);
+  l.loss_rng = Rng(3, 0x6E11ULL + from, to);
+  return l;
+}
+
+// tau = range / c + processing, range from the sender's position at send time to the
+// receiver's newest state sent strictly before it; to 1e-9 s.
+TEST(AcousticDelay, RangeOverSoundSpeedPlusProcessing) {
+  Channel<int> ch({OneLink(0, 1, Acoustic(5000.0, 0.3))}, kPeriod);
+  std::vector<ChannelDecision> d;
+  ch.Submit(1, 0, 0, 0, &d, Vec3(100.0, 200.0, 10.0));  // receiver at tick 0
+  ch.Submit(0, 0, kPeriod, 0, &d, Vec3(-1100.0, 700.0, 30.0));
+  ASSERT_EQ(d.size(), 1u);
+  const double range = (Vec3(-1100.0, 700.0, 30.0) - Vec3(100.0, 200.0, 10.0)).norm();
+  EXPECT_NEAR(d[0].delay_s, range / 1500.0 + 0.3, 1e-9);
+  EXPECT_EQ(d[0].status, ChannelDecision::kDelivered);
+  EXPECT_EQ(d[0].deliver_utime, DeliveryTime(kPeriod, d[0].delay_s, kPeriod));
+}
+
+// The receiver's state of the send tick itself is never used, whichever order the tick's
+// states enter in: the result does not depend on arrival order within a tick.
+TEST(AcousticDelay, ReceiverPositionIsItsStateBeforeTheSendTickWhateverTheOrder) {
+  const Vec3 rx_old(0.0, 0.0, 0.0), rx_now(900.0, 0.0, 0.0), tx(0.0, 1500.0, 0.0);
+  std::vector<double> delays;
+  for (bool receiver_first : {true, false}) {
+    Channel<int> ch({OneLink(0, 1, Acoustic(5000.0, 0.0)), OneLink(1, 2, Constant(0.1))},
+                    kPeriod);
+    std::vector<ChannelDecision> d;
+    ch.Submit(1, 0, 0, 0, &d, rx_old);
+    if (receiver_first) ch.Submit(1, 1, kPeriod, 0, &d, rx_now);
+    ch.Submit(0, 0, kPeriod, 0, &d, tx);
+    if (!receiver_first) ch.Submit(1, 1, kPeriod, 0, &d, rx_now);
+    for (const ChannelDecision& e : d) {
+      if (e.sender == 0) delays.push_back(e.delay_s);
+    }
+  }
+  ASSERT_EQ(delays.size(), 2u);
+  EXPECT_NEAR(delays[0], 1.0, 1e-12);  // 1500 m from rx_old
+  EXPECT_EQ(delays[0], delays[1]);
+}
+
+// Before the receiver's first state its position is unknown: range 0.
+TEST(AcousticDelay, UnknownReceiverPositionCountsAsRangeZero) {
+  Channel<int> ch({OneLink(0, 1, Acoustic(5000.0, 0.2))}, kPeriod);
+  std::vector<ChannelDecision> d;
+  ch.Submit(0, 0, 0, 0, &d, Vec3(3000.0, 0.0, 0.0));
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_EQ(d[0].delay_s, 0.2);
+}
+
+TEST(AcousticDelay, BeyondMaxRangeIsLostAndRangeLossRisesFromHalfRange) {
+  Channel<int> ch({OneLink(0, 1, Acoustic(1000.0, 0.0, 0.0, 0.4))}, kPeriod);
+  std::vector<ChannelDecision> d;
+  ch.Submit(1, 0, 0, 0, &d, Vec3::Zero());
+  ch.Submit(0, 0, kPeriod, 0, &d, Vec3(1000.5, 0.0, 0.0));
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_EQ(d[0].status, ChannelDecision::kDroppedRange);
+  EXPECT_STREQ(DropReason(d[0].status), "out of acoustic range");
+  EXPECT_EQ(AcousticRangeLoss(Acoustic(1000.0, 0.0, 0.0, 0.4), 400.0), 0.0);
+  EXPECT_NEAR(AcousticRangeLoss(Acoustic(1000.0, 0.0, 0.0, 0.4), 750.0), 0.2, 1e-15);
+  EXPECT_NEAR(AcousticRangeLoss(Acoustic(1000.0, 0.0, 0.0, 0.4), 1000.0), 0.4, 1e-15);
+  // At 750 m a fifth of the messages are lost.
+  int lost = 0;
+  const int n = 200000;
+  for (int k = 2; k < n + 2; ++k) {
+    d.clear();
+    ch.Submit(1, k, (2 * k) * kPeriod, 0, &d, Vec3::Zero());
+    ch.Submit(0, k, (2 * k + 1) * kPeriod, 0, &d, Vec3(750.0, 0.0, 0.0));
+    ch.DeliverDue((2 * k + 1) * kPeriod + 2000000, [](int, const int&) {});
+    lost += d.back().status == ChannelDecision::kDroppedLoss;
+  }
+  EXPECT_NEAR(static_cast<double>(lost) / n, 0.2, 0.005);
+}
+
+TEST(AcousticDelay, BoundsJitterAndLookahead) {
+  const DelayConfig c = Acoustic(3000.0, 0.25, 0.1);
+  EXPECT_NEAR(MaxDelaySeconds(c), 2.0 + 0.25 + 0.1, 1e-15);
+  EXPECT_EQ(MinDelaySeconds(c), 0.25);
+  // Lookahead from processing_s alone: the range can be about 0.
+  EXPECT_EQ(MinLagTicks({OneLink(0, 1, c)}, kPeriod), MinDeliveryLagTicks(0.25, kPeriod));
+  EXPECT_EQ(MinLagTicks({OneLink(0, 1, Acoustic(3000.0, 0.0))}, kPeriod), 1);
+  Rng rng(5);
+  for (int k = 0; k < 10000; ++k) {
+    const double tau = DelaySeconds(c, 0.0, &rng, 1500.0);
+    ASSERT_GE(tau, 1.25);
+    ASSERT_LT(tau, 1.35);
+  }
+}
+
+std::shared_ptr<const DelayTrace> Trace(bool hold) {
+  auto t = std::make_shared<DelayTrace>();
+  t->t_s = {1.0, 2.0, 4.0};
+  t->delay_s = {0.5, 1.5, 0.7};
+  t->hold = hold;
+  return t;
+}
+
+TEST(TraceDelay, LinearOrHeldAndConstantOutsideTheRows) {
+  DelayConfig c;
+  c.kind = DelayKind::kTrace;
+  c.trace = Trace(false);
+  EXPECT_EQ(DelaySeconds(c, 0.0, nullptr), 0.5);  // before the first row: the first delay
+  EXPECT_EQ(DelaySeconds(c, 1.0, nullptr), 0.5);
+  EXPECT_NEAR(DelaySeconds(c, 1.25, nullptr), 0.75, 1e-15);
+  EXPECT_NEAR(DelaySeconds(c, 3.0, nullptr), 1.1, 1e-15);
+  EXPECT_EQ(DelaySeconds(c, 4.0, nullptr), 0.7);
+  EXPECT_EQ(DelaySeconds(c, 100.0, nullptr), 0.7);  // after the last row: the last delay
+  c.trace = Trace(true);
+  EXPECT_EQ(DelaySeconds(c, 1.999999, nullptr), 0.5);
+  EXPECT_EQ(DelaySeconds(c, 2.0, nullptr), 1.5);
+  EXPECT_EQ(DelaySeconds(c, 3.9, nullptr), 1.5);
+  EXPECT_EQ(MaxDelaySeconds(c), 1.5);
+  EXPECT_EQ(MinDelaySeconds(c), 0.5);
+}
+
+LossConfig GilbertElliott(double gb, double bg, double lg, double lb) {
+  LossConfig c;
+  c.kind = LossKind::kGilbertElliott;
+  c.p_good_to_bad = gb;
+  c.p_bad_to_good = bg;
+  c.loss_good = lg;
+  c.loss_bad = lb;
+  return c;
+}
+
+// Over 1e6 draws: the loss rate is the stationary (p_gb loss_bad + p_bg loss_good) /
+// (p_gb + p_bg), and with loss_bad = 1, loss_good = 0 a burst of losses (a sojourn in the
+// bad state) lasts 1 / p_bg messages on average.
+TEST(GilbertElliottLoss, LossRateAndBurstLengthMatchTheirClosedForms) {
+  const int n = 1000000;
+  {
+    const LossConfig c = GilbertElliott(0.05, 0.25, 0.0, 1.0);
+    Rng rng(9);
+    bool bad = false, prev = false;
+    std::int64_t lost = 0, bursts = 0;
+    for (int k = 0; k < n; ++k) {
+      const bool l = Dropped(c, &rng, &bad);
+      lost += l;
+      bursts += l && !prev;
+      prev = l;
+    }
+    EXPECT_NEAR(static_cast<double>(lost) / n, 0.05 / 0.3, 0.005);
+    EXPECT_NEAR(static_cast<double>(lost) / bursts, 1.0 / 0.25, 0.1);
+  }
+  {
+    const LossConfig c = GilbertElliott(0.02, 0.1, 0.01, 0.6);
+    Rng rng(10);
+    bool bad = false;
+    std::int64_t lost = 0;
+    for (int k = 0; k < n; ++k) lost += Dropped(c, &rng, &bad);
+    EXPECT_NEAR(static_cast<double>(lost) / n, (0.02 * 0.6 + 0.1 * 0.01) / 0.12, 0.006);
+  }
+}
+
+// Each link has its own chain and stream: a link's losses do not depend on the others.
+TEST(GilbertElliottLoss, PerLinkStreamsAreIndependentAndSeeded) {
+  Scenario s = PaperScenario(4);
+  s.loss = GilbertElliott(0.1, 0.3, 0.0, 1.0);
+  const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
+  const auto outcomes = [&](bool only_leader) {
+    Channel<int> ch(BuildLinks(s, topo), kPeriod);
+    std::vector<ChannelDecision> d;
+    std::vector<int> leader_to_1;
+    for (int k = 0; k < 2000; ++k) {
+      for (int id = 0; id <= (only_leader ? 0 : 5); ++id) ch.Submit(id, k, k * kPeriod, 0, &d);
+      ch.DeliverDue(k * kPeriod, [](int, const int&) {});
+    }
+    for (const ChannelDecision& e : d) {
+      if (e.sender == 0 && e.receiver == 1) leader_to_1.push_back(e.status);
+    }
+    return leader_to_1;
+  };
+  const std::vector<int> a = outcomes(false), b = outcomes(true);
+  EXPECT_EQ(a, b);
+  EXPECT_GT(std::count(a.begin(), a.end(), ChannelDecision::kDroppedLoss), 100);
+}
+
+// A busy modem skips the state: a "modem busy" decision per link, nothing queued, no draw.
+TEST(ModemRateLimit, SenderTransmitsAtMostOncePerInterval) {
+  Scenario s = PaperScenario(2);
+  s.loss = Bernoulli(0.3);
+  s.modem_min_interval_s = 1.0;
+  s.modems = {ModemConfig{3, 0.0}};  // follower 3 unlimited
+  const std::vector<Micros> intervals = ModemIntervals(s);
+  EXPECT_EQ(intervals, (std::vector<Micros>{1000000, 1000000, 1000000, 0, 1000000, 1000000}));
+  const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
+  Channel<int> ch(BuildLinks(s, topo), kPeriod, 1 << 20, intervals);
+  Channel<int> unlimited(BuildLinks(s, topo), kPeriod);
+  std::vector<ChannelDecision> d, f;
+  std::vector<int> sent_ticks;
+  for (int k = 0; k <= 150; ++k) {
+    d.clear();
+    ch.Submit(0, k, k * kPeriod, 0, &d);
+    if (d[0].status != ChannelDecision::kSkippedBusy) sent_ticks.push_back(k);
+    for (const ChannelDecision& e : d) {
+      EXPECT_EQ(e.status == ChannelDecision::kSkippedBusy, k % 50 != 0);
+    }
+    if (k % 50 == 0) unlimited.Submit(0, k, k * kPeriod, 0, &f);
+    d.clear();
+    ch.Submit(3, k, k * kPeriod, 0, &d);
+    for (const ChannelDecision& e : d) EXPECT_NE(e.status, ChannelDecision::kSkippedBusy);
+  }
+  EXPECT_EQ(sent_ticks, (std::vector<int>{0, 50, 100, 150}));
+  EXPECT_STREQ(DropReason(ChannelDecision::kSkippedBusy), "modem busy");
+  // A skipped state draws nothing: the transmitted ones decide as an unlimited link's.
+  std::vector<ChannelDecision> sent;
+  Channel<int> again(BuildLinks(s, topo), kPeriod, 1 << 20, intervals);
+  for (int k = 0; k <= 150; ++k) again.Submit(0, k, k * kPeriod, 0, &sent);
+  sent.erase(std::remove_if(sent.begin(), sent.end(),
+                            [](const ChannelDecision& e) {
+                              return e.status == ChannelDecision::kSkippedBusy;
+                            }),
+             sent.end());
+  ASSERT_EQ(sent.size(), f.size());
+  for (std::size_t k = 0; k < f.size(); ++k) EXPECT_EQ(sent[k].status, f[k].status);
 }
 
 }  // namespace

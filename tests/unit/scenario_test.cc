@@ -477,6 +477,113 @@ TEST(ScenarioLoaderTest, ExampleInTheDocumentationIsValid) {
   EXPECT_GT(s.followers, 0);
 }
 
+// Acoustic, trace, Gilbert-Elliott and modem keys load as written.
+TEST(ScenarioLoaderTest, AcousticTraceGilbertElliottAndModemsLoad) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "shoal_trace_ok";
+  fs::remove_all(dir);  // what an earlier run left
+  fs::create_directories(dir / "traces");
+  WriteFileAt((dir / "traces/trial.csv").string(),
+              "# from a sea trial\nt_s, delay_s\n0, 0.8\n10.5, 1.2\n\n20,0.9\n");
+  const std::string text = std::string(kSwarmAndControl) +
+                           "[channel]\nmodem_min_interval_s = 1.5\n"
+                           "[channel.delay]\nmodel = \"acoustic\"\nmax_range_m = 2000\n"
+                           "processing_s = 0.2\njitter_s = 0.05\nloss_at_max_range = 0.3\n"
+                           "[channel.loss]\nmodel = \"gilbert_elliott\"\np_good_to_bad = 0.05\n"
+                           "p_bad_to_good = 0.3\nloss_good = 0.01\nloss_bad = 1\n"
+                           "[[channel.link]]\nfrom = 0\nto = 1\n"
+                           "delay = { model = \"trace\", file = \"traces/trial.csv\", "
+                           "interpolation = \"hold\" }\n"
+                           "[[channel.modem]]\nid = 2\nmin_interval_s = 0\n";
+  const Scenario s = LoadScenario(WriteFileAt((dir / "s.toml").string(), text));
+  EXPECT_EQ(s.delay.kind, DelayKind::kAcoustic);
+  EXPECT_EQ(s.delay.sound_speed_mps, 1500.0);  // default
+  EXPECT_EQ(s.delay.max_range_m, 2000.0);
+  EXPECT_EQ(s.delay.processing_s, 0.2);
+  EXPECT_EQ(s.delay.jitter_s, 0.05);
+  EXPECT_EQ(s.delay.loss_at_max_range, 0.3);
+  EXPECT_EQ(s.loss.kind, LossKind::kGilbertElliott);
+  EXPECT_EQ(s.loss.p_good_to_bad, 0.05);
+  EXPECT_EQ(s.loss.p_bad_to_good, 0.3);
+  EXPECT_EQ(s.loss.loss_good, 0.01);
+  EXPECT_EQ(s.loss.loss_bad, 1.0);
+  EXPECT_EQ(s.modem_min_interval_s, 1.5);
+  ASSERT_EQ(s.modems.size(), 1u);
+  EXPECT_EQ(s.modems[0].id, 2);
+  EXPECT_EQ(s.modems[0].min_interval_s, 0.0);
+  ASSERT_EQ(s.links.size(), 1u);
+  const DelayConfig& trace = *s.links[0].delay;
+  ASSERT_EQ(trace.kind, DelayKind::kTrace);
+  ASSERT_TRUE(trace.trace);
+  EXPECT_TRUE(trace.trace->hold);
+  EXPECT_EQ(trace.trace->file, "traces/trial.csv");
+  EXPECT_EQ(trace.trace->t_s, (std::vector<double>{0.0, 10.5, 20.0}));
+  EXPECT_EQ(trace.trace->delay_s, (std::vector<double>{0.8, 1.2, 0.9}));
+  // The path is relative to the scenario file, not to the working directory.
+  EXPECT_FALSE(fs::exists("traces/trial.csv"));
+}
+
+// Text that does not come from a file (a log's copy) resolves a trace in the working
+// directory.
+TEST(ScenarioLoaderTest, TraceOfTextWithoutAFileIsReadFromTheWorkingDirectory) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "shoal_trace_cwd";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  WriteFileAt((dir / "cwd_trace.csv").string(), "0, 0.4\n");
+  const std::string text = std::string(kSwarmAndControl) +
+                           "[channel.delay]\nmodel = \"trace\"\nfile = \"cwd_trace.csv\"\n";
+  const fs::path before = fs::current_path();
+  fs::current_path(dir);
+  Scenario s;
+  std::string error;
+  try {
+    s = ParseScenario(text, "scenario text in x.lcmlog (SHOAL_STATUS)");
+  } catch (const ScenarioError& e) {
+    error = e.what();
+  }
+  fs::current_path(before);
+  ASSERT_EQ(error, "");
+  ASSERT_TRUE(s.delay.trace);
+  EXPECT_EQ(s.delay.trace->delay_s, std::vector<double>{0.4});
+}
+
+// A bad trace is refused with the CSV's file and line, inside the scenario's located message.
+TEST(ScenarioLoaderTest, BadTraceRowsAreRefusedAtTheirCsvLine) {
+  const fs::path dir = fs::path(::testing::TempDir()) / "shoal_trace_bad";
+  fs::remove_all(dir);  // what an earlier run left
+  fs::create_directories(dir);
+  const std::string scenario = std::string(kSwarmAndControl) +
+                               "[channel.delay]\nmodel = \"trace\"\nfile = \"t.csv\"\n";
+  const std::string path = WriteFileAt((dir / "s.toml").string(), scenario);
+  const std::string csv = (dir / "t.csv").string();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"0, 0.1\n1, -0.5\n", csv + ":2: delay_s must be a number of seconds in [0, 1e9]"},
+      {"0, 0.1\n1, nan\n", csv + ":2: delay_s must be"},
+      {"0, 0.1\n\n0, 0.2\n", csv + ":3: t_s must increase strictly"},
+      {"0, 0.1\n2, 0.2\n1, 0.2\n", csv + ":3: t_s must increase strictly"},
+      {"0, 0.1, 3\n", csv + ":1: a trace row needs exactly two fields"},
+      {"x, 0.1\n", csv + ":1: t_s must be a number"},
+      {"# only a comment\nt_s,delay_s\n", csv + ":1: the trace has no rows"},
+      {"0, 1e308\n", csv + ":1: delay_s must be"},
+      {"0, 0.1\nt_s, delay_s\n", csv + ":2: t_s must be"},  // a header only comes first
+  };
+  for (const auto& [rows, expected] : cases) {
+    WriteFileAt(csv, rows);
+    std::string message;
+    try {
+      LoadScenario(path);
+    } catch (const ScenarioError& e) {
+      message = e.what();
+    }
+    EXPECT_EQ(message.rfind(path + ":12: channel.delay.file: " + expected, 0), 0u)
+        << rows << "\n" << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+  }
+  fs::remove(csv);
+  fs::create_directory(csv);  // not a regular file
+  const std::string message = ErrorOf(scenario, path);
+  EXPECT_TRUE(Contains(message, "it is a directory, not a regular file")) << message;
+}
+
 // ---------------------------------------------------------------------------------------
 // One rule, one snippet.
 
@@ -700,6 +807,54 @@ std::vector<RuleCase> RuleCases() {
        "metrics.position_tol_m: must be a positive number (got 0)"},
       {"VelocityTolNegative", base + "[metrics]\nvelocity_tol_mps = -1\n",
        "metrics.velocity_tol_mps: must be a positive number (got -1)"},
+      // Acoustic delay, trace delay, Gilbert-Elliott loss, modems.
+      {"AcousticWithoutMaxRange", base + "[channel.delay]\nmodel = \"acoustic\"\n",
+       "test.toml:10: channel.delay.max_range_m: missing required key"},
+      {"AcousticSoundSpeedZero",
+       base + "[channel.delay]\nmodel = \"acoustic\"\nmax_range_m = 100\nsound_speed_mps = 0\n",
+       "channel.delay.sound_speed_mps: must be a positive speed, at most 1e5 m/s (got 0)"},
+      {"AcousticLossAboveOne",
+       base + "[channel.delay]\nmodel = \"acoustic\"\nmax_range_m = 100\nloss_at_max_range = 1.5\n",
+       "channel.delay.loss_at_max_range: must be in [0, 1] (got 1.5)"},
+      {"AcousticKeyUnderConstant",
+       base + "[channel.delay]\nmodel = \"constant\"\nbase_s = 1\nmax_range_m = 100\n",
+       "channel.delay.max_range_m: not used by delay model \"constant\" (got 100); remove it, or "
+       "set model = \"acoustic\""},
+      {"AcousticKeyTypo",
+       base + "[channel.delay]\nmodel = \"acoustic\"\nmax_range_m = 100\nproccessing_s = 1\n",
+       "did you mean 'processing_s'?"},
+      {"TraceWithoutFile", base + "[channel.delay]\nmodel = \"trace\"\n",
+       "channel.delay.file: missing required key"},
+      {"TraceMissingFile", base + "[channel.delay]\nmodel = \"trace\"\nfile = \"no_such.csv\"\n",
+       "test.toml:12: channel.delay.file: no_such.csv: cannot read delay trace (No such file"},
+      {"TraceBadInterpolation",
+       base + "[channel.delay]\nmodel = \"trace\"\nfile = \"x.csv\"\ninterpolation = \"cubic\"\n",
+       "channel.delay.interpolation: unknown interpolation (got \"cubic\")"},
+      {"GilbertElliottMissingKey",
+       base + "[channel.loss]\nmodel = \"gilbert_elliott\"\np_good_to_bad = 0.1\n",
+       "channel.loss.p_bad_to_good: missing required key"},
+      {"GilbertElliottZeroTransition",
+       base + "[channel.loss]\nmodel = \"gilbert_elliott\"\np_good_to_bad = 0\n",
+       "channel.loss.p_good_to_bad: must be in (0, 1] (got 0)"},
+      {"GilbertElliottLossGoodOne",
+       base + "[channel.loss]\nmodel = \"gilbert_elliott\"\np_good_to_bad = 0.1\n"
+              "p_bad_to_good = 0.1\nloss_good = 1\nloss_bad = 1\n",
+       "channel.loss.loss_good: must be in [0, 1) (got 1)"},
+      {"GilbertElliottKeyUnderBernoulli",
+       base + "[channel.loss]\nmodel = \"bernoulli\"\nprobability = 0.1\nloss_bad = 1\n",
+       "channel.loss.loss_bad: not used by loss model \"bernoulli\""},
+      {"ModemIntervalNegative", base + "[channel]\nmodem_min_interval_s = -1\n",
+       "channel.modem_min_interval_s: must be a number of seconds in [0, 1e9] (got -1)"},
+      {"ModemUnknownVehicle", base + "[[channel.modem]]\nid = 4\nmin_interval_s = 1\n",
+       "channel.modem[0].id: must be 0 (the leader) or a follower id in 1..3 (got 4)"},
+      {"ModemDuplicate",
+       base + "[[channel.modem]]\nid = 1\nmin_interval_s = 1\n[[channel.modem]]\nid = 1\n"
+              "min_interval_s = 2\n",
+       "test.toml:14: channel.modem[1].id: duplicate modem id (got 1)"},
+      {"ModemMissingInterval", base + "[[channel.modem]]\nid = 1\n",
+       "channel.modem[0].min_interval_s: missing required key"},
+      {"ModemKeyTypo", base + "[[channel.modem]]\nid = 1\nmin_interval = 1\n",
+       "did you mean 'min_interval_s'?"},
       // [[follower]]
       {"FollowerKeyTypo", base + "[[follower]]\nid = 1\npositon_m = [0, 0, 0]\n",
        "follower[0].positon_m: unknown key 'positon_m' in [[follower]]; did you mean "
