@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <set>
 
 namespace shoal::render {
 namespace {
@@ -274,7 +275,51 @@ float DensityAlpha(std::size_t points, float floor_alpha) {
 }
 
 std::string LinkName(const LinkSeries& l) {
-  return std::to_string(l.from) + " \xE2\x86\x92 " + std::to_string(l.to);  // →
+  if (l.to < 0) return "all links";
+  const std::string from = l.from < 0 ? "all" : std::to_string(l.from);
+  return from + " \xE2\x86\x92 " + std::to_string(l.to);  // →
+}
+
+// At most this many rows in the per-link panels. Beyond it a figure of a row per link
+// grows past any image size (400 densely linked followers: 160,000 links, 10^7 px) and
+// says nothing a reader can see; links are then grouped by receiver, or all into one row.
+constexpr std::size_t kMaxLinkRows = 48;
+
+// `links` (sorted by receiver) as at most kMaxLinkRows rows: unchanged if they fit, else
+// one series per receiver (from = -1), else one for all (from = to = -1); each merged
+// series in time order, as the panels read them.
+std::vector<LinkSeries> GroupLinks(const std::vector<const LinkSeries*>& links) {
+  std::set<int> receivers;
+  for (const LinkSeries* l : links) receivers.insert(l->to);
+  const bool by_receiver = receivers.size() <= kMaxLinkRows;
+  std::map<int, std::vector<const LinkSeries*>> groups;
+  for (const LinkSeries* l : links) groups[by_receiver ? l->to : -1].push_back(l);
+  std::vector<LinkSeries> out;
+  for (const auto& [to, members] : groups) {
+    LinkSeries g;
+    g.from = -1;
+    g.to = to;
+    std::vector<std::array<double, 3>> sent;  // send time, delay, model delay (NaN: none)
+    bool model = true;
+    for (const LinkSeries* l : members) {
+      model = model && l->model_delay_s.size() == l->delay_s.size();
+      for (std::size_t i = 0; i < l->sent_s.size(); ++i) {
+        sent.push_back({l->sent_s[i], l->delay_s[i],
+                        i < l->model_delay_s.size() ? l->model_delay_s[i] : NAN});
+      }
+      g.dropped_s.insert(g.dropped_s.end(), l->dropped_s.begin(), l->dropped_s.end());
+    }
+    std::stable_sort(sent.begin(), sent.end(),
+                     [](const auto& a, const auto& b) { return a[0] < b[0]; });
+    std::sort(g.dropped_s.begin(), g.dropped_s.end());
+    for (const auto& [t, d, m] : sent) {
+      g.sent_s.push_back(t);
+      g.delay_s.push_back(d);
+      if (model) g.model_delay_s.push_back(m);
+    }
+    out.push_back(std::move(g));
+  }
+  return out;
 }
 
 // Row of link k (of n) in the per-link panels: the first link at the top.
@@ -455,6 +500,12 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
   for (const LinkSeries& l : links) sorted.push_back(&l);
   std::sort(sorted.begin(), sorted.end(),
             [](auto* a, auto* b) { return a->to != b->to ? a->to < b->to : a->from < b->from; });
+  std::vector<LinkSeries> grouped;
+  if (sorted.size() > kMaxLinkRows) {
+    grouped = GroupLinks(sorted);
+    sorted.clear();
+    for (const LinkSeries& l : grouped) sorted.push_back(&l);
+  }
   double t_end = 0.0, t_start = INFINITY;
   for (const LinkSeries* l : sorted) {
     for (const std::vector<double>* v : {&l->sent_s, &l->dropped_s}) {
@@ -476,7 +527,14 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
     f.height_px = std::max(1000, 3 * (22 * rows + 90) + 110);
     f.scale = std::clamp(static_cast<float>(f.width_px) / 1600.0f, 0.75f, 3.0f);
   }
-  f.title = Title(o.scenario, "channel: realised delays and drops");
+  f.title = Title(o.scenario, grouped.empty() ? "channel: realised delays and drops"
+                                               : "channel: realised delays and drops (" +
+                                                     std::to_string(links.size()) +
+                                                     " links, grouped by receiver)");
+  if (!grouped.empty() && grouped.front().to < 0) {
+    f.title = Title(o.scenario, "channel: realised delays and drops (" +
+                                    std::to_string(links.size()) + " links, in one row)");
+  }
   f.columns = 1;
   std::vector<int> receivers;
   for (const LinkSeries* l : sorted) {
@@ -487,9 +545,11 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
   if (tau.valid())
     f.legend.push_back({"configured \xCF\x84(t)", kInk, LineStyle::kDashed, Marker::kNone, 1.8f});
   f.legend.push_back({"dropped", kInk, LineStyle::kNone, Marker::kCross, 2.0f});
-  for (int id : receivers)
+  for (int id : receivers) {
+    if (id < 0) continue;  // every link in one row: no receiver to name
     f.legend.push_back({"to " + VehicleName(id), VehicleColor(id), LineStyle::kSolid,
                         Marker::kNone, 6.0f});
+  }
   f.panels.push_back(
       ZoomPanel(sorted, o, tau, t_start, std::min(t_end, t_start + o.zoom_s)));
   f.panels.push_back(DelayErrorPanel(sorted, o, tau));

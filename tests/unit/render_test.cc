@@ -637,6 +637,58 @@ TEST(RenderFigures, ChannelGivesEachLinkARowAndSaysWhatTheDelayErrorMeans) {
   EXPECT_TRUE(RenderImage(f, &img, &err)) << err;
 }
 
+// Given more links than the per-link panels can show (a dense swarm: once a figure of
+// 10^7 px that could not be drawn), the rows are per receiver, and with more receivers than
+// rows one row holds every link; every message is still drawn, in time order.
+TEST(RenderFigures, ChannelFigureOfManyLinksGroupsThemIntoRowsItCanShow) {
+  const auto make = [](int followers) {
+    std::vector<LinkSeries> links;
+    for (int to = 1; to <= followers; ++to) {
+      for (int from = 0; from <= followers; ++from) {
+        if (from == to) continue;
+        LinkSeries l;
+        l.from = from;
+        l.to = to;
+        for (int i = 0; i < 3; ++i) {
+          l.sent_s.push_back(0.02 * (i + from));
+          l.delay_s.push_back(0.1);
+          l.model_delay_s.push_back(0.1);
+        }
+        l.dropped_s.push_back(0.01 * from);
+        links.push_back(std::move(l));
+      }
+    }
+    return links;
+  };
+  ChannelOptions o;
+  o.mode = "sim";
+  o.control_period_s = 0.02;
+  const Figure2D by_receiver = ChannelFigure(make(20), o);  // 400 links, 20 receivers
+  ASSERT_EQ(by_receiver.panels.size(), 3u);
+  ASSERT_EQ(by_receiver.panels[2].y.ticks.size(), 20u);
+  EXPECT_EQ(by_receiver.panels[2].y.ticks[0].label, "all \xE2\x86\x92 1");
+  EXPECT_LE(by_receiver.height_px, 5000);
+  EXPECT_NE(by_receiver.title.find("400 links, grouped by receiver"), std::string::npos)
+      << by_receiver.title;
+  std::size_t delivered = 0;
+  for (const Series& s : by_receiver.panels[0].series) {
+    if (s.marker == Marker::kCircle) delivered += s.x.size();
+  }
+  EXPECT_EQ(delivered, 400u * 3);
+  const Figure2D one_row = ChannelFigure(make(60), o);  // 3600 links, 60 receivers
+  ASSERT_EQ(one_row.panels[2].y.ticks.size(), 1u);
+  EXPECT_EQ(one_row.panels[2].y.ticks[0].label, "all links");
+  std::size_t drops = 0;
+  for (const Series& s : one_row.panels[2].series) {
+    drops += s.x.size();
+    EXPECT_TRUE(std::is_sorted(s.x.begin(), s.x.end()));
+  }
+  EXPECT_EQ(drops, 3600u);
+  Image img;
+  std::string err;
+  EXPECT_TRUE(RenderImage(one_row, &img, &err)) << err;
+}
+
 TEST(RenderFigures, StatesDrawDepthDownwardsLikeThe3DFigure) {
   VehicleSeries v;
   v.t_s = {0.0, 1.0};
