@@ -234,7 +234,9 @@ std::vector<std::uint32_t> CountChannelEvents(const std::vector<ChannelEventReco
       last_to = e.receiver;
       last_cfg = table->Model(e.sender, e.receiver);
     }
-    const double cfg = last_cfg == nullptr || e.status == kBusy
+    // A modem-busy decision sent nothing, and an out-of-range one carries the delay of a
+    // range beyond max_range_m: neither is a draw of the model to check.
+    const double cfg = last_cfg == nullptr || e.status == kBusy || e.status == kRange
                            ? e.delay_s
                            : ConfiguredDelay(*last_cfg, e, &c->model_mismatches);
     if (last_cfg == nullptr) ++c->unknown_links;

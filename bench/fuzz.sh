@@ -31,7 +31,8 @@ if command -v ccache > /dev/null; then
 fi
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DCMAKE_C_COMPILER=clang \
   -DCMAKE_CXX_COMPILER=clang++ -DSHOAL_FUZZ=ON -DBUILD_TESTING=OFF "${launcher[@]}" > /dev/null
-cmake --build "$build" -j 2 --target "${targets[@]}" 2>&1 | grep -E 'error|Error' || true
+cmake --build "$build" -j 2 --target "${targets[@]}" > "$build/build.log" 2>&1 ||
+  { tail -n 40 "$build/build.log" >&2; echo "fuzz: the build failed ($build/build.log)" >&2; exit 2; }
 for t in "${targets[@]}"; do
   [ -x "$build/tests/fuzz/$t" ] || { echo "fuzz: $build/tests/fuzz/$t not built" >&2; exit 2; }
 done
@@ -53,7 +54,7 @@ for t in "${targets[@]}"; do
   /usr/bin/time -f '%U %S' -o "$build/fuzz-$t.cpu" \
     "$build/tests/fuzz/$t" -runs="$runs" -timeout="$timeout" -rss_limit_mb=2048 \
     -print_final_stats=1 -artifact_prefix="$artifacts/" \
-    "$work" "tests/fuzz/corpus/$t" "$regressions" > "$log" 2>&1 || true
+    "$work" "tests/fuzz/corpus/$t" "$regressions" > "$log" 2>&1 && status=0 || status=$?
   end=$(date +%s%N)
   execs=$(grep -a -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
   cpu=$(tail -n 1 "$build/fuzz-$t.cpu" | awk '{ print $1 + $2 }')  # after time's exit note
@@ -66,6 +67,12 @@ for t in "${targets[@]}"; do
     -v l="$leaks" -v o="$timeouts" -v r="${rss:-0}" \
     'BEGIN { s = ns / 1e9; printf "%-16s %12d %9.1f %9.1f %9.0f %7d %6d %9d %8d\n",
              t, n, s, u, n / s, c, l, o, r }'
+  # A target that stopped without a finding (it could not start, a bad flag) or ran fewer
+  # inputs than asked fuzzed nothing worth a figure: that is a failure too, not a pass.
+  if [ "$(find "$artifacts" -type f | wc -l)" -eq 0 ] && { [ "$status" -ne 0 ] || [ "${execs:-0}" -lt "$runs" ]; }; then
+    echo "  $t: stopped after ${execs:-0} of $runs executions (status $status) with no finding; see $log" >&2
+    found=1
+  fi
   for a in "$artifacts"/crash-* "$artifacts"/oom-* "$artifacts"/leak-* "$artifacts"/timeout-*; do
     [ -e "$a" ] || continue
     cp "$a" "$regressions/"

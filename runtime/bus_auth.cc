@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sodium.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -92,18 +93,33 @@ bool ParseKey(std::string_view text, Key* key, std::string* error) {
 }
 
 bool ReadKeyFile(const std::string& path, Key* key, std::string* error) {
-  std::ifstream in(path);
-  if (!in) {
+  // Non-blocking and regular files only: a FIFO or a device named as a key (or lying
+  // next to a log as <log>.key) must be refused, never waited on or read without end.
+  const int fd = open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
     *error = path + ": cannot read the key file (" + std::strerror(errno) + ")";
     return false;
   }
-  std::stringstream text;
-  text << in.rdbuf();
-  if (text.str().size() > 4096) {
+  struct stat st {};
+  std::string text(4097, '\0');
+  ssize_t n = -1;
+  if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode)) n = read(fd, text.data(), text.size());
+  const int read_errno = errno;
+  close(fd);
+  if (!S_ISREG(st.st_mode)) {
+    *error = path + ": not a key file (not a regular file)";
+    return false;
+  }
+  if (n < 0) {
+    *error = path + ": cannot read the key file (" + std::strerror(read_errno) + ")";
+    return false;
+  }
+  if (n > 4096) {
     *error = path + ": not a key file (64 hex digits expected)";
     return false;
   }
-  if (!ParseKey(text.str(), key, error)) {
+  text.resize(static_cast<std::size_t>(n));
+  if (!ParseKey(text, key, error)) {
     *error = path + ": " + *error;
     return false;
   }

@@ -101,6 +101,27 @@ TEST(BusAuth, KeyFileIsPrivateAndReadBack) {
   EXPECT_FALSE(ReadKeyFile(path, &got, &err));  // missing
 }
 
+// A FIFO, a device or a directory named as the key (or found as <log>.key) is refused at
+// once: never waited on (a FIFO without a writer), never read without end (/dev/zero).
+TEST(BusAuth, KeyFileThatIsNotARegularFileIsRefusedWithoutWaiting) {
+  const std::string fifo = ::testing::TempDir() + "/bus_auth_test.fifo";
+  unlink(fifo.c_str());
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  Key got{};
+  std::string err;
+  for (const std::string& path : {fifo, std::string("/dev/zero"), ::testing::TempDir()}) {
+    err.clear();
+    EXPECT_FALSE(ReadKeyFile(path, &got, &err)) << path;
+    EXPECT_NE(err.find("not a regular file"), std::string::npos) << path << ": " << err;
+  }
+  unlink(fifo.c_str());
+  const std::string big = ::testing::TempDir() + "/bus_auth_test_big.key";
+  { std::ofstream(big) << std::string(5000, 'a'); }
+  EXPECT_FALSE(ReadKeyFile(big, &got, &err));
+  EXPECT_NE(err.find("not a key file"), std::string::npos) << err;
+  unlink(big.c_str());
+}
+
 TEST(BusAuth, ProcessNeedsAKeyOrInsecure) {
   Setting s;
   std::string err;
