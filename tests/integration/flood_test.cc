@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -419,8 +420,15 @@ TEST(Flood, ForgeriesOnAVehiclesOwnPortAreCountedByThatVehicle) {
   const unsigned char ttl = 0;
   setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof(ttl));
   const sockaddr_in to = groups[1 + 3];
-  // Once vehicle 3 listens: before that its port would refuse them unseen.
+  // Once vehicle 3 listens, and once the log grows (the clock master starts a lockstep
+  // run only when every vehicle is ready): its socket is bound before it subscribes, and
+  // LCM drops what arrives in between unseen and uncounted (about 100 here, once).
   ASSERT_TRUE(WaitForUdpListener(ntohs(to.sin_port), 10));
+  for (int k = 0; k < 200; ++k) {
+    struct stat st {};
+    if (stat(log.c_str(), &st) == 0 && st.st_size > (64 << 10)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
   const std::string channel = "SHOAL_RX_3";
   int sent = 0;
   for (int k = 0; k < 2000; ++k) {

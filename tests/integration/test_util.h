@@ -19,6 +19,14 @@
 
 namespace shoal::testing {
 
+/// Time limits of the tests hold for the program as shipped; a sanitizer build runs it
+/// 2-5 times slower (docs/benchmarks.md, "Sanitizers"), so its limits are this much wider.
+#ifdef SHOAL_SANITIZED
+inline constexpr double kTimeLimitScale = 4.0;
+#else
+inline constexpr double kTimeLimitScale = 1.0;
+#endif
+
 inline std::string ShoalBinary() { return std::string(SHOAL_BINARY_DIR) + "/tools/shoal"; }
 inline std::string SourcePath(const std::string& rel) {
   return std::string(SHOAL_SOURCE_DIR) + "/" + rel;
