@@ -48,18 +48,23 @@ bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, st
   LogVerifier verifier(opt.key, run);
   bool ended = false;
   std::size_t statuses_seen = 0;
-  bus->Subscribe(channels::kAllPattern, [&](const std::string& ch, const void* d, int n) {
-    const auto* bytes = static_cast<const std::uint8_t*>(d);
-    const int size = verifier.Check(ch, bytes, n);
-    if (size < 0) {
-      ++run->events;  // received, but not the run's
-      return;
-    }
-    b.Add(ch, bytes, size, WallMicros());
-    for (; statuses_seen < run->statuses.size(); ++statuses_seen) {
-      ended = ended || RunEnded(run->statuses[statuses_seen]);
-    }
-  });
+  try {
+    bus->Subscribe(channels::kAllPattern, [&](const std::string& ch, const void* d, int n) {
+      const auto* bytes = static_cast<const std::uint8_t*>(d);
+      const int size = verifier.Check(ch, bytes, n);
+      if (size < 0) {
+        ++run->events;  // received, but not the run's
+        return;
+      }
+      b.Add(ch, bytes, size, WallMicros());
+      for (; statuses_seen < run->statuses.size(); ++statuses_seen) {
+        ended = ended || RunEnded(run->statuses[statuses_seen]);
+      }
+    });
+  } catch (const std::exception& e) {
+    *error = e.what();
+    return false;
+  }
 
   const StopSignals signals;  // Ctrl-C ends the listening, not the analysis
   const bool show = opt.progress && isatty(2);

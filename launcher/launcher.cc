@@ -492,6 +492,18 @@ std::string ReadTail(const std::string& path, long max_bytes) {
   return text;
 }
 
+/// The last non-empty line of a process's output file ("" if none), at most 300 bytes.
+std::string LastLineOf(const std::string& path) {
+  std::string text = ReadTail(path, 4096);
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r' || text.back() == ' ')) {
+    text.pop_back();
+  }
+  const std::size_t nl = text.rfind('\n');
+  std::string last = nl == std::string::npos ? text : text.substr(nl + 1);
+  if (last.size() > 300) last = last.substr(0, 300) + "...";
+  return last;
+}
+
 /// The disk under the log: lcm-logger exits when a write fails (status 1, "No space left
 /// on device" on a full disk), and its own output file may then be empty for the same
 /// reason; the free space says it plainly.
@@ -554,7 +566,13 @@ bool Launch::OnChildEvent(Child& c, int status, const LaunchCallbacks& cb) {
     c.reported = true;
     return false;
   } else if (!clean) {
-    return !Fault(c, Describe(status), cb);
+    // Its last words say why it failed (an error message, or glibc's or the C++
+    // runtime's reason for an abort); a process killed from outside has none.
+    const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+    const bool own = WIFEXITED(status) || sig == SIGABRT || sig == SIGSEGV || sig == SIGBUS ||
+                     sig == SIGFPE || sig == SIGILL;
+    const std::string last = own ? LastLineOf(c.output) : "";
+    return !Fault(c, Describe(status) + (last.empty() ? "" : " (its output ends with \"" + last + "\")"), cb);
   }
   return true;
 }

@@ -1,6 +1,11 @@
 #include "runtime/lcm_bus.h"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
+
+#include <algorithm>
 
 #include <cstdio>
 #include <cstring>
@@ -44,14 +49,30 @@ void LcmBus::Sub::On(const lcm::ReceiveBuffer* rb, const std::string& channel) {
 }
 
 void LcmBus::Subscribe(const std::string& channel, Handler handler) {
+  // LCM opens its receive socket here. If it cannot (the port is held by a socket bound
+  // without SO_REUSEADDR), LCM 1.3.1 returns a subscription without its C half (setting
+  // its queue then crashes) and later passes descriptor -1 to select() in handleTimeout,
+  // which glibc aborts on. Say it plainly instead.
+  if (lcm_.getFileno() < 0) {
+    throw std::runtime_error("cannot receive on LCM URL '" + url_ +
+                             "': its port is in use by a program that does not share it "
+                             "(the \"bind\" line above)");
+  }
   subs_.push_back(std::make_unique<Sub>(Sub{std::move(handler), &auth_, &rejected_}));
   lcm::Subscription* s = lcm_.subscribe(channel, &Sub::On, subs_.back().get());
   // Lockstep bursts (a tick's deliveries) must never be dropped by LCM's default
   // 30-message queue; real-time consumers read the newest anyway.
   if (s != nullptr) s->setQueueCapacity(10000);
+  receiving_ = true;
 }
 
 int LcmBus::Handle(int timeout_ms) {
+  if (!receiving_) {
+    // Nothing subscribed: LCM would open a receive socket and thread for nothing (and
+    // abort if it could not). Wait as asked, then report nothing handled.
+    if (timeout_ms > 0) usleep(static_cast<useconds_t>(timeout_ms) * 1000);
+    return 0;
+  }
   int n = 0;
   int r = lcm_.handleTimeout(timeout_ms);
   while (r > 0) {  // drain whatever else is already queued, without waiting
@@ -66,10 +87,48 @@ std::string PrivateLcmUrl(int port, const std::string& group) {
   return "udpm://" + group + ":" + std::to_string(port) + "?ttl=0";
 }
 
+namespace {
+
+// The first port the kernel hands out to sockets that send without binding (their
+// "ephemeral" port, bound without SO_REUSEADDR): a run's receive port in that range can be
+// taken by any sender on the host, and LCM then cannot bind it.
+int EphemeralPortLow() {
+  int low = 32768, high = 60999;
+  if (FILE* f = std::fopen("/proc/sys/net/ipv4/ip_local_port_range", "r")) {
+    if (std::fscanf(f, "%d %d", &low, &high) != 2) low = 32768;
+    std::fclose(f);
+  }
+  return std::max(kPrivatePortLow + 1, std::min(low, 65536));
+}
+
+// True if nobody holds `port` for UDP: a bind without SO_REUSEADDR fails if any socket
+// has it, shared (another run's LCM receive socket) or not.
+bool UdpPortFree(int port) {
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return true;  // cannot tell: let LCM try (and say so if it fails)
+  sockaddr_in a {};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_ANY);
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  const bool free_port = bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof(a)) == 0;
+  close(fd);
+  return free_port;
+}
+
+}  // namespace
+
 int RandomPrivatePort(int followers) {
   std::random_device rd;
   const int block = followers + 2;
-  return 20000 + static_cast<int>(rd() % static_cast<unsigned>(40000 / block)) * block;
+  const int blocks = std::max(1, (EphemeralPortLow() - kPrivatePortLow) / block);
+  int port = kPrivatePortLow;
+  for (int attempt = 0; attempt < 64; ++attempt) {
+    port = kPrivatePortLow + static_cast<int>(rd() % static_cast<unsigned>(blocks)) * block;
+    bool all_free = true;
+    for (int p = port; p < port + block && all_free; ++p) all_free = UdpPortFree(p);
+    if (all_free) return port;
+  }
+  return port;  // every block tried was taken: the processes will say which port
 }
 
 std::vector<std::string> PerVehicleLcmUrls(int port, int followers) {

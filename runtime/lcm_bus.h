@@ -64,7 +64,8 @@ class Bus {
 /// out and come in as they are.
 class LcmBus : public Bus {
  public:
-  /// Throws std::runtime_error if LCM cannot be initialised for `url`.
+  /// Throws std::runtime_error if LCM cannot be initialised for `url`. Subscribe throws
+  /// too if LCM cannot open its receive socket.
   explicit LcmBus(const std::string& url, std::optional<bus_auth::Key> key = std::nullopt);
   bool PublishRaw(const std::string& channel, const void* data, int size) override;
   void Subscribe(const std::string& channel, Handler handler) override;
@@ -87,6 +88,7 @@ class LcmBus : public Bus {
   std::int64_t rejected_ = 0;
   std::vector<unsigned char> signed_;  // a message and its trailer, reused
   std::vector<std::unique_ptr<Sub>> subs_;
+  bool receiving_ = false;  // subscribed, and LCM's receive socket is open
 };
 
 /// Whether the array counts a message declares fit its size. LCM 1.3.1's generated
@@ -210,8 +212,12 @@ std::string PrivateLcmUrl(int port, const std::string& group = "239.255.76.67");
 /// followers + 2 ports (the shared bus, then one per vehicle), aligned to its size, so
 /// that two runs with as many followers get the same block or disjoint ones (runs of
 /// different sizes can overlap; any two runs collide with a small probability, as two
-/// random ports can); in [20000, 60000).
+/// random ports can), at or above kPrivatePortLow and below the kernel's ephemeral port
+/// range (/proc/sys/net/ipv4/ip_local_port_range), where a sending socket anywhere on the
+/// host could take one of them. A block some socket already holds is not chosen (up to 64
+/// draws).
 int RandomPrivatePort(int followers);
+constexpr int kPrivatePortLow = 10000;
 
 /// The URL on which each vehicle 0..followers receives in a private run on `port`: a
 /// port and a group of its own. The port is what isolates: LCM binds its receive socket

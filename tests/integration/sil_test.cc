@@ -5,6 +5,8 @@
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 
 #include <atomic>
 #include <chrono>
@@ -379,9 +381,49 @@ TEST(Sil, PerVehicleBusesCarryOnlyTheirOwnTraffic) {
   // Two runs' port blocks are the same or disjoint.
   for (int k = 0; k < 200; ++k) {
     const int p = RandomPrivatePort(5);
-    EXPECT_EQ((p - 20000) % 7, 0);
-    EXPECT_GE(p, 20000);
-    EXPECT_LT(p + 6, 60000);
+    EXPECT_EQ((p - kPrivatePortLow) % 7, 0);
+    EXPECT_GE(p, kPrivatePortLow);
+    int ephemeral_low = 32768;  // the kernel's default
+    if (FILE* f = std::fopen("/proc/sys/net/ipv4/ip_local_port_range", "r")) {
+      if (std::fscanf(f, "%d", &ephemeral_low) != 1) ephemeral_low = 32768;
+      std::fclose(f);
+    }
+    EXPECT_LT(p + 6, std::max(ephemeral_low, kPrivatePortLow + 7));
+  }
+}
+
+// A receive port some other program holds without sharing it (a socket bound without
+// SO_REUSEADDR, as every sending socket's ephemeral port is): the process says so and
+// exits 2. LCM 1.3.1 alone aborts (select() on descriptor -1), which a run reported as
+// "killed by signal 6".
+TEST(Sil, ReceivePortTakenByAnotherProgramIsAClearError) {
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in a {};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_ANY);
+  int port = 0;
+  for (int p = 31460; p < 31560 && port == 0; ++p) {
+    a.sin_port = htons(static_cast<std::uint16_t>(p));
+    if (bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof(a)) == 0) port = p;
+  }
+  ASSERT_NE(port, 0);
+  const std::string out = TmpPath("sil_port_taken.out");
+  for (const std::string exe : {"vehicle/shoal_vehicle --id 1", "leader/shoal_leader"}) {
+    const std::string cmd = std::string(SHOAL_BINARY_DIR) + "/" + exe + " --insecure --scenario " +
+                            kExample2 + " --lcm-url 'udpm://239.255.76.67:" +
+                            std::to_string(port + 200) + "?ttl=0' --rx-url 'udpm://239.255.77.21:" +
+                            std::to_string(port) + "?ttl=0' --duration 0.1 >" + out + " 2>&1";
+    const int raw = std::system(cmd.c_str());
+    EXPECT_TRUE(WIFEXITED(raw)) << exe << ": " << ReadFile(out);
+    EXPECT_EQ(WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, 2) << exe << ": " << ReadFile(out);
+    EXPECT_NE(ReadFile(out).find("cannot receive on LCM URL"), std::string::npos) << ReadFile(out);
+  }
+  close(fd);
+  // shoal run never picks a port that is taken.
+  for (int k = 0; k < 50; ++k) {
+    const int p = RandomPrivatePort(5);
+    EXPECT_FALSE(p <= port && port < p + 7) << p;
   }
 }
 
