@@ -27,6 +27,8 @@ std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo) {
   return links;
 }
 
+std::vector<Link> BuildAllLinks(const Scenario& s) { return BuildLinks(s, UnionTopology(s)); }
+
 std::vector<Micros> ModemIntervals(const Scenario& s) {
   const auto us = [](double seconds) { return static_cast<Micros>(std::llround(seconds * 1e6)); };
   std::vector<Micros> interval(static_cast<std::size_t>(s.followers + 1),

@@ -12,6 +12,7 @@
 
 #include "core/rng.h"
 #include "core/scenario.h"
+#include "core/timeline.h"
 #include "core/topology.h"
 
 namespace shoal {
@@ -208,6 +209,9 @@ struct Link {
 /// Builds the links of the topology with the scenario's defaults and per-link overrides.
 /// Each link's random streams depend only on (seed, from, to).
 std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo);
+/// The links of every topology the scenario's timeline produces (UnionTopology): the
+/// links a channel serves.
+std::vector<Link> BuildAllLinks(const Scenario& s);
 
 /// Each sender's modem interval in whole microseconds, index = vehicle id 0..n (all 0
 /// without a rate limit).

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -138,6 +139,58 @@ struct VehicleConfig {
   double integrator_step_s = 0.01;
 };
 
+/// What an [[event]] of the scenario's timeline changes (docs/scenario.md, "Events").
+enum class EventKind {
+  kLinkDown,         // the listed links lose every message
+  kChannel,          // the listed links take new delay and/or loss models
+  kTopology,         // new follower edges and leader links (a switching topology)
+  kVehicleSilent,    // the vehicles' modems stop sending
+  kVehicleDeaf,      // the vehicles stop receiving
+  kLeaderSilent,     // the leader's modem stops sending
+  kControllerReset,  // the vehicles' controllers lose their memory, zero force for outage_s
+};
+
+/// One change of the timeline. It holds for every message sent (channel changes, silent),
+/// every delivery due (deaf) and every tick stepped (topology, reset) at a mission time t
+/// with at_s <= t < until_s; until_s = infinity: to the end of the run (a topology: until
+/// the next topology event). A controller reset holds for [at_s, at_s + outage_s).
+struct ScenarioEvent {
+  EventKind kind = EventKind::kLinkDown;
+  double at_s = 0.0;
+  double until_s = std::numeric_limits<double>::infinity();
+  int line = 0;  // line of its [[event]] header in the scenario file (0: built in code)
+  // link_down, channel: the links (from, to) it applies to, from 0 = the leader; empty:
+  // every link of the topology in force.
+  std::vector<std::pair<int, int>> links;
+  // channel: the new models (a missing one stays as it was).
+  std::optional<DelayConfig> delay;
+  std::optional<LossConfig> loss;
+  // topology: replaces [swarm] edges and leader_links (same meaning).
+  std::vector<std::pair<int, int>> edges;
+  std::vector<int> leader_links;
+  // vehicle_silent, vehicle_deaf, controller_reset: follower ids 1..n.
+  std::vector<int> vehicles;
+  // controller_reset: how long the controller commands zero force.
+  double outage_s = 0.0;
+
+  /// End of the event's window (until_s, or at_s + outage_s for a controller reset).
+  double end_s() const { return kind == EventKind::kControllerReset ? at_s + outage_s : until_s; }
+};
+
+/// The TOML name of an event kind ("link_down", ...).
+inline const char* EventKindName(EventKind k) {
+  switch (k) {
+    case EventKind::kLinkDown: return "link_down";
+    case EventKind::kChannel: return "channel";
+    case EventKind::kTopology: return "topology";
+    case EventKind::kVehicleSilent: return "vehicle_silent";
+    case EventKind::kVehicleDeaf: return "vehicle_deaf";
+    case EventKind::kLeaderSilent: return "leader_silent";
+    case EventKind::kControllerReset: return "controller_reset";
+  }
+  return "?";
+}
+
 struct MetricsConfig {
   double position_tol_m = 0.5;
   double velocity_tol_mps = 0.05;
@@ -175,6 +228,7 @@ struct Scenario {
   VehicleConfig vehicle;
   MetricsConfig metrics;
   std::vector<FollowerInit> initial;  // size n, index i-1 for follower i
+  std::vector<ScenarioEvent> events;  // [[event]], in the order of the file (sorted by at_s)
 
   /// Control period in whole microseconds.
   Micros period_us() const {
