@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <queue>
 #include <utility>
 #include <vector>
@@ -174,8 +175,18 @@ struct ChannelDecision {
     kDroppedQueue = 2,
     kSkippedBusy = 4,   // the sender's modem was busy: the state was never transmitted
     kDroppedRange = 5,  // acoustic: the receiver was beyond max_range_m
+    // Timeline events ([[event]]):
+    kSkippedSilent = 6,    // the sender was silent: the state was never transmitted
+    kDroppedLinkDown = 7,  // the link was down
+    kDroppedDeaf = 8,      // the receiver was deaf when the message was due
   } status = kDelivered;
 };
+
+/// True for the statuses of a state that was never transmitted (the sender's modem was
+/// busy or silent): not a message sent, so neither delivered nor lost.
+inline bool NotTransmitted(std::int8_t status) {
+  return status == ChannelDecision::kSkippedBusy || status == ChannelDecision::kSkippedSilent;
+}
 
 /// Why a decision dropped its message, as channel_event_t.reason says it ("" delivered).
 inline const char* DropReason(ChannelDecision::Status s) {
@@ -188,6 +199,12 @@ inline const char* DropReason(ChannelDecision::Status s) {
       return "modem busy";
     case ChannelDecision::kDroppedRange:
       return "out of acoustic range";
+    case ChannelDecision::kSkippedSilent:
+      return "sender silent";
+    case ChannelDecision::kDroppedLinkDown:
+      return "link down";
+    case ChannelDecision::kDroppedDeaf:
+      return "receiver deaf";
     case ChannelDecision::kDelivered:
       break;
   }
@@ -234,6 +251,25 @@ inline double MaxDelaySeconds(const std::vector<Link>& links) {
   return d;
 }
 
+/// Lookahead of the links with the delay models a timeline's channel events give them.
+inline std::int64_t MinLagTicks(const std::vector<Link>& links, const Timeline* timeline,
+                                Micros period_us) {
+  std::int64_t lag = MinLagTicks(links, period_us);
+  if (timeline == nullptr) return lag;
+  for (const DelayConfig& d : timeline->EventDelays()) {
+    lag = std::min(lag, MinDeliveryLagTicks(MinDelaySeconds(d), period_us));
+  }
+  return lag;
+}
+
+/// The largest delay of the links and of the models a timeline's channel events give.
+inline double MaxDelaySeconds(const std::vector<Link>& links, const Timeline* timeline) {
+  double d = MaxDelaySeconds(links);
+  if (timeline == nullptr) return d;
+  for (const DelayConfig& e : timeline->EventDelays()) d = std::max(d, MaxDelaySeconds(e));
+  return d;
+}
+
 /// When a message sent at send_utime with delay tau becomes usable. Time is whole
 /// microseconds: tau is rounded to the nearest microsecond first.
 ///   period_us > 0 (lockstep and shoal sim): at the first tick at or after send + tau, and
@@ -260,20 +296,30 @@ template <typename Payload>
 class Channel {
  public:
   /// `modem_interval_us[id]`: sender id's modem interval (ModemIntervals); empty: none.
+  /// `timeline`: the scenario's events (null or empty: none); `links` must then be the
+  /// links of every topology it produces (BuildAllLinks).
   Channel(std::vector<Link> links, Micros period_us, std::size_t max_pending = 1 << 20,
-          std::vector<Micros> modem_interval_us = {})
+          std::vector<Micros> modem_interval_us = {},
+          std::shared_ptr<const Timeline> timeline = nullptr)
       : links_(std::move(links)),
-        min_lag_ticks_(shoal::MinLagTicks(links_, period_us)),
+        timeline_(timeline && !timeline->empty() ? std::move(timeline) : nullptr),
+        min_lag_ticks_(shoal::MinLagTicks(links_, timeline_.get(), period_us)),
         period_us_(period_us),
         max_pending_(max_pending),
         modem_interval_us_(std::move(modem_interval_us)) {
-    const double max_delay_s = MaxDelaySeconds(links_);
+    const double max_delay_s = MaxDelaySeconds(links_, timeline_.get());
     for (std::size_t k = 0; k < links_.size(); ++k) {
       const int from = links_[k].from;
       if (from >= static_cast<int>(by_sender_.size())) by_sender_.resize(from + 1);
       by_sender_[from].push_back(k);
       uses_positions_ = uses_positions_ || links_[k].delay.kind == DelayKind::kAcoustic;
       ids_ = std::max({ids_, links_[k].from + 1, links_[k].to + 1});
+      if (timeline_) timeline_link_.push_back(timeline_->LinkIndex(links_[k].from, links_[k].to));
+    }
+    if (timeline_) {
+      for (const DelayConfig& d : timeline_->EventDelays()) {
+        uses_positions_ = uses_positions_ || d.kind == DelayKind::kAcoustic;
+      }
     }
     NumberDelayModels();
     modem_interval_us_.resize(static_cast<std::size_t>(ids_), 0);
@@ -302,47 +348,28 @@ class Channel {
         by_sender_[sender].empty()) {
       return;
     }
-    if (ModemBusy(sender, send_utime)) {
+    // A silent sender's modem, or a busy one, transmits nothing: one decision per link
+    // of the topology in force says so.
+    const bool silent = timeline_ && timeline_->Silent(sender, send_utime);
+    if (silent || ModemBusy(sender, send_utime)) {
       for (std::size_t k : by_sender_[sender]) {
+        if (!LinkInForce(k, send_utime)) continue;
         decisions->push_back(Decision(sender, links_[k].to, seq, send_utime));
-        decisions->back().status = ChannelDecision::kSkippedBusy;
+        decisions->back().status =
+            silent ? ChannelDecision::kSkippedSilent : ChannelDecision::kSkippedBusy;
       }
       return;
     }
-    const double t_s = ToSeconds(send_utime);
     // An empty wheel can start at the send tick: a first message at a large time must not
     // grow the wheel to cover every tick before it.
     if (period_us_ > 0 && pending_ == 0) next_tick_ = std::max(next_tick_, send_utime / period_us_);
     // The payload is stored once and shared by its deliveries (reference counted).
     const int slot = Store(payload);
     for (std::size_t k : by_sender_[sender]) {
-      Link& l = links_[k];
-      ChannelDecision d = Decision(sender, l.to, seq, send_utime);
-      // Every draw happens for every message so that a link's stream does not depend on
-      // the other model's outcome.
-      const bool lost = Dropped(l.loss, l.loss.kind == LossKind::kGilbertElliott ? &l.loss_rng
-                                                                                : &l.rng,
-                                &l.ge_bad);
-      if (l.delay.kind == DelayKind::kAcoustic) {
-        d.status = Acoustic(&l, send_utime, sender_pos, &d.delay_s);
-      } else if (l.delay_id >= 0 && l.delay_id == last_id_ && last_t_ == send_utime) {
-        // Links usually share one deterministic model and senders one send time: evaluate
-        // tau(t) once per (model, t), not once per message and link.
-        d.delay_s = last_delay_;
-      } else {
-        d.delay_s = DelaySeconds(l.delay, t_s, &l.rng);
-        last_delay_ = d.delay_s;
-        last_t_ = send_utime;
-        last_id_ = DeterministicDelay(l.delay.kind) ? l.delay_id : -1;
-      }
-      if (lost && d.status == ChannelDecision::kDelivered) {
-        d.status = ChannelDecision::kDroppedLoss;
-      } else if (d.status == ChannelDecision::kDelivered && pending_ >= max_pending_) {
-        d.status = ChannelDecision::kDroppedQueue;
-      }
+      if (!LinkInForce(k, send_utime)) continue;  // not a link of this topology: no decision
+      ChannelDecision d = Decide(k, seq, send_utime, sender_pos);
       if (d.status == ChannelDecision::kDelivered) {
-        d.deliver_utime = DeliveryTime(send_utime, d.delay_s, period_us_);
-        Push(Pending{d.deliver_utime, order_++, l.to, slot});
+        Push(Pending{d.deliver_utime, order_++, links_[k].to, slot});
         ++refs_[slot];
       }
       decisions->push_back(d);
@@ -428,6 +455,59 @@ class Channel {
     }
   }
 
+  // True if link k belongs to the topology in force at t (always without a timeline).
+  bool LinkInForce(std::size_t k, Micros t) const {
+    return !timeline_ || (timeline_link_[k] >= 0 &&
+                          timeline_->LinkActive(static_cast<std::size_t>(timeline_link_[k]), t));
+  }
+
+  // The decision for one transmitted message on link k: the loss and delay models (a
+  // timeline's channel event may replace them), then the timeline's link outage, the
+  // pending queue's bound and the receiver's deafness at the due time.
+  ChannelDecision Decide(std::size_t k, std::int32_t seq, Micros send_utime,
+                         const Vec3& sender_pos) {
+    Link& l = links_[k];
+    ChannelDecision d = Decision(l.from, l.to, seq, send_utime);
+    const ScenarioEvent* change =
+        timeline_ && timeline_link_[k] >= 0
+            ? timeline_->ChannelChange(static_cast<std::size_t>(timeline_link_[k]), send_utime)
+            : nullptr;
+    const LossConfig& loss = change && change->loss ? *change->loss : l.loss;
+    const DelayConfig& delay = change && change->delay ? *change->delay : l.delay;
+    // Every draw happens for every message so that a link's stream does not depend on
+    // the other model's outcome.
+    const bool lost = Dropped(loss, loss.kind == LossKind::kGilbertElliott ? &l.loss_rng : &l.rng,
+                              &l.ge_bad);
+    if (delay.kind == DelayKind::kAcoustic) {
+      d.status = Acoustic(&l, delay, send_utime, sender_pos, &d.delay_s);
+    } else if (&delay == &l.delay && l.delay_id >= 0 && l.delay_id == last_id_ &&
+               last_t_ == send_utime) {
+      // Links usually share one deterministic model and senders one send time: evaluate
+      // tau(t) once per (model, t), not once per message and link.
+      d.delay_s = last_delay_;
+    } else {
+      d.delay_s = DelaySeconds(delay, ToSeconds(send_utime), &l.rng);
+      last_delay_ = d.delay_s;
+      last_t_ = send_utime;
+      last_id_ = &delay == &l.delay && DeterministicDelay(delay.kind) ? l.delay_id : -1;
+    }
+    if (timeline_ && timeline_->LinkDown(static_cast<std::size_t>(timeline_link_[k]), send_utime)) {
+      d.status = ChannelDecision::kDroppedLinkDown;
+    } else if (lost && d.status == ChannelDecision::kDelivered) {
+      d.status = ChannelDecision::kDroppedLoss;
+    } else if (d.status == ChannelDecision::kDelivered && pending_ >= max_pending_) {
+      d.status = ChannelDecision::kDroppedQueue;
+    }
+    if (d.status == ChannelDecision::kDelivered) {
+      d.deliver_utime = DeliveryTime(send_utime, d.delay_s, period_us_);
+      if (timeline_ && timeline_->Deaf(l.to, d.deliver_utime)) {
+        d.status = ChannelDecision::kDroppedDeaf;
+        d.deliver_utime = 0;
+      }
+    }
+    return d;
+  }
+
   // A vehicle's two newest positions (the newest may be of the tick being submitted).
   struct Where {
     Vec3 p_new = Vec3::Zero(), p_old = Vec3::Zero();
@@ -468,17 +548,17 @@ class Channel {
 
   // The acoustic model on link l: delay over the sender-receiver range, then the range
   // losses. An unknown receiver position (before its first state) counts as range 0.
-  ChannelDecision::Status Acoustic(Link* l, Micros send_utime, const Vec3& sender_pos,
-                                   double* delay) {
+  ChannelDecision::Status Acoustic(Link* l, const DelayConfig& model, Micros send_utime,
+                                   const Vec3& sender_pos, double* delay) {
     Vec3 rx = sender_pos;
     ReceiverPosition(l->to, send_utime, &rx);
     const double range = (rx - sender_pos).norm();
-    *delay = DelaySeconds(l->delay, ToSeconds(send_utime), &l->rng, range);
-    const bool draw = l->delay.loss_at_max_range > 0.0;
+    *delay = DelaySeconds(model, ToSeconds(send_utime), &l->rng, range);
+    const bool draw = model.loss_at_max_range > 0.0;
     const double u = draw ? l->rng.Uniform() : 1.0;
-    if (range > l->delay.max_range_m) return ChannelDecision::kDroppedRange;
-    return u < AcousticRangeLoss(l->delay, range) ? ChannelDecision::kDroppedLoss
-                                                   : ChannelDecision::kDelivered;
+    if (range > model.max_range_m) return ChannelDecision::kDroppedRange;
+    return u < AcousticRangeLoss(model, range) ? ChannelDecision::kDroppedLoss
+                                                : ChannelDecision::kDelivered;
   }
 
   struct Pending {
@@ -545,6 +625,8 @@ class Channel {
   std::vector<int> refs_;
   std::vector<int> free_;
   std::vector<Link> links_;
+  std::shared_ptr<const Timeline> timeline_;  // null: no events
+  std::vector<int> timeline_link_;            // per link: its index in the timeline
   std::int64_t min_lag_ticks_;
   std::vector<std::vector<std::size_t>> by_sender_;  // sender id -> its links
   Micros period_us_;

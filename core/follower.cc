@@ -8,7 +8,8 @@
 namespace shoal {
 
 Follower::Follower(const Scenario& s, const Topology& topo, int id,
-                   std::shared_ptr<const Environment> env, double duration_s)
+                   std::shared_ptr<const Environment> env, double duration_s,
+                   std::shared_ptr<const Timeline> timeline)
     : id_(id),
       k1_(s.k1),
       k2_(s.k2),
@@ -23,6 +24,9 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
       env_(env ? std::move(env)
                : std::make_shared<const Environment>(s.leader, s.delay,
                                                      s.disturbance.relative_to_leader)),
+      timeline_(s.events.empty() ? nullptr
+                : timeline         ? std::move(timeline)
+                                   : std::make_shared<const Timeline>(s)),
       current_(s.disturbance.current, Rng(s.seed, 0xC0FFEEULL, static_cast<std::uint64_t>(id))),
       slot_of_(topo.n() + 1, -1) {
   // Initial state: as given, or at the leader's start + offset, at rest.
@@ -50,7 +54,10 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
     sl.offset = OffsetVec(s.offsets_m.at(j - 1));
     slots_.push_back(sl);
   }
-  for (std::size_t k = 0; k < slots_.size(); ++k) slot_of_[slots_[k].sender] = static_cast<int>(k);
+  for (std::size_t k = 0; k < slots_.size(); ++k) {
+    slot_of_[slots_[k].sender] = static_cast<int>(k);
+    if (timeline_) slots_[k].link = timeline_->LinkIndex(slots_[k].sender, id_);
+  }
   terms_.resize(slots_.size());
 
   history_ = StateHistory(HistoryCapacity(s, duration_s));
@@ -65,6 +72,9 @@ std::int64_t Follower::HistoryCapacity(const Scenario& s, double duration_s) {
   double max_delay = MaxDelaySeconds(s.delay);
   for (const LinkOverride& o : s.links) {
     if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
+  }
+  for (const ScenarioEvent& e : s.events) {
+    if (e.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*e.delay));
   }
   const double period_s = ToSeconds(s.period_us());
   const double span_s = s.neighbour_timeout_s + max_delay + 2.0 * period_s;
@@ -94,6 +104,10 @@ void Follower::CountRejected(RxResult r) {
 }
 
 RxResult Follower::Receive(const StateMsg& m) {
+  if (in_reset_) {
+    ++counters_.msgs_ignored_reset;
+    return RxResult::kAccepted;  // a valid message; the reset controller drops it
+  }
   const RxResult r = Check(m);
   if (r != RxResult::kAccepted) {
     CountRejected(r);
@@ -112,7 +126,7 @@ int Follower::GatherTerms(Micros now, bool* any_stale) {
   int count = 0;
   *any_stale = false;
   for (Slot& sl : slots_) {
-    if (!sl.have) continue;
+    if (!sl.have || !sl.active) continue;
     if (now - sl.msg.utime > timeout_us_) {
       if (!sl.stale) {
         sl.stale = true;
@@ -178,17 +192,42 @@ void Follower::Advance(const AttitudeTrig<double>& trig, const Vec5& force, cons
   }
 }
 
+void Follower::FollowTimeline(Micros now) {
+  const bool reset = timeline_->InReset(id_, now);
+  if (reset && !in_reset_) {
+    // The controller restarts with nothing: no neighbour data, no own past.
+    for (Slot& sl : slots_) {
+      sl.have = false;
+      sl.stale = false;
+    }
+    history_.Clear();
+  }
+  in_reset_ = reset;
+  if (timeline_->switches_topology()) {
+    for (Slot& sl : slots_) sl.active = sl.link >= 0 && timeline_->LinkActive(sl.link, now);
+  }
+}
+
 const StateMsg& Follower::Tick(Micros now) {
+  if (timeline_) FollowTimeline(now);
   if (trig_age_ == 0) trig_ = AttitudeTrig<double>(x_.eta);
   const AttitudeTrig<double> trig = trig_;
   const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);
   history_.Push(HistorySample{now, x_.eta, eta_dot});
 
   bool any_stale = false;
-  const int count = GatherTerms(now, &any_stale);
-  const Vec5 a = Protocol10(k1_, k2_, offset_, terms_.data(), count);
-  Vec5 tau;
-  const bool saturated = ControlForce(trig, a, &tau);
+  int count = 0;
+  Vec5 a = Vec5::Zero();
+  Vec5 tau = Vec5::Zero();
+  bool saturated = false;
+  if (in_reset_) {
+    ++counters_.reset_ticks;
+    counters_.active_neighbours = 0;
+  } else {
+    count = GatherTerms(now, &any_stale);
+    a = Protocol10(k1_, k2_, offset_, terms_.data(), count);
+    saturated = ControlForce(trig, a, &tau);
+  }
   Vec5 tau_dist;
   Vec3 current;
   Disturb(now, trig, &tau_dist, &current);
@@ -201,7 +240,8 @@ const StateMsg& Follower::Tick(Micros now) {
   out_.accel_cmd = a;
   out_.tau = tau;
   out_.flags = (saturated ? StateMsg::kFlagSaturated : 0) |
-               (any_stale ? StateMsg::kFlagStaleNeighbour : 0);
+               (any_stale ? StateMsg::kFlagStaleNeighbour : 0) |
+               (in_reset_ ? StateMsg::kFlagControllerReset : 0);
 
   Advance(trig, tau + tau_dist, current);
   return out_;

@@ -12,6 +12,7 @@
 #include "core/history.h"
 #include "core/scenario.h"
 #include "core/state_msg.h"
+#include "core/timeline.h"
 #include "core/topology.h"
 
 namespace shoal {
@@ -24,6 +25,8 @@ struct FollowerCounters {
   std::int64_t neighbour_timeouts = 0;
   std::int64_t saturated_ticks = 0;
   std::int64_t saturated_channel[5] = {0, 0, 0, 0, 0};
+  std::int64_t reset_ticks = 0;          // ticks stepped with the controller reset
+  std::int64_t msgs_ignored_reset = 0;   // received while the controller was reset
   int active_neighbours = 0;
 };
 
@@ -34,8 +37,12 @@ class Follower {
   /// Follower `id` (1..n) of a validated scenario.
   /// `env` may be shared between the followers of one process; null builds a private one.
   /// `duration_s`: the run's length (< 0: the scenario's); it bounds the history's size.
+  /// `topo`: UnionTopology(s) (a slot for every neighbour any topology gives it).
+  /// `timeline`: the scenario's events, shared between the followers of one process; null
+  /// builds a private one when the scenario has events.
   Follower(const Scenario& s, const Topology& topo, int id,
-           std::shared_ptr<const Environment> env = nullptr, double duration_s = -1.0);
+           std::shared_ptr<const Environment> env = nullptr, double duration_s = -1.0,
+           std::shared_ptr<const Timeline> timeline = nullptr);
 
   /// Samples the history of a follower of `s` holds in a run of `duration_s` (< 0: the
   /// scenario's): enough to reach back over the neighbour timeout, the largest delay and
@@ -47,7 +54,8 @@ class Follower {
 
   /// Offers a message received on SHOAL_RX_<id>. Only a finite message from an
   /// in-neighbour (or the leader, if pinned) that is newer than the one held is kept;
-  /// everything else is counted and ignored. Never throws, never allocates.
+  /// everything else is counted and ignored. A controller in reset (a controller_reset
+  /// event) keeps nothing either. Never throws, never allocates.
   RxResult Receive(const StateMsg& m);
   /// What Receive would do with `m` now, without keeping or counting it (lockstep holds
   /// messages until they are due).
@@ -56,9 +64,11 @@ class Follower {
   void CountRejected(RxResult r);
 
   /// One control tick at `now`: records the current state, computes protocol (10) from
-  /// the newest data of each live neighbour, feedback-linearises and saturates, returns
-  /// the message to publish (the state at `now`), then integrates the plant to
-  /// now + period. Never throws, never allocates.
+  /// the newest data of each live neighbour of the topology in force, feedback-linearises
+  /// and saturates, returns the message to publish (the state at `now`), then integrates
+  /// the plant to now + period. In a controller reset window the controller forgets its
+  /// neighbour data and own history at the window's first tick and commands zero force
+  /// throughout (the plant and its disturbances go on). Never throws, never allocates.
   const StateMsg& Tick(Micros now);
 
   const PlantState& state() const { return x_; }
@@ -73,8 +83,14 @@ class Follower {
     Vec5 offset = Vec5::Zero();
     bool have = false;
     bool stale = false;
+    bool active = true;  // its link is in the topology in force
+    int link = -1;       // index of its link in the timeline
     StateMsg msg;
   };
+
+  /// Applies the timeline at `now`: the reset window (entering it clears the memory) and
+  /// the topology in force (which slots are active).
+  void FollowTimeline(Micros now);
 
   // The steps of Tick, in order.
   /// Fills terms_ with protocol (10)'s terms of the live neighbours; returns their count.
@@ -97,6 +113,8 @@ class Follower {
   DisturbanceKind disturbance_;
   bool disturbance_relative_;
   std::shared_ptr<const Environment> env_;
+  std::shared_ptr<const Timeline> timeline_;  // null: no events
+  bool in_reset_ = false;
   OceanCurrent current_;
   FossenModel model_;
 

@@ -49,6 +49,12 @@ class StateHistory {
   /// if t is outside [oldest, newest].
   bool At(Micros t, HistorySample* out) const;
 
+  /// Forgets every sample (the capacity stays).
+  void Clear() {
+    head_ = 0;
+    size_ = 0;
+  }
+
   const HistorySample& Newest() const { return Get(size_ - 1); }
   const HistorySample& Oldest() const { return Get(0); }
 

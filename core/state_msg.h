@@ -22,6 +22,7 @@ struct StateMsg {
   static constexpr std::int32_t kFlagSaturated = 1;
   static constexpr std::int32_t kFlagStaleNeighbour = 2;
   static constexpr std::int32_t kFlagLeader = 4;
+  static constexpr std::int32_t kFlagControllerReset = 8;  // a controller_reset window
 
   /// True if every numeric field is finite (NaN/Inf never reach the control law).
   bool AllFinite() const {

@@ -36,11 +36,15 @@ constexpr double kMaxPending = 1 << 20;  // Channel's default max_pending
 RunEstimate EstimateRun(const Scenario& s, double duration_s) {
   RunEstimate e;
   e.ticks = s.final_tick(duration_s) + 1;
-  const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
+  const Topology topo = UnionTopology(s);
   e.links = static_cast<std::int64_t>(topo.Links().size());
   const double history = static_cast<double>(Follower::HistoryCapacity(s, duration_s));
+  double max_delay = MaxDelaySeconds(BuildLinks(s, topo));
+  for (const ScenarioEvent& ev : s.events) {
+    if (ev.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*ev.delay));
+  }
   const double delay_ticks = std::min(static_cast<double>(e.ticks),
-                                      std::ceil(MaxDelaySeconds(BuildLinks(s, topo)) * 1e6 /
+                                      std::ceil(max_delay * 1e6 /
                                                 static_cast<double>(s.period_us())) + 2.0);
   const double pending = std::min(kMaxPending, delay_ticks * static_cast<double>(e.links));
   e.memory_bytes = s.followers * history * sizeof(HistorySample) + pending * kBytesPerPending;
@@ -75,16 +79,18 @@ std::string LargeRunRefusal(const Scenario& s, double duration_s, RunPace pace) 
 }
 
 Swarm::Swarm(const Scenario& s, double duration_s)
-    : topo_(Topology::Build(s.followers, s.edges, s.leader_links)),
+    : topo_(UnionTopology(s)),
+      timeline_(s.events.empty() ? nullptr : std::make_shared<const Timeline>(s)),
       period_us_(s.period_us()),
       final_tick_(s.final_tick(duration_s)),
       leader_(s),
-      channel_(BuildLinks(s, topo_), period_us_, std::size_t{1} << 20, ModemIntervals(s)),
+      channel_(BuildLinks(s, topo_), period_us_, std::size_t{1} << 20, ModemIntervals(s),
+               timeline_),
       metrics_(s.offsets_m, s.metrics),
       env_(std::make_shared<Environment>(s.leader, s.delay, s.disturbance.relative_to_leader)),
       warm_env_(s.disturbance.kind == DisturbanceKind::kPaperExample2) {
   for (int i = 1; i <= s.followers; ++i) {
-    followers_.push_back(std::make_unique<Follower>(s, topo_, i, env_, duration_s));
+    followers_.push_back(std::make_unique<Follower>(s, topo_, i, env_, duration_s, timeline_));
   }
   published_.resize(followers_.size());
   decisions_.reserve(topo_.Links().size());

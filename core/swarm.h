@@ -78,7 +78,8 @@ class Swarm {
   std::int64_t dropped() const { return dropped_; }
 
  private:
-  Topology topo_;
+  Topology topo_;  // every topology's links (UnionTopology)
+  std::shared_ptr<const Timeline> timeline_;  // null: no events
   Micros period_us_;
   std::int64_t final_tick_;
   std::int64_t tick_ = 0;

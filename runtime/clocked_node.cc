@@ -18,9 +18,10 @@ constexpr std::int64_t kIdleExitNs = 30000000000LL;
 constexpr std::int64_t kReadyEveryNs = 100000000LL;
 constexpr std::int64_t kNoClockExitNs = 60000000000LL;
 
+// The emulator's lookahead (its Channel's MinLagTicks): channel events included.
 std::int64_t LockstepTicksAhead(const Scenario& s) {
-  const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
-  return MinLagTicks(BuildLinks(s, topo), s.period_us());
+  const Timeline timeline(s);
+  return MinLagTicks(BuildAllLinks(s), &timeline, s.period_us());
 }
 }  // namespace
 

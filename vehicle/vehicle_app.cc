@@ -18,9 +18,8 @@ namespace {
 // window's deliveries), so that only forged traffic can reach it.
 constexpr std::size_t kMaxHeldDeliveries = 4096;
 
-Topology TopologyOf(const Scenario& s) {
-  return Topology::Build(s.followers, s.edges, s.leader_links);
-}
+// A slot for every neighbour any topology of the timeline gives this vehicle.
+Topology TopologyOf(const Scenario& s) { return UnionTopology(s); }
 }  // namespace
 
 VehicleApp::VehicleApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns, double duration_s,
@@ -29,8 +28,11 @@ VehicleApp::VehicleApp(const Scenario& s, int id, Mode mode, std::int64_t t0_ns,
       follower_(s, TopologyOf(s), id, nullptr, duration_s) {
   // Lockstep: a message is delivered (listed) at the latest one period after send time +
   // the largest delay of the links' delay models.
-  const std::vector<Link> links = BuildLinks(s, TopologyOf(s));
-  listable_us_ = static_cast<Micros>(std::ceil(MaxDelaySeconds(links) * 1e6)) + 2 * period_us();
+  double max_delay = MaxDelaySeconds(BuildLinks(s, TopologyOf(s)));
+  for (const ScenarioEvent& e : s.events) {
+    if (e.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*e.delay));
+  }
+  listable_us_ = static_cast<Micros>(std::ceil(max_delay * 1e6)) + 2 * period_us();
 }
 
 void VehicleApp::SubscribeInputs() { SubscribeInput(channels::Rx(id()), kRxKind); }
