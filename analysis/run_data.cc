@@ -188,7 +188,7 @@ void RunDataBuilder::AddChannelEvents(const std::uint8_t* data, int size) {
   const int lim = IdLimit();
   for (const channel_event_t& e : events) {
     if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim || e.status < 0 ||
-        e.status > channel_event_t::STATUS_DROPPED_RANGE) {  // the largest status value
+        e.status > channel_event_t::STATUS_DROPPED_DEAF) {  // the largest status value
       ++d_->rejected;
       continue;
     }
