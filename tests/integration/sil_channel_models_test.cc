@@ -82,5 +82,59 @@ TEST(SilChannelModels, TraceDelayLockstepEqualsShoalSim) {
   ExpectLockstepEqualsSim(scenario, "sil_trace", 31521, 20);
 }
 
+// Every kind of timeline event, one after the other in 16 s of Example 2, among them a
+// channel change to a delay shorter than [channel.delay]'s (the lockstep lookahead must
+// shrink for it) and a switch to another topology: lockstep equals shoal sim exactly.
+TEST(SilChannelModels, EveryEventKindLockstepEqualsShoalSim) {
+  std::string text = ReadFile(SourcePath("scenarios/paper_example2.toml"));
+  text += R"(
+[[event]]
+at_s = 2
+until_s = 4
+kind = "link_down"
+links = [[0, 1]]
+
+[[event]]
+at_s = 4
+until_s = 6
+kind = "channel"
+delay = { model = "constant", base_s = 0.01 }
+loss = { model = "bernoulli", probability = 0.2 }
+
+[[event]]
+at_s = 6
+until_s = 9
+kind = "topology"
+leader_links = [1]
+edges = [[2, 1], [3, 2], [4, 3], [5, 4]]
+
+[[event]]
+at_s = 9
+until_s = 10
+kind = "vehicle_silent"
+vehicles = [2]
+
+[[event]]
+at_s = 10
+until_s = 11
+kind = "vehicle_deaf"
+vehicles = [4]
+
+[[event]]
+at_s = 11
+until_s = 12
+kind = "leader_silent"
+
+[[event]]
+at_s = 12
+kind = "controller_reset"
+vehicles = [3]
+outage_s = 2
+)";
+  const std::string scenario = TmpPath("sil_events.toml");
+  std::ofstream(scenario) << text;
+  ExpectLockstepEqualsSim(scenario, "sil_events", 31531, 16);
+}
+
 }  // namespace
 }  // namespace shoal
