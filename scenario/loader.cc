@@ -204,10 +204,12 @@ constexpr std::array<Variant<EventKind>, 7> kEventKinds = {{
     {"leader_silent", EventKind::kLeaderSilent, kLeaderEventKeys},
     {"controller_reset", EventKind::kControllerReset, kResetEventKeys},
 }};
-// Hostile timelines: the events are checked pairwise by time, and the core tabulates the
-// state of every link in every segment between change times.
+// Hostile timelines: the core tabulates the state of every link in every segment between
+// change times (cells), and building a segment costs checks of the events in force
+// against the links (CheckTimelineSize). 1e9 checks take about half a second.
 constexpr std::size_t kMaxEvents = 10000;
 constexpr double kMaxTimelineCells = 5e7;
+constexpr double kMaxTimelineChecks = 1e9;
 
 // ---------------------------------------------------------------------------------------
 // Number ranges.
@@ -1549,30 +1551,37 @@ void CheckEventTopologies(const Reader& r, const std::vector<Table>& tables, con
   }
 }
 
-/// The core tabulates every link of the union topology for every segment between change
-/// times (core/timeline.h): refuse a table too large to build.
-void CheckTimelineSize(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
-  if (s.events.empty()) return;
+/// Where the timeline's segments start (besides the one before every event): each event's
+/// start and end, a topology event ending at the next one's start at the latest (as in
+/// core/timeline.cc). Sorted, distinct.
+std::vector<Micros> ChangeTimes(const Scenario& s) {
   std::vector<Micros> times;
-  const Micros never = std::numeric_limits<Micros>::max();
   for (std::size_t k = 0; k < s.events.size(); ++k) {
     const ScenarioEvent& e = s.events[k];
     times.push_back(TimelineMicros(e.at_s));
     Micros end = TimelineMicros(e.end_s());
-    if (e.kind == EventKind::kTopology) {
-      // It ends at the next topology event's start at the latest.
-      for (std::size_t j = k + 1; j < s.events.size(); ++j) {
-        if (s.events[j].kind != EventKind::kTopology) continue;
-        end = std::min(end, TimelineMicros(s.events[j].at_s));
-        break;
-      }
+    for (std::size_t j = k + 1; e.kind == EventKind::kTopology && j < s.events.size(); ++j) {
+      if (s.events[j].kind != EventKind::kTopology) continue;
+      end = std::min(end, TimelineMicros(s.events[j].at_s));
+      break;
     }
-    if (end != never) times.push_back(end);
+    if (end != std::numeric_limits<Micros>::max()) times.push_back(end);
   }
   std::sort(times.begin(), times.end());
   times.erase(std::unique(times.begin(), times.end()), times.end());
+  return times;
+}
+
+/// The core tabulates every link of the union topology for every segment between change
+/// times (core/timeline.h): refuse a table too large to hold, or too long to build. Building
+/// a segment checks every link against the list of each link event in force
+/// (links x listed links), each vehicle of the vehicle events in force, and every event.
+void CheckTimelineSize(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
+  if (s.events.empty()) return;
+  const std::vector<Micros> times = ChangeTimes(s);
   const double links = static_cast<double>(UnionTopology(s).Links().size());
-  const double cells = (static_cast<double>(times.size()) + 1.0) * links;
+  const double segments = static_cast<double>(times.size()) + 1.0;
+  const double cells = segments * links;
   if (cells > kMaxTimelineCells) {
     r.Fail(tables[0].line, "event",
            "the timeline is too large: " + std::to_string(times.size()) +
@@ -1580,6 +1589,28 @@ void CheckTimelineSize(const Reader& r, const std::vector<Table>& tables, const 
                std::to_string(times.size()) + " + 1) x " + FormatNumber(links) + " = " +
                FormatNumber(cells) + " link states, more than 5e7",
            std::nullopt, "use fewer events (or events at shared times), or fewer links");
+  }
+  double checks = segments * static_cast<double>(s.events.size());
+  for (const ScenarioEvent& e : s.events) {
+    // The segments of its window: those starting in [at_s, end).
+    const auto first = std::lower_bound(times.begin(), times.end(), TimelineMicros(e.at_s));
+    const auto last = std::lower_bound(first, times.end(), TimelineMicros(e.end_s()));
+    double cost = static_cast<double>(e.vehicles.size());
+    if (e.kind == EventKind::kLinkDown || e.kind == EventKind::kChannel) {
+      cost = links * static_cast<double>(std::max<std::size_t>(1, e.links.size()));
+    }
+    checks += static_cast<double>(last - first) * cost;
+  }
+  if (checks > kMaxTimelineChecks) {
+    r.Fail(tables[0].line, "event",
+           "the timeline is too costly to build: its link_down and channel events, each "
+           "checked against every one of the " +
+               FormatNumber(links) +
+               " links in every segment of their windows, and its vehicle events make " +
+               FormatNumber(checks) + " checks, more than 1e9",
+           std::nullopt,
+           "list fewer links in fewer or shorter link_down and channel events (omitting links "
+           "means every link and costs least), or use fewer links");
   }
 }
 
