@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -28,6 +29,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/timeline.h"
 #include "core/topology.h"
 #include "scenario/regular_file.h"
 
@@ -83,9 +85,9 @@ class KeySet {
   std::size_t size_ = 0;
 };
 
-constexpr std::array<std::string_view, 9> kTopKeys = {"run",     "swarm",   "control",
-                                                      "leader",  "channel", "disturbance",
-                                                      "vehicle", "metrics", "follower"};
+constexpr std::array<std::string_view, 10> kTopKeys = {
+    "run", "swarm", "control", "leader", "channel", "disturbance", "vehicle", "metrics",
+    "follower", "event"};
 constexpr std::array<std::string_view, 4> kRunKeys = {"name", "duration_s", "control_rate_hz",
                                                       "seed"};
 constexpr std::array<std::string_view, 4> kSwarmKeys = {"followers", "edges", "leader_links",
@@ -181,6 +183,33 @@ constexpr std::array<Variant<DisturbanceKind>, 3> kDisturbanceModels = {{
     {"paper_example2", DisturbanceKind::kPaperExample2, kPaperDisturbanceKeys},
     {"ocean_current", DisturbanceKind::kOceanCurrent, kOceanCurrentKeys},
 }};
+
+// [[event]]: the keys every event takes, and those of each kind (docs/scenario.md,
+// "Events"). A controller reset has no until_s: its window is [at_s, at_s + outage_s).
+constexpr std::array<std::string_view, 10> kEventKeys = {
+    "kind", "at_s",  "until_s",      "links",    "delay",
+    "loss", "edges", "leader_links", "vehicles", "outage_s"};
+constexpr std::array<std::string_view, 2> kLinkDownEventKeys = {"until_s", "links"};
+constexpr std::array<std::string_view, 4> kChannelEventKeys = {"until_s", "links", "delay", "loss"};
+constexpr std::array<std::string_view, 3> kTopologyEventKeys = {"until_s", "edges", "leader_links"};
+constexpr std::array<std::string_view, 2> kVehicleEventKeys = {"until_s", "vehicles"};
+constexpr std::array<std::string_view, 1> kLeaderEventKeys = {"until_s"};
+constexpr std::array<std::string_view, 2> kResetEventKeys = {"vehicles", "outage_s"};
+constexpr std::array<Variant<EventKind>, 7> kEventKinds = {{
+    {"link_down", EventKind::kLinkDown, kLinkDownEventKeys},
+    {"channel", EventKind::kChannel, kChannelEventKeys},
+    {"topology", EventKind::kTopology, kTopologyEventKeys},
+    {"vehicle_silent", EventKind::kVehicleSilent, kVehicleEventKeys},
+    {"vehicle_deaf", EventKind::kVehicleDeaf, kVehicleEventKeys},
+    {"leader_silent", EventKind::kLeaderSilent, kLeaderEventKeys},
+    {"controller_reset", EventKind::kControllerReset, kResetEventKeys},
+}};
+// Hostile timelines: the core tabulates the state of every link in every segment between
+// change times (cells), and building a segment costs checks of the events in force
+// against the links (CheckTimelineSize). 1e9 checks take about half a second.
+constexpr std::size_t kMaxEvents = 10000;
+constexpr double kMaxTimelineCells = 5e7;
+constexpr double kMaxTimelineChecks = 1e9;
 
 // ---------------------------------------------------------------------------------------
 // Number ranges.
@@ -735,68 +764,83 @@ void ReadRun(const Reader& r, const Table& t, Scenario* s) {
   }
 }
 
+/// `edges` of [swarm] or of a topology event: pairs [i, j] of distinct follower ids, each
+/// once. Absent: no follower edges.
+void ReadEdges(const Reader& r, const Table& t, int n, std::vector<std::pair<int, int>>* out) {
+  const toml::node* edges_node = t.Get("edges");
+  if (edges_node == nullptr) return;
+  const IntBound id{1, n, "follower ids must be in 1.." + std::to_string(n)};
+  const std::string key = t.KeyOf("edges");
+  const std::string_view hint =
+      "an edge [i, j] means follower i receives from follower j, e.g. edges = [[2, 1]]";
+  const toml::array& edges = r.ToArray(*edges_node, key, "must be an array of [i, j] pairs", hint);
+  std::set<std::pair<int, int>> seen;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    const toml::node& pair_node = *edges.get(e);
+    const std::string pair_key = Index(key, e);
+    const toml::array* pair = pair_node.as_array();
+    if (pair == nullptr || pair->size() != 2) {
+      r.FailAt(pair_node, pair_key, "must be a pair [i, j] of follower ids", hint);
+    }
+    const int i = static_cast<int>(r.ToInteger(*pair->get(0), Index(pair_key, 0), id, hint));
+    const int j = static_cast<int>(r.ToInteger(*pair->get(1), Index(pair_key, 1), id, hint));
+    if (i == j) r.FailAt(pair_node, pair_key, "a follower cannot receive from itself", hint);
+    if (!seen.emplace(i, j).second) {
+      r.FailAt(pair_node, pair_key, "duplicate edge", "list each edge once");
+    }
+    out->emplace_back(i, j);
+  }
+}
+
+/// `leader_links` of [swarm] or of a topology event: required, non-empty, distinct ids.
+void ReadLeaderLinks(const Reader& r, const Table& t, int n, std::vector<int>* out) {
+  const IntBound id{1, n, "follower ids must be in 1.." + std::to_string(n)};
+  const std::string key = t.KeyOf("leader_links");
+  const std::string_view hint =
+      "leader_links lists the followers that receive the leader, e.g. leader_links = [1]";
+  const toml::node& node = r.Require(t, "leader_links", hint);
+  const toml::array& links = r.ToArray(node, key, "must be an array of follower ids", hint);
+  if (links.empty()) r.FailAt(node, key, "must list at least one follower", hint);
+  for (std::size_t k = 0; k < links.size(); ++k) {
+    const int i = static_cast<int>(r.ToInteger(*links.get(k), Index(key, k), id, hint));
+    if (std::find(out->begin(), out->end(), i) != out->end()) {
+      r.FailAt(*links.get(k), Index(key, k), "duplicate follower id", "list each follower once");
+    }
+    out->push_back(i);
+  }
+}
+
+/// Assumption 1 for one topology: every follower has a directed path from the leader.
+/// `when` qualifies the topology in the message ("" for [swarm]).
+void CheckReachable(const Reader& r, int n, const std::vector<std::pair<int, int>>& edges,
+                    const std::vector<int>& leader_links, int line, const std::string& key,
+                    const std::string& when) {
+  const std::vector<int> unreachable =
+      Topology::Build(n, edges, leader_links).UnreachableFollowers();
+  if (unreachable.empty()) return;
+  r.Fail(line, key,
+         (unreachable.size() == 1 ? "follower " : "followers ") + JoinInts(unreachable) +
+             " cannot be reached from the leader (Assumption 1)" + when,
+         std::nullopt,
+         "add leader_links or edges so every follower has a directed path from the leader");
+}
+
 void ReadSwarm(const Reader& r, const Table& t, Scenario* s) {
   r.CheckKeys(t, kSwarmKeys);
   const int n = static_cast<int>(
       r.RequireInteger(t, "followers", {1, kMaxFollowers, "must be an integer in 1..1000"},
                        "followers is the number of follower vehicles, a whole number >= 1"));
   s->followers = n;
-  const IntBound id{1, n, "follower ids must be in 1.." + std::to_string(n)};
-
   const toml::node* edges_node = t.Get("edges");
-  if (edges_node != nullptr) {
-    const std::string key = t.KeyOf("edges");
-    const std::string_view hint =
-        "an edge [i, j] means follower i receives from follower j, e.g. edges = [[2, 1]]";
-    const toml::array& edges =
-        r.ToArray(*edges_node, key, "must be an array of [i, j] pairs", hint);
-    std::set<std::pair<int, int>> seen;
-    for (std::size_t e = 0; e < edges.size(); ++e) {
-      const toml::node& pair_node = *edges.get(e);
-      const std::string pair_key = Index(key, e);
-      const toml::array* pair = pair_node.as_array();
-      if (pair == nullptr || pair->size() != 2) {
-        r.FailAt(pair_node, pair_key, "must be a pair [i, j] of follower ids", hint);
-      }
-      const int i = static_cast<int>(r.ToInteger(*pair->get(0), Index(pair_key, 0), id, hint));
-      const int j = static_cast<int>(r.ToInteger(*pair->get(1), Index(pair_key, 1), id, hint));
-      if (i == j) r.FailAt(pair_node, pair_key, "a follower cannot receive from itself", hint);
-      if (!seen.emplace(i, j).second) {
-        r.FailAt(pair_node, pair_key, "duplicate edge", "list each edge once");
-      }
-      s->edges.emplace_back(i, j);
-    }
-  }
-
-  {
-    const std::string key = t.KeyOf("leader_links");
-    const std::string_view hint =
-        "leader_links lists the followers that receive the leader, e.g. leader_links = [1]";
-    const toml::node& node = r.Require(t, "leader_links", hint);
-    const toml::array& links = r.ToArray(node, key, "must be an array of follower ids", hint);
-    if (links.empty()) r.FailAt(node, key, "must list at least one follower", hint);
-    for (std::size_t k = 0; k < links.size(); ++k) {
-      const int i = static_cast<int>(r.ToInteger(*links.get(k), Index(key, k), id, hint));
-      if (std::find(s->leader_links.begin(), s->leader_links.end(), i) != s->leader_links.end()) {
-        r.FailAt(*links.get(k), Index(key, k), "duplicate follower id", "list each follower once");
-      }
-      s->leader_links.push_back(i);
-    }
-  }
+  ReadEdges(r, t, n, &s->edges);
+  ReadLeaderLinks(r, t, n, &s->leader_links);
 
   r.ReadNumber(t, "neighbour_timeout_s", kPositiveSeconds,
                "a neighbour whose newest message is older than this drops out of the control law",
                &s->neighbour_timeout_s);
 
-  const std::vector<int> unreachable =
-      Topology::Build(n, s->edges, s->leader_links).UnreachableFollowers();
-  if (!unreachable.empty()) {
-    r.Fail(edges_node != nullptr ? LineOf(*edges_node) : t.line, t.KeyOf("edges"),
-           (unreachable.size() == 1 ? "follower " : "followers ") + JoinInts(unreachable) +
-               " cannot be reached from the leader (Assumption 1)",
-           std::nullopt,
-           "add leader_links or edges so every follower has a directed path from the leader");
-  }
+  CheckReachable(r, n, s->edges, s->leader_links,
+                 edges_node != nullptr ? LineOf(*edges_node) : t.line, t.KeyOf("edges"), "");
 }
 
 void ReadControl(const Reader& r, const Table& t, Scenario* s) {
@@ -1234,6 +1278,367 @@ void ReadFollowers(const Reader& r, const Table& root, Scenario* s) {
   }
 }
 
+// ---------------------------------------------------------------------------------------
+// [[event]]: the timeline.
+
+std::string LinkText(int from, int to) {
+  return "the link from " +
+         (from == 0 ? std::string("the leader") : "follower " + std::to_string(from)) +
+         " to follower " + std::to_string(to);
+}
+
+/// `links` of a link_down or channel event: distinct pairs [from, to]; absent: every link.
+void ReadEventLinks(const Reader& r, const Table& t, int n, std::vector<std::pair<int, int>>* out) {
+  const toml::node* node = t.Get("links");
+  if (node == nullptr) return;
+  const std::string key = t.KeyOf("links");
+  const std::string_view hint =
+      "links lists [from, to] pairs, from 0 (the leader) or a follower id, e.g. "
+      "links = [[0, 1], [1, 2]]; omit links for every link";
+  const toml::array& links = r.ToArray(*node, key, "must be an array of [from, to] pairs", hint);
+  if (links.empty()) r.FailAt(*node, key, "must list at least one link", hint);
+  const IntBound from{0, n, "must be 0 (the leader) or a follower id in 1.." + std::to_string(n)};
+  const IntBound to{1, n, "must be a follower id in 1.." + std::to_string(n)};
+  std::set<std::pair<int, int>> seen;
+  for (std::size_t k = 0; k < links.size(); ++k) {
+    const toml::node& pair_node = *links.get(k);
+    const std::string pair_key = Index(key, k);
+    const toml::array* pair = pair_node.as_array();
+    if (pair == nullptr || pair->size() != 2) {
+      r.FailAt(pair_node, pair_key, "must be a pair [from, to]", hint);
+    }
+    const int f = static_cast<int>(r.ToInteger(*pair->get(0), Index(pair_key, 0), from, hint));
+    const int g = static_cast<int>(r.ToInteger(*pair->get(1), Index(pair_key, 1), to, hint));
+    if (!seen.emplace(f, g).second) {
+      r.FailAt(pair_node, pair_key, "duplicate link", "list each link once");
+    }
+    out->emplace_back(f, g);
+  }
+}
+
+/// `vehicles` of a vehicle_silent, vehicle_deaf or controller_reset event.
+void ReadEventVehicles(const Reader& r, const Table& t, int n, std::vector<int>* out) {
+  const std::string key = t.KeyOf("vehicles");
+  const std::string_view hint = "vehicles lists follower ids, e.g. vehicles = [2, 3]";
+  const toml::node& node = r.Require(t, "vehicles", hint);
+  const toml::array& ids = r.ToArray(node, key, "must be an array of follower ids", hint);
+  if (ids.empty()) r.FailAt(node, key, "must list at least one follower", hint);
+  const IntBound id{1, n, "must be a follower id in 1.." + std::to_string(n)};
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    const int i = static_cast<int>(r.ToInteger(*ids.get(k), Index(key, k), id, hint));
+    if (std::find(out->begin(), out->end(), i) != out->end()) {
+      r.FailAt(*ids.get(k), Index(key, k), "duplicate follower id", "list each follower once");
+    }
+    out->push_back(i);
+  }
+}
+
+void ReadChannelEvent(const Reader& r, const Table& t, ScenarioEvent* e) {
+  if (t.Get("delay") == nullptr && t.Get("loss") == nullptr) {
+    r.Fail(t.line, t.KeyOf("delay"), "a channel event needs a delay or a loss table", std::nullopt,
+           "add delay = { model = \"constant\", base_s = 0.5 } and/or "
+           "loss = { model = \"bernoulli\", probability = 0.2 }");
+  }
+  if (t.Get("delay") != nullptr) {
+    e->delay =
+        ReadDelay(r, r.Child(t, "delay", "write delay = { model = \"constant\", base_s = 0.1 }"));
+  }
+  if (t.Get("loss") != nullptr) {
+    e->loss = ReadLoss(
+        r, r.Child(t, "loss", "write loss = { model = \"bernoulli\", probability = 0.1 }"));
+  }
+}
+
+/// kind, at_s and until_s of an event.
+void ReadEventTimes(const Reader& r, const Table& t, ScenarioEvent* e) {
+  const std::string_view kind_hint =
+      "kind is one of \"link_down\", \"channel\", \"topology\", \"vehicle_silent\", "
+      "\"vehicle_deaf\", \"leader_silent\", \"controller_reset\"";
+  const toml::node& kind = r.Require(t, "kind", kind_hint);
+  const toml::node* until = t.Get("until_s");
+  if (until != nullptr && kind.as_string() != nullptr &&
+      kind.as_string()->get() == "controller_reset") {
+    r.FailAt(*until, t.KeyOf("until_s"), "not used by event kind \"controller_reset\"",
+             "a reset lasts outage_s from at_s: remove until_s");
+  }
+  e->kind = r.ReadVariant(t, "kind", kEventKinds, "event kind");
+  e->at_s = r.RequireNumber(t, "at_s", kSeconds,
+                            "at_s is the mission time in seconds at which the change starts");
+  if (until != nullptr) {
+    const std::string key = t.KeyOf("until_s");
+    const std::string_view hint = "the change is undone at until_s (seconds of mission time)";
+    e->until_s = r.ToNumber(*until, key, kSeconds, hint);
+    // The timeline counts whole microseconds: an empty window there is a mistake here.
+    if (TimelineMicros(e->until_s) <= TimelineMicros(e->at_s)) {
+      r.FailAt(
+          *until, key,
+          "must be later than at_s = " + FormatNumber(e->at_s) + " (by at least a microsecond)",
+          hint);
+    }
+  }
+}
+
+ScenarioEvent ReadEvent(const Reader& r, const Table& t, int n) {
+  r.CheckKeys(t, kEventKeys);
+  ScenarioEvent e;
+  e.line = t.line;
+  ReadEventTimes(r, t, &e);
+  switch (e.kind) {
+    case EventKind::kLinkDown:
+      ReadEventLinks(r, t, n, &e.links);
+      break;
+    case EventKind::kChannel:
+      ReadEventLinks(r, t, n, &e.links);
+      ReadChannelEvent(r, t, &e);
+      break;
+    case EventKind::kTopology:
+      ReadEdges(r, t, n, &e.edges);
+      ReadLeaderLinks(r, t, n, &e.leader_links);
+      break;
+    case EventKind::kVehicleSilent:
+    case EventKind::kVehicleDeaf:
+      ReadEventVehicles(r, t, n, &e.vehicles);
+      break;
+    case EventKind::kLeaderSilent:
+      break;
+    case EventKind::kControllerReset: {
+      ReadEventVehicles(r, t, n, &e.vehicles);
+      const std::string_view hint =
+          "the controller commands zero force for outage_s seconds from at_s";
+      e.outage_s = r.RequireNumber(t, "outage_s", kPositiveSeconds, hint);
+      if (TimelineMicros(e.end_s()) <= TimelineMicros(e.at_s)) {
+        r.FailAt(*t.Get("outage_s"), t.KeyOf("outage_s"), "must be at least a microsecond", hint);
+      }
+      break;
+    }
+  }
+  return e;
+}
+
+/// Every link an event lists belongs to some topology of the timeline.
+void CheckEventLinks(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
+  const std::vector<std::pair<int, int>> all = UnionTopology(s).Links();
+  const std::set<std::pair<int, int>> known(all.begin(), all.end());
+  for (std::size_t k = 0; k < s.events.size(); ++k) {
+    const ScenarioEvent& e = s.events[k];
+    for (std::size_t j = 0; j < e.links.size(); ++j) {
+      const auto [from, to] = e.links[j];
+      if (known.count(e.links[j]) > 0) continue;
+      const std::string edge =
+          from == 0 ? std::to_string(to) + " in leader_links"
+                    : "[" + std::to_string(to) + ", " + std::to_string(from) + "] in edges";
+      r.Fail(LineOf(*tables[k].Get("links")->as_array()->get(j)),
+             Index(tables[k].KeyOf("links"), j),
+             LinkText(from, to) + " is not a link of any topology of the scenario",
+             "[" + std::to_string(from) + ", " + std::to_string(to) + "]",
+             "a link exists if [swarm] or a topology event has " + edge +
+                 ": add it there, or "
+                 "fix the pair [from, to]");
+    }
+  }
+}
+
+/// "[a, b)" in seconds, "[a, end of run)" for an open window.
+std::string WindowText(const ScenarioEvent& e) {
+  const double end = e.end_s();
+  return "[" + FormatNumber(e.at_s) + ", " + (std::isinf(end) ? "end of run" : FormatNumber(end)) +
+         ")";
+}
+
+/// The latest end among earlier events (they all start at or before the current one, so
+/// the current one overlaps one of them exactly if it starts before this end).
+struct LatestEnd {
+  Micros end = std::numeric_limits<Micros>::min();
+  int event = -1;
+  void Take(Micros e, int k) {
+    if (e > end) end = e, event = k;
+  }
+};
+
+[[noreturn]] void FailOverlap(const Reader& r, const std::vector<Table>& tables, const Scenario& s,
+                              std::size_t later, int earlier, const std::string& what,
+                              std::string_view fix) {
+  const ScenarioEvent& a = s.events[static_cast<std::size_t>(earlier)];
+  const ScenarioEvent& b = s.events[later];
+  r.Fail(b.line, tables[later].key,
+         std::string(EventKindName(b.kind)) + " window " + WindowText(b) + " overlaps the window " +
+             WindowText(a) + " of " + tables[static_cast<std::size_t>(earlier)].key + " (line " +
+             std::to_string(a.line) + ")" + what,
+         std::nullopt, fix);
+}
+
+/// Two channel changes of one link at once would contradict each other.
+void CheckChannelOverlaps(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
+  const std::string_view fix =
+      "two channel events must not change one link at the same time: end the first (until_s) "
+      "at or before the second's at_s, or list disjoint links";
+  LatestEnd any, every;  // of every channel event; of those on every link
+  std::map<std::pair<int, int>, LatestEnd> by_link;
+  for (std::size_t k = 0; k < s.events.size(); ++k) {
+    const ScenarioEvent& e = s.events[k];
+    if (e.kind != EventKind::kChannel) continue;
+    const Micros at = TimelineMicros(e.at_s);
+    const Micros end = TimelineMicros(e.end_s());
+    // The link named is one both change: an event without links changes every link.
+    const auto shared = [&](const ScenarioEvent& other) {
+      const ScenarioEvent& listing = e.links.empty() ? other : e;
+      return listing.links.empty()
+                 ? std::string(" on every link")
+                 : " on " + LinkText(listing.links[0].first, listing.links[0].second);
+    };
+    if (e.links.empty() && any.end > at) {
+      FailOverlap(r, tables, s, k, any.event, shared(s.events[static_cast<std::size_t>(any.event)]),
+                  fix);
+    }
+    if (every.end > at) {
+      FailOverlap(r, tables, s, k, every.event,
+                  shared(s.events[static_cast<std::size_t>(every.event)]), fix);
+    }
+    for (const auto& [from, to] : e.links) {
+      const LatestEnd& l = by_link[{from, to}];
+      if (l.end > at) FailOverlap(r, tables, s, k, l.event, " on " + LinkText(from, to), fix);
+    }
+    const int index = static_cast<int>(k);
+    any.Take(end, index);
+    if (e.links.empty()) every.Take(end, index);
+    for (const auto& link : e.links) by_link[link].Take(end, index);
+  }
+}
+
+/// Topology events follow each other: one with an explicit until_s must end before the
+/// next starts. Two resets of one vehicle must not overlap.
+void CheckTopologyAndResetOverlaps(const Reader& r, const std::vector<Table>& tables,
+                                   const Scenario& s) {
+  LatestEnd until;  // explicit until_s of earlier topology events
+  int previous = -1;
+  std::map<int, LatestEnd> reset_of;
+  for (std::size_t k = 0; k < s.events.size(); ++k) {
+    const ScenarioEvent& e = s.events[k];
+    const Micros at = TimelineMicros(e.at_s);
+    if (e.kind == EventKind::kTopology) {
+      const std::string_view fix =
+          "a topology event holds until the next one: remove until_s, or end it at or before "
+          "the next topology event's at_s";
+      if (previous >= 0 &&
+          TimelineMicros(s.events[static_cast<std::size_t>(previous)].at_s) == at) {
+        FailOverlap(r, tables, s, k, previous, " (two topologies from the same at_s)",
+                    "give the topology events different at_s");
+      }
+      if (until.end > at) FailOverlap(r, tables, s, k, until.event, "", fix);
+      if (!std::isinf(e.until_s)) until.Take(TimelineMicros(e.until_s), static_cast<int>(k));
+      previous = static_cast<int>(k);
+    }
+    if (e.kind != EventKind::kControllerReset) continue;
+    for (const int id : e.vehicles) {
+      LatestEnd& l = reset_of[id];
+      if (l.end > at) {
+        FailOverlap(r, tables, s, k, l.event, " for follower " + std::to_string(id),
+                    "two resets of one follower must not overlap: start the second at or after "
+                    "the first's at_s + outage_s");
+      }
+      l.Take(TimelineMicros(e.end_s()), static_cast<int>(k));
+    }
+  }
+}
+
+/// Assumption 1 for every topology the timeline switches to.
+void CheckEventTopologies(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
+  for (std::size_t k = 0; k < s.events.size(); ++k) {
+    const ScenarioEvent& e = s.events[k];
+    if (e.kind != EventKind::kTopology) continue;
+    CheckReachable(r, s.followers, e.edges, e.leader_links, e.line, tables[k].key,
+                   " in the topology from t = " + FormatNumber(e.at_s) + " s");
+  }
+}
+
+/// Where the timeline's segments start (besides the one before every event): each event's
+/// start and end, a topology event ending at the next one's start at the latest (as in
+/// core/timeline.cc). Sorted, distinct.
+std::vector<Micros> ChangeTimes(const Scenario& s) {
+  std::vector<Micros> times;
+  for (std::size_t k = 0; k < s.events.size(); ++k) {
+    const ScenarioEvent& e = s.events[k];
+    times.push_back(TimelineMicros(e.at_s));
+    Micros end = TimelineMicros(e.end_s());
+    for (std::size_t j = k + 1; e.kind == EventKind::kTopology && j < s.events.size(); ++j) {
+      if (s.events[j].kind != EventKind::kTopology) continue;
+      end = std::min(end, TimelineMicros(s.events[j].at_s));
+      break;
+    }
+    if (end != std::numeric_limits<Micros>::max()) times.push_back(end);
+  }
+  std::sort(times.begin(), times.end());
+  times.erase(std::unique(times.begin(), times.end()), times.end());
+  return times;
+}
+
+/// The core tabulates every link of the union topology for every segment between change
+/// times (core/timeline.h): refuse a table too large to hold, or too long to build. Building
+/// a segment checks every link against the list of each link event in force
+/// (links x listed links), each vehicle of the vehicle events in force, and every event.
+void CheckTimelineSize(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
+  if (s.events.empty()) return;
+  const std::vector<Micros> times = ChangeTimes(s);
+  const double links = static_cast<double>(UnionTopology(s).Links().size());
+  const double segments = static_cast<double>(times.size()) + 1.0;
+  const double cells = segments * links;
+  if (cells > kMaxTimelineCells) {
+    r.Fail(tables[0].line, "event",
+           "the timeline is too large: " + std::to_string(times.size()) +
+               " distinct change times and " + FormatNumber(links) + " links make (" +
+               std::to_string(times.size()) + " + 1) x " + FormatNumber(links) + " = " +
+               FormatNumber(cells) + " link states, more than 5e7",
+           std::nullopt, "use fewer events (or events at shared times), or fewer links");
+  }
+  double checks = segments * static_cast<double>(s.events.size());
+  for (const ScenarioEvent& e : s.events) {
+    // The segments of its window: those starting in [at_s, end).
+    const auto first = std::lower_bound(times.begin(), times.end(), TimelineMicros(e.at_s));
+    const auto last = std::lower_bound(first, times.end(), TimelineMicros(e.end_s()));
+    double cost = static_cast<double>(e.vehicles.size());
+    if (e.kind == EventKind::kLinkDown || e.kind == EventKind::kChannel) {
+      cost = links * static_cast<double>(std::max<std::size_t>(1, e.links.size()));
+    }
+    checks += static_cast<double>(last - first) * cost;
+  }
+  if (checks > kMaxTimelineChecks) {
+    r.Fail(tables[0].line, "event",
+           "the timeline is too costly to build: its link_down and channel events, each "
+           "checked against every one of the " +
+               FormatNumber(links) +
+               " links in every segment of their windows, and its vehicle events make " +
+               FormatNumber(checks) + " checks, more than 1e9",
+           std::nullopt,
+           "list fewer links in fewer or shorter link_down and channel events (omitting links "
+           "means every link and costs least), or use fewer links");
+  }
+}
+
+void ReadEvents(const Reader& r, const Table& root, Scenario* s) {
+  const std::vector<Table> tables = r.ArrayOfTables(root, "event");
+  if (tables.size() > kMaxEvents) {
+    r.Fail(tables[kMaxEvents].line, tables[kMaxEvents].key,
+           "more than " + std::to_string(kMaxEvents) + " events", std::nullopt,
+           "a timeline holds at most " + std::to_string(kMaxEvents) + " [[event]] tables");
+  }
+  for (const Table& t : tables) {
+    ScenarioEvent e = ReadEvent(r, t, s->followers);
+    if (!s->events.empty() && e.at_s < s->events.back().at_s) {
+      r.FailAt(
+          *t.Get("at_s"), t.KeyOf("at_s"),
+          "is earlier than the previous event's at_s = " + FormatNumber(s->events.back().at_s) +
+              " (line " + std::to_string(s->events.back().line) + ")",
+          "list the [[event]] tables in the order of their at_s");
+    }
+    s->events.push_back(std::move(e));
+  }
+  CheckEventLinks(r, tables, *s);
+  CheckEventTopologies(r, tables, *s);
+  CheckChannelOverlaps(r, tables, *s);
+  CheckTopologyAndResetOverlaps(r, tables, *s);
+  CheckTimelineSize(r, tables, *s);
+}
+
 void ReadScenario(const Reader& r, const toml::table& root, Scenario* s) {
   const Table top{&root, "", "the top level", 1};
   r.CheckKeys(top, kTopKeys);
@@ -1249,6 +1654,7 @@ void ReadScenario(const Reader& r, const toml::table& root, Scenario* s) {
   ReadVehicle(r, child("vehicle"), s);
   ReadMetrics(r, child("metrics"), &s->metrics);
   ReadFollowers(r, top, s);
+  ReadEvents(r, top, s);
 }
 
 // ---------------------------------------------------------------------------------------
