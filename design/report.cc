@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 
+#include "core/timeline.h"
 #include "core/topology.h"
 #include "design/format.h"
 
@@ -317,11 +318,23 @@ DesignReport BuildDesignReport(const Scenario& scenario, const DesignRequest& q)
   r.margin = theory::ComputeDelayMargin(r.eigenvalues, r.k1, r.k2);
   r.factor_margin_shown = r.disturbance != DisturbanceKind::kNone && r.lipschitz.slopes_known;
   r.factor_margin = theory::ComputeFactorDelayMargin(r.eigenvalues, r.k1, r.k2, r.lipschitz);
+  if (Timeline(scenario).switches_topology()) {
+    r.switching = AnalyseSwitching(scenario, r.k1, r.k2, r.alpha, r.beta);
+  }
+  if (const FormationDelay f = FormationAcousticDelay(scenario); f.applicable) {
+    r.formation_delay = f;
+  }
   if (q.empirical) RunEmpirical(s, q, &r);
   if (q.tune) RunTune(s, q, &r);
   if (q.advise) RunAdvice(q, &r);
   Decide(&r);
+  if (r.switching) r.verdict = SwitchingVerdict(*r.switching, r.delay.h_s, r.factor);
   return r;
+}
+
+double DesignReport::GoverningMarginS() const {
+  if (switching) return switching->min_margin_s;
+  return margin.stable_at_zero ? margin.tau_s : 0.0;
 }
 
 const char* DelayKindName(DelayKind k) {

@@ -15,7 +15,9 @@
 #include "core/theory.h"
 #include "design/advise.h"
 #include "design/empirical_margin.h"
+#include "design/formation_delay.h"
 #include "design/sim_eval.h"
+#include "design/switching.h"
 #include "design/theorem3.h"
 #include "design/tune.h"
 #include "design/verdict.h"
@@ -113,10 +115,19 @@ struct DesignReport {
   theory::DelayMargin margin;
   bool factor_margin_shown = false;
   theory::FactorDelayMargin factor_margin;
+  /// Set when the timeline switches the topology: every section above is for topology 0
+  /// (the [swarm] one); this one gives every topology and the common certificate.
+  std::optional<SwitchingSection> switching;
+  /// Set when some link's delay model is acoustic.
+  std::optional<FormationDelay> formation_delay;
   std::optional<EmpiricalSection> empirical;
   std::optional<TuneSection> tune;
   std::optional<AdviceSection> advice;
   Verdict verdict;
+
+  /// The exact margin the delays are held against: the smallest over the topologies
+  /// when the topology switches, else the one topology's (0 when unstable without delay).
+  double GoverningMarginS() const;
 };
 
 /// What BuildDesignReport will cost, estimated before it starts: Theorem 3's LMI has
