@@ -1,6 +1,7 @@
 // The report of `shoal design`: everything the command computes for a scenario (topology,
 // delays, uncertain factor, Theorems 1-3, the exact delay margins, optionally the
-// empirical margin, tuning and advised gains) and the verdict, as one value. The command
+// empirical margin, tuning and advised gains; per topology of a switching timeline and
+// the acoustic delays in formation) and the verdict, as one value. The command
 // only parses flags, calls BuildDesignReport and prints one of the two renderings.
 #pragma once
 

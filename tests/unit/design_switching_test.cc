@@ -168,6 +168,32 @@ TEST(Switching, WithDelaysTheVerdictIsNotCertifiedAndNamesTheSmallestMargin) {
       << DesignReportText(r);
 }
 
+TEST(Switching, TheDelayBoundCoversEveryTopologysLinksAndChannelEvents) {
+  Scenario s = Load("scenarios/paper_example1.toml");
+  s.delay = DelayConfig(DelayKind::kConstant, 0.1, 0.0, 0.0);
+  LinkOverride slow;  // a link only the event's topology has
+  slow.from = 2;
+  slow.to = 1;
+  slow.delay = DelayConfig(DelayKind::kConstant, 0.25, 0.0, 0.0);
+  s.links.push_back(slow);
+  EXPECT_DOUBLE_EQ(BuildDesignReport(s, DesignRequest{}).delay.h_s, 0.1);
+  s.events.push_back(TopologyEvent(50.0, {{1, 2}, {3, 2}, {4, 3}, {5, 4}}, {2}));
+  DesignReport r = BuildDesignReport(s, DesignRequest{});
+  EXPECT_DOUBLE_EQ(r.delay.h_s, 0.25);
+  EXPECT_FALSE(r.delay.constant);  // 0.1 s and 0.25 s
+  ScenarioEvent swell;
+  swell.kind = EventKind::kChannel;
+  swell.at_s = 20.0;
+  swell.until_s = 30.0;
+  swell.delay = DelayConfig(DelayKind::kSinusoid, 0.3, 0.1, 0.5);
+  s.events.push_back(swell);
+  r = BuildDesignReport(s, DesignRequest{});
+  EXPECT_DOUBLE_EQ(r.delay.h_s, 0.4);
+  EXPECT_TRUE(r.delay.time_varying);
+  ASSERT_TRUE(r.delay.kappa.has_value());
+  EXPECT_DOUBLE_EQ(*r.delay.kappa, 0.05);
+}
+
 TEST(Switching, WithoutEventsTheReportHasNoSwitchingSection) {
   const Scenario s = Load("scenarios/paper_example1.toml");
   const DesignReport r = BuildDesignReport(s, DesignRequest{});
