@@ -194,6 +194,26 @@ TEST(Switching, TheDelayBoundCoversEveryTopologysLinksAndChannelEvents) {
   EXPECT_DOUBLE_EQ(*r.delay.kappa, 0.05);
 }
 
+TEST(Switching, ATopologyWithoutASpanningTreeIsNamedAndNothingIsCertified) {
+  Scenario s = Load("scenarios/paper_example1.toml");
+  s.events.push_back(TopologyEvent(30.0, {{2, 1}, {3, 2}, {4, 3}}, {1}));  // 5 hears nobody
+  s.events.back().line = 7;
+  const DesignReport r = BuildDesignReport(s, DesignRequest{});
+  ASSERT_TRUE(r.switching.has_value());
+  const TopologyResult& t = r.switching->topologies.at(1);
+  EXPECT_EQ(t.unreachable_followers, std::vector<int>{5});
+  EXPECT_FALSE(t.margin.stable_at_zero);
+  EXPECT_EQ(r.switching->critical, 1);
+  EXPECT_EQ(r.switching->min_margin_s, 0.0);
+  EXPECT_FALSE(r.switching->common.attempted);
+  EXPECT_FALSE(r.verdict.certified);
+  EXPECT_NE(r.verdict.reason.find("topology 1 (event 1 (line 7)) is unstable"), std::string::npos)
+      << r.verdict.Line();
+  const std::string text = DesignReportText(r);
+  EXPECT_NE(text.find("FAILS"), std::string::npos) << text;
+  EXPECT_NE(text.find("common Lyapunov certificate not sought"), std::string::npos) << text;
+}
+
 TEST(Switching, WithoutEventsTheReportHasNoSwitchingSection) {
   const Scenario s = Load("scenarios/paper_example1.toml");
   const DesignReport r = BuildDesignReport(s, DesignRequest{});
