@@ -1,10 +1,12 @@
 #include "design/report.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <string>
 
+#include "core/timeline.h"
 #include "core/topology.h"
 #include "design/format.h"
 
@@ -69,6 +71,42 @@ void Progress(const DesignRequest& q, const std::string& what) {
 
 void DescribeDelaysAndFactor(const Scenario& s, const DesignRequest& q, DesignReport* r);
 
+/// b joined into a, as theory::DelayBoundsOf joins the links of one topology.
+void JoinDelayBounds(const theory::DelayBounds& b, theory::DelayBounds* a) {
+  a->constant = a->constant && b.constant && b.h_s == a->h_s;
+  a->h_s = std::max(a->h_s, b.h_s);
+  if (!b.kappa || !a->kappa) {
+    a->kappa.reset();
+  } else {
+    a->kappa = std::max(*a->kappa, *b.kappa);
+  }
+  a->time_varying = a->time_varying || b.time_varying;
+}
+
+/// The delay bounds over the whole timeline: every link of every topology (each with
+/// its default or per-link model) and every delay a channel event gives. Without events
+/// exactly theory::DelayBoundsOf(s).
+theory::DelayBounds TimelineDelayBounds(const Scenario& s) {
+  if (s.events.empty()) return theory::DelayBoundsOf(s);
+  Scenario u = s;
+  u.edges.clear();
+  u.leader_links.clear();
+  for (const auto& [from, to] : UnionTopology(s).Links()) {
+    if (from == 0) {
+      u.leader_links.push_back(to);
+    } else {
+      u.edges.emplace_back(to, from);
+    }
+  }
+  theory::DelayBounds d = theory::DelayBoundsOf(u);
+  for (const ScenarioEvent& e : s.events) {
+    if (e.kind == EventKind::kChannel && e.delay) {
+      JoinDelayBounds(theory::DelayBoundsOf(*e.delay), &d);
+    }
+  }
+  return d;
+}
+
 /// Gains, topology, delays and the uncertain factor: the data every result below uses.
 void DescribeProblem(const Scenario& s, const DesignRequest& q, DesignReport* r) {
   r->scenario_name = s.name;
@@ -95,7 +133,7 @@ void DescribeDelaysAndFactor(const Scenario& s, const DesignRequest& q, DesignRe
   // Delays: the scenario's, or h (and kappa) from the flags describing one common delay.
   r->delay_model = s.delay.kind;
   r->per_link_overrides = !s.links.empty();
-  r->delay = theory::DelayBoundsOf(s);
+  r->delay = TimelineDelayBounds(s);
   r->delay_from_flags = q.h_s.has_value() || q.kappa.has_value();
   if (q.h_s) r->delay.h_s = *q.h_s;
   if (q.kappa) r->delay.kappa = *q.kappa;
@@ -317,11 +355,23 @@ DesignReport BuildDesignReport(const Scenario& scenario, const DesignRequest& q)
   r.margin = theory::ComputeDelayMargin(r.eigenvalues, r.k1, r.k2);
   r.factor_margin_shown = r.disturbance != DisturbanceKind::kNone && r.lipschitz.slopes_known;
   r.factor_margin = theory::ComputeFactorDelayMargin(r.eigenvalues, r.k1, r.k2, r.lipschitz);
+  if (Timeline(scenario).switches_topology()) {
+    r.switching = AnalyseSwitching(scenario, r.k1, r.k2, r.alpha, r.beta);
+  }
+  if (const FormationDelay f = FormationAcousticDelay(scenario); f.applicable) {
+    r.formation_delay = f;
+  }
   if (q.empirical) RunEmpirical(s, q, &r);
   if (q.tune) RunTune(s, q, &r);
   if (q.advise) RunAdvice(q, &r);
   Decide(&r);
+  if (r.switching) r.verdict = SwitchingVerdict(*r.switching, r.delay.h_s, r.factor);
   return r;
+}
+
+double DesignReport::GoverningMarginS() const {
+  if (switching) return switching->min_margin_s;
+  return margin.stable_at_zero ? margin.tau_s : 0.0;
 }
 
 const char* DelayKindName(DelayKind k) {

@@ -1,6 +1,7 @@
 // The report of `shoal design`: everything the command computes for a scenario (topology,
 // delays, uncertain factor, Theorems 1-3, the exact delay margins, optionally the
-// empirical margin, tuning and advised gains) and the verdict, as one value. The command
+// empirical margin, tuning and advised gains; per topology of a switching timeline and
+// the acoustic delays in formation) and the verdict, as one value. The command
 // only parses flags, calls BuildDesignReport and prints one of the two renderings.
 #pragma once
 
@@ -15,7 +16,9 @@
 #include "core/theory.h"
 #include "design/advise.h"
 #include "design/empirical_margin.h"
+#include "design/formation_delay.h"
 #include "design/sim_eval.h"
+#include "design/switching.h"
 #include "design/theorem3.h"
 #include "design/tune.h"
 #include "design/verdict.h"
@@ -113,10 +116,19 @@ struct DesignReport {
   theory::DelayMargin margin;
   bool factor_margin_shown = false;
   theory::FactorDelayMargin factor_margin;
+  /// Set when the timeline switches the topology: every section above is for topology 0
+  /// (the [swarm] one); this one gives every topology and the common certificate.
+  std::optional<SwitchingSection> switching;
+  /// Set when some link's delay model is acoustic.
+  std::optional<FormationDelay> formation_delay;
   std::optional<EmpiricalSection> empirical;
   std::optional<TuneSection> tune;
   std::optional<AdviceSection> advice;
   Verdict verdict;
+
+  /// The exact margin the delays are held against: the smallest over the topologies
+  /// when the topology switches, else the one topology's (0 when unstable without delay).
+  double GoverningMarginS() const;
 };
 
 /// What BuildDesignReport will cost, estimated before it starts: Theorem 3's LMI has

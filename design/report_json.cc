@@ -176,6 +176,67 @@ Json FactorMarginJson(const theory::FactorDelayMargin& f) {
   return d;
 }
 
+Json CommonLyapunovJson(const CommonLyapunov& c) {
+  Json j;
+  j["attempted"] = c.attempted;
+  if (!c.attempted) j["reason"] = c.not_attempted_reason;
+  j["found"] = c.found();
+  j["eps"] = Number(c.eps);
+  j["csdp_return_code"] = c.csdp_return_code;
+  j["csdp_status"] = c.csdp_status;
+  j["seconds"] = Number(c.seconds);
+  j["P_min_eigenvalue"] = c.P.size() > 0 ? Number(c.check.P_min_eigenvalue) : Json(nullptr);
+  Json m = Json::array();
+  for (double v : c.check.max_eigenvalues) m.push_back(Number(v));
+  j["max_eigenvalues"] = m;
+  j["P"] = c.found() ? MatrixJson(c.P) : Json(nullptr);
+  return j;
+}
+
+Json SwitchingJson(const DesignReport& r, const SwitchingSection& sw) {
+  Json topologies = Json::array();
+  for (const TopologyResult& t : sw.topologies) {
+    Json o;
+    o["index"] = t.index;
+    o["from"] = TopologySource(t);
+    o["event_index"] = t.event_index;
+    o["event_line"] = t.event_line;
+    o["at_s"] = Number(t.at_s);
+    o["H_eigenvalues"] = ComplexListJson(t.eigenvalues);
+    o["assumption1"] = {{"holds", t.unreachable_followers.empty()},
+                        {"unreachable_followers", t.unreachable_followers}};
+    o["theorem1"] = {{"available", t.theorem1_available},
+                     {"certifies", t.theorem1_certifies},
+                     {"P_max_eigenvalue",
+                      t.theorem1_available ? Number(t.theorem1_P_max_eigenvalue) : Json(nullptr)}};
+    o["stable_at_zero_delay"] = t.margin.stable_at_zero;
+    o["delay_margin_s"] = Number(t.margin_s());
+    topologies.push_back(o);
+  }
+  Json j;
+  j["topologies"] = topologies;
+  j["critical_topology"] = sw.critical;
+  j["min_delay_margin_s"] = Number(sw.min_margin_s);
+  j["h_below_min_margin"] = r.delay.h_s < sw.min_margin_s;
+  j["common_lyapunov"] = CommonLyapunovJson(sw.common);
+  return j;
+}
+
+Json FormationDelayJson(const DesignReport& r, const FormationDelay& f) {
+  const double m = r.GoverningMarginS();
+  Json j;
+  j["acoustic_links"] = f.acoustic_links;
+  j["in_formation_s"] = Number(f.in_formation_s);
+  j["link"] = {f.from, f.to};
+  j["range_m"] = Number(f.range_m);
+  j["beyond_range_links"] = f.beyond_range_links;
+  j["model_bound_s"] = Number(f.model_bound_s);
+  j["margin_s"] = Number(m);
+  j["in_formation_below_margin"] = f.in_formation_s < m;
+  j["model_bound_below_margin"] = f.model_bound_s < m;
+  return j;
+}
+
 Json EmpiricalJson(const EmpiricalSection& s) {
   const EmpiricalMargin& em = s.margin;
   Json e;
@@ -289,6 +350,8 @@ nlohmann::ordered_json DesignReportJson(const DesignReport& r) {
   j["delay_margin_s"] = Number(r.margin.stable_at_zero ? r.margin.tau_s : 0.0);
   j["delay_margin"] = DelayMarginJson(r);
   if (r.factor_margin_shown) j["delay_margin_with_factor"] = FactorMarginJson(r.factor_margin);
+  if (r.switching) j["switching"] = SwitchingJson(r, *r.switching);
+  if (r.formation_delay) j["acoustic_formation_delay"] = FormationDelayJson(r, *r.formation_delay);
   if (r.empirical) {
     const EmpiricalMargin& em = r.empirical->margin;
     j["empirical_margin_s"] = Number(em.converges_without_delay ? em.margin_s : 0.0);

@@ -208,6 +208,88 @@ void FactorMarginText(const DesignReport& r, std::ostream& txt) {
   txt << "\n";
 }
 
+std::string Theorem1Cell(const TopologyResult& t) {
+  if (!t.theorem1_available) return "no W";
+  return (t.theorem1_certifies ? "certifies (P " : "does not (P ") + G4(t.theorem1_P_max_eigenvalue) +
+         ")";
+}
+
+void CommonLyapunovText(const CommonLyapunov& c, std::ostream& txt) {
+  txt << "  ";
+  if (!c.attempted) {
+    txt << "common Lyapunov certificate not sought: " << c.not_attempted_reason << "\n";
+    return;
+  }
+  if (c.found()) {
+    txt << "common Lyapunov certificate found (min eig of P " << G4(c.check.P_min_eigenvalue)
+        << ", max eig of each A_k^T P + P A_k:";
+    for (std::size_t k = 0; k < c.check.max_eigenvalues.size(); ++k) {
+      txt << (k ? ", " : " ") << G4(c.check.max_eigenvalues[k]);
+    }
+    txt << "; eps = " << G4(c.eps) << ", CSDP " << Fmt("%.3f", c.seconds)
+        << " s)\n  the delay-free error system, without uncertain factor, is stable under "
+           "arbitrary switching among these topologies; with delays only the per-topology "
+           "margins apply\n";
+    return;
+  }
+  txt << "no common quadratic Lyapunov function found (CSDP status " << c.csdp_return_code << ": "
+      << c.csdp_status;
+  if (c.P.size() > 0 && std::isfinite(c.check.P_min_eigenvalue) && !c.check.max_eigenvalues.empty()) {
+    txt << "; its P fails the check: min eig of P " << G4(c.check.P_min_eigenvalue)
+        << ", max eig of each A_k^T P + P A_k:";
+    for (std::size_t k = 0; k < c.check.max_eigenvalues.size(); ++k) {
+      txt << (k ? ", " : " ") << G4(c.check.max_eigenvalues[k]);
+    }
+  }
+  txt << ")\n  stability under arbitrary switching is not shown (it may still hold, e.g. "
+         "with a dwell time)\n";
+}
+
+void SwitchingText(const DesignReport& r, const SwitchingSection& sw, std::ostream& txt) {
+  txt << "switching topology (" << sw.topologies.size()
+      << " topologies; the sections above are for topology 0, the [swarm] one)\n";
+  char head[160];
+  std::snprintf(head, sizeof(head), "  %-8s  %-18s%10s  %-12s  %-26s%s\n", "topology", "from",
+                "at_s", "assumption 1", "theorem 1", "exact margin");
+  txt << head;
+  for (const TopologyResult& t : sw.topologies) {
+    char row[200];
+    std::snprintf(row, sizeof(row), "  %-8d  %-18s%10s  %-12s  %-26s%s\n", t.index,
+                  TopologySource(t).c_str(), G4(t.at_s).c_str(),
+                  t.unreachable_followers.empty() ? "holds" : "FAILS",
+                  Theorem1Cell(t).c_str(),
+                  t.margin.stable_at_zero ? (Fmt("%.4f", t.margin.tau_s) + " s").c_str()
+                                          : "UNSTABLE (0)");
+    txt << row;
+  }
+  const double h = r.delay.h_s;
+  txt << "  smallest exact margin " << Fmt("%.4f", sw.min_margin_s) << " s (topology "
+      << sw.critical << ")";
+  if (h > 0) {
+    txt << " = " << Fmt("%.2f", sw.min_margin_s / h) << " x h; h = " << G4(h) << " s is "
+        << (h < sw.min_margin_s ? "below every topology's margin"
+                                : "NOT below every topology's margin");
+  }
+  txt << "\n";
+  CommonLyapunovText(sw.common, txt);
+}
+
+void FormationDelayText(const DesignReport& r, const FormationDelay& f, std::ostream& txt) {
+  const double m = r.GoverningMarginS();
+  auto judge = [&](double d) { return d < m ? std::string(": OK") : std::string(": EXCEEDS it"); };
+  txt << "acoustic delays in formation (offsets_m; " << f.acoustic_links << " acoustic links"
+      << (r.switching ? " of every topology" : "") << ")\n";
+  txt << "  in formation the delay is at most " << Fmt("%.4f", f.in_formation_s) << " s (link "
+      << f.from << " -> " << f.to << ", " << G4(f.range_m) << " m) (margin " << Fmt("%.4f", m)
+      << " s)" << judge(f.in_formation_s) << "\n";
+  txt << "  worst case (at max_range_m) " << Fmt("%.4f", f.model_bound_s) << " s (margin "
+      << Fmt("%.4f", m) << " s)" << judge(f.model_bound_s) << "\n";
+  if (f.beyond_range_links > 0) {
+    txt << "  " << f.beyond_range_links
+        << " link(s) longer than max_range_m in formation: their messages are lost\n";
+  }
+}
+
 void EmpiricalText(const EmpiricalSection& e, std::ostream& txt) {
   const EmpiricalMargin& em = e.margin;
   txt << "empirical margin (--empirical)\n";
@@ -311,6 +393,8 @@ std::string DesignReportText(const DesignReport& r) {
   Theorem3Text(r, txt);
   DelayMarginText(r, txt);
   FactorMarginText(r, txt);
+  if (r.switching) SwitchingText(r, *r.switching, txt);
+  if (r.formation_delay) FormationDelayText(r, *r.formation_delay, txt);
   if (r.empirical) EmpiricalText(*r.empirical, txt);
   if (r.tune) TuneText(r, *r.tune, txt);
   txt << r.verdict.Line() << "\n";
