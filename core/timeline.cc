@@ -10,13 +10,6 @@ namespace {
 constexpr Micros kNever = std::numeric_limits<Micros>::max();
 constexpr Micros kAlways = std::numeric_limits<Micros>::min();
 
-bool Lists(const std::vector<std::pair<int, int>>& links, int from, int to) {
-  if (links.empty()) return true;  // every link
-  for (const auto& l : links) {
-    if (l.first == from && l.second == to) return true;
-  }
-  return false;
-}
 }  // namespace
 
 Micros TimelineMicros(double seconds) {
@@ -106,17 +99,26 @@ void Timeline::Tabulate(Segment* seg, const std::vector<Micros>& topo_end) const
     if (!active(a, end_us_[a])) continue;
     switch (e.kind) {
       case EventKind::kLinkDown:
-      case EventKind::kChannel:
-        for (std::size_t k = 0; k < links_.size(); ++k) {
-          if (!Lists(e.links, links_[k].first, links_[k].second)) continue;
+      case EventKind::kChannel: {
+        // Listed links by lookup, not by scanning every link per listed link: a long list
+        // on a large swarm stays cheap.
+        auto mark = [&](std::size_t k) {
           if (e.kind == EventKind::kLinkDown) {
             seg->link[k] |= kDown;
           } else {
             if (seg->channel.empty()) seg->channel.assign(links_.size(), -1);
             seg->channel[k] = static_cast<std::int32_t>(a);
           }
+        };
+        if (e.links.empty()) {
+          for (std::size_t k = 0; k < links_.size(); ++k) mark(k);
+        }
+        for (const auto& [from, to] : e.links) {
+          const int k = LinkIndex(from, to);
+          if (k >= 0) mark(static_cast<std::size_t>(k));
         }
         break;
+      }
       case EventKind::kVehicleSilent:
       case EventKind::kVehicleDeaf:
       case EventKind::kControllerReset: {
