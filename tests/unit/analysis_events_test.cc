@@ -239,6 +239,47 @@ TEST(AnalysisEvents, LinkDownOfAPinnedLinkIsCountedPerLinkAndPerEvent) {
   EXPECT_NE(Text(r).find("timeline: 100 dropped: link down"), std::string::npos);
 }
 
+// Two events on a converged formation: a short outage of the leader's link to follower 1
+// and, later, a reset of follower 4. The first's re-convergence is judged up to the
+// second's start (its horizon), the second's to the end of the run.
+TEST(AnalysisEvents, ShortLinkDownThenResetEachJudgedUpToTheNextEvent) {
+  Scenario s = Example2(140.0);
+  s.metrics.position_tol_m = 0.3;
+  s.metrics.velocity_tol_mps = 0.05;
+  ScenarioEvent down = Event(EventKind::kLinkDown, 65.0, 66.5);
+  down.links = {{0, 1}};
+  ScenarioEvent reset = Event(EventKind::kControllerReset, 90.0, 1e300);
+  reset.vehicles = {4};
+  reset.outage_s = 8.0;
+  s.events = {down, reset};
+  const Analysed r = SimulateAndAnalyse(s);
+  ASSERT_EQ(r.a.events.size(), 2u);
+  const std::vector<Worst> w = WorstErrors(r.run);
+  const EventAnalysis& d = r.a.events[0];
+  EXPECT_EQ(d.horizon_s, 90.0);
+  EXPECT_EQ(d.decisions[ChannelDecision::kDroppedLinkDown], 75);  // 1.5 s at 50 Hz
+  // Re-convergence up to (not including) the reset's start at 90 s.
+  const double d_back = ReconvergedAt(w, 66.5, 89.98);
+  ASSERT_GE(d_back, 66.5);
+  EXPECT_TRUE(d.reconverged);
+  EXPECT_DOUBLE_EQ(d.reconverged_at_s, d_back);
+  double pos = 0.0, vel = 0.0;
+  for (const Worst& x : w) {
+    if (x.t >= 65.0 && x.t <= d_back) pos = std::max(pos, x.position), vel = std::max(vel, x.velocity);
+  }
+  EXPECT_DOUBLE_EQ(d.max_position_error_m, pos);
+  EXPECT_DOUBLE_EQ(d.max_velocity_error_mps, vel);
+
+  const EventAnalysis& e = r.a.events[1];
+  EXPECT_EQ(e.horizon_s, 140.0);
+  const double e_back = ReconvergedAt(w, 98.0, 140.0);
+  ASSERT_GT(e_back, 98.0);
+  EXPECT_DOUBLE_EQ(e.reconverged_at_s, e_back);
+  EXPECT_DOUBLE_EQ(e.time_to_reconverge_s, e_back - 98.0);
+  EXPECT_EQ(e.max_position_follower, 4);
+  EXPECT_GT(e.max_position_error_m, s.metrics.position_tol_m);
+}
+
 TEST(AnalysisEvents, SilentAndDeafAreCountedNeitherInvalidNorDamaged) {
   Scenario s = Example2(12.0);
   ScenarioEvent silent = Event(EventKind::kVehicleSilent, 2.0, 3.0);
