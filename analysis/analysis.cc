@@ -7,8 +7,10 @@
 #include <map>
 #include <utility>
 
+#include "analysis/event_analysis.h"
 #include "analysis/memory.h"
 #include "core/channel_model.h"
+#include "core/timeline.h"
 #include "core/topology.h"
 
 namespace shoal {
@@ -17,6 +19,9 @@ namespace {
 constexpr double kPitchLimitRad = 80.0 * 3.14159265358979323846 / 180.0;  // as shoal sim
 constexpr std::int8_t kDelivered = 0, kLoss = 1, kQueue = 2, kInvalid = 3;
 constexpr std::int8_t kBusy = ChannelDecision::kSkippedBusy, kRange = ChannelDecision::kDroppedRange;
+constexpr std::int8_t kSilent = ChannelDecision::kSkippedSilent;
+constexpr std::int8_t kLinkDown = ChannelDecision::kDroppedLinkDown;
+constexpr std::int8_t kDeaf = ChannelDecision::kDroppedDeaf;
 
 FormationErrors NaNErrors() { return FormationErrors{kNaN, kNaN, kNaN}; }
 
@@ -110,9 +115,31 @@ void AnalyseFollowers(const RunData& run, const ValidStates& valid, RunAnalysis*
   }
 }
 
+/// The worst follower of one complete sample, and whether it violates the tolerances as
+/// FormationMetrics::Add decides.
+WorstSample WorstOf(const RunData& run, const StateMsg& l, const std::vector<const StateMsg*>& f) {
+  WorstSample w;
+  w.t_s = ToSeconds(l.utime);
+  const MetricsConfig& tol = run.scenario.metrics;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const FormationErrors e = ErrorsOf(*f[i], run.scenario.offsets_m[i], l);
+    if (!(e.position_m <= w.position_m)) {
+      w.position_m = e.position_m;
+      w.position_follower = static_cast<int>(i) + 1;
+    }
+    w.velocity_mps = std::max(w.velocity_mps, e.velocity_mps);
+    if (!(e.position_m <= tol.position_tol_m && e.velocity_mps <= tol.velocity_tol_mps)) {
+      w.violating = true;
+    }
+  }
+  return w;
+}
+
 /// The swarm-level metrics of shoal sim / shoal run: only times at which the leader and
-/// every follower have a state.
-void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis* a) {
+/// every follower have a state. `worst` (may be null): each complete sample's worst
+/// follower, for the events.
+void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis* a,
+                      std::vector<WorstSample>* worst) {
   const int n = run.followers;
   const Span lead = valid(0);
   FormationMetrics m(run.scenario.offsets_m, run.scenario.metrics);
@@ -132,6 +159,7 @@ void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis*
     }
     if (!complete) continue;
     m.Add(l, ptr);
+    if (worst != nullptr) worst->push_back(WorstOf(run, l, ptr));
     a->summary.sim_time_s = ToSeconds(l.utime);
   }
   a->complete_samples = m.samples();
@@ -142,15 +170,18 @@ void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis*
   if (m.samples() > 0) a->final_errors = m.final_errors();
 }
 
-/// The channel's links: the scenario's (with their delay models, in (from, to) order),
-/// then any other link the log shows, in order of appearance.
+/// The channel's links: the scenario's, of every topology its timeline produces (with
+/// their delay models, in (from, to) order), then any other link the log shows, in order
+/// of appearance.
 class LinkTable {
  public:
   LinkTable(const RunData& run, std::vector<LinkAnalysis>* links) : links_(links) {
     if (run.has_scenario) {
       const Scenario& s = run.scenario;
-      for (const Link& l : BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links))) {
-        model_[{l.from, l.to}] = l.delay;
+      for (const Link& l : BuildAllLinks(s)) model_[{l.from, l.to}] = l.delay;
+      timeline_ = Timeline(s);
+      for (const ScenarioEvent& e : s.events) {
+        changes_delay_ = changes_delay_ || (e.kind == EventKind::kChannel && e.delay);
       }
     }
     for (const auto& [key, cfg] : model_) {
@@ -169,6 +200,16 @@ class LinkTable {
     return it == model_.end() ? nullptr : &it->second;
   }
 
+  /// The delay model in force on link (from, to) at send time t: a channel event's, else
+  /// `base` (the link's Model()).
+  const DelayConfig* ModelAt(const DelayConfig* base, int from, int to, Micros t) const {
+    if (base == nullptr || !changes_delay_) return base;
+    const int k = timeline_.LinkIndex(from, to);
+    if (k < 0) return base;
+    const ScenarioEvent* change = timeline_.ChannelChange(static_cast<std::size_t>(k), t);
+    return change != nullptr && change->delay ? &*change->delay : base;
+  }
+
   /// Index of the link in *links, appended on first sight if not in the scenario.
   std::size_t Of(int from, int to) {
     auto it = index_.find({from, to});
@@ -185,7 +226,40 @@ class LinkTable {
   std::vector<LinkAnalysis>* links_;
   std::map<std::pair<int, int>, DelayConfig> model_;
   std::map<std::pair<int, int>, std::size_t> index_;
+  Timeline timeline_;
+  bool changes_delay_ = false;  // some channel event gives a delay model
 };
+
+/// Whether an event's drawn delay is a draw of its link's model to check: a decision that
+/// sent nothing (modem busy, sender silent) drew none, an out-of-range one carries the
+/// delay of a range beyond max_range_m, and so may a link-down one of an acoustic link
+/// (the link was down whatever the range).
+bool CheckedDelay(const ChannelEventRecord& e, const DelayConfig& model) {
+  if (NotTransmitted(e.status) || e.status == kRange) return false;
+  return !(e.status == kLinkDown && model.kind == DelayKind::kAcoustic);
+}
+
+/// Counts one possible decision in its link's figures.
+void CountStatus(std::int8_t status, LinkAnalysis* l) {
+  if (status == kBusy) {  // never transmitted: not sent
+    ++l->skipped_busy;
+    return;
+  }
+  if (status == kSilent) {
+    ++l->skipped_silent;
+    return;
+  }
+  ++l->sent;
+  switch (status) {
+    case kDelivered: ++l->delivered; break;
+    case kLoss: ++l->dropped_loss; break;
+    case kQueue: ++l->dropped_queue; break;
+    case kRange: ++l->dropped_range; break;
+    case kLinkDown: ++l->dropped_link_down; break;
+    case kDeaf: ++l->dropped_deaf; break;
+    default: ++l->dropped_invalid; break;
+  }
+}
 
 /// Link index of an event left out (at an impossible time).
 constexpr std::uint32_t kNoLink = std::numeric_limits<std::uint32_t>::max();
@@ -234,28 +308,15 @@ std::vector<std::uint32_t> CountChannelEvents(const std::vector<ChannelEventReco
       last_to = e.receiver;
       last_cfg = table->Model(e.sender, e.receiver);
     }
-    // A modem-busy decision sent nothing, and an out-of-range one carries the delay of a
-    // range beyond max_range_m: neither is a draw of the model to check.
-    const double cfg = last_cfg == nullptr || e.status == kBusy || e.status == kRange
+    const DelayConfig* model = table->ModelAt(last_cfg, e.sender, e.receiver, e.send_utime);
+    const double cfg = model == nullptr || !CheckedDelay(e, *model)
                            ? e.delay_s
-                           : ConfiguredDelay(*last_cfg, e, &c->model_mismatches);
+                           : ConfiguredDelay(*model, e, &c->model_mismatches);
     if (last_cfg == nullptr) ++c->unknown_links;
     c->configured_delay_s[k] = cfg;
     const std::size_t li = table->Of(e.sender, e.receiver);
     link_of_event[k] = static_cast<std::uint32_t>(li);
-    LinkAnalysis& l = c->links[li];
-    if (e.status == kBusy) {  // never transmitted: not sent
-      ++l.skipped_busy;
-      continue;
-    }
-    ++l.sent;
-    switch (e.status) {
-      case kDelivered: ++l.delivered; break;
-      case kLoss: ++l.dropped_loss; break;
-      case kQueue: ++l.dropped_queue; break;
-      case kRange: ++l.dropped_range; break;
-      default: ++l.dropped_invalid; break;
-    }
+    CountStatus(e.status, &c->links[li]);
   }
   return link_of_event;
 }
@@ -389,8 +450,12 @@ void AnalyseChannel(const RunData& run, const ValidStates& valid, RunAnalysis* a
     c.dropped_invalid += l.dropped_invalid;
     c.dropped_range += l.dropped_range;
     c.skipped_busy += l.skipped_busy;
+    c.skipped_silent += l.skipped_silent;
+    c.dropped_link_down += l.dropped_link_down;
+    c.dropped_deaf += l.dropped_deaf;
   }
-  c.dropped = c.dropped_loss + c.dropped_queue + c.dropped_invalid + c.dropped_range;
+  c.dropped = c.dropped_loss + c.dropped_queue + c.dropped_invalid + c.dropped_range +
+              c.dropped_link_down + c.dropped_deaf;
   a->summary.delivered = c.delivered;
   a->summary.dropped = c.dropped;
 }
@@ -498,9 +563,8 @@ Micros LargestDelayUs(const Scenario& s) {
     worst = std::max({worst, MaxDelaySeconds(c), c.base_s + std::fabs(c.amplitude_s)});
   };
   add(s.delay);
-  for (const Link& l : BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links))) {
-    add(l.delay);
-  }
+  for (const Link& l : BuildAllLinks(s)) add(l.delay);
+  for (const DelayConfig& c : Timeline(s).EventDelays()) add(c);
   const double us = std::ceil(worst * 1e6) + 1.0;
   return us < 9e18 ? static_cast<Micros>(us) : std::numeric_limits<Micros>::max();
 }
@@ -577,6 +641,13 @@ void AnalyseRunLevel(const RunData& run, const StateTimeBounds& b, const ValidSt
 }
 
 }  // namespace
+
+const char* ChannelStatusKey(int status) {
+  static const char* const kKeys[kChannelStatuses] = {
+      "delivered",          "dropped_loss",  "dropped_queue",     "dropped_invalid", "skipped_modem_busy",
+      "dropped_range", "skipped_silent", "dropped_link_down", "dropped_deaf"};
+  return status >= 0 && status < kChannelStatuses ? kKeys[status] : "invalid";
+}
 
 Quantiles QuantilesOf(double* begin, double* end) {
   Quantiles q;
@@ -688,8 +759,10 @@ RunAnalysis AnalyseRun(const RunData& run) {
   AnalyseRunLevel(run, bounds, valid, &a);
   a.summary.states = run.state_samples() - a.states_damaged;
   AnalyseFollowers(run, valid, &a);
+  const bool events = run.has_scenario && !run.scenario.events.empty();
+  std::vector<WorstSample> worst;
   if (a.has_formation) {
-    AnalyseFormation(run, valid, &a);
+    AnalyseFormation(run, valid, &a, events ? &worst : nullptr);
   } else {  // no formation metrics: the latest state time instead
     Micros t = 0;
     for (int id = 0; id < static_cast<int>(run.vehicles.size()); ++id) {
@@ -699,6 +772,7 @@ RunAnalysis AnalyseRun(const RunData& run) {
   }
   AnalyseChannel(run, valid, &a);
   AnalyseHealth(run, &a);
+  if (events) a.events = AnalyseEvents(run, worst, a.end_s, a.period_us);
   return a;
 }
 

@@ -51,10 +51,13 @@ struct FollowerAnalysis {
 
 struct LinkAnalysis {
   int from = 0, to = 0;
-  bool in_scenario = false;  // the scenario's topology has this link
+  bool in_scenario = false;  // a topology of the scenario (UnionTopology) has this link
   std::int64_t sent = 0, delivered = 0, dropped_loss = 0, dropped_queue = 0, dropped_invalid = 0;
   std::int64_t dropped_range = 0;  // acoustic: receiver beyond max_range_m (counted as sent)
   std::int64_t skipped_busy = 0;   // the sender's modem was busy: never transmitted, not sent
+  // Timeline ([[event]]) statuses: a silent sender never transmitted (not sent); a link
+  // down or a deaf receiver drops a sent message.
+  std::int64_t skipped_silent = 0, dropped_link_down = 0, dropped_deaf = 0;
   Quantiles realised_delay_s;      // deliver - send, delivered only
   Quantiles delay_error_s;         // realised - configured tau(send time)
   Quantiles age_at_use_s;          // receiver tick time - send time of the newest message held
@@ -66,11 +69,14 @@ struct ChannelAnalysis {
   std::int64_t sent = 0, delivered = 0, dropped = 0;
   std::int64_t dropped_loss = 0, dropped_queue = 0, dropped_invalid = 0, dropped_range = 0;
   std::int64_t skipped_busy = 0;  // decisions "modem busy": not in sent
+  std::int64_t skipped_silent = 0;  // decisions "sender silent": not in sent
+  std::int64_t dropped_link_down = 0, dropped_deaf = 0;  // in dropped
   Quantiles realised_delay_s, delay_error_s, age_at_use_s;
-  /// Events whose drawn delay differs (> 1 ns) from the scenario's deterministic tau(t):
-  /// the emulator ran another delay model than the scenario says.
+  /// Events whose drawn delay differs (> 1 ns) from the scenario's deterministic tau(t)
+  /// (the model in force at the send time: a channel event's on its links and window, the
+  /// [channel] one otherwise): the emulator ran another delay model than the scenario says.
   std::int64_t model_mismatches = 0;
-  std::int64_t unknown_links = 0;  // events on links the scenario's topology does not have
+  std::int64_t unknown_links = 0;  // events on links no topology of the scenario has
   /// Events at times the run cannot have produced (ChannelEventTimeOf): counted here, left
   /// out of every other figure (counts, delays, ages, mismatches, links).
   std::int64_t events_damaged = 0;
@@ -87,6 +93,37 @@ struct ChannelAnalysis {
   /// NaN for a damaged event.
   std::vector<double> configured_delay_s;
   std::vector<LinkAnalysis> links;  // sorted by (from, to)
+};
+
+/// Channel decision statuses (channel_event_t::STATUS_*, ChannelDecision): 0 delivered ..
+/// 8 receiver deaf.
+constexpr int kChannelStatuses = 9;
+/// A status' key in the JSON counters ("delivered", "dropped_loss", ... "dropped_deaf").
+const char* ChannelStatusKey(int status);
+
+/// One [[event]] of the scenario's timeline and what the run did around it (docs/analyze.md,
+/// "Events").
+struct EventAnalysis {
+  int index = 0;  // in Scenario::events
+  EventKind kind = EventKind::kLinkDown;
+  double at_s = kNaN;
+  double end_s = kNaN;         // the event's end (ScenarioEvent::end_s), at most the run's end
+  bool ends_in_run = false;    // the event ends before the run's end
+  std::string affects;         // what it applies to, as text ("links 0->1, 2->3", ...)
+  /// From at_s until re-convergence (or the horizon when it does not re-converge): the
+  /// largest worst-follower position and velocity error, at complete samples.
+  double max_position_error_m = kNaN;
+  double max_velocity_error_mps = kNaN;
+  int max_position_follower = 0;  // the follower with that position error
+  double max_position_time_s = kNaN;
+  double reference_s = kNaN;  // end_s if the event ends in the run, else at_s
+  double horizon_s = kNaN;    // the next event's start after reference_s, else the run's end
+  bool reconverged = false;
+  double reconverged_at_s = kNaN;
+  double time_to_reconverge_s = kNaN;  // reconverged_at_s - reference_s
+  /// Channel decisions of the links it affects in [at_s, end_s) by status (index = status;
+  /// a vehicle_deaf event counts by due time, every other by send time).
+  std::int64_t decisions[kChannelStatuses] = {};
 };
 
 struct ProcessAnalysis {
@@ -137,6 +174,7 @@ struct RunAnalysis {
   std::vector<FollowerAnalysis> followers;    // index i - 1 for follower i
   int diverged_follower = 0;  // first follower with a non-finite state or |pitch| > 80 deg
   ChannelAnalysis channel;
+  std::vector<EventAnalysis> events;       // per [[event]] of the scenario, in its order
   std::vector<ProcessAnalysis> processes;  // sorted by id
   std::int64_t ticks = 0;                  // clock ticks in the log (else leader samples)
   std::int64_t states_expected = 0;        // (expected last tick + 1) * (n + 1)

@@ -1,5 +1,7 @@
 #include "analysis/analysis_json.h"
 
+#include <cmath>
+
 #include "analysis/verdict.h"
 
 namespace shoal {
@@ -39,6 +41,9 @@ Json LinkJson(const LinkAnalysis& l) {
               {"dropped_invalid", l.dropped_invalid},
               {"dropped_range", l.dropped_range},
               {"skipped_modem_busy", l.skipped_busy},
+              {"skipped_silent", l.skipped_silent},
+              {"dropped_link_down", l.dropped_link_down},
+              {"dropped_deaf", l.dropped_deaf},
               {"realised_delay_s", QuantileJson(l.realised_delay_s)},
               {"realised_delay_error_s", QuantileJson(l.delay_error_s)},
               {"message_age_s", QuantileJson(l.age_at_use_s)},
@@ -58,6 +63,9 @@ Json ChannelJson(const ChannelAnalysis& c) {
               {"dropped_invalid", c.dropped_invalid},
               {"dropped_range", c.dropped_range},
               {"skipped_modem_busy", c.skipped_busy},
+              {"skipped_silent", c.skipped_silent},
+              {"dropped_link_down", c.dropped_link_down},
+              {"dropped_deaf", c.dropped_deaf},
               {"realised_delay_error_p50_s", c.delay_error_s.p50},
               {"realised_delay_error_p99_s", c.delay_error_s.p99},
               {"realised_delay_error_max_s", c.delay_error_s.max},
@@ -121,6 +129,34 @@ Json FollowersJson(const RunAnalysis& a) {
   return per;
 }
 
+/// A finite number, or null.
+Json NumberOrNull(double x) { return std::isfinite(x) ? Json(x) : Json(nullptr); }
+
+Json EventsJson(const RunAnalysis& a) {
+  Json events = Json::array();
+  for (const EventAnalysis& e : a.events) {
+    Json decisions = Json::object();
+    for (int st = 0; st < kChannelStatuses; ++st) decisions[ChannelStatusKey(st)] = e.decisions[st];
+    events.push_back(Json{{"index", e.index},
+                          {"kind", EventKindName(e.kind)},
+                          {"at_s", e.at_s},
+                          {"end_s", NumberOrNull(e.end_s)},
+                          {"ends_in_run", e.ends_in_run},
+                          {"affects", e.affects},
+                          {"max_position_error_m", NumberOrNull(e.max_position_error_m)},
+                          {"max_position_error_follower", e.max_position_follower},
+                          {"max_position_error_time_s", NumberOrNull(e.max_position_time_s)},
+                          {"max_velocity_error_mps", NumberOrNull(e.max_velocity_error_mps)},
+                          {"reference_s", NumberOrNull(e.reference_s)},
+                          {"horizon_s", NumberOrNull(e.horizon_s)},
+                          {"reconverged", e.reconverged},
+                          {"reconverged_at_s", NumberOrNull(e.reconverged_at_s)},
+                          {"time_to_reconverge_s", NumberOrNull(e.time_to_reconverge_s)},
+                          {"decisions", decisions}});
+  }
+  return events;
+}
+
 }  // namespace
 
 void AddFormationKeys(bool converged, double convergence_time_s,
@@ -157,6 +193,7 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   j["diverged_follower"] = a.diverged_follower;
   j["followers"] = FollowersJson(a);
   j["channel"] = ChannelJson(a.channel);
+  j["events"] = EventsJson(a);
   j["loop"] = LoopJson(a);
   j["all_processes_ok"] = a.problems.empty() && !a.interrupted;
   j["problems"] = a.problems;

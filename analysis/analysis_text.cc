@@ -25,6 +25,44 @@ void PrintAuthentication(std::FILE* out, const RunData& run) {
   if (run.insecure_run) std::fprintf(out, "  bus not authenticated (--insecure)\n");
 }
 
+/// "1.23 s", or "-" for NaN.
+std::string Seconds(double t) {
+  if (!std::isfinite(t)) return "-";
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.2f s", t);
+  return b;
+}
+
+/// Per [[event]]: its window, what it affects, the formation's excursion and
+/// re-convergence, and the channel decisions in its window by status.
+void PrintEvents(std::FILE* out, const RunAnalysis& a) {
+  std::fprintf(out, "  events: %zu\n", a.events.size());
+  for (const EventAnalysis& e : a.events) {
+    std::fprintf(out, "  event %d %s at %.2f s until %s%s: %s\n", e.index + 1,
+                 EventKindName(e.kind), e.at_s, Seconds(e.end_s).c_str(),
+                 e.ends_in_run ? "" : " (run end)", e.affects.c_str());
+    if (std::isfinite(e.max_position_error_m)) {
+      std::fprintf(out,
+                   "    excursion: position %.4f m (follower %d at %.2f s), velocity %.4f m/s\n",
+                   e.max_position_error_m, e.max_position_follower, e.max_position_time_s,
+                   e.max_velocity_error_mps);
+    }
+    if (e.reconverged) {
+      std::fprintf(out, "    re-converged %.2f s after %s (at %.2f s)\n", e.time_to_reconverge_s,
+                   e.ends_in_run ? "its end" : "its start", e.reconverged_at_s);
+    } else {
+      std::fprintf(out, "    did not re-converge (before %.2f s)\n", e.horizon_s);
+    }
+    std::string d;
+    for (int st = 0; st < kChannelStatuses; ++st) {
+      if (e.decisions[st] == 0) continue;
+      d += (d.empty() ? "" : ", ") + std::to_string(e.decisions[st]) + " " +
+           ChannelStatusKey(st);
+    }
+    std::fprintf(out, "    channel decisions in its window: %s\n", d.empty() ? "none" : d.c_str());
+  }
+}
+
 }  // namespace
 
 namespace {
@@ -110,6 +148,11 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
     std::fprintf(out, "  acoustic: %lld dropped out of range (in the dropped above), %lld not sent: modem busy\n",
                 static_cast<long long>(c.dropped_range), static_cast<long long>(c.skipped_busy));
   }
+  if (c.skipped_silent > 0 || c.dropped_link_down > 0 || c.dropped_deaf > 0) {
+    std::fprintf(out, "  timeline: %lld dropped: link down, %lld dropped: receiver deaf (in the dropped above), %lld not sent: sender silent\n",
+                static_cast<long long>(c.dropped_link_down), static_cast<long long>(c.dropped_deaf),
+                static_cast<long long>(c.skipped_silent));
+  }
   if (c.delay_error_s.count > 0) {
     std::fprintf(out, "  realised delay - configured tau: p50 %.3f ms, p99 %.3f ms, max %.3f ms (%s)\n",
                 c.delay_error_s.p50 * 1e3, c.delay_error_s.p99 * 1e3, c.delay_error_s.max * 1e3,
@@ -139,6 +182,7 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
                   static_cast<long long>(h.neighbour_timeouts));
     }
   }
+  if (!a.events.empty()) PrintEvents(out, a);
   if (a.interrupted) std::fprintf(out, "  the run was interrupted\n");
   for (const std::string& p : a.problems) std::fprintf(out, "  PROBLEM: %s\n", p.c_str());
   PrintAuthentication(out, run);

@@ -114,6 +114,18 @@ struct Axis {
   bool reversed = false;
 };
 
+/// A shaded x interval of a panel (e.g. the window of a scenario event): a translucent
+/// rectangle from x0 to x1 over the plot's whole height, or over [y0, y1] (data units) when
+/// both are finite. Drawn over the grid, under the reference lines and the data; it does
+/// not widen the axes' ranges. The label (if any) is written in small text at its top
+/// left, inside the plot. A band with a non-finite x0 or x1 is not drawn.
+struct Band {
+  double x0 = 0.0, x1 = 0.0;
+  double y0 = kAutoRange, y1 = kAutoRange;
+  Color color{0.5f, 0.5f, 0.5f, 0.15f};
+  std::string label;
+};
+
 struct Panel {
   std::string title;
   /// A short explanation in smaller grey text on a line under the title (e.g. what the
@@ -123,6 +135,7 @@ struct Panel {
   Axis x, y;
   std::vector<Series> series;
   std::vector<RefLine> hlines, vlines;
+  std::vector<Band> bands;
   LegendPlacement legend = LegendPlacement::kAuto;
 };
 

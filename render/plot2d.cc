@@ -371,6 +371,7 @@ class Plot2D {
   float NotePx() const { return 12.5f * z_.s; }
   void DrawGeometry(GlCanvas* gl);
   void DrawText(Image* img);
+  void DrawBandLabels(const PanelState& ps, Image* img);
 
   const Figure2D& f_;
   TextRenderer* text_;
@@ -699,6 +700,24 @@ void Plot2D::PlaceLegends() {
   }
 }
 
+// The pixels of a band within the plot; false if it is not drawable or not visible.
+bool BandRect(const PanelState& ps, const Band& b, Rect* r) {
+  const Rect& p = ps.plot;
+  const double xa = ps.xm.Map(b.x0), xb = ps.xm.Map(b.x1);
+  if (!std::isfinite(xa) || !std::isfinite(xb)) return false;
+  r->x0 = std::max(p.x0, static_cast<float>(std::min(xa, xb)));
+  r->x1 = std::min(p.x1, static_cast<float>(std::max(xa, xb)));
+  r->y0 = p.y0;
+  r->y1 = p.y1;
+  if (std::isfinite(b.y0) && std::isfinite(b.y1)) {
+    const double ya = ps.ym.Map(b.y0), yb = ps.ym.Map(b.y1);
+    if (!std::isfinite(ya) || !std::isfinite(yb)) return false;
+    r->y0 = std::max(p.y0, static_cast<float>(std::min(ya, yb)));
+    r->y1 = std::min(p.y1, static_cast<float>(std::max(ya, yb)));
+  }
+  return r->x1 > r->x0 && r->y1 > r->y0;
+}
+
 // A crisp 1-pixel line position: the centre of the pixel containing v.
 float Snap(float v) { return std::floor(v) + 0.5f; }
 
@@ -735,6 +754,14 @@ void Plot2D::DrawGrid(const PanelState& ps, GlCanvas* gl) {
   gl->SetClip(p.x0, p.y0, p.x1, p.y1);
   gl->Draw(mesh);
   mesh.clear();
+  for (const Band& b : ps.panel->bands) {
+    Rect r;
+    if (BandRect(ps, b, &r)) AddRect(r.x0, r.y0, r.x1, r.y1, 0, b.color, &mesh);
+  }
+  if (!mesh.empty()) {
+    gl->Draw(mesh);
+    mesh.clear();
+  }
   for (const RefLine& h : ps.panel->hlines) {
     const double y = ps.ym.Map(h.value);
     if (!std::isfinite(y)) continue;
@@ -879,7 +906,17 @@ void Plot2D::DrawText(Image* img) {
       text_->Draw(img, "no data", 0.5f * (p.x0 + p.x1), 0.5f * (p.y0 + p.y1),
                   {z_.label_px, false, kNoDataColor}, HAlign::kCenter, VAlign::kMiddle);
     }
+    DrawBandLabels(ps, img);
     if (!ps.legend.empty()) ps.legend.DrawLabels(ps.legend_x, ps.legend_y, text_, img);
+  }
+}
+
+void Plot2D::DrawBandLabels(const PanelState& ps, Image* img) {
+  for (const Band& b : ps.panel->bands) {
+    Rect r;
+    if (b.label.empty() || !BandRect(ps, b, &r)) continue;
+    text_->Draw(img, b.label, r.x0 + 3.0f * z_.s, r.y0 + 3.0f * z_.s,
+                {NotePx(), false, kNoteColor}, HAlign::kLeft, VAlign::kTop);
   }
 }
 

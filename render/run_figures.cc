@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "core/channel_model.h"
+#include "core/timeline.h"
 #include "core/topology.h"
 #include "render/figure.h"
 
@@ -52,7 +53,109 @@ void SetSize(const RunFigureOptions& o, Options* f) {
   }
 }
 
+/// The state of `track` at time t: the last sample at or before it; null if none.
+const StateMsg* StateAt(const VehicleTrack& track, Micros t) {
+  const std::vector<StateMsg>& s = track.samples;
+  auto it = std::upper_bound(s.begin(), s.end(), t,
+                             [](Micros v, const StateMsg& m) { return v < m.utime; });
+  return it == s.begin() ? nullptr : &*(it - 1);
+}
+
+/// Index of an acoustic model in *models (appended if new).
+std::size_t ModelIndex(const DelayConfig& c, const std::string& label,
+                       std::vector<AcousticModelLine>* models) {
+  for (std::size_t k = 0; k < models->size(); ++k) {
+    const AcousticModelLine& m = (*models)[k];
+    if (m.sound_speed_mps == c.sound_speed_mps && m.processing_s == c.processing_s &&
+        m.jitter_s == c.jitter_s && m.max_range_m == c.max_range_m) {
+      return k;
+    }
+  }
+  models->push_back({label, c.sound_speed_mps, c.processing_s, c.jitter_s, c.max_range_m});
+  return models->size() - 1;
+}
+
 }  // namespace
+
+std::vector<EventWindow> EventWindowsOf(const RunData& run, double end_s) {
+  std::vector<EventWindow> w;
+  if (!run.has_scenario) return w;
+  for (const ScenarioEvent& e : run.scenario.events) {
+    w.push_back({e.at_s, std::min(e.end_s(), end_s), EventKindName(e.kind)});
+  }
+  return w;
+}
+
+std::vector<LinkOutage> OutagesOf(const RunData& run, double end_s) {
+  std::vector<LinkOutage> out;
+  if (!run.has_scenario || run.scenario.events.empty()) return out;
+  const Timeline timeline(run.scenario);
+  const auto has = [](const std::vector<int>& v, int id) {
+    return std::find(v.begin(), v.end(), id) != v.end();
+  };
+  for (const ScenarioEvent& e : run.scenario.events) {
+    const double t1 = std::min(e.end_s(), end_s);
+    for (const auto& [from, to] : timeline.links()) {
+      const char* label = nullptr;
+      switch (e.kind) {
+        case EventKind::kLinkDown:
+          if (e.links.empty() || std::find(e.links.begin(), e.links.end(),
+                                           std::make_pair(from, to)) != e.links.end()) {
+            label = "link down";
+          }
+          break;
+        case EventKind::kVehicleSilent: label = has(e.vehicles, from) ? "silent" : nullptr; break;
+        case EventKind::kLeaderSilent: label = from == 0 ? "silent" : nullptr; break;
+        case EventKind::kVehicleDeaf: label = has(e.vehicles, to) ? "deaf" : nullptr; break;
+        default: break;
+      }
+      if (label != nullptr) out.push_back({from, to, e.at_s, t1, label});
+    }
+  }
+  return out;
+}
+
+bool AcousticOf(const RunData& run, AcousticPoints* points, std::vector<AcousticModelLine>* models) {
+  if (!run.has_scenario) return false;
+  const Scenario& s = run.scenario;
+  const Timeline timeline(s);
+  std::map<std::pair<int, int>, DelayConfig> base;
+  bool any = false;
+  for (const Link& l : BuildAllLinks(s)) {
+    base[{l.from, l.to}] = l.delay;
+    if (l.delay.kind == DelayKind::kAcoustic) any = true, ModelIndex(l.delay, "[channel]", models);
+  }
+  for (std::size_t k = 0; k < s.events.size(); ++k) {
+    const ScenarioEvent& e = s.events[k];
+    if (e.kind == EventKind::kChannel && e.delay && e.delay->kind == DelayKind::kAcoustic) {
+      any = true;
+      ModelIndex(*e.delay, "of event " + std::to_string(k + 1), models);
+    }
+  }
+  if (!any) return false;
+  for (const ChannelEventRecord& e : run.channel_events) {
+    if (e.status != 0) continue;
+    auto it = base.find({e.sender, e.receiver});
+    if (it == base.end()) continue;
+    const int k = timeline.LinkIndex(e.sender, e.receiver);
+    const ScenarioEvent* change =
+        k < 0 ? nullptr : timeline.ChannelChange(static_cast<std::size_t>(k), e.send_utime);
+    const DelayConfig& model = change && change->delay ? *change->delay : it->second;
+    if (model.kind != DelayKind::kAcoustic) continue;
+    if (e.sender >= static_cast<int>(run.vehicles.size()) ||
+        e.receiver >= static_cast<int>(run.vehicles.size()) || e.sender < 0 || e.receiver < 0) {
+      continue;
+    }
+    const StateMsg* a = StateAt(run.vehicles[static_cast<std::size_t>(e.sender)], e.send_utime);
+    const StateMsg* b = StateAt(run.vehicles[static_cast<std::size_t>(e.receiver)], e.send_utime);
+    if (a == nullptr || b == nullptr) continue;
+    points->send_s.push_back(ToSeconds(e.send_utime));
+    points->range_m.push_back((a->eta.head<3>() - b->eta.head<3>()).norm());
+    points->drawn_delay_s.push_back(e.delay_s);
+    points->realised_delay_s.push_back(ToSeconds(e.deliver_utime - e.send_utime));
+  }
+  return true;
+}
 
 std::vector<VehicleSeries> VehicleSeriesOf(const RunData& run) {
   std::vector<VehicleSeries> vehicles;
@@ -177,6 +280,7 @@ bool WriteRunFigures(const RunData& run, const std::string& out_dir, const RunFi
     e.position_tol_m = run.scenario.metrics.position_tol_m;
     e.velocity_tol_mps = run.scenario.metrics.velocity_tol_mps;
     e.converged_s = a.summary.converged ? a.summary.convergence_time_s : -1.0;
+    e.events = EventWindowsOf(run, a.end_s);
     SetSize(o, &e);
     const std::string path = out_dir + "/errors.png";
     emit(RenderPng(ErrorFigure(errors, e), path, &why), path);
@@ -186,9 +290,19 @@ bool WriteRunFigures(const RunData& run, const std::string& out_dir, const RunFi
     report->skipped.push_back("no SHOAL_CHANNEL events in the log: channel.png skipped");
   } else {
     ChannelOptions c = ChannelOptionsOf(run, a);
+    c.outages = OutagesOf(run, a.end_s);
     SetSize(o, &c);
     const std::string path = out_dir + "/channel.png";
     emit(RenderPng(ChannelFigure(LinkSeriesOf(run), c), path, &why), path);
+  }
+  AcousticPoints points;
+  std::vector<AcousticModelLine> models;
+  if (AcousticOf(run, &points, &models)) {
+    AcousticOptions ao;
+    ao.scenario = name;
+    SetSize(o, &ao);
+    const std::string path = out_dir + "/acoustic_delay.png";
+    emit(RenderPng(AcousticDelayFigure(points, models, ao), path, &why), path);
   }
   return true;
 }

@@ -27,6 +27,21 @@ std::vector<LinkSeries> LinkSeriesOf(const RunData& run);
 /// the run has a scenario), the run mode and control period for the panel's note.
 ChannelOptions ChannelOptionsOf(const RunData& run, const RunAnalysis& a);
 
+/// The scenario's [[event]] windows for the error figure: [at_s, end) with the end at the
+/// event's end or the run's end `end_s`, labelled with the kind.
+std::vector<EventWindow> EventWindowsOf(const RunData& run, double end_s);
+
+/// The timeline's outages per link for the channel figure: link_down windows on their
+/// links (every link when it names none), silent senders' and deaf receivers' windows on
+/// their outgoing and incoming links (of every topology), ends clipped to `end_s`.
+std::vector<LinkOutage> OutagesOf(const RunData& run, double end_s);
+
+/// The delivered messages of links whose delay model in force at the send time is
+/// acoustic, with their range from the logged states at the send time (messages whose
+/// sender or receiver has no state at or before that time are left out), and the distinct
+/// acoustic models. False if no link of the scenario is ever acoustic.
+bool AcousticOf(const RunData& run, AcousticPoints* points, std::vector<AcousticModelLine>* models);
+
 struct RunFigureOptions {
   int width_px = 0, height_px = 0;  // 0: each figure's default size
   bool linear_errors = false;       // tracking errors on a linear instead of a log axis
@@ -39,7 +54,8 @@ struct RunFigureReport {
 };
 
 /// Writes trajectory.png, states.png, errors.png (needs the scenario's offsets and the
-/// leader) and channel.png (needs SHOAL_CHANNEL events) into out_dir. False (with *err)
+/// leader), channel.png (needs SHOAL_CHANNEL events) and, when a link's delay model is
+/// acoustic, acoustic_delay.png into out_dir. False (with *err)
 /// only if there is nothing to draw; figures that fail are listed in report->failures.
 bool WriteRunFigures(const RunData& run, const std::string& out_dir, const RunFigureOptions& o,
                      RunFigureReport* report, std::string* err);

@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <tuple>
 
 namespace shoal::render {
 namespace {
@@ -228,6 +229,10 @@ Figure2D ErrorFigure(const std::vector<ErrorSeries>& followers, const ErrorOptio
       std::snprintf(buf, sizeof buf, "converged at %.2f s", o.converged_s);
       p.vlines.push_back({o.converged_s, Color{0.1f, 0.1f, 0.1f, 1.0f}, LineStyle::kDotted, 1.8f,
                           k == 0 ? buf : ""});
+    }
+    for (const EventWindow& w : o.events) {
+      p.bands.push_back({w.t0_s, w.t1_s, kAutoRange, kAutoRange, Hex(0xE69F00, 0.16f),
+                         k == 0 ? w.label : ""});
     }
     f.panels.push_back(std::move(p));
   }
@@ -467,8 +472,30 @@ Panel DelayErrorPanel(const std::vector<const LinkSeries*>& links, const Channel
   return p;
 }
 
-// 3. Drops per link over time, rows as in panel 2.
-Panel DropPanel(const std::vector<const LinkSeries*>& links, double t_start, double t_end) {
+// Whether an outage of link (from, to) concerns row l: the link itself, its receiver's
+// group (from -1) or the one row of every link (to < 0).
+bool OutageOnRow(const LinkOutage& out, const LinkSeries& l) {
+  if (l.to < 0) return true;
+  return l.to == out.to && (l.from == out.from || l.from < 0);
+}
+
+// The outages as bands on their rows, each row's band labelled once.
+void AddOutageBands(const std::vector<const LinkSeries*>& links,
+                    const std::vector<LinkOutage>& outages, Panel* p) {
+  std::set<std::tuple<std::size_t, double, double>> drawn;  // grouped rows: once per window
+  for (const LinkOutage& out : outages) {
+    for (std::size_t k = 0; k < links.size(); ++k) {
+      if (!OutageOnRow(out, *links[k]) || !drawn.insert({k, out.t0_s, out.t1_s}).second) continue;
+      const double row = LinkRow(k, links.size());
+      p->bands.push_back({out.t0_s, out.t1_s, row - 0.45, row + 0.45, Hex(0xD55E00, 0.22f),
+                          out.label});
+    }
+  }
+}
+
+// 3. Drops per link over time, rows as in panel 2; outages shaded on their rows.
+Panel DropPanel(const std::vector<const LinkSeries*>& links, const std::vector<LinkOutage>& outages,
+                double t_start, double t_end) {
   Panel drops;
   drops.title = "dropped messages per link";
   SetAxis(&drops.x, "send time", "s");
@@ -488,6 +515,12 @@ Panel DropPanel(const std::vector<const LinkSeries*>& links, double t_start, dou
     if (!s.x.empty()) drops.series.push_back(std::move(s));
   }
   if (drops.series.empty()) drops.note = "no message was dropped";
+  AddOutageBands(links, outages, &drops);
+  if (!outages.empty()) {
+    drops.note += std::string(drops.note.empty() ? "" : "; ") +
+                  "shaded: outages of the scenario's timeline (link down, silent sender, deaf "
+                  "receiver: by due time, drops by send time)";
+  }
   drops.x.min = t_start;
   drops.x.max = t_end > t_start ? t_end : t_start + 1.0;
   return drops;
@@ -553,7 +586,84 @@ Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOption
   f.panels.push_back(
       ZoomPanel(sorted, o, tau, t_start, std::min(t_end, t_start + o.zoom_s)));
   f.panels.push_back(DelayErrorPanel(sorted, o, tau));
-  f.panels.push_back(DropPanel(sorted, t_start, t_end));
+  f.panels.push_back(DropPanel(sorted, o.outages, t_start, t_end));
+  return f;
+}
+
+}  // namespace shoal::render
+
+namespace shoal::render {
+namespace {
+
+std::string Fmt(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+}  // namespace
+
+Figure2D AcousticDelayFigure(const AcousticPoints& points,
+                             const std::vector<AcousticModelLine>& models,
+                             const AcousticOptions& o) {
+  Figure2D f;
+  f.width_px = o.width_px;
+  f.height_px = o.height_px;
+  f.title = Title(o.scenario, "acoustic links: delay against range");
+  Panel p;
+  p.title = "delivered messages: delay against the sender\xE2\x80\x93receiver range at the send time";
+  p.note = "range from the logged states; realised = drawn delay rounded up to a control tick; "
+           "dotted: the top of the model's jitter band";
+  SetAxis(&p.x, "range", "m");
+  SetAxis(&p.y, "delay", "s");
+  double reach = 0.0;
+  for (double r : points.range_m) reach = std::isfinite(r) ? std::max(reach, r) : reach;
+  const Color model_colors[3] = {kInk, Hex(0xCC79A7), Hex(0x009E73)};
+  for (std::size_t m = 0; m < models.size() && m < 3; ++m) {
+    const AcousticModelLine& a = models[m];
+    // To a little beyond the farthest message (the data, not an empty axis to max_range_m).
+    const double end = reach > 0 && (a.max_range_m <= 0 || 1.15 * reach < a.max_range_m)
+                           ? 1.15 * reach
+                           : (a.max_range_m > 0 ? a.max_range_m : 1.0);
+    const double d0 = a.processing_s, d1 = end / a.sound_speed_mps + a.processing_s;
+    Series line;
+    line.label = "model " + a.label + ": range / " + Fmt(a.sound_speed_mps) + " m/s + " +
+                 Fmt(a.processing_s) + " s";
+    line.x = {0.0, end};
+    line.y = {d0, d1};
+    line.color = model_colors[m];
+    line.line = LineStyle::kDashed;
+    line.line_width_px = 1.8f;
+    p.series.push_back(std::move(line));
+    if (a.jitter_s > 0) {
+      Series top;
+      top.label = "+ jitter " + Fmt(a.jitter_s) + " s";
+      top.x = {0.0, end};
+      top.y = {d0 + a.jitter_s, d1 + a.jitter_s};
+      top.color = model_colors[m];
+      top.line = LineStyle::kDotted;
+      top.line_width_px = 1.5f;
+      p.series.push_back(std::move(top));
+    }
+  }
+  Series realised, drawn;
+  realised.label = "realised delay";
+  drawn.label = "drawn delay";
+  realised.line = drawn.line = LineStyle::kNone;
+  realised.marker = drawn.marker = Marker::kCircle;
+  realised.marker_size_px = 4.0f;
+  drawn.marker_size_px = 5.0f;
+  realised.color = Hex(0x999999, 0.8f);
+  drawn.color = Hex(0x0072B2);
+  realised.x = drawn.x = points.range_m;
+  realised.y = points.realised_delay_s;
+  drawn.y = points.drawn_delay_s;
+  if (!realised.x.empty()) {
+    p.series.insert(p.series.begin(), std::move(drawn));
+    p.series.insert(p.series.begin(), std::move(realised));
+  }
+  p.x.min = 0.0;
+  f.panels.push_back(std::move(p));
   return f;
 }
 

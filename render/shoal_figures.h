@@ -62,17 +62,33 @@ Figure3D TrajectoryFigure(const std::vector<VehicleSeries>& vehicles, const Traj
 Figure2D StateFigure(const std::vector<VehicleSeries>& vehicles, const std::string& scenario,
                      int width_px = 1600, int height_px = 1000);
 
+/// A window of the scenario's timeline ([[event]]): shaded from t0_s to t1_s and labelled.
+struct EventWindow {
+  double t0_s = 0.0, t1_s = 0.0;
+  std::string label;  // e.g. the event's kind, "link_down"
+};
+
 struct ErrorOptions {
   std::string scenario;
   bool log_y = true;
   double position_tol_m = -1.0;    // drawn as a dashed line if > 0
   double velocity_tol_mps = -1.0;  // ditto
   double converged_s = -1.0;       // a vertical line if >= 0
+  /// Each drawn as a translucent band in every panel, labelled in the top panel.
+  std::vector<EventWindow> events;
   int width_px = 1600, height_px = 1000;
 };
 
 /// Paper Figs. 24-27: position, velocity and attitude tracking errors of every follower.
 Figure2D ErrorFigure(const std::vector<ErrorSeries>& followers, const ErrorOptions& o);
+
+/// A time during which a link loses or never sends its messages (a link_down window, a
+/// silent sender, a deaf receiver).
+struct LinkOutage {
+  int from = 0, to = 1;
+  double t0_s = 0.0, t1_s = 0.0;
+  std::string label;  // "link down", "silent", "deaf"
+};
 
 struct ChannelOptions {
   std::string scenario;
@@ -83,6 +99,9 @@ struct ChannelOptions {
   /// control period (0: unknown): they say in the figure what the delay error means.
   std::string mode;
   double control_period_s = 0.0;
+  /// Marked in the drops panel as a band on the link's row (on the receiver's row when
+  /// the links are grouped by receiver; on the single row when they are all in one).
+  std::vector<LinkOutage> outages;
   /// height_px 0: 1000 px, taller when there are so many links that their rows would
   /// crowd (text then kept at the scale of a 1000 px high figure).
   int width_px = 1600, height_px = 0;
@@ -93,5 +112,32 @@ struct ChannelOptions {
 /// over the whole run (min-max, 5-95 %, median) with a note on what it means in the run's
 /// mode; and drops over time per link. Row colours: the receiving vehicle's.
 Figure2D ChannelFigure(const std::vector<LinkSeries>& links, const ChannelOptions& o);
+
+/// One acoustic model's line in the delay-against-range figure.
+struct AcousticModelLine {
+  std::string label;         // e.g. "[channel.delay]" or "event 2 (channel)"
+  double sound_speed_mps = 1500.0, processing_s = 0.0, jitter_s = 0.0;
+  double max_range_m = 0.0;  // the line is drawn from 0 to here (0: to the largest range)
+};
+
+/// Delivered messages of acoustic links: range between sender and receiver at the send
+/// time (from the logged states) and delay.
+struct AcousticPoints {
+  std::vector<double> send_s;
+  std::vector<double> range_m;
+  std::vector<double> drawn_delay_s;     // the model's draw
+  std::vector<double> realised_delay_s;  // deliver - send
+};
+
+struct AcousticOptions {
+  std::string scenario;
+  int width_px = 1600, height_px = 1000;
+};
+
+/// Acoustic links: each delivered message's drawn and realised delay against the
+/// sender-receiver range at its send time, with each model's line range / sound_speed +
+/// processing and its jitter band (up to + jitter_s).
+Figure2D AcousticDelayFigure(const AcousticPoints& points, const std::vector<AcousticModelLine>& models,
+                             const AcousticOptions& o);
 
 }  // namespace shoal::render
