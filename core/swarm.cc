@@ -121,7 +121,7 @@ bool Swarm::Step(SwarmObserver* obs) {
     for (const ChannelDecision& d : decisions_) {
       if (d.status == ChannelDecision::kDelivered) {
         ++delivered_;
-      } else if (d.status != ChannelDecision::kSkippedBusy) {
+      } else if (!NotTransmitted(d.status)) {
         ++dropped_;
       }
       if (obs) obs->OnChannel(d);

@@ -55,7 +55,9 @@ void ExpectLockstepEqualsSim(const std::string& scenario, const std::string& tag
   EXPECT_EQ(a["channel"]["model_mismatches"], 0);
   EXPECT_EQ(a["channel"]["unknown_link_events"], 0);
   EXPECT_GT(a["channel"]["delivered"].get<double>(), 0.0);
-  if (modems) EXPECT_GT(a["channel"]["skipped_modem_busy"].get<double>(), 0.0);
+  if (modems) {
+    EXPECT_GT(a["channel"]["skipped_modem_busy"].get<double>(), 0.0);
+  }
 }
 
 // scenarios/acoustic_survey.toml: acoustic delays from the vehicles' ranges, range losses,
