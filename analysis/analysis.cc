@@ -557,10 +557,36 @@ void FindDivergence(const RunData& run, const ValidStates& valid, RunAnalysis* a
   }
 }
 
+/// The restarts the statuses name (a restarted process repeats its status until the clock
+/// reaches it: one restart per process and time), and the states each left missing.
+void AnalyseRestarts(const RunData& run, RunAnalysis* a) {
+  for (const StatusRecord& st : run.statuses) {
+    if (st.state != "restarted" || st.vehicle_id < 0) continue;
+    const bool repeated = std::any_of(a->restarts.begin(), a->restarts.end(), [&](const auto& r) {
+      return r.id == st.vehicle_id && r.utime == st.utime;
+    });
+    if (repeated) continue;
+    RestartAnalysis r;
+    r.id = st.vehicle_id;
+    r.utime = st.utime;
+    r.message = st.message;
+    if (r.id < static_cast<int>(run.vehicles.size()) && a->period_us > 0) {
+      const std::vector<StateMsg>& v = run.vehicles[r.id].samples;
+      const auto after = std::lower_bound(
+          v.begin(), v.end(), r.utime, [](const StateMsg& m, Micros t) { return m.utime < t; });
+      const Micros from = after == v.begin() ? -a->period_us : std::prev(after)->utime;
+      r.states_missing = std::max<Micros>(0, (r.utime - from) / a->period_us - 1);
+    }
+    a->states_missing_in_restarts += r.states_missing;
+    a->restarts.push_back(r);
+  }
+}
+
 void AnalyseRunLevel(const RunData& run, const StateTimeBounds& b, const ValidStates& valid,
                      RunAnalysis* a) {
   AnalyseStatuses(run, a);
   a->period_us = ControlPeriodOf(run);
+  AnalyseRestarts(run, a);
   AnalyseTicks(run, b, valid, a);
   FindDivergence(run, valid, a);
 

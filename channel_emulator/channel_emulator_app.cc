@@ -55,7 +55,9 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       last_seq_(s.followers + 1, 0),
       have_seq_(s.followers + 1, false),
       alive_(s.followers + 1, true),
-      ready_(s.followers + 1, false) {
+      ready_(s.followers + 1, false),
+      resent_tick_(s.followers + 1, -1),
+      resent_ns_(s.followers + 1, 0) {
   for (int id = 0; id <= n_; ++id) {
     auto group = std::find_if(bus_groups_.begin(), bus_groups_.end(),
                               [&](const std::vector<int>& g) { return vbus_[g[0]] == vbus_[id]; });
@@ -122,9 +124,55 @@ int ChannelEmulatorApp::HandleBus(int timeout_ms) {
 void ChannelEmulatorApp::OnStatus(const unsigned char* data, int size) {
   run_status_t st;
   if (!Decode(data, size, &st)) return;
-  if (ParseRunState(st.state) == RunState::kReady && st.vehicle_id >= 0 && st.vehicle_id <= n_) {
+  if (st.vehicle_id < 0 || st.vehicle_id > n_) return;
+  const std::optional<RunState> state = ParseRunState(st.state);
+  // A process restarted before the run started is simply ready.
+  if (state == RunState::kReady || (state == RunState::kRestarted && !running_)) {
     ready_[st.vehicle_id] = true;
+  } else if (state == RunState::kRestarted && mode_ == Mode::kLockstep && st.utime >= 0 &&
+             st.utime % period_us_ == 0) {
+    OnRestarted(st.vehicle_id, st.utime / period_us_);
   }
+}
+
+void ChannelEmulatorApp::OnRestarted(int id, std::int64_t next) {
+  const std::int64_t now = MonotonicNs();
+  if (!alive_[id]) {
+    std::cerr << "shoal_channel_emulator: vehicle " << id << " came back (restarted)\n";
+  }
+  alive_[id] = true;
+  restarted_ns_ = now;
+  // Its announcement repeats every 100 ms until a window reaches it: the same request
+  // within 200 ms was answered already.
+  if (resent_tick_[id] == next && now - resent_ns_[id] < 200000000LL) return;
+  resent_tick_[id] = next;
+  resent_ns_[id] = now;
+  for (std::int64_t first = std::max<std::int64_t>(next, 0); first <= win_last_;
+       first += lookahead_) {
+    ResendClock(id, first, std::min(first + lookahead_ - 1, win_last_));
+  }
+}
+
+void ChannelEmulatorApp::ResendClock(int id, std::int64_t first, std::int64_t last) {
+  Bus* b = vbus_[id];
+  clock_window_t c = WindowClock();
+  c.utime = first * period_us_;
+  c.tick = first;
+  c.n_ticks = static_cast<std::int32_t>(last - first + 1);
+  c.final_tick = last == final_tick_ ? 1 : 0;
+  // Deliveries exist for the current window only: earlier ticks (at most the one a
+  // process re-steps after dying between its publish and its checkpoint) get none.
+  for (const Outgoing& o : outbox_[id]) {
+    if (o.tick < first || o.tick > last) continue;
+    b->PublishRaw(rx_channels_[id], o.d.raw.data(), static_cast<int>(o.d.raw.size()));
+    c.delivery_tick.push_back(o.tick);
+    c.delivery_receiver.push_back(id);
+    c.delivery_sender.push_back(o.d.sender);
+    c.delivery_seq.push_back(o.d.seq);
+    c.delivery_digest.push_back(o.d.digest);
+  }
+  c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
+  b->Publish(channels::Clock(), c);
 }
 
 void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char* data,
@@ -333,6 +381,7 @@ int ChannelEmulatorApp::RunLockstep() {
     win_last_ = std::min(k + lookahead_ - 1, final_tick_);
     std::fill(got_tick_.begin(), got_tick_.end(), false);
     ReleaseWindow();
+    running_ = true;
     const WindowWait w = WaitForWindow();
     if (w == WindowWait::kStopped) {
       PublishEvents();
@@ -353,6 +402,8 @@ int ChannelEmulatorApp::RunLockstep() {
               << recorder_->timeouts() << " gave up after "
               << kRecorderWaitNs / 1000000 << " ms\n";
   }
+  // A process declared lost that came back (restarted) is not lost at the end.
+  lost_any_ = std::find(alive_.begin(), alive_.end(), false) != alive_.end();
   PublishStatus(RunState::kFinished, lost_any_ ? "some vehicles were lost" : "");
   return lost_any_ ? 4 : 0;
 }
@@ -367,7 +418,10 @@ ChannelEmulatorApp::WindowWait ChannelEmulatorApp::WaitForWindow() {
     }
     if (all) return WindowWait::kComplete;
     if (StopRequested()) return WindowWait::kStopped;
-    if (MonotonicNs() - asked > kAnswerTimeoutNs) return WindowWait::kTimedOut;
+    // A process that restarted meanwhile gets the whole answer time from its restart.
+    if (MonotonicNs() - std::max(asked, restarted_ns_) > kAnswerTimeoutNs) {
+      return WindowWait::kTimedOut;
+    }
     HandleBus(10);
   }
 }

@@ -76,6 +76,13 @@ class ChannelEmulatorApp {
   int HandleBus(int timeout_ms);
   void OnState(const std::string& channel, const unsigned char* data, int size);
   void OnStatus(const unsigned char* data, int size);
+  /// Lockstep: process `id`, restarted, needs tick `next` next: it is alive again, the
+  /// window's answer time starts anew, and it gets again the clock windows (with its
+  /// deliveries) it missed while it was down (docs/reliability.md).
+  void OnRestarted(int id, std::int64_t next);
+  /// Lockstep: sends process `id` alone the clock of ticks [first, last] (at most one
+  /// lookahead) with its deliveries of the current window among them.
+  void ResendClock(int id, std::int64_t first, std::int64_t last);
   /// `position`: the state's (eta x, y, z), which the acoustic model's range needs: the
   /// emulator knows every vehicle's position from the states it forwards.
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime, const Vec3& position);
@@ -141,6 +148,12 @@ class ChannelEmulatorApp {
   std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
   std::size_t inbox_size_ = 0;
   bool lost_any_ = false;  // lockstep: some process stopped answering
+  bool running_ = false;   // lockstep: the first window was released
+  std::int64_t restarted_ns_ = 0;  // lockstep: when a process last said it was restarted
+  // Lockstep, per process: the tick its windows were last sent again from, and when (its
+  // "restarted" status repeats until a window reaches it).
+  std::vector<std::int64_t> resent_tick_;
+  std::vector<std::int64_t> resent_ns_;
   bool insecure_ = false;
 };
 
