@@ -24,8 +24,9 @@ class CheckpointPayload {
   template <typename T>
   void Put(const T& v) {
     static_assert(std::is_arithmetic<T>::value, "scalars only");
-    const auto* p = reinterpret_cast<const unsigned char*>(&v);
-    bytes_.insert(bytes_.end(), p, p + sizeof(T));
+    const std::size_t at = bytes_.size();
+    bytes_.resize(at + sizeof(T));
+    std::memcpy(bytes_.data() + at, &v, sizeof(T));
   }
   /// False (and *v untouched) past the end.
   template <typename T>
