@@ -558,19 +558,27 @@ void FindDivergence(const RunData& run, const ValidStates& valid, RunAnalysis* a
 }
 
 /// The restarts the statuses name (a restarted process repeats its status until the clock
-/// reaches it: one restart per process and time), and the states each left missing.
+/// reaches it: one restart per process and message), and the states each left missing. A
+/// restarted lockstep emulator learns the tick from the processes: its time is that of its
+/// next "running" status.
 void AnalyseRestarts(const RunData& run, RunAnalysis* a) {
-  for (const StatusRecord& st : run.statuses) {
-    if (st.state != "restarted" || st.vehicle_id < 0) continue;
+  for (std::size_t k = 0; k < run.statuses.size(); ++k) {
+    const StatusRecord& st = run.statuses[k];
+    if (st.state != "restarted" || st.vehicle_id < -1) continue;  // -1: the emulator
     const bool repeated = std::any_of(a->restarts.begin(), a->restarts.end(), [&](const auto& r) {
-      return r.id == st.vehicle_id && r.utime == st.utime;
+      return r.id == st.vehicle_id && r.message == st.message;
     });
     if (repeated) continue;
     RestartAnalysis r;
     r.id = st.vehicle_id;
     r.utime = st.utime;
     r.message = st.message;
-    if (r.id < static_cast<int>(run.vehicles.size()) && a->period_us > 0) {
+    for (std::size_t j = k + 1; r.id == -1 && j < run.statuses.size(); ++j) {
+      if (run.statuses[j].vehicle_id != -1 || run.statuses[j].state != "running") continue;
+      r.utime = run.statuses[j].utime;
+      break;
+    }
+    if (r.id >= 0 && r.id < static_cast<int>(run.vehicles.size()) && a->period_us > 0) {
       const std::vector<StateMsg>& v = run.vehicles[r.id].samples;
       const auto after = std::lower_bound(
           v.begin(), v.end(), r.utime, [](const StateMsg& m, Micros t) { return m.utime < t; });

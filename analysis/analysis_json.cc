@@ -165,7 +165,8 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
     restarts.push_back({{"id", r.id}, {"t_s", ToSeconds(r.utime)},
                         {"states_missing", r.states_missing}, {"message", r.message}});
   }
-  j["restarts"] = restarts;
+  j["logged_restarts"] = restarts;
+  j["states_missing_in_restarts"] = a.states_missing_in_restarts;
   j["log"] = source.live ? Json(nullptr) : Json(source.log);
   j["log_events"] = run.events;
   j["log_states"] = s.states;

@@ -143,7 +143,9 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
   for (const std::string& p : a.problems) std::fprintf(out, "  PROBLEM: %s\n", p.c_str());
   for (const RestartAnalysis& r : a.restarts) {
     std::fprintf(out, "  RESTARTED: %s at t = %.2f s, %lld state(s) missing while it was down: %s\n",
-                 r.id == 0 ? "leader" : ("vehicle " + std::to_string(r.id)).c_str(),
+                 r.id == -1  ? "channel emulator"
+                 : r.id == 0 ? "leader"
+                             : ("vehicle " + std::to_string(r.id)).c_str(),
                  ToSeconds(r.utime), static_cast<long long>(r.states_missing), r.message.c_str());
   }
   PrintAuthentication(out, run);

@@ -271,8 +271,8 @@ class Launch {
   /// Mission time now: real time on the clock from t0, lockstep the log's newest tick.
   double MissionSeconds();
   /// --restart on-failure: starts child c, which died (`what` happened to it), again in
-  /// place, resuming from its checkpoint. False if it may not be restarted (the emulator,
-  /// the logger, or past --max-restarts) or could not be.
+  /// place (a vehicle or the leader resuming from its checkpoint). False if it may not be
+  /// restarted (the logger, or past --max-restarts) or could not be.
   bool Restart(Child& c, const std::string& what, const LaunchCallbacks& cb);
   bool OnChildEvent(Child& c, int status, const LaunchCallbacks& cb);
 
@@ -509,7 +509,7 @@ bool Launch::Fault(Child& c, const std::string& what, const LaunchCallbacks& cb)
 }
 
 bool Launch::Restart(Child& c, const std::string& what, const LaunchCallbacks& cb) {
-  if (!opt_.restart_on_failure || c.id == kEmulatorId || c.id == kLoggerId) return false;
+  if (!opt_.restart_on_failure || c.id == kLoggerId) return false;
   if (c.restarts >= opt_.max_restarts) {
     // Fault() then stops the run, and says why there was no restart.
     r_->problems.push_back(c.name + " was restarted " + std::to_string(c.restarts) +
@@ -525,9 +525,11 @@ bool Launch::Restart(Child& c, const std::string& what, const LaunchCallbacks& c
   const std::string when = When();
   ++c.restarts;
   std::vector<std::string> argv = c.argv;
-  argv.insert(argv.end(), {"--resume", c.checkpoint, "--restart-note",
-                           c.name + " restarted: the process before it (pid " +
-                               std::to_string(c.pid) + ") " + what + " at " + when});
+  // The emulator has no checkpoint: the processes tell a new one where the run is.
+  if (c.id != kEmulatorId) argv.insert(argv.end(), {"--resume", c.checkpoint});
+  argv.insert(argv.end(), {"--restart-note", c.name + " restarted: the process before it (pid " +
+                                                 std::to_string(c.pid) + ") " + what + " at " +
+                                                 when});
   std::vector<std::string> env = ChildEnvironment(&r_->key);
   std::vector<char*> envp;
   for (std::string& e : env) envp.push_back(e.data());

@@ -32,10 +32,10 @@ struct LaunchOptions {
   /// is reported and the others go on (the verdict fails all the same). Without it, any
   /// process that dies, fails or is stopped stops the whole run at once.
   bool keep_going = false;
-  /// --restart on-failure: a vehicle or the leader that dies (exits with a status other
-  /// than 0, or is killed by a signal) is started again and resumes from its last
-  /// published state (docs/reliability.md), at most max_restarts times per process;
-  /// beyond that it stops the run as without restarts.
+  /// --restart on-failure: a vehicle, the leader or the channel emulator that dies (exits
+  /// with a status other than 0, or is killed by a signal) is started again; a vehicle or
+  /// the leader resumes from its last published state (docs/reliability.md). At most
+  /// max_restarts times per process; beyond that it stops the run as without restarts.
   bool restart_on_failure = false;
   int max_restarts = 3;
   bool insecure = false;   // no bus authentication (else a per-run key, docs/run.md)
@@ -43,7 +43,7 @@ struct LaunchOptions {
 
 /// A process that died and was started again (LaunchOptions::restart_on_failure).
 struct ProcessRestart {
-  std::string process;  // "vehicle 3", "leader"
+  std::string process;  // "vehicle 3", "leader", "channel emulator"
   int pid = 0;          // the process that died
   int new_pid = 0;      // the one started in its place
   std::string reason;   // what happened to it ("killed by signal 9 (Killed)")

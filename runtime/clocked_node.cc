@@ -41,6 +41,7 @@ ClockedNode::ClockedNode(const Scenario& s, int id, Mode mode, std::int64_t t0_n
 void ClockedNode::Init() {
   SubscribeInputs();
   if (mode_ == Mode::kLockstep) SubscribeInput(channels::Clock(), kClockKind);
+  if (mode_ == Mode::kLockstep && checkpoint_) SubscribeInput(channels::Status(), kStatusKind);
 }
 
 void ClockedNode::SubscribeInput(const std::string& channel, int kind) {
@@ -66,6 +67,8 @@ int ClockedNode::HandleBus(int timeout_ms) {
     const int size = static_cast<int>(in.bytes.size());
     if (in.kind == kClockKind) {
       OnClock(data, size);
+    } else if (in.kind == kStatusKind) {
+      OnStatus(data, size);
     } else if (OnInput(in.kind, data, size) && mode_ == Mode::kLockstep) {
       StepWhatIsDue();
     }
@@ -115,6 +118,14 @@ void ClockedNode::OnClock(const unsigned char* data, int size) {
     }
   }
   StepWhatIsDue();
+}
+
+void ClockedNode::OnStatus(const unsigned char* data, int size) {
+  run_status_t st;
+  if (Decode(data, size, &st) && st.vehicle_id == kEmulatorId &&
+      ParseRunState(st.state) == RunState::kRestarted) {
+    PublishStatus(RunStateName(RunState::kReady));
+  }
 }
 
 void ClockedNode::StepWhatIsDue() {

@@ -74,6 +74,7 @@ class ClockedNode {
   };
   /// Inbox kinds: the clock, and the derived app's own (from kFirstInputKind on).
   static constexpr int kClockKind = 0;
+  static constexpr int kStatusKind = -1;  // lockstep with restarts: the emulator's statuses
   static constexpr int kFirstInputKind = 1;
 
   /// Subscribes `channel` on the receive bus; its messages reach OnInput as `kind`.
@@ -120,6 +121,9 @@ class ClockedNode {
   /// become due. Refused (counted) if any part is not a window this process can be given.
   void OnClock(const unsigned char* data, int size);
   bool AcceptableWindow(const clock_window_t& c) const;
+  /// Lockstep with restarts: a restarted clock master asks every process for the tick it
+  /// needs next; the answer is a "ready" status at that tick.
+  void OnStatus(const unsigned char* data, int size);
   /// Lockstep: steps every tick whose clock tick and listed deliveries are all here.
   void StepWhatIsDue();
   /// Lockstep: says (once per tick, after a while) what the tick waits for.

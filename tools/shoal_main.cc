@@ -69,9 +69,9 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
               "A vehicle or the leader that dies or is stopped does not stop the run "
               "(it is reported, and the run fails); by default any such fault stops it");
   c->add_option("--restart", run->restart,
-                "on-failure: a vehicle or the leader that dies (exit status other than 0, "
-                "or killed by a signal) is started again and resumes from its last "
-                "published state; no: any such death stops the run")
+                "on-failure: a vehicle, the leader or the channel emulator that dies (exit "
+                "status other than 0, or killed by a signal) is started again, a vehicle "
+                "resuming from its last published state; no: any such death stops the run")
       ->check(CLI::IsMember({"no", "on-failure"}))
       ->capture_default_str();
   c->add_option("--max-restarts", run->launch.max_restarts,

@@ -65,6 +65,27 @@ std::vector<pid_t> ProcessesWith(const std::vector<std::string>& parts) {
   return found;
 }
 
+// The parent pid of pid, from /proc/<pid>/stat (after the command name in parentheses).
+pid_t ParentOf(pid_t pid) {
+  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
+  const std::size_t close = stat.rfind(')');
+  int ppid = -1;
+  char state = 0;
+  if (close == std::string::npos ||
+      std::sscanf(stat.c_str() + close + 1, " %c %d", &state, &ppid) != 2) {
+    return -1;
+  }
+  return ppid;
+}
+
+// The child of shoal run `run` running `exe`, -1 if none.
+pid_t ChildRunning(pid_t run, const std::string& exe) {
+  for (pid_t pid : ProcessesWith({exe})) {
+    if (ParentOf(pid) == run) return pid;
+  }
+  return -1;
+}
+
 // Vehicle states in the log so far.
 int StatesInLog(const std::string& log) {
   LogTail tail(log);
@@ -128,14 +149,17 @@ double JumpAt(const std::vector<Row>& rows, double t_s, double* gap_s) {
   return std::sqrt(sq);
 }
 
-// Checks of the log shared by both modes: one restart of vehicle 2, said in the log, and
-// no jump in its position there. Returns the restart's states_missing.
-std::int64_t CheckLoggedRestart(const std::string& log, const std::string& tag) {
+// Checks of the log shared by both modes: the restart of vehicle 2 (the first restart,
+// of `restarts`), said in the log, and no jump in its position there. Returns the
+// restart's states_missing.
+std::int64_t CheckLoggedRestart(const std::string& log, const std::string& tag,
+                                std::size_t restarts = 1) {
   const auto an = RunShoal("analyze " + log + " --json", tag + "_an");
   const auto aj = ParseJson(an.out);
-  EXPECT_EQ(aj["restarts"].size(), 1u) << an.out;
-  if (aj["restarts"].size() != 1) return -1;
-  const auto& r = aj["restarts"][0];
+  EXPECT_EQ(aj["logged_restarts"].size(), restarts) << an.out;
+  if (aj["logged_restarts"].size() != restarts) return -1;
+  EXPECT_EQ(aj["states_missing_in_restarts"], aj["logged_restarts"][0]["states_missing"]);
+  const auto& r = aj["logged_restarts"][0];
   EXPECT_EQ(r["id"], 2);
   EXPECT_NE(r["message"].get<std::string>().find("killed by signal 9"), std::string::npos) << r;
   EXPECT_NE(r["message"].get<std::string>().find("resumed from its state of t ="),
@@ -149,8 +173,8 @@ std::int64_t CheckLoggedRestart(const std::string& log, const std::string& tag) 
   return r["states_missing"].get<std::int64_t>();
 }
 
-void CheckJsonRestart(const nlohmann::ordered_json& j) {
-  ASSERT_EQ(j["restarts"].size(), 1u) << j;
+void CheckJsonRestart(const nlohmann::ordered_json& j, std::size_t restarts = 1) {
+  ASSERT_EQ(j["restarts"].size(), restarts) << j;
   const auto& r = j["restarts"][0];
   EXPECT_EQ(r["process"], "vehicle 2");
   EXPECT_NE(r["reason"].get<std::string>().find("killed by signal 9"), std::string::npos);
@@ -185,6 +209,33 @@ TEST(Restart, LockstepVehicleKilledResumesWhereItWas) {
   EXPECT_TRUE(ProcessesWith({log}).empty());
 }
 
+// Lockstep: the new clock master learns from the processes the tick to go on from; the
+// deliveries the one that died held are lost, every state and clock tick is logged.
+TEST(Restart, LockstepEmulatorKilledIsReplacedAndTheRunGoesOn) {
+  const std::string log = TmpPath("restart_em.lcmlog"), out = TmpPath("restart_em.out");
+  std::remove(log.c_str());
+  const pid_t run = StartShoal("run " + kExample2 + " --duration 120 --restart on-failure --json "
+                               "--quiet --out " + log, out);
+  ASSERT_GT(WaitForVehicle(log, 2, 6 * 2000, false), 0) << ReadFile(out);
+  const pid_t emulator = ChildRunning(run, "shoal_channel_emulator");
+  ASSERT_GT(emulator, 0);
+  kill(emulator, SIGKILL);
+  const int status = WaitExit(run, 120, nullptr);
+  const auto j = ParseJson(ReadFile(out));
+  EXPECT_EQ(status, 0) << j;
+  ASSERT_EQ(j["restarts"].size(), 1u) << j;
+  EXPECT_EQ(j["restarts"][0]["process"], "channel emulator");
+  EXPECT_EQ(j["all_processes_ok"], true) << j;
+  EXPECT_EQ(j["log_complete"], true) << j;
+  EXPECT_EQ(j["converged"], true) << j;
+  const auto aj = ParseJson(RunShoal("analyze " + log + " --json", "restart_em_an").out);
+  ASSERT_EQ(aj["logged_restarts"].size(), 1u) << aj;
+  EXPECT_EQ(aj["logged_restarts"][0]["id"], -1);
+  // Its time: the tick it went on from, at or after the newest tick logged before.
+  EXPECT_GE(aj["logged_restarts"][0]["t_s"].get<double>(), 40.0) << aj;
+  EXPECT_TRUE(ProcessesWith({log}).empty());
+}
+
 // A short scenario that converges within the run: paper example 1 with the followers
 // starting in formation (at rest).
 std::string QuickScenario() {
@@ -196,7 +247,8 @@ std::string QuickScenario() {
   return path;
 }
 
-TEST(Restart, RealtimeVehicleKilledRejoinsAtTheCurrentTick) {
+// Real time: vehicle 2 killed 5 s into the mission, the channel emulator 4 s later.
+TEST(Restart, RealtimeVehicleAndEmulatorKilledRejoinAtTheCurrentTick) {
   const std::string log = TmpPath("restart_rt.lcmlog"), out = TmpPath("restart_rt.out");
   std::remove(log.c_str());
   const pid_t run = StartShoal("run " + QuickScenario() + " --mode realtime --duration 18 "
@@ -204,16 +256,21 @@ TEST(Restart, RealtimeVehicleKilledRejoinsAtTheCurrentTick) {
   const pid_t victim = WaitForVehicle(log, 2, 6 * 250, false);  // 5 s into the mission
   ASSERT_GT(victim, 0) << ReadFile(out);
   kill(victim, SIGKILL);
+  std::this_thread::sleep_for(std::chrono::seconds(4));
+  const pid_t emulator = ChildRunning(run, "shoal_channel_emulator");
+  ASSERT_GT(emulator, 0);
+  kill(emulator, SIGKILL);
   const int status = WaitExit(run, 60, nullptr);
   const auto j = ParseJson(ReadFile(out));
-  CheckJsonRestart(j);
+  CheckJsonRestart(j, 2);
+  EXPECT_EQ(j["restarts"][1]["process"], "channel emulator") << j;
   EXPECT_EQ(j["converged"], true) << j;
   // The ticks it was down for were not published, and are counted as such, apart from
   // what the log lost (which a loaded machine makes happen in real time).
   const std::int64_t missing = j["states_missing_in_restarts"].get<std::int64_t>();
   EXPECT_GE(missing, 1) << j;
   EXPECT_LE(missing, 50) << j;  // a restart takes well under a second
-  EXPECT_EQ(CheckLoggedRestart(log, "restart_rt"), missing);
+  EXPECT_EQ(CheckLoggedRestart(log, "restart_rt", 2), missing);
   // Exit 0 unless the machine made the run late or the logger lose states (both reported
   // as such, and not the restart's doing).
   const bool machine_ok = j["timing_ok"] == true && j["log_complete"] == true;
