@@ -403,6 +403,17 @@ int ChannelEmulatorApp::Rejoin() {
       ResendClock(id, first, std::min(first + lookahead_ - 1, win_last_));
     }
   }
+  // The logger's copy of the last window before `next`: the emulator that died may have
+  // released it to the processes and died before the logger's copy (the log counts a
+  // tick it holds twice once).
+  if (!shared_has_vehicles_ && next > 0) {
+    clock_window_t c = WindowClock();
+    c.tick = std::max<std::int64_t>(0, next - lookahead_);
+    c.utime = c.tick * period_us_;
+    c.n_ticks = static_cast<std::int32_t>(next - c.tick);
+    c.final_tick = next - 1 == final_tick_ ? 1 : 0;
+    bus_->Publish(channels::Clock(), c);
+  }
   tick_ = std::max<std::int64_t>(next, 0);
   start_tick_ = next;
   std::cerr << "shoal_channel_emulator: restarted, going on from tick " << next << "\n";
