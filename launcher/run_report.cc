@@ -101,7 +101,7 @@ void PrintRestarts(const RunReport& r, std::FILE* out) {
     if (a.states_missing == 0) continue;
     std::fprintf(out,
                  "  MISSING (restart): %s published no state for %lld tick(s) before t = %.2f s "
-                 "(it was down; stepped again without neighbour data)\n",
+                 "(it was down: stepped again on its restart, not published)\n",
                  ProcessName(a.id).c_str(), static_cast<long long>(a.states_missing),
                  ToSeconds(a.utime));
   }
