@@ -67,8 +67,8 @@ class Follower {
   bool diverged() const { return diverged_; }
 
   // Checkpoint and resume (core/follower_checkpoint.cc): what a restarted vehicle process
-  // needs to go on from its last tick (a fixed set of numbers: runtime/checkpoint.h
-  // writes it to a file of fixed size).
+  // needs to go on from its last tick (a fixed set of numbers, which the vehicle process
+  // writes to its checkpoint file, runtime/checkpoint.h).
   struct Checkpoint {
     StateMsg published;  // the message the last Tick returned
     Vec5 eta, nu;        // the plant state after that Tick's integration (at utime + period)
