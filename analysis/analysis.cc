@@ -621,10 +621,44 @@ void FindDivergence(const RunData& run, const ValidStates& valid, RunAnalysis* a
   }
 }
 
+/// The restarts the statuses name (a restarted process repeats its status until the clock
+/// reaches it: one restart per process and message), and the states each left missing. A
+/// restarted lockstep emulator learns the tick from the processes: its time is that of its
+/// next "running" status.
+void AnalyseRestarts(const RunData& run, RunAnalysis* a) {
+  for (std::size_t k = 0; k < run.statuses.size(); ++k) {
+    const StatusRecord& st = run.statuses[k];
+    if (st.state != "restarted" || st.vehicle_id < -1) continue;  // -1: the emulator
+    const bool repeated = std::any_of(a->restarts.begin(), a->restarts.end(), [&](const auto& r) {
+      return r.id == st.vehicle_id && r.message == st.message;
+    });
+    if (repeated) continue;
+    RestartAnalysis r;
+    r.id = st.vehicle_id;
+    r.utime = st.utime;
+    r.message = st.message;
+    for (std::size_t j = k + 1; r.id == -1 && j < run.statuses.size(); ++j) {
+      if (run.statuses[j].vehicle_id != -1 || run.statuses[j].state != "running") continue;
+      r.utime = run.statuses[j].utime;
+      break;
+    }
+    if (r.id >= 0 && r.id < static_cast<int>(run.vehicles.size()) && a->period_us > 0) {
+      const std::vector<StateMsg>& v = run.vehicles[r.id].samples;
+      const auto after = std::lower_bound(
+          v.begin(), v.end(), r.utime, [](const StateMsg& m, Micros t) { return m.utime < t; });
+      const Micros from = after == v.begin() ? -a->period_us : std::prev(after)->utime;
+      r.states_missing = std::max<Micros>(0, (r.utime - from) / a->period_us - 1);
+    }
+    a->states_missing_in_restarts += r.states_missing;
+    a->restarts.push_back(r);
+  }
+}
+
 void AnalyseRunLevel(const RunData& run, const StateTimeBounds& b, const ValidStates& valid,
                      RunAnalysis* a) {
   AnalyseStatuses(run, a);
   a->period_us = ControlPeriodOf(run);
+  AnalyseRestarts(run, a);
   AnalyseTicks(run, b, valid, a);
   FindDivergence(run, valid, a);
 

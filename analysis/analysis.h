@@ -164,6 +164,17 @@ struct StateTimeBounds {
   Micros deliver_limit_us = -1;
 };
 
+/// A process restarted in place of one that died (shoal run --restart on-failure), from
+/// its "restarted" status.
+struct RestartAnalysis {
+  int id = 0;           // vehicle id (0 leader)
+  Micros utime = 0;     // the first tick it stepped after the restart
+  std::string message;  // why, and from which state it resumed
+  /// Its ticks before that one that the log has no state for: the ticks it was down for
+  /// (real time steps them without publishing). 0 in lockstep, which steps every tick.
+  std::int64_t states_missing = 0;
+};
+
 struct RunAnalysis {
   std::string mode;  // "sim", "lockstep", "realtime" or "unknown", inferred from the log
   Micros period_us = 0;
@@ -187,6 +198,8 @@ struct RunAnalysis {
   double wall_time_s = kNaN;  // recording span if the log's timestamps are wall clock
   bool interrupted = false;   // a run-level status said "interrupted"
   std::vector<std::string> problems;  // failed / vehicle_lost statuses
+  std::vector<RestartAnalysis> restarts;   // in log order, one per restart
+  std::int64_t states_missing_in_restarts = 0;  // sum of their states_missing
   // The leader's path.
   double leader_path_length_m = kNaN;
   Vec3 leader_start_m = Vec3::Constant(kNaN), leader_end_m = Vec3::Constant(kNaN);

@@ -197,6 +197,13 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   j["loop"] = LoopJson(a);
   j["all_processes_ok"] = a.problems.empty() && !a.interrupted;
   j["problems"] = a.problems;
+  nlohmann::ordered_json restarts = nlohmann::ordered_json::array();
+  for (const RestartAnalysis& r : a.restarts) {
+    restarts.push_back({{"id", r.id}, {"t_s", ToSeconds(r.utime)},
+                        {"states_missing", r.states_missing}, {"message", r.message}});
+  }
+  j["logged_restarts"] = restarts;
+  j["states_missing_in_restarts"] = a.states_missing_in_restarts;
   j["log"] = source.live ? Json(nullptr) : Json(source.log);
   j["log_events"] = run.events;
   j["log_states"] = s.states;

@@ -105,6 +105,18 @@ void PrintHeader(std::FILE* out, const RunData& run, const RunAnalysis& a,
   }
 }
 
+/// Each restarted process (shoal run --restart on-failure) and the states it left missing.
+void PrintRestarts(std::FILE* out, const RunAnalysis& a) {
+  for (const RestartAnalysis& r : a.restarts) {
+    const std::string who = r.id == -1  ? "channel emulator"
+                            : r.id == 0 ? "leader"
+                                        : "vehicle " + std::to_string(r.id);
+    std::fprintf(out, "  RESTARTED: %s at t = %.2f s, %lld state(s) missing while it was down: %s\n",
+                 who.c_str(), ToSeconds(r.utime), static_cast<long long>(r.states_missing),
+                 r.message.c_str());
+  }
+}
+
 }  // namespace
 
 void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
@@ -185,6 +197,7 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
   if (!a.events.empty()) PrintEvents(out, a);
   if (a.interrupted) std::fprintf(out, "  the run was interrupted\n");
   for (const std::string& p : a.problems) std::fprintf(out, "  PROBLEM: %s\n", p.c_str());
+  PrintRestarts(out, a);
   PrintAuthentication(out, run);
 }
 

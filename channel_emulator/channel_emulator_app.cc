@@ -55,7 +55,10 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       last_seq_(s.followers + 1, 0),
       have_seq_(s.followers + 1, false),
       alive_(s.followers + 1, true),
-      ready_(s.followers + 1, false) {
+      ready_(s.followers + 1, false),
+      resent_tick_(s.followers + 1, -1),
+      resent_ns_(s.followers + 1, 0),
+      next_of_(s.followers + 1, -1) {
   for (int id = 0; id <= n_; ++id) {
     auto group = std::find_if(bus_groups_.begin(), bus_groups_.end(),
                               [&](const std::vector<int>& g) { return vbus_[g[0]] == vbus_[id]; });
@@ -122,9 +125,56 @@ int ChannelEmulatorApp::HandleBus(int timeout_ms) {
 void ChannelEmulatorApp::OnStatus(const unsigned char* data, int size) {
   run_status_t st;
   if (!Decode(data, size, &st)) return;
-  if (ParseRunState(st.state) == RunState::kReady && st.vehicle_id >= 0 && st.vehicle_id <= n_) {
+  if (st.vehicle_id < 0 || st.vehicle_id > n_) return;
+  const std::optional<RunState> state = ParseRunState(st.state);
+  // A process restarted before the run started is simply ready.
+  if (state == RunState::kReady || (state == RunState::kRestarted && !running_)) {
     ready_[st.vehicle_id] = true;
+    if (st.utime >= 0 && st.utime % period_us_ == 0) next_of_[st.vehicle_id] = st.utime / period_us_;
+  } else if (state == RunState::kRestarted && mode_ == Mode::kLockstep && st.utime >= 0 &&
+             st.utime % period_us_ == 0) {
+    OnRestarted(st.vehicle_id, st.utime / period_us_);
   }
+}
+
+void ChannelEmulatorApp::OnRestarted(int id, std::int64_t next) {
+  const std::int64_t now = MonotonicNs();
+  if (!alive_[id]) {
+    std::cerr << "shoal_channel_emulator: vehicle " << id << " came back (restarted)\n";
+  }
+  alive_[id] = true;
+  restarted_ns_ = now;
+  // Its announcement repeats every 100 ms until a window reaches it: the same request
+  // within 200 ms was answered already.
+  if (resent_tick_[id] == next && now - resent_ns_[id] < 200000000LL) return;
+  resent_tick_[id] = next;
+  resent_ns_[id] = now;
+  for (std::int64_t first = std::max<std::int64_t>(next, 0); first <= win_last_;
+       first += lookahead_) {
+    ResendClock(id, first, std::min(first + lookahead_ - 1, win_last_));
+  }
+}
+
+void ChannelEmulatorApp::ResendClock(int id, std::int64_t first, std::int64_t last) {
+  Bus* b = vbus_[id];
+  clock_window_t c = WindowClock();
+  c.utime = first * period_us_;
+  c.tick = first;
+  c.n_ticks = static_cast<std::int32_t>(last - first + 1);
+  c.final_tick = last == final_tick_ ? 1 : 0;
+  // Deliveries exist for the current window only: earlier ticks (at most the one a
+  // process re-steps after dying between its publish and its checkpoint) get none.
+  for (const Outgoing& o : outbox_[id]) {
+    if (o.tick < first || o.tick > last) continue;
+    b->PublishRaw(rx_channels_[id], o.d.raw.data(), static_cast<int>(o.d.raw.size()));
+    c.delivery_tick.push_back(o.tick);
+    c.delivery_receiver.push_back(id);
+    c.delivery_sender.push_back(o.d.sender);
+    c.delivery_seq.push_back(o.d.seq);
+    c.delivery_digest.push_back(o.d.digest);
+  }
+  c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
+  b->Publish(channels::Clock(), c);
 }
 
 void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char* data,
@@ -266,7 +316,8 @@ void ChannelEmulatorApp::PublishHealth(Micros utime) {
   bus_->Publish(channels::Health(kEmulatorId), h);
 }
 
-void ChannelEmulatorApp::PublishStatus(RunState state, const std::string& message) {
+void ChannelEmulatorApp::PublishStatus(RunState state, const std::string& message,
+                                       bool to_vehicles) {
   run_status_t st;
   st.utime = std::max<std::int64_t>(tick_, 0) * period_us_;
   st.vehicle_id = kEmulatorId;
@@ -283,6 +334,10 @@ void ChannelEmulatorApp::PublishStatus(RunState state, const std::string& messag
                                             : message + "; " + bus_auth::kInsecureNote)
                          : message;
   bus_->Publish(channels::Status(), st);
+  if (!to_vehicles) return;
+  for (const std::vector<int>& group : bus_groups_) {
+    if (vbus_[group[0]] != bus_) vbus_[group[0]]->Publish(channels::Status(), st);
+  }
 }
 
 int ChannelEmulatorApp::Run() {
@@ -310,10 +365,68 @@ int ChannelEmulatorApp::WaitForReady() {
   }
 }
 
+int ChannelEmulatorApp::Rejoin() {
+  const std::int64_t start = MonotonicNs();
+  std::int64_t asked = 0;
+  for (;;) {
+    bool all = true;
+    for (int id = 0; id <= n_; ++id) all = all && ready_[id];
+    if (all) break;
+    if (StopRequested()) return 1;
+    if (MonotonicNs() - start > kAnswerTimeoutNs) {
+      for (int id = 0; id <= n_; ++id) {
+        if (ready_[id]) continue;
+        alive_[id] = false;
+        lost_any_ = true;
+        std::cerr << "shoal_channel_emulator: vehicle " << id << " did not answer (restart)\n";
+        PublishStatus(RunState::kVehicleLost, "vehicle " + std::to_string(id) +
+                                                  " did not answer the restarted emulator");
+      }
+      break;
+    }
+    if (MonotonicNs() - asked > 100000000LL) {  // until every process has answered
+      PublishStatus(RunState::kRestarted, restart_note_, /*to_vehicles=*/true);
+      asked = MonotonicNs();
+    }
+    HandleBus(20);
+  }
+  std::int64_t next = 0;
+  for (int id = 0; id <= n_; ++id) {
+    if (alive_[id]) next = std::max(next, next_of_[id]);
+  }
+  running_ = true;
+  win_last_ = std::min(next - 1, final_tick_);
+  for (int id = 0; id <= n_; ++id) {
+    if (!alive_[id]) continue;
+    for (std::int64_t first = std::max<std::int64_t>(next_of_[id], 0); first <= win_last_;
+         first += lookahead_) {
+      ResendClock(id, first, std::min(first + lookahead_ - 1, win_last_));
+    }
+  }
+  // The logger's copy of the last window before `next`: the emulator that died may have
+  // released it to the processes and died before the logger's copy (the log counts a
+  // tick it holds twice once).
+  if (!shared_has_vehicles_ && next > 0) {
+    clock_window_t c = WindowClock();
+    c.tick = std::max<std::int64_t>(0, next - lookahead_);
+    c.utime = c.tick * period_us_;
+    c.n_ticks = static_cast<std::int32_t>(next - c.tick);
+    c.final_tick = next - 1 == final_tick_ ? 1 : 0;
+    bus_->Publish(channels::Clock(), c);
+  }
+  tick_ = std::max<std::int64_t>(next, 0);
+  start_tick_ = next;
+  std::cerr << "shoal_channel_emulator: restarted, going on from tick " << next << "\n";
+  PublishStatus(RunState::kRunning, "restarted: going on from tick " + std::to_string(next) +
+                                        "; the deliveries the emulator before it held are lost");
+  tick_ = win_last_;
+  return -1;
+}
+
 int ChannelEmulatorApp::RunLockstep() {
-  const int not_started = WaitForReady();
+  const int not_started = restarted_ ? Rejoin() : WaitForReady();
   if (not_started >= 0) return not_started;
-  PublishStatus(RunState::kRunning, "");
+  if (!restarted_) PublishStatus(RunState::kRunning, "");
 
   // Conservative lookahead (as in conservative parallel discrete-event simulation): a
   // state sent at tick s is delivered at tick s + lookahead_ at the earliest, so every
@@ -323,7 +436,7 @@ int ChannelEmulatorApp::RunLockstep() {
   // Each vehicle still applies each tick's deliveries (those the tick lists) and steps the
   // ticks one by one in order, so every process computes exactly what it computes with one
   // round trip per tick (and what shoal sim does).
-  for (std::int64_t k = 0; k <= final_tick_; k += lookahead_) {
+  for (std::int64_t k = start_tick_; k <= final_tick_; k += lookahead_) {
     if (StopRequested()) {
       PublishEvents();
       PublishStatus(RunState::kInterrupted, "");
@@ -333,6 +446,7 @@ int ChannelEmulatorApp::RunLockstep() {
     win_last_ = std::min(k + lookahead_ - 1, final_tick_);
     std::fill(got_tick_.begin(), got_tick_.end(), false);
     ReleaseWindow();
+    running_ = true;
     const WindowWait w = WaitForWindow();
     if (w == WindowWait::kStopped) {
       PublishEvents();
@@ -353,6 +467,8 @@ int ChannelEmulatorApp::RunLockstep() {
               << recorder_->timeouts() << " gave up after "
               << kRecorderWaitNs / 1000000 << " ms\n";
   }
+  // A process declared lost that came back (restarted) is not lost at the end.
+  lost_any_ = std::find(alive_.begin(), alive_.end(), false) != alive_.end();
   PublishStatus(RunState::kFinished, lost_any_ ? "some vehicles were lost" : "");
   return lost_any_ ? 4 : 0;
 }
@@ -367,7 +483,10 @@ ChannelEmulatorApp::WindowWait ChannelEmulatorApp::WaitForWindow() {
     }
     if (all) return WindowWait::kComplete;
     if (StopRequested()) return WindowWait::kStopped;
-    if (MonotonicNs() - asked > kAnswerTimeoutNs) return WindowWait::kTimedOut;
+    // A process that restarted meanwhile gets the whole answer time from its restart.
+    if (MonotonicNs() - std::max(asked, restarted_ns_) > kAnswerTimeoutNs) {
+      return WindowWait::kTimedOut;
+    }
     HandleBus(10);
   }
 }
@@ -404,7 +523,13 @@ void ChannelEmulatorApp::SubmitWindow() {
 }
 
 int ChannelEmulatorApp::RunRealtime() {
-  PublishStatus(RunState::kRunning, "");
+  // Restarted: the clock goes on as before; what the emulator that died held is lost.
+  if (restarted_) {
+    tick_ = std::max<std::int64_t>(0, (MonotonicNs() - t0_ns_) / (period_us_ * 1000));
+    PublishStatus(RunState::kRestarted, restart_note_);
+  } else {
+    PublishStatus(RunState::kRunning, "");
+  }
   double max_delay = MaxDelaySeconds(s_.delay);
   for (const LinkOverride& o : s_.links) {
     if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
@@ -472,6 +597,10 @@ int ChannelEmulatorMain(int argc, char** argv) {
   app.add_option("--vehicle-urls", vehicle_urls,
                  "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
       ->delimiter(',');
+  std::string restart_note;
+  app.add_option("--restart-note", restart_note,
+                 "Replace an emulator that died (shoal run --restart on-failure): why and "
+                 "when it ended, for the log");
   Scenario s;
   const int started = StartProcess(&app, argc, argv, "shoal_channel_emulator", opt, &s);
   if (started >= 0) return started;
@@ -516,6 +645,7 @@ int ChannelEmulatorMain(int argc, char** argv) {
     }
     if (opt.parsed_mode() == Mode::kLockstep && recorder_pid > 0) app_.SetRecorder(recorder_pid);
     if (auth.insecure) app_.SetInsecure();
+    if (!restart_note.empty()) app_.SetRestarted(restart_note);
     app_.Init();
     const int status = app_.Run();
     std::cerr << "shoal_channel_emulator: " << bus_auth::ExitNote(auth, bus.rejected()) << "\n";

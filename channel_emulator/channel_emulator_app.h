@@ -53,6 +53,14 @@ class ChannelEmulatorApp {
   std::int64_t lookahead_ticks() const { return lookahead_; }
   /// The run's bus is not authenticated (--insecure): every status says so.
   void SetInsecure() { insecure_ = true; }
+  /// This emulator replaces one that died (shoal run --restart on-failure); `note` says
+  /// why and when, in its "restarted" status. Lockstep: it goes on from the tick the
+  /// processes need, which they tell it (docs/reliability.md); the deliveries its
+  /// predecessor held are lost.
+  void SetRestarted(const std::string& note) {
+    restarted_ = true;
+    restart_note_ = note;
+  }
 
  private:
   using Bytes = std::vector<unsigned char>;
@@ -76,6 +84,13 @@ class ChannelEmulatorApp {
   int HandleBus(int timeout_ms);
   void OnState(const std::string& channel, const unsigned char* data, int size);
   void OnStatus(const unsigned char* data, int size);
+  /// Lockstep: process `id`, restarted, needs tick `next` next: it is alive again, the
+  /// window's answer time starts anew, and it gets again the clock windows (with its
+  /// deliveries) it missed while it was down (docs/reliability.md).
+  void OnRestarted(int id, std::int64_t next);
+  /// Lockstep: sends process `id` alone the clock of ticks [first, last] (at most one
+  /// lookahead) with its deliveries of the current window among them.
+  void ResendClock(int id, std::int64_t first, std::int64_t last);
   /// `position`: the state's (eta x, y, z), which the acoustic model's range needs: the
   /// emulator knows every vehicle's position from the states it forwards.
   void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime, const Vec3& position);
@@ -83,11 +98,16 @@ class ChannelEmulatorApp {
   void PublishEvents();  // the decisions not yet published, on SHOAL_CHANNEL
   clock_window_t WindowClock() const;  // ticks [win_first_, win_last_], no deliveries listed
   void PublishHealth(Micros utime);
-  void PublishStatus(RunState state, const std::string& message);
+  /// On the shared bus; `to_vehicles`: also on every vehicle bus (the processes hear it).
+  void PublishStatus(RunState state, const std::string& message, bool to_vehicles = false);
   int RunLockstep();
   /// Lockstep: waits until every process has announced itself. Returns -1 then, else the
   /// exit code: 1 stopped, 3 (reported) nobody came within 60 s.
   int WaitForReady();
+  /// Lockstep, restarted: asks every process for the tick it needs next, sends each the
+  /// clock up to the newest of them (the windows its predecessor released to some and
+  /// not to others), and returns -1 with start_tick_ set; else the exit code (1 stopped).
+  int Rejoin();
   enum class WindowWait { kComplete, kStopped, kTimedOut };
   /// Lockstep: waits for the state of every live process for every tick of the window.
   WindowWait WaitForWindow();
@@ -141,6 +161,16 @@ class ChannelEmulatorApp {
   std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
   std::size_t inbox_size_ = 0;
   bool lost_any_ = false;  // lockstep: some process stopped answering
+  bool running_ = false;   // lockstep: the first window was released
+  std::int64_t restarted_ns_ = 0;  // lockstep: when a process last said it was restarted
+  // Lockstep, per process: the tick its windows were last sent again from, and when (its
+  // "restarted" status repeats until a window reaches it).
+  std::vector<std::int64_t> resent_tick_;
+  std::vector<std::int64_t> resent_ns_;
+  std::vector<std::int64_t> next_of_;  // lockstep: the next tick each "ready" status named
+  bool restarted_ = false;
+  std::string restart_note_;
+  std::int64_t start_tick_ = 0;  // lockstep: the first tick this emulator releases
   bool insecure_ = false;
 };
 

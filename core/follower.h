@@ -76,6 +76,24 @@ class Follower {
   /// True once the state became non-finite or |pitch| exceeded 80 deg (J singular at 90).
   bool diverged() const { return diverged_; }
 
+  // Checkpoint and resume (core/follower_checkpoint.cc): what a restarted vehicle process
+  // needs to go on from its last tick (a fixed set of numbers, which the vehicle process
+  // writes to its checkpoint file, runtime/checkpoint.h).
+  struct Checkpoint {
+    StateMsg published;  // the message the last Tick returned
+    Vec5 eta, nu;        // the plant state after that Tick's integration (at utime + period)
+    FollowerCounters counters;
+    bool diverged = false;
+  };
+  /// The state after the last Tick (published.seq = -1 before any).
+  Checkpoint MakeCheckpoint() const;
+  /// Goes on from `c`, taken of a follower built from the same scenario, id and run
+  /// length: the plant state, the message sequence, the counters and the ocean current's
+  /// random process are restored. Neighbour data is not (a restarted process has lost
+  /// it): every neighbour is waited for again. The own history starts with the published
+  /// state. The next Tick is the one at published.utime + period.
+  void Resume(const Checkpoint& c);
+
  private:
   struct Slot {
     int sender = 0;

@@ -45,6 +45,12 @@ struct Child {
   bool stopped = false;   // stopped by a signal (SIGSTOP, SIGTSTP, ...), not continued yet
   bool reported = false;  // its fault is already among the problems
   std::string output;     // its output file, <log>.d/<tag>.txt
+  // What it was started with, to start it again (--restart on-failure).
+  std::vector<std::string> argv;
+  int nice_inc = 0;
+  std::string tag;
+  std::string checkpoint;  // its checkpoint file ("" without restarts)
+  int restarts = 0;
 };
 
 std::string ExeDir() {
@@ -144,9 +150,13 @@ bool PrepareOutputDir(const std::string& dir, std::string* error) {
   if (DIR* d = opendir(dir.c_str())) {
     while (const dirent* e = readdir(d)) {
       const std::string n = e->d_name;
-      const bool ours = n == "logger.txt" || n == "emulator.txt" || n == "leader.txt" ||
-                        (n.rfind("vehicle", 0) == 0 && n.size() > 4 &&
-                         n.compare(n.size() - 4, 4, ".txt") == 0);
+      // Output (.txt) and checkpoints (.ckpt) of the run's processes, restarted ones too.
+      auto ends = [&n](const std::string& e) {
+        return n.size() > e.size() && n.compare(n.size() - e.size(), e.size(), e) == 0;
+      };
+      const bool process = n.rfind("vehicle", 0) == 0 || n.rfind("leader", 0) == 0 ||
+                           n.rfind("emulator", 0) == 0 || n.rfind("logger", 0) == 0;
+      const bool ours = process && (ends(".txt") || ends(".ckpt"));
       if (ours) unlink((dir + "/" + n).c_str());
     }
     closedir(d);
@@ -258,6 +268,12 @@ class Launch {
   /// cb. Returns true if it stops the run (it does unless opt_.keep_going lets a vehicle
   /// or the leader go), and then records it as the cause.
   bool Fault(Child& c, const std::string& what, const LaunchCallbacks& cb);
+  /// Mission time now: real time on the clock from t0, lockstep the log's newest tick.
+  double MissionSeconds();
+  /// --restart on-failure: starts child c, which died (`what` happened to it), again in
+  /// place (a vehicle or the leader resuming from its checkpoint). False if it may not be
+  /// restarted (the logger, or past --max-restarts) or could not be.
+  bool Restart(Child& c, const std::string& what, const LaunchCallbacks& cb);
   bool OnChildEvent(Child& c, int status, const LaunchCallbacks& cb);
 
   const Scenario& s_;
@@ -350,6 +366,9 @@ void Launch::Start(const std::string& name, int id, const std::vector<std::strin
   for (std::string& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);
   c.output = r_->process_output_dir + "/" + tag + ".txt";
+  c.argv = argv;
+  c.nice_inc = nice_inc;
+  c.tag = tag;
   c.pid = Spawn(argv, nice_inc, c.output, envp.data());
   c.running = c.pid > 0;
   if (c.pid < 0) {  // no process to supervise: the run cannot go on
@@ -413,13 +432,26 @@ void Launch::StartAll() {
     return vehicle_urls_.empty() ? std::vector<std::string>{}
                                  : std::vector<std::string>{"--rx-url", vehicle_urls_[id]};
   };
-  Start("leader", 0, ProcessArgs(leader_exe_, rx(0)), run_nice, "leader");
+  // With restarts each writes a checkpoint after every state it publishes, to resume from.
+  auto checkpoint = [&](const std::string& tag, std::vector<std::string>* more) {
+    if (!opt_.restart_on_failure) return std::string();
+    const std::string file = r_->process_output_dir + "/" + tag + ".ckpt";
+    more->push_back("--checkpoint");
+    more->push_back(file);
+    return file;
+  };
+  std::vector<std::string> leader_more = rx(0);
+  const std::string leader_ckpt = checkpoint("leader", &leader_more);
+  Start("leader", 0, ProcessArgs(leader_exe_, leader_more), run_nice, "leader");
+  kids_.back().checkpoint = leader_ckpt;
   for (int id = 1; id <= s_.followers; ++id) {
     std::vector<std::string> more = {"--id", std::to_string(id)};
     const std::vector<std::string> r = rx(id);
     more.insert(more.end(), r.begin(), r.end());
-    Start("vehicle " + std::to_string(id), id, ProcessArgs(vehicle_exe_, more), run_nice,
-          "vehicle" + std::to_string(id));
+    const std::string tag = "vehicle" + std::to_string(id);
+    const std::string file = checkpoint(tag, &more);
+    Start("vehicle " + std::to_string(id), id, ProcessArgs(vehicle_exe_, more), run_nice, tag);
+    kids_.back().checkpoint = file;
   }
 }
 
@@ -429,16 +461,16 @@ double Launch::WallSeconds(std::chrono::steady_clock::time_point wall0) const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
 }
 
-std::string Launch::When() {
+double Launch::MissionSeconds() {
   // Mission time: real time runs on the clock from t0; lockstep's is the newest tick the
   // log holds (the run waits for a process that is gone or stopped, so its log ends there).
-  double mission_s = 0.0;
-  if (mode_ == Mode::kRealtime) {
-    mission_s = (MonotonicNs() - t0_ns_) * 1e-9;
-  } else {
-    tracker_->Poll();
-    mission_s = tracker_->sim_time_s();
-  }
+  if (mode_ == Mode::kRealtime) return (MonotonicNs() - t0_ns_) * 1e-9;
+  tracker_->Poll();
+  return tracker_->sim_time_s();
+}
+
+std::string Launch::When() {
+  const double mission_s = MissionSeconds();
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0_).count();
   // The wall clock too, to match the fault with other records (the system journal, the
@@ -474,6 +506,53 @@ bool Launch::Fault(Child& c, const std::string& what, const LaunchCallbacks& cb)
   r_->problems.push_back(text);
   if (cb.problem) cb.problem(text, stops);
   return stops;
+}
+
+bool Launch::Restart(Child& c, const std::string& what, const LaunchCallbacks& cb) {
+  if (!opt_.restart_on_failure || c.id == kLoggerId) return false;
+  if (c.restarts >= opt_.max_restarts) {
+    // Fault() then stops the run, and says why there was no restart.
+    r_->problems.push_back(c.name + " was restarted " + std::to_string(c.restarts) +
+                           " time(s) already (--max-restarts " +
+                           std::to_string(opt_.max_restarts) + "): not restarted again");
+    return false;
+  }
+  ProcessRestart rec;
+  rec.process = c.name;
+  rec.pid = c.pid;
+  rec.reason = what;
+  rec.mission_s = MissionSeconds();
+  const std::string when = When();
+  ++c.restarts;
+  std::vector<std::string> argv = c.argv;
+  // The emulator has no checkpoint: the processes tell a new one where the run is.
+  if (c.id != kEmulatorId) argv.insert(argv.end(), {"--resume", c.checkpoint});
+  argv.insert(argv.end(), {"--restart-note", c.name + " restarted: the process before it (pid " +
+                                                 std::to_string(c.pid) + ") " + what + " at " +
+                                                 when});
+  std::vector<std::string> env = ChildEnvironment(&r_->key);
+  std::vector<char*> envp;
+  for (std::string& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  // Its own output file: the one of the process that died keeps that process's last words.
+  c.output = r_->process_output_dir + "/" + c.tag + ".restart" + std::to_string(c.restarts) +
+             ".txt";
+  const pid_t pid = Spawn(argv, c.nice_inc, c.output, envp.data());
+  if (pid < 0) {
+    r_->problems.push_back("cannot restart " + c.name + " (fork: " + std::strerror(errno) + ")");
+    return false;
+  }
+  c.pid = pid;
+  c.running = true;
+  c.status = 0;
+  c.stopped = false;
+  rec.new_pid = pid;
+  r_->restarts.push_back(rec);
+  if (cb.restarted) {
+    cb.restarted(rec.process + " (pid " + std::to_string(rec.pid) + ") " + what + " at " + when +
+                 ": restarted as pid " + std::to_string(pid));
+  }
+  return true;
 }
 
 /// The last `max_bytes` of a file ("" if it cannot be read): a process's exit lines.
@@ -572,7 +651,10 @@ bool Launch::OnChildEvent(Child& c, int status, const LaunchCallbacks& cb) {
     const bool own = WIFEXITED(status) || sig == SIGABRT || sig == SIGSEGV || sig == SIGBUS ||
                      sig == SIGFPE || sig == SIGILL;
     const std::string last = own ? LastLineOf(c.output) : "";
-    return !Fault(c, Describe(status) + (last.empty() ? "" : " (its output ends with \"" + last + "\")"), cb);
+    const std::string what =
+        Describe(status) + (last.empty() ? "" : " (its output ends with \"" + last + "\")");
+    if (Restart(c, what, cb)) return true;
+    return !Fault(c, what, cb);
   }
   return true;
 }

@@ -32,7 +32,22 @@ struct LaunchOptions {
   /// is reported and the others go on (the verdict fails all the same). Without it, any
   /// process that dies, fails or is stopped stops the whole run at once.
   bool keep_going = false;
+  /// --restart on-failure: a vehicle, the leader or the channel emulator that dies (exits
+  /// with a status other than 0, or is killed by a signal) is started again; a vehicle or
+  /// the leader resumes from its last published state (docs/reliability.md). At most
+  /// max_restarts times per process; beyond that it stops the run as without restarts.
+  bool restart_on_failure = false;
+  int max_restarts = 3;
   bool insecure = false;   // no bus authentication (else a per-run key, docs/run.md)
+};
+
+/// A process that died and was started again (LaunchOptions::restart_on_failure).
+struct ProcessRestart {
+  std::string process;  // "vehicle 3", "leader", "channel emulator"
+  int pid = 0;          // the process that died
+  int new_pid = 0;      // the one started in its place
+  std::string reason;   // what happened to it ("killed by signal 9 (Killed)")
+  double mission_s = 0.0;  // mission time when shoal run saw it die
 };
 
 /// The processes' side of a run.
@@ -55,6 +70,7 @@ struct LaunchResult {
   /// The fault that made shoal run stop the run before its end: which process, what
   /// happened to it and when (mission time and wall time); empty if none did.
   std::string stopped_by;
+  std::vector<ProcessRestart> restarts;  // in the order they happened
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
   /// The run's bus key (none with --insecure), and the file next to the log that holds it.
@@ -81,6 +97,8 @@ struct LaunchCallbacks {
   /// A process died, failed or was stopped before the end; `stops_run`: the run is being
   /// stopped because of it (else the others keep running, LaunchOptions::keep_going).
   std::function<void(const std::string& problem, bool stops_run)> problem;
+  /// A process died and was started again (LaunchOptions::restart_on_failure).
+  std::function<void(const std::string& what)> restarted;
 };
 
 /// Runs scenario `s` (loaded from opt.scenario) as separate processes. Returns false with

@@ -47,7 +47,10 @@ std::string Lost(std::int64_t have, std::int64_t expected, const std::string& wh
 /// `clock_ticks`: lockstep, the clock ticks the log's SHOAL_CLOCK messages cover (one
 /// window each reaches the logger); -1 when not judged.
 void JudgeLog(std::int64_t clock_ticks, std::int64_t expected_ticks, RunReport* r) {
-  const std::int64_t states = r->summary.states, expected = r->log_states_expected;
+  // States a restarted process never published (the ticks it was down for) were not lost
+  // by the log; the report names them apart (PrintRestarts).
+  const std::int64_t states = r->summary.states;
+  const std::int64_t expected = r->log_states_expected - r->states_missing_in_restarts;
   if (states < expected) r->log_problems.push_back(Lost(states, expected, "vehicle states"));
   if (clock_ticks >= 0 && clock_ticks < expected_ticks) {
     r->log_problems.push_back(Lost(clock_ticks, expected_ticks, "clock ticks"));
@@ -85,6 +88,25 @@ void PrintAuthentication(const RunReport& r, std::FILE* out) {
   }
 }
 
+/// The restarts: each as shoal run saw it, and the states the log lacks because of them.
+void PrintRestarts(const RunReport& r, std::FILE* out) {
+  const std::vector<ProcessRestart>& rs = r.launch.restarts;
+  if (rs.empty()) return;
+  std::fprintf(out, "  %zu restart(s) (--restart on-failure):\n", rs.size());
+  for (const ProcessRestart& p : rs) {
+    std::fprintf(out, "    %s (pid %d) %s at t = %.2f s of the mission: restarted as pid %d\n",
+                 p.process.c_str(), p.pid, p.reason.c_str(), p.mission_s, p.new_pid);
+  }
+  for (const RestartAnalysis& a : r.log_restarts) {
+    if (a.states_missing == 0) continue;
+    std::fprintf(out,
+                 "  MISSING (restart): %s published no state for %lld tick(s) before t = %.2f s "
+                 "(it was down: stepped again on its restart, not published)\n",
+                 ProcessName(a.id).c_str(), static_cast<long long>(a.states_missing),
+                 ToSeconds(a.utime));
+  }
+}
+
 }  // namespace
 
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
@@ -111,6 +133,8 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
   if (r.log_readable && LoadRunLog(r.launch.log, lo, &run, &error)) {
     const RunAnalysis a = AnalyseRun(run);
     r.summary = a.summary;
+    r.log_restarts = a.restarts;
+    r.states_missing_in_restarts = a.states_missing_in_restarts;
     r.diverged_follower = a.diverged_follower;
     r.converged = FormationConverged(a);
     r.bus_authenticated = run.bus_authenticated();
@@ -149,6 +173,13 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["all_processes_ok"] = r.all_processes_ok();
   j["problems"] = r.problems;
   j["stopped_by"] = l.stopped_by;
+  nlohmann::ordered_json restarts = nlohmann::ordered_json::array();
+  for (const ProcessRestart& p : l.restarts) {
+    restarts.push_back({{"process", p.process}, {"pid", p.pid}, {"new_pid", p.new_pid},
+                        {"reason", p.reason}, {"mission_s", p.mission_s}});
+  }
+  j["restarts"] = restarts;
+  j["states_missing_in_restarts"] = r.states_missing_in_restarts;
   j["interrupted"] = l.interrupted;
   j["log"] = l.log;
   j["process_output_dir"] = l.process_output_dir;
@@ -209,6 +240,7 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   for (const std::string& p : r.log_problems) {
     std::fprintf(out, "  LOG INCOMPLETE: %s\n", p.c_str());
   }
+  PrintRestarts(r, out);
   for (const std::string& p : r.timing_problems) {
     std::fprintf(out, "  LATE (real time): %s\n", p.c_str());
   }

@@ -30,6 +30,11 @@ struct RunReport {
   /// log_problems says what was lost, and how much, when not.
   bool log_complete = false;
   std::vector<std::string> log_problems;
+  /// Restarted processes (launch.restarts) as the log shows them: the states each never
+  /// published while it was down (real time), counted apart from what the log lost:
+  /// log_complete judges the states the processes published.
+  std::vector<RestartAnalysis> log_restarts;
+  std::int64_t states_missing_in_restarts = 0;
   /// Real time: no process overran a period, and every process's loop lateness p99 (the
   /// emulator's: release error p99) stayed within kMaxLatenessP99S; always true in
   /// lockstep, which reads no clock. timing_problems names each process that did not.

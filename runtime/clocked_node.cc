@@ -42,6 +42,7 @@ ClockedNode::ClockedNode(const Scenario& s, int id, Mode mode, std::int64_t t0_n
 void ClockedNode::Init() {
   SubscribeInputs();
   if (mode_ == Mode::kLockstep) SubscribeInput(channels::Clock(), kClockKind);
+  if (mode_ == Mode::kLockstep && checkpoint_) SubscribeInput(channels::Status(), kStatusKind);
 }
 
 void ClockedNode::SubscribeInput(const std::string& channel, int kind) {
@@ -67,6 +68,8 @@ int ClockedNode::HandleBus(int timeout_ms) {
     const int size = static_cast<int>(in.bytes.size());
     if (in.kind == kClockKind) {
       OnClock(data, size);
+    } else if (in.kind == kStatusKind) {
+      OnStatus(data, size);
     } else if (OnInput(in.kind, data, size) && mode_ == Mode::kLockstep) {
       StepWhatIsDue();
     }
@@ -118,6 +121,14 @@ void ClockedNode::OnClock(const unsigned char* data, int size) {
   StepWhatIsDue();
 }
 
+void ClockedNode::OnStatus(const unsigned char* data, int size) {
+  run_status_t st;
+  if (Decode(data, size, &st) && st.vehicle_id == kEmulatorId &&
+      ParseRunState(st.state) == RunState::kRestarted) {
+    PublishStatus(RunStateName(RunState::kReady));
+  }
+}
+
 void ClockedNode::StepWhatIsDue() {
   for (auto it = due_.find(next_tick_); it != due_.end(); it = due_.find(next_tick_)) {
     const Delivery* missing = ApplyListed(it->second.deliveries);
@@ -154,6 +165,8 @@ void ClockedNode::Step(std::int64_t tick) {
   const Micros now = tick * period_us_;
   bus_->Publish(state_channel_, ToLcm(StepAt(now)));
   next_tick_ = tick + 1;
+  stepped_ = true;
+  if (checkpoint_) WriteCheckpoint(tick);
   if (now % 1000000 < period_us_ || tick == final_tick_) PublishHealth(now);
 }
 
@@ -168,7 +181,7 @@ void ClockedNode::PublishHealth(Micros utime) {
   bus_->Publish(health_channel_, h);
 }
 
-void ClockedNode::PublishStatus(const std::string& state) {
+void ClockedNode::PublishStatus(const std::string& state, const std::string& message) {
   run_status_t st;
   st.utime = next_tick_ * period_us_;
   st.vehicle_id = id_;
@@ -178,7 +191,7 @@ void ClockedNode::PublishStatus(const std::string& state) {
   st.scenario_toml = "";
   st.seed = static_cast<std::int64_t>(s_.seed);
   st.followers = s_.followers;
-  st.message = "";
+  st.message = message;
   bus_->Publish(channels::Status(), st);
 }
 
@@ -187,7 +200,13 @@ int ClockedNode::Run() { return mode_ == Mode::kLockstep ? RunLockstep() : RunRe
 bool ClockedNode::AnnounceReady(std::int64_t start_ns, std::int64_t* last_ready_ns) {
   const std::int64_t now = MonotonicNs();
   if (now - *last_ready_ns > kReadyEveryNs) {
-    PublishStatus(RunStateName(RunState::kReady));
+    // A restarted process says so, with the tick it needs next (the status's time): the
+    // clock master sends it the windows it missed (docs/reliability.md).
+    if (resumed_) {
+      PublishStatus(RunStateName(RunState::kRestarted), RestartMessage(0, 0));
+    } else {
+      PublishStatus(RunStateName(RunState::kReady));
+    }
     *last_ready_ns = now;
   }
   if (now - start_ns > kNoClockExitNs) {
@@ -201,14 +220,18 @@ int ClockedNode::RunLockstep() {
   // Announce readiness until the clock master starts the run.
   std::int64_t last_ready = 0;
   const std::int64_t start = MonotonicNs();
+  if (next_tick_ > final_tick_) {  // resumed after its last tick: nothing left to step
+    PublishStatus(RunStateName(RunState::kRestarted), RestartMessage(0, 0));
+    done_ = true;
+  }
   while (!done_ && !StopRequested()) {
-    if (next_tick_ == 0 && !AnnounceReady(start, &last_ready)) return 3;
+    if (!stepped_ && !AnnounceReady(start, &last_ready)) return 3;
     const std::int64_t stepped_before = next_tick_;
     const int handled = HandleBus(50);
     if (handled < 0) return 1;
     if (handled == 0 && !due_.empty()) StepWhatIsDue();  // to say what it waits for
     if (next_tick_ != stepped_before) last_step_ns_ = MonotonicNs();
-    if (next_tick_ > 0 && MonotonicNs() - last_step_ns_ > kIdleExitNs) {
+    if (stepped_ && MonotonicNs() - last_step_ns_ > kIdleExitNs) {
       std::cerr << "vehicle " << id_ << ": no tick could be stepped for "
                 << kIdleExitNs / 1000000000LL << " s after tick " << next_tick_ - 1
                 << " (the clock master is gone, or declared this vehicle lost); exiting\n";
@@ -221,7 +244,8 @@ int ClockedNode::RunLockstep() {
 
 int ClockedNode::RunRealtime() {
   const std::int64_t period_ns = period_us_ * 1000;
-  for (std::int64_t k = 0; k <= final_tick_ && !StopRequested(); ++k) {
+  const std::int64_t first = resumed_ ? CatchUp() : 0;
+  for (std::int64_t k = first; k <= final_tick_ && !StopRequested(); ++k) {
     const std::int64_t deadline = t0_ns_ + k * period_ns;
     SleepUntilNs(deadline);
     if (StopRequested()) break;
@@ -241,11 +265,95 @@ int ClockedNode::RunRealtime() {
   return finished ? 0 : 1;
 }
 
+bool ClockedNode::RestoreCheckpoint(std::int64_t tick, CheckpointPayload* /*in*/) {
+  for (std::int64_t k = 0; k <= tick && k <= final_tick_; ++k) StepAt(k * period_us_);
+  return true;
+}
+
+bool ClockedNode::EnableCheckpoints(const std::string& path, std::string* error) {
+  checkpoint_ = std::make_unique<CheckpointFile>();
+  if (checkpoint_->Open(path, next_generation_, error)) return true;
+  checkpoint_.reset();
+  return false;
+}
+
+void ClockedNode::Resume(const std::string& path, const std::string& note) {
+  resumed_ = true;
+  restart_note_ = note;
+  CheckpointRecord r;
+  std::string error;
+  if (!ReadCheckpoint(path, id_, &r, &error) || r.tick < 0 || r.tick > final_tick_) {
+    std::cerr << "vehicle " << id_ << ": " << (error.empty() ? "checkpoint out of range" : error)
+              << "; starting again from tick 0\n";
+    return;
+  }
+  if (!RestoreCheckpoint(r.tick, &r.payload)) {
+    std::cerr << "vehicle " << id_ << ": " << path
+              << ": not a checkpoint of this process; starting again from tick 0\n";
+    return;
+  }
+  next_tick_ = r.tick + 1;
+  resumed_tick_ = r.tick;
+  next_generation_ = r.generation + 1;
+}
+
+void ClockedNode::WriteCheckpoint(std::int64_t tick) {
+  checkpoint_payload_.Clear();
+  SaveCheckpoint(&checkpoint_payload_);
+  if (!checkpoint_->Write(id_, tick, checkpoint_payload_)) {
+    std::cerr << "vehicle " << id_ << ": cannot write its checkpoint; it can no longer be "
+              << "resumed after a restart\n";
+    checkpoint_.reset();
+  }
+}
+
+std::string ClockedNode::RestartMessage(std::int64_t from, std::int64_t skipped) const {
+  char text[256];
+  if (resumed_tick_ >= 0) {
+    std::snprintf(text, sizeof(text), "; resumed from its state of t = %.3f s (tick %lld)",
+                  ToSeconds(resumed_tick_ * period_us_), static_cast<long long>(resumed_tick_));
+  } else {
+    std::snprintf(text, sizeof(text), "; no checkpoint: started again from tick 0");
+  }
+  std::string m = restart_note_ + text;
+  if (skipped > 0) {
+    std::snprintf(text, sizeof(text),
+                  "; ticks %lld..%lld (%lld) stepped without neighbour data and not published",
+                  static_cast<long long>(from), static_cast<long long>(from + skipped - 1),
+                  static_cast<long long>(skipped));
+    m += text;
+  }
+  return m;
+}
+
+std::int64_t ClockedNode::CatchUp() {
+  // The first tick to publish is the one after the current period's end: the ticks before
+  // it are stepped now, well within that period (microseconds each), so that it starts on
+  // time.
+  const std::int64_t period_ns = period_us_ * 1000;
+  const std::int64_t elapsed = MonotonicNs() - t0_ns_;
+  const std::int64_t first = std::max(next_tick_, elapsed < 0 ? 0 : elapsed / period_ns + 2);
+  const std::int64_t from = next_tick_;
+  const std::int64_t skipped = std::max<std::int64_t>(0, std::min(first, final_tick_ + 1) - from);
+  for (std::int64_t k = from; k < first && k <= final_tick_; ++k) StepAt(k * period_us_);
+  next_tick_ = first;
+  PublishStatus(RunStateName(RunState::kRestarted), RestartMessage(from, skipped));
+  return first;
+}
+
 int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& name,
                     const std::function<bool(const Scenario&)>& valid,
                     const std::function<std::unique_ptr<ClockedNode>(const NodeContext&)>& make) {
   ProcessOptions opt;
   AddProcessOptions(app, &opt);
+  std::string checkpoint, resume, restart_note;
+  app->add_option("--checkpoint", checkpoint,
+                  "After every published state write a checkpoint to this file (shoal run "
+                  "--restart on-failure)");
+  app->add_option("--resume", resume,
+                  "Replace a process that died: go on from the checkpoint in this file");
+  app->add_option("--restart-note", restart_note,
+                  "With --resume: why and when the process before it ended (for the log)");
   Scenario s;
   const int started = StartProcess(app, argc, argv, name, opt, &s);
   if (started >= 0) return started;
@@ -268,6 +376,12 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
                         opt.t0_ns, opt.duration_s,
                         &bus,      rx ? static_cast<Bus*>(rx.get()) : &bus};
     std::unique_ptr<ClockedNode> node = make(c);
+    if (!resume.empty()) node->Resume(resume, restart_note);
+    std::string error;
+    if (!checkpoint.empty() && !node->EnableCheckpoints(checkpoint, &error)) {
+      std::cerr << name << ": " << error << "\n";
+      return 2;
+    }
     node->Init();
     const int status = node->Run();
     std::cerr << name << ": " << bus_auth::ExitNote(auth, c.rx_bus->rejected()) << "\n";

@@ -21,6 +21,7 @@
 
 #include "core/scenario.h"
 #include "core/state_msg.h"
+#include "runtime/checkpoint.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/process.h"
@@ -55,6 +56,15 @@ class ClockedNode {
   const ClockCounters& counters() const { return counters_; }
   int id() const { return id_; }
 
+  /// Restart (shoal run --restart on-failure, docs/reliability.md). After Run's every
+  /// published state, the process's checkpoint goes to `path`. False with *error if the
+  /// file cannot be opened. Call after Resume, if any.
+  bool EnableCheckpoints(const std::string& path, std::string* error);
+  /// This process replaces one that died: it goes on from the newest valid checkpoint in
+  /// `path` (from tick 0 if there is none, saying so on stderr), and says on SHOAL_STATUS
+  /// that it was restarted, with `note` (why, from shoal run). Before Init.
+  void Resume(const std::string& path, const std::string& note);
+
  protected:
   /// One delivery a clock window lists for this process at a tick.
   struct Delivery {
@@ -64,6 +74,7 @@ class ClockedNode {
   };
   /// Inbox kinds: the clock, and the derived app's own (from kFirstInputKind on).
   static constexpr int kClockKind = 0;
+  static constexpr int kStatusKind = -1;  // lockstep with restarts: the emulator's statuses
   static constexpr int kFirstInputKind = 1;
 
   /// Subscribes `channel` on the receive bus; its messages reach OnInput as `kind`.
@@ -84,6 +95,13 @@ class ClockedNode {
   /// The app's part of its health report at `utime` (seq, lateness and overruns are set
   /// by the caller).
   virtual health_t Health(Micros utime) const = 0;
+  /// The app's part of the checkpoint after tick `tick` was stepped and published.
+  virtual void SaveCheckpoint(CheckpointPayload* /*out*/) const {}
+  /// Restores the app to just after tick `tick`, from what SaveCheckpoint wrote; false
+  /// (nothing changed) if `in` is not such a record. By default the ticks are stepped
+  /// again up to `tick`, without publishing: right for an app whose state is a function
+  /// of time and of the ticks stepped (the leader).
+  virtual bool RestoreCheckpoint(std::int64_t tick, CheckpointPayload* in);
 
   Micros period_us() const { return period_us_; }
   std::int64_t next_tick() const { return next_tick_; }
@@ -103,13 +121,25 @@ class ClockedNode {
   /// become due. Refused (counted) if any part is not a window this process can be given.
   void OnClock(const unsigned char* data, int size);
   bool AcceptableWindow(const clock_window_t& c) const;
+  /// Lockstep with restarts: a restarted clock master asks every process for the tick it
+  /// needs next; the answer is a "ready" status at that tick.
+  void OnStatus(const unsigned char* data, int size);
   /// Lockstep: steps every tick whose clock tick and listed deliveries are all here.
   void StepWhatIsDue();
   /// Lockstep: says (once per tick, after a while) what the tick waits for.
   void NoteWaiting(const Delivery& missing);
   void Step(std::int64_t tick);
   void PublishHealth(Micros utime);
-  void PublishStatus(const std::string& state);
+  void PublishStatus(const std::string& state, const std::string& message = "");
+  /// Writes the checkpoint of tick `tick`, just published.
+  void WriteCheckpoint(std::int64_t tick);
+  /// Real time, resumed: steps the ticks the process was down for without publishing them,
+  /// up to a tick safely ahead of the clock; says on SHOAL_STATUS that it was restarted.
+  /// Returns the first tick to publish.
+  std::int64_t CatchUp();
+  /// What the "restarted" status says (`skipped` ticks from `from` were stepped, not
+  /// published).
+  std::string RestartMessage(std::int64_t from, std::int64_t skipped) const;
   int RunLockstep();
   /// Lockstep: announces readiness until the first tick; false once it waited too long.
   bool AnnounceReady(std::int64_t start_ns, std::int64_t* last_ready_ns);
@@ -135,6 +165,14 @@ class ClockedNode {
   bool warned_waiting_ = false;
   std::int64_t last_step_ns_ = 0;  // lockstep: when a tick was last stepped
   bool done_ = false;
+  bool stepped_ = false;  // a tick was stepped by this process
+  // Restart: where checkpoints go, and (resumed) from where and why.
+  std::unique_ptr<CheckpointFile> checkpoint_;
+  CheckpointPayload checkpoint_payload_;
+  std::uint64_t next_generation_ = 0;
+  bool resumed_ = false;
+  std::int64_t resumed_tick_ = -1;  // the checkpoint's tick; -1 none (started from tick 0)
+  std::string restart_note_;
   std::int32_t health_seq_ = 0, status_seq_ = 0;
   ClockCounters counters_;
   LatenessStats lateness_;

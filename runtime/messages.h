@@ -28,6 +28,7 @@ enum class RunState {
   kFailed,       // did not start or could not go on
   kInterrupted,  // stopped by a signal
   kVehicleLost,  // lockstep: a vehicle stopped answering (the run goes on without it)
+  kRestarted,    // a process restarted in place of one that died (shoal run --restart)
 };
 
 inline const char* RunStateName(RunState s) {
@@ -39,6 +40,7 @@ inline const char* RunStateName(RunState s) {
     case RunState::kFailed: return "failed";
     case RunState::kInterrupted: return "interrupted";
     case RunState::kVehicleLost: return "vehicle_lost";
+    case RunState::kRestarted: return "restarted";
   }
   return "";
 }
@@ -47,7 +49,7 @@ inline const char* RunStateName(RunState s) {
 inline std::optional<RunState> ParseRunState(std::string_view name) {
   for (RunState s : {RunState::kStarting, RunState::kReady, RunState::kRunning,
                      RunState::kFinished, RunState::kFailed, RunState::kInterrupted,
-                     RunState::kVehicleLost}) {
+                     RunState::kVehicleLost, RunState::kRestarted}) {
     if (name == RunStateName(s)) return s;
   }
   return std::nullopt;

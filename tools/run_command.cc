@@ -32,9 +32,16 @@ int RunRun(const RunOptions& opt) {
                    stops_run ? "" : "; the others keep running (--keep-going)");
     };
   }
+  if (!opt.json) {
+    cb.restarted = [show](const std::string& what) {
+      std::fprintf(stderr, "%sshoal run: %s\n", show ? "\n" : "", what.c_str());
+    };
+  }
+  LaunchOptions launch_options = opt.launch;
+  launch_options.restart_on_failure = opt.restart == "on-failure";
   LaunchResult launch;
   std::string error;
-  if (!LaunchRun(s, opt.launch, cb, &launch, &error)) {
+  if (!LaunchRun(s, launch_options, cb, &launch, &error)) {
     std::cerr << "shoal run: " << error << "\n";
     return kExitBadInput;
   }

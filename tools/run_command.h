@@ -8,6 +8,7 @@ struct RunOptions {
   LaunchOptions launch;
   bool json = false;
   bool quiet = false;
+  std::string restart = "no";  // "no" or "on-failure" (sets launch.restart_on_failure)
 };
 
 /// `shoal run`: launches lcm-logger, the channel emulator, the leader and every vehicle

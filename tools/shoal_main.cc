@@ -68,6 +68,17 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
   c->add_flag("--keep-going", run->launch.keep_going,
               "A vehicle or the leader that dies or is stopped does not stop the run "
               "(it is reported, and the run fails); by default any such fault stops it");
+  c->add_option("--restart", run->restart,
+                "on-failure: a vehicle, the leader or the channel emulator that dies (exit "
+                "status other than 0, or killed by a signal) is started again, a vehicle "
+                "resuming from its last published state; no: any such death stops the run")
+      ->check(CLI::IsMember({"no", "on-failure"}))
+      ->capture_default_str();
+  c->add_option("--max-restarts", run->launch.max_restarts,
+                "With --restart on-failure: most restarts per process; one more death "
+                "stops the run")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   c->add_flag("--json", run->json, "Print one JSON object instead of the summary");
   c->add_flag("--quiet", run->quiet, "No progress line");
   return c;

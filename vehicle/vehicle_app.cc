@@ -113,6 +113,62 @@ health_t VehicleApp::Health(Micros utime) const {
   return h;
 }
 
+namespace {
+void Put5(const Vec5& v, CheckpointPayload* out) {
+  for (int k = 0; k < 5; ++k) out->Put(v(k));
+}
+bool Get5(CheckpointPayload* in, Vec5* v) {
+  bool ok = true;
+  for (int k = 0; k < 5; ++k) ok = ok && in->Get(&(*v)(k));
+  return ok;
+}
+}  // namespace
+
+void VehicleApp::SaveCheckpoint(CheckpointPayload* out) const {
+  const Follower::Checkpoint c = follower_.MakeCheckpoint();
+  const StateMsg& m = c.published;
+  out->Put(m.seq);
+  out->Put(m.utime);
+  for (const Vec5* v : {&m.eta, &m.nu, &m.eta_dot, &m.accel_cmd, &m.tau, &c.eta, &c.nu}) {
+    Put5(*v, out);
+  }
+  out->Put(m.flags);
+  const FollowerCounters& n = c.counters;
+  for (std::int64_t v : {n.ticks, n.msgs_received, n.msgs_dropped_invalid, n.msgs_dropped_old,
+                         n.neighbour_timeouts, n.saturated_ticks}) {
+    out->Put(v);
+  }
+  for (std::int64_t v : n.saturated_channel) out->Put(v);
+  out->Put(static_cast<std::int32_t>(n.active_neighbours));
+  out->Put(static_cast<std::uint8_t>(c.diverged));
+}
+
+bool VehicleApp::RestoreCheckpoint(std::int64_t tick, CheckpointPayload* in) {
+  Follower::Checkpoint c;
+  StateMsg& m = c.published;
+  bool ok = in->Get(&m.seq) && in->Get(&m.utime);
+  for (Vec5* v : {&m.eta, &m.nu, &m.eta_dot, &m.accel_cmd, &m.tau, &c.eta, &c.nu}) {
+    ok = ok && Get5(in, v);
+  }
+  ok = ok && in->Get(&m.flags);
+  FollowerCounters& n = c.counters;
+  for (std::int64_t* v : {&n.ticks, &n.msgs_received, &n.msgs_dropped_invalid,
+                          &n.msgs_dropped_old, &n.neighbour_timeouts, &n.saturated_ticks}) {
+    ok = ok && in->Get(v);
+  }
+  for (std::int64_t& v : n.saturated_channel) ok = ok && in->Get(&v);
+  std::int32_t active = 0;
+  std::uint8_t diverged = 0;
+  ok = ok && in->Get(&active) && in->Get(&diverged);
+  // The record must be this vehicle's state of that tick.
+  if (!ok || m.utime != tick * period_us() || m.seq < 0 || !m.AllFinite()) return false;
+  n.active_neighbours = active;
+  c.diverged = diverged != 0;
+  m.vehicle_id = id();
+  follower_.Resume(c);
+  return true;
+}
+
 int VehicleMain(int argc, char** argv) {
   CLI::App app{"Shoal vehicle process: one follower UUV running protocol (10)"};
   int id = 0;

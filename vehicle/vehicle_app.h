@@ -39,6 +39,8 @@ class VehicleApp : public ClockedNode {
   void AfterLockstepStep(std::int64_t tick) override;
   const StateMsg& StepAt(Micros now) override { return follower_.Tick(now); }
   health_t Health(Micros utime) const override;
+  void SaveCheckpoint(CheckpointPayload* out) const override;
+  bool RestoreCheckpoint(std::int64_t tick, CheckpointPayload* in) override;
   /// Lockstep: drops held message k, which no tick listed, counting it.
   void DropHeld(std::size_t k);
 
