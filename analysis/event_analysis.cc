@@ -55,14 +55,29 @@ Micros DecisionTime(EventKind kind, const ChannelEventRecord& e, Micros period_u
   return e.send_utime;
 }
 
+/// The decisions within the event's window [at, end); a window clipped to the run's end
+/// includes the final tick, whose decisions the run makes too.
 void CountDecisions(const RunData& run, const ScenarioEvent& ev, Micros period_us,
                     EventAnalysis* out) {
   const Micros at = TimelineMicros(out->at_s), end = TimelineMicros(out->end_s);
+  const bool to_run_end = !out->ends_in_run;
   for (const ChannelEventRecord& e : run.channel_events) {
     if (e.status < 0 || e.status >= kChannelStatuses || !Affected(ev, e)) continue;
     const Micros t = DecisionTime(ev.kind, e, period_us);
-    if (t >= at && t < end) ++out->decisions[e.status];
+    if (t >= at && (t < end || (to_run_end && t == end))) ++out->decisions[e.status];
   }
+}
+
+/// Where an event's change ends: its end_s(), or for a topology without an explicit end
+/// the next topology event's start (the timeline replaces it there).
+double ChangeEndS(const std::vector<ScenarioEvent>& events, std::size_t k) {
+  const ScenarioEvent& ev = events[k];
+  double end = ev.end_s();
+  if (ev.kind != EventKind::kTopology) return end;
+  for (const ScenarioEvent& next : events) {
+    if (next.kind == EventKind::kTopology && next.at_s > ev.at_s) end = std::min(end, next.at_s);
+  }
+  return end;
 }
 
 /// Re-convergence after out->reference_s within [reference_s, horizon_s), and the
@@ -138,8 +153,8 @@ std::vector<EventAnalysis> AnalyseEvents(const RunData& run, const std::vector<W
     a.index = static_cast<int>(k);
     a.kind = ev.kind;
     a.at_s = ev.at_s;
-    a.ends_in_run = ev.end_s() < end_s;
-    a.end_s = std::min(ev.end_s(), end_s);
+    a.ends_in_run = ChangeEndS(events, k) < end_s;
+    a.end_s = std::min(ChangeEndS(events, k), end_s);
     a.affects = EventAffects(ev);
     a.reference_s = a.ends_in_run ? a.end_s : a.at_s;
     a.horizon_s = end_s;

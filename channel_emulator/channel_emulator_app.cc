@@ -228,7 +228,7 @@ void ChannelEmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micr
   for (const ChannelDecision& d : decisions_) {
     if (d.status == ChannelDecision::kDelivered) {
       ++counters_.delivered;
-    } else if (d.status != ChannelDecision::kSkippedBusy) {
+    } else if (!NotTransmitted(d.status)) {
       ++counters_.dropped;
     }
     if (mode_ == Mode::kRealtime && events_.empty()) events_since_ns_ = MonotonicNs();
@@ -533,6 +533,9 @@ int ChannelEmulatorApp::RunRealtime() {
   double max_delay = MaxDelaySeconds(s_.delay);
   for (const LinkOverride& o : s_.links) {
     if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
+  }
+  for (const ScenarioEvent& e : s_.events) {  // a channel event's delays too
+    if (e.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*e.delay));
   }
   const std::int64_t end_ns =
       t0_ns_ + (final_tick_ * period_us_ + static_cast<Micros>(max_delay * 1e6) + 100000) * 1000;

@@ -193,8 +193,11 @@ void Follower::Advance(const AttitudeTrig<double>& trig, const Vec5& force, cons
 }
 
 void Follower::FollowTimeline(Micros now) {
-  const bool reset = timeline_->InReset(id_, now);
-  if (reset && !in_reset_) {
+  timeline_now_ = now;
+  // A window that starts is a new reset, even right after another one.
+  const Micros start = timeline_->ResetStart(id_, now);
+  const bool reset = start != Timeline::kNoReset;
+  if (reset && start != reset_at_) {
     // The controller restarts with nothing: no neighbour data, no own past.
     for (Slot& sl : slots_) {
       sl.have = false;
@@ -202,6 +205,7 @@ void Follower::FollowTimeline(Micros now) {
     }
     history_.Clear();
   }
+  reset_at_ = start;
   in_reset_ = reset;
   if (timeline_->switches_topology()) {
     for (Slot& sl : slots_) sl.active = sl.link >= 0 && timeline_->LinkActive(sl.link, now);
@@ -209,7 +213,7 @@ void Follower::FollowTimeline(Micros now) {
 }
 
 const StateMsg& Follower::Tick(Micros now) {
-  if (timeline_) FollowTimeline(now);
+  BeginTick(now);
   if (trig_age_ == 0) trig_ = AttitudeTrig<double>(x_.eta);
   const AttitudeTrig<double> trig = trig_;
   const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);

@@ -3,6 +3,7 @@
 // makes a lockstep SIL run equal to shoal sim.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -62,6 +63,13 @@ class Follower {
   RxResult Check(const StateMsg& m) const;
   /// Counts a rejection as Receive would (unknown sender / non-finite / old).
   void CountRejected(RxResult r);
+
+  /// Applies the scenario's timeline at tick `now` (a controller reset starting or ending,
+  /// the topology in force) before the tick's deliveries are received; Tick(now) does it
+  /// if it was not done. Without events it does nothing.
+  void BeginTick(Micros now) {
+    if (timeline_ && timeline_now_ != now) FollowTimeline(now);
+  }
 
   /// One control tick at `now`: records the current state, computes protocol (10) from
   /// the newest data of each live neighbour of the topology in force, feedback-linearises
@@ -132,6 +140,8 @@ class Follower {
   bool disturbance_relative_;
   std::shared_ptr<const Environment> env_;
   std::shared_ptr<const Timeline> timeline_;  // null: no events
+  Micros timeline_now_ = std::numeric_limits<Micros>::min();  // tick it was applied at
+  Micros reset_at_ = Timeline::kNoReset;  // start of the reset window in force
   bool in_reset_ = false;
   OceanCurrent current_;
   FossenModel model_;

@@ -102,6 +102,11 @@ bool Swarm::Step(SwarmObserver* obs) {
   const bool final_tick = tick_ == final_tick_;
   if (obs) obs->OnTick(tick_, now, final_tick);
 
+  // The timeline of this tick applies to what is delivered at it (a controller reset
+  // that ends now keeps this tick's deliveries).
+  if (timeline_) {
+    for (const auto& f : followers_) f->BeginTick(now);
+  }
   channel_.DeliverDue(now, [&](int receiver, const StateMsg& m) {
     if (obs) obs->OnDeliver(receiver, m);
     followers_[receiver - 1]->Receive(m);

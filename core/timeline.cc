@@ -126,7 +126,12 @@ void Timeline::Tabulate(Segment* seg, const std::vector<Micros>& topo_end) const
                                   : e.kind == EventKind::kVehicleDeaf  ? kDeaf
                                                                        : kReset;
         for (int id : e.vehicles) {
-          if (id >= 0 && id < ids_) seg->vehicle[static_cast<std::size_t>(id)] |= flag;
+          if (id < 0 || id >= ids_) continue;
+          seg->vehicle[static_cast<std::size_t>(id)] |= flag;
+          if (flag == kReset) {
+            if (seg->reset_at.empty()) seg->reset_at.assign(static_cast<std::size_t>(ids_), kNoReset);
+            seg->reset_at[static_cast<std::size_t>(id)] = at_us_[a];
+          }
         }
         break;
       }
@@ -169,6 +174,15 @@ std::uint8_t Timeline::Vehicle(int id, Micros t) const {
   const Segment* s = SegmentAt(t);
   if (s == nullptr || id < 0 || id >= static_cast<int>(s->vehicle.size())) return 0;
   return s->vehicle[static_cast<std::size_t>(id)];
+}
+
+Micros Timeline::ResetStart(int id, Micros t) const {
+  const Segment* s = SegmentAt(t);
+  if (s == nullptr || s->reset_at.empty() || id < 0 ||
+      id >= static_cast<int>(s->reset_at.size())) {
+    return kNoReset;
+  }
+  return s->reset_at[static_cast<std::size_t>(id)];
 }
 
 const ScenarioEvent* Timeline::ChannelChange(std::size_t k, Micros t) const {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -57,6 +58,10 @@ class Timeline {
   bool Deaf(int id, Micros t) const { return Vehicle(id, t) & kDeaf; }
   /// Follower id's controller is reset (no memory, zero force) at t.
   bool InReset(int id, Micros t) const { return Vehicle(id, t) & kReset; }
+  /// Start of follower id's reset window in force at t, kNoReset if none (two windows
+  /// that touch are two resets).
+  static constexpr Micros kNoReset = std::numeric_limits<Micros>::min();
+  Micros ResetStart(int id, Micros t) const;
 
   /// True if some event switches the topology (followers then check their links per tick).
   bool switches_topology() const { return topologies_.size() > 1; }
@@ -75,6 +80,7 @@ class Timeline {
     std::vector<std::uint8_t> link;      // per link: kActive | kDown
     std::vector<std::int32_t> channel;   // per link: event index or -1 (empty: none)
     std::vector<std::uint8_t> vehicle;   // per id 0..n: kSilent | kDeaf | kReset
+    std::vector<Micros> reset_at;        // per id: its reset window's start (if any reset)
   };
 
   const Segment* SegmentAt(Micros t) const;

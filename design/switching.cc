@@ -136,6 +136,13 @@ CommonLyapunov FindCommonLyapunov(const std::vector<Eigen::MatrixXd>& A, double 
   return out;
 }
 
+namespace {
+// 60 followers (m = 120: 7260 variables, a Schur matrix of 0.4 GB) and the block entries
+// of a few hundred topologies of that size.
+constexpr double kMaxCommonLmiVariables = 7260.0;
+constexpr double kMaxCommonLmiEntries = 5e6;
+}  // namespace
+
 SwitchingSection AnalyseSwitching(const Scenario& s, double k1, double k2, double alpha,
                                   double beta) {
   SwitchingSection sw;
@@ -147,10 +154,22 @@ SwitchingSection AnalyseSwitching(const Scenario& s, double k1, double k2, doubl
     if (s.events[e].kind == EventKind::kTopology) topology_events.push_back(static_cast<int>(e));
   }
   std::vector<Eigen::MatrixXd> A;
+  // A timeline that returns to earlier topologies repeats them: each distinct H is
+  // analysed once and enters the common LMI once.
+  std::vector<std::size_t> first_of;  // index in sw.topologies of each distinct H
   sw.min_margin_s = std::numeric_limits<double>::infinity();
   for (std::size_t k = 0; k < topos.size(); ++k) {
-    TopologyResult t = AnalyseTopology(topos[k], k1, k2, alpha, beta);
+    const Eigen::MatrixXd H = topos[k].H();
+    std::size_t same = first_of.size();
+    for (std::size_t u = 0; u < first_of.size(); ++u) {
+      if (sw.topologies[first_of[u]].H == H) same = u;
+    }
+    TopologyResult t = same < first_of.size() ? sw.topologies[first_of[same]]
+                                              : AnalyseTopology(topos[k], k1, k2, alpha, beta);
     t.index = static_cast<int>(k);
+    t.event_index = -1;
+    t.event_line = 0;
+    t.at_s = 0.0;
     if (k > 0 && k - 1 < topology_events.size()) {
       const ScenarioEvent& e = s.events[static_cast<std::size_t>(topology_events[k - 1])];
       t.event_index = topology_events[k - 1];
@@ -161,14 +180,30 @@ SwitchingSection AnalyseSwitching(const Scenario& s, double k1, double k2, doubl
       sw.min_margin_s = t.margin_s();
       sw.critical = t.index;
     }
-    A.push_back(ErrorSystemMatrix(t.H, k1, k2));
+    if (same == first_of.size()) {
+      first_of.push_back(sw.topologies.size());
+      A.push_back(ErrorSystemMatrix(t.H, k1, k2));
+    }
     sw.topologies.push_back(std::move(t));
   }
   bool stable = true;
   for (const TopologyResult& t : sw.topologies) stable = stable && t.margin.stable_at_zero;
+  // CSDP's dense Schur complement grows as (variables)^2 = (m (m + 1) / 2)^2 with
+  // m = 2n: beyond these sizes the LMI would take gigabytes and hours.
+  const double m = A.empty() ? 0.0 : static_cast<double>(A.front().rows());
+  const double variables = m * (m + 1.0) / 2.0;
+  const double entries = static_cast<double>(A.size() + 1) * m * m;
   if (!stable) {
     sw.common.not_attempted_reason =
         "some topology's error system is unstable without delay: no common P can exist";
+  } else if (variables > kMaxCommonLmiVariables || entries > kMaxCommonLmiEntries) {
+    sw.common.not_attempted_reason =
+        "the common LMI is too large to solve here (" + std::to_string(A.size()) +
+        " distinct topologies of " + std::to_string(static_cast<int>(m / 2)) +
+        " followers: " + std::to_string(static_cast<long long>(variables)) + " variables, " +
+        std::to_string(static_cast<long long>(entries)) + " block entries; limits " +
+        std::to_string(static_cast<long long>(kMaxCommonLmiVariables)) + " and " +
+        std::to_string(static_cast<long long>(kMaxCommonLmiEntries)) + ")";
   } else {
     sw.common = FindCommonLyapunov(A);
   }

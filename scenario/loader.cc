@@ -1590,6 +1590,18 @@ void CheckTimelineSize(const Reader& r, const std::vector<Table>& tables, const 
                FormatNumber(cells) + " link states, more than 5e7",
            std::nullopt, "use fewer events (or events at shared times), or fewer links");
   }
+  // Each topology is held as dense n x n matrices (core/topology.h).
+  double topologies = 1.0;
+  for (const ScenarioEvent& e : s.events) topologies += e.kind == EventKind::kTopology;
+  const double n = static_cast<double>(s.followers);
+  if (topologies * n * n > kMaxTimelineCells) {
+    r.Fail(tables[0].line, "event",
+           "the timeline holds too many topologies for its size: " +
+               FormatNumber(topologies) + " topologies of " + FormatNumber(n) +
+               " followers make " + FormatNumber(topologies * n * n) +
+               " matrix entries, more than 5e7",
+           std::nullopt, "use fewer topology events, or fewer followers");
+  }
   double checks = segments * static_cast<double>(s.events.size());
   for (const ScenarioEvent& e : s.events) {
     // The segments of its window: those starting in [at_s, end).

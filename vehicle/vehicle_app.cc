@@ -45,7 +45,10 @@ bool VehicleApp::OnInput(int /*kind*/, const unsigned char* data, int size) {
   }
   const StateMsg msg = FromLcm(m);
   if (mode() != Mode::kLockstep) {
-    follower_.Receive(msg);  // validates and counts (NaN/Inf, unknown, old)
+    // The timeline of the tick about to be stepped decides (a reset controller keeps
+    // nothing); then Receive validates and counts (NaN/Inf, unknown, old).
+    follower_.BeginTick(next_tick() * period_us());
+    follower_.Receive(msg);
     return false;
   }
   // Lockstep: hold it until the clock tick that lists it, and apply it there (Receive
@@ -76,6 +79,7 @@ const ClockedNode::Delivery* VehicleApp::ApplyListed(const std::vector<Delivery>
     if (k == held_.size()) return &want;
     at.push_back(k);
   }
+  follower_.BeginTick(next_tick() * period_us());  // as shoal sim: before the deliveries
   for (std::size_t k : at) follower_.Receive(held_[k].msg);
   std::sort(at.begin(), at.end());
   for (auto k = at.rbegin(); k != at.rend(); ++k) {

@@ -579,5 +579,26 @@ TEST(ScenarioEventsTest, TimelinesTooCostlyToBuildAreRefused) {
   EXPECT_EQ(ParseScenario(DenseLinkEvents(1000), "test.toml").events.size(), 1000u);
 }
 
+// Every topology is held as dense n x n matrices: 51 topologies of 1000 followers
+// (5.1e7 entries, about 400 MB in each process) are refused, 49 load.
+TEST(ScenarioEventsTest, TooManyLargeTopologiesAreRefused) {
+  auto text = [](int events) {
+    std::string all;
+    for (int i = 1; i <= 1000; ++i) all += (i > 1 ? ", " : "") + std::to_string(i);
+    std::string t = "[swarm]\nfollowers = 1000\nleader_links = [" + all +
+                    "]\n\n[control]\nk1 = 1\nk2 = 2\n\n";
+    for (int k = 0; k < events; ++k) {
+      t += "[[event]]\nat_s = " + std::to_string(k + 1) + "\nkind = \"topology\"\nleader_links = [" +
+           all + "]\n";
+    }
+    return t;
+  };
+  const std::string message = ErrorOf(text(50));
+  EXPECT_NE(message.find("too many topologies for its size: 51 topologies of 1000 followers"),
+            std::string::npos)
+      << message;
+  EXPECT_EQ(ParseScenario(text(48), "test.toml").events.size(), 48u);
+}
+
 }  // namespace
 }  // namespace shoal

@@ -263,5 +263,62 @@ TEST(Timeline, ControllerResetZeroesTheForceAndForgetsForItsOutage) {
   EXPECT_TRUE(acts);
 }
 
+// The deliveries due at the tick a reset ends are kept (the timeline of a tick applies
+// before its deliveries); those due inside the window are not.
+TEST(Timeline, DeliveriesDueWhenTheResetEndsAreKept) {
+  Scenario s = Example2();
+  ScenarioEvent reset = Event(EventKind::kControllerReset, 2.0, 1e300);
+  reset.vehicles = {3};
+  reset.outage_s = 1.0;
+  s.events = {reset};
+  Swarm swarm(s, 5.0);
+  Recorder r;
+  swarm.Run(&r);
+  std::int64_t due_inside = 0;
+  for (const ChannelDecision& d : r.decisions) {
+    if (d.receiver == 3 && d.status == ChannelDecision::kDelivered) {
+      due_inside += Within(d.deliver_utime, 2.0, 3.0);
+    }
+  }
+  ASSERT_GT(due_inside, 0);
+  EXPECT_EQ(swarm.followers()[2]->counters().msgs_ignored_reset, due_inside);
+}
+
+// Two reset windows that touch are two resets: the second forgets what the first window
+// recorded (here: the own history the uncertain factor reaches back into).
+TEST(Timeline, TouchingResetWindowsResetTwice) {
+  Scenario s = Example2();
+  ScenarioEvent first = Event(EventKind::kControllerReset, 2.0, 1e300);
+  first.vehicles = {3};
+  first.outage_s = 1.0;
+  ScenarioEvent second = first;
+  second.at_s = 3.0;
+  const Timeline t([&] {
+    Scenario c = s;
+    c.events = {first, second};
+    return c;
+  }());
+  EXPECT_EQ(t.ResetStart(3, 2 * kSecond), 2 * kSecond);
+  EXPECT_EQ(t.ResetStart(3, 3 * kSecond), 3 * kSecond);
+  EXPECT_EQ(t.ResetStart(3, 4 * kSecond), Timeline::kNoReset);
+  EXPECT_EQ(t.ResetStart(2, 2 * kSecond), Timeline::kNoReset);
+  Scenario two = s, one = s;
+  two.events = {first, second};
+  ScenarioEvent whole = first;
+  whole.outage_s = 2.0;
+  one.events = {whole};
+  const Recorder a = Simulate(two, 5.0), b = Simulate(one, 5.0);
+  ASSERT_EQ(a.states.size(), b.states.size());
+  bool differs = false;
+  for (std::size_t k = 0; k < a.states.size(); ++k) {
+    if (a.states[k].utime <= 3 * kSecond) {
+      EXPECT_EQ(a.states[k].eta, b.states[k].eta);
+    } else if (a.states[k].vehicle_id == 3) {
+      differs = differs || a.states[k].eta != b.states[k].eta;
+    }
+  }
+  EXPECT_TRUE(differs);
+}
+
 }  // namespace
 }  // namespace shoal
