@@ -24,6 +24,8 @@
 #include "core/metrics.h"
 #include "core/swarm.h"
 #include "runtime/channels.h"
+#include "runtime/checkpoint.h"
+#include "runtime/clocked_node.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/log_reader.h"
@@ -49,8 +51,11 @@ struct Child {
   std::vector<std::string> argv;
   int nice_inc = 0;
   std::string tag;
-  std::string checkpoint;  // its checkpoint file ("" without restarts)
+  std::string checkpoint;  // its checkpoint file ("" without restarts or resets)
   int restarts = 0;
+  // A vehicle's controller resets still to come (ticks, ascending): it stops itself after
+  // the tick before each, and is restarted there (ClockedNode::StopBeforeResets).
+  std::vector<std::int64_t> reset_ticks;
 };
 
 std::string ExeDir() {
@@ -274,6 +279,15 @@ class Launch {
   /// place (a vehicle or the leader resuming from its checkpoint). False if it may not be
   /// restarted (the logger, or past --max-restarts) or could not be.
   bool Restart(Child& c, const std::string& what, const LaunchCallbacks& cb);
+  /// True if child c stopped itself before a controller reset (its checkpoint is of the
+  /// tick before the next one).
+  bool ResetStop(const Child& c) const;
+  /// Kills child c, stopped before its controller reset, and starts it again from its
+  /// checkpoint. Not counted against --max-restarts.
+  bool ResetRestart(Child& c, const LaunchCallbacks& cb);
+  /// Starts child c again from its checkpoint (the emulator without one), `what` being
+  /// what happened to the process before it; false if it could not be started.
+  bool Respawn(Child& c, const std::string& what, const LaunchCallbacks& cb);
   bool OnChildEvent(Child& c, int status, const LaunchCallbacks& cb);
 
   const Scenario& s_;
@@ -432,9 +446,11 @@ void Launch::StartAll() {
     return vehicle_urls_.empty() ? std::vector<std::string>{}
                                  : std::vector<std::string>{"--rx-url", vehicle_urls_[id]};
   };
-  // With restarts each writes a checkpoint after every state it publishes, to resume from.
-  auto checkpoint = [&](const std::string& tag, std::vector<std::string>* more) {
-    if (!opt_.restart_on_failure) return std::string();
+  // With restarts each writes a checkpoint after every state it publishes, to resume from;
+  // so does a vehicle whose controller the scenario resets.
+  auto checkpoint = [&](const std::string& tag, std::vector<std::string>* more,
+                        bool resets = false) {
+    if (!opt_.restart_on_failure && !resets) return std::string();
     const std::string file = r_->process_output_dir + "/" + tag + ".ckpt";
     more->push_back("--checkpoint");
     more->push_back(file);
@@ -449,9 +465,13 @@ void Launch::StartAll() {
     const std::vector<std::string> r = rx(id);
     more.insert(more.end(), r.begin(), r.end());
     const std::string tag = "vehicle" + std::to_string(id);
-    const std::string file = checkpoint(tag, &more);
+    const std::vector<std::int64_t> resets =
+        ClockedNode::ResetTicks(s_, id, s_.final_tick(r_->duration_s));
+    const std::string file = checkpoint(tag, &more, !resets.empty());
+    if (!resets.empty()) more.push_back("--stop-before-resets");
     Start("vehicle " + std::to_string(id), id, ProcessArgs(vehicle_exe_, more), run_nice, tag);
     kids_.back().checkpoint = file;
+    kids_.back().reset_ticks = resets;
   }
 }
 
@@ -517,13 +537,41 @@ bool Launch::Restart(Child& c, const std::string& what, const LaunchCallbacks& c
                            std::to_string(opt_.max_restarts) + "): not restarted again");
     return false;
   }
+  ++c.restarts;
+  return Respawn(c, what, cb);
+}
+
+bool Launch::ResetStop(const Child& c) const {
+  if (c.reset_ticks.empty() || c.checkpoint.empty()) return false;
+  CheckpointRecord rec;
+  std::string error;
+  return ReadCheckpoint(c.checkpoint, c.id, &rec, &error) &&
+         rec.tick + 1 == c.reset_ticks.front();
+}
+
+bool Launch::ResetRestart(Child& c, const LaunchCallbacks& cb) {
+  // It stopped itself after the tick before its controller reset: the process is killed
+  // and another takes over from its checkpoint, as a real controller would restart.
+  const std::int64_t tick = c.reset_ticks.front();
+  c.reset_ticks.erase(c.reset_ticks.begin());
+  if (kill(-c.pid, SIGKILL) != 0) kill(c.pid, SIGKILL);  // its group, as SignalGroup
+  int status = 0;
+  waitpid(c.pid, &status, 0);
+  char what[160];
+  std::snprintf(what, sizeof(what),
+                "was killed for its controller reset at t = %.3f s (the scenario's "
+                "controller_reset event)",
+                ToSeconds(tick * s_.period_us()));
+  return Respawn(c, what, cb);
+}
+
+bool Launch::Respawn(Child& c, const std::string& what, const LaunchCallbacks& cb) {
   ProcessRestart rec;
   rec.process = c.name;
   rec.pid = c.pid;
   rec.reason = what;
   rec.mission_s = MissionSeconds();
   const std::string when = When();
-  ++c.restarts;
   std::vector<std::string> argv = c.argv;
   // The emulator has no checkpoint: the processes tell a new one where the run is.
   if (c.id != kEmulatorId) argv.insert(argv.end(), {"--resume", c.checkpoint});
@@ -535,8 +583,8 @@ bool Launch::Restart(Child& c, const std::string& what, const LaunchCallbacks& c
   for (std::string& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);
   // Its own output file: the one of the process that died keeps that process's last words.
-  c.output = r_->process_output_dir + "/" + c.tag + ".restart" + std::to_string(c.restarts) +
-             ".txt";
+  c.output = r_->process_output_dir + "/" + c.tag + ".restart" +
+             std::to_string(r_->restarts.size() + 1) + ".txt";
   const pid_t pid = Spawn(argv, c.nice_inc, c.output, envp.data());
   if (pid < 0) {
     r_->problems.push_back("cannot restart " + c.name + " (fork: " + std::strerror(errno) + ")");
@@ -621,6 +669,7 @@ std::string LoggerExitNote(const std::string& log, const std::string& logger_out
 /// One waitpid report of child c: exited, killed, stopped or continued. Returns false
 /// when the run must stop.
 bool Launch::OnChildEvent(Child& c, int status, const LaunchCallbacks& cb) {
+  if (WIFSTOPPED(status) && ResetStop(c)) return ResetRestart(c, cb);
   if (WIFSTOPPED(status)) {
     // A stopped process holds the run up (lockstep) or misses its periods (real time):
     // whatever follows, the run is not the one asked for.

@@ -1,11 +1,14 @@
 #include "runtime/clocked_node.h"
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <shoal/run_status_t.hpp>
 
 #include "core/channel_model.h"
+#include "core/timeline.h"
 #include "core/topology.h"
 #include "runtime/channels.h"
 #include "runtime/messages.h"
@@ -168,6 +171,31 @@ void ClockedNode::Step(std::int64_t tick) {
   stepped_ = true;
   if (checkpoint_) WriteCheckpoint(tick);
   if (now % 1000000 < period_us_ || tick == final_tick_) PublishHealth(now);
+  if (checkpoint_ && std::binary_search(stop_before_.begin(), stop_before_.end(), tick + 1)) {
+    // Published and checkpointed: shoal run kills this process here and starts another
+    // from the checkpoint, whose controller then resets at tick + 1 as shoal sim's does.
+    raise(SIGSTOP);
+  }
+}
+
+std::vector<std::int64_t> ClockedNode::ResetTicks(const Scenario& s, int id,
+                                                  std::int64_t final_tick) {
+  std::vector<std::int64_t> ticks;
+  const Micros period = s.period_us();
+  for (const ScenarioEvent& e : s.events) {
+    if (e.kind != EventKind::kControllerReset) continue;
+    if (std::find(e.vehicles.begin(), e.vehicles.end(), id) == e.vehicles.end()) continue;
+    const Micros at = TimelineMicros(e.at_s);
+    const std::int64_t k = at <= 0 ? 0 : (at + period - 1) / period;  // first tick at or after
+    if (k >= 1 && k <= final_tick) ticks.push_back(k);
+  }
+  std::sort(ticks.begin(), ticks.end());
+  ticks.erase(std::unique(ticks.begin(), ticks.end()), ticks.end());
+  return ticks;
+}
+
+void ClockedNode::StopBeforeResets() {
+  if (id_ >= 1) stop_before_ = ResetTicks(s_, id_, final_tick_);
 }
 
 void ClockedNode::PublishHealth(Micros utime) {
@@ -354,6 +382,10 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
                   "Replace a process that died: go on from the checkpoint in this file");
   app->add_option("--restart-note", restart_note,
                   "With --resume: why and when the process before it ended (for the log)");
+  bool stop_before_resets = false;
+  app->add_flag("--stop-before-resets", stop_before_resets,
+                "With --checkpoint: stop (SIGSTOP) after the tick before each controller "
+                "reset of this vehicle, for shoal run to restart the process there");
   Scenario s;
   const int started = StartProcess(app, argc, argv, name, opt, &s);
   if (started >= 0) return started;
@@ -382,6 +414,7 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
       std::cerr << name << ": " << error << "\n";
       return 2;
     }
+    if (stop_before_resets) node->StopBeforeResets();
     node->Init();
     const int status = node->Run();
     std::cerr << name << ": " << bus_auth::ExitNote(auth, c.rx_bus->rejected()) << "\n";

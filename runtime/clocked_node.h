@@ -64,6 +64,14 @@ class ClockedNode {
   /// `path` (from tick 0 if there is none, saying so on stderr), and says on SHOAL_STATUS
   /// that it was restarted, with `note` (why, from shoal run). Before Init.
   void Resume(const std::string& path, const std::string& note);
+  /// A controller_reset of this vehicle in a SIL run (docs/run.md): after publishing
+  /// (and checkpointing) the tick before each reset window of the scenario, the process
+  /// stops itself (SIGSTOP) for shoal run to kill it and start it again from that
+  /// checkpoint. With a checkpoint only (EnableCheckpoints).
+  void StopBeforeResets();
+  /// The ticks at which the scenario resets follower `id`'s controller and a process can
+  /// stop before (1..final_tick: a reset at tick 0 has no tick before it).
+  static std::vector<std::int64_t> ResetTicks(const Scenario& s, int id, std::int64_t final_tick);
 
  protected:
   /// One delivery a clock window lists for this process at a tick.
@@ -173,6 +181,7 @@ class ClockedNode {
   bool resumed_ = false;
   std::int64_t resumed_tick_ = -1;  // the checkpoint's tick; -1 none (started from tick 0)
   std::string restart_note_;
+  std::vector<std::int64_t> stop_before_;  // sorted reset ticks to stop before
   std::int32_t health_seq_ = 0, status_seq_ = 0;
   ClockCounters counters_;
   LatenessStats lateness_;

@@ -323,5 +323,73 @@ TEST(Restart, CtrlCAfterARestartLeavesNoProcess) {
   EXPECT_TRUE(ProcessesWith({log}).empty());
 }
 
+// Example 2 with follower 2's controller reset at `at_s` for 2 s.
+std::string ResetScenario(const std::string& tag, double at_s) {
+  const std::string path = TmpPath(tag + ".toml");
+  std::ofstream(path) << ReadFile(kExample2) << "\n[[event]]\nat_s = " << at_s
+                      << "\nkind = \"controller_reset\"\nvehicles = [2]\noutage_s = 2\n";
+  return path;
+}
+
+void CheckResetRestart(const nlohmann::ordered_json& j, double at_s) {
+  ASSERT_EQ(j["restarts"].size(), 1u) << j;
+  const auto& r = j["restarts"][0];
+  EXPECT_EQ(r["process"], "vehicle 2");
+  EXPECT_NE(r["reason"].get<std::string>().find("controller reset at t = " +
+                                                std::to_string(at_s).substr(0, 5)),
+            std::string::npos)
+      << r;
+  EXPECT_NE(r["pid"], r["new_pid"]);
+}
+
+// A controller_reset in a SIL run really kills the vehicle's process and starts another
+// from its checkpoint, at the tick before the reset: the lockstep run still equals
+// shoal sim, in which the reset happens inside the follower.
+TEST(Restart, ControllerResetKillsAndRestartsTheVehicleAndLockstepEqualsShoalSim) {
+  const std::string scenario = ResetScenario("restart_reset", 5.0);
+  const std::string log = TmpPath("restart_reset.lcmlog"), sim = TmpPath("restart_reset_sim.lcmlog");
+  const auto s = RunShoal("sim " + scenario + " --duration 12 --quiet --out " + sim, "restart_reset_sim");
+  ASSERT_TRUE(s.status == 0 || s.status == 1) << s.out << s.err;
+  const auto run = RunShoal("run " + scenario + " --duration 12 --json --quiet --out " + log,
+                            "restart_reset_run");
+  EXPECT_EQ(run.status, s.status) << run.out << run.err;
+  const auto j = ParseJson(run.out);
+  CheckResetRestart(j, 5.0);
+  EXPECT_EQ(j["log_complete"], true) << j;
+  EXPECT_EQ(j["stopped_by"], "") << j;
+  const auto cmp = ParseJson(RunShoal("compare " + log + " " + sim + " --json", "restart_reset_cmp").out);
+  EXPECT_EQ(cmp["max_position_diff_m"], 0.0) << cmp;
+  EXPECT_EQ(cmp["max_velocity_diff_mps"], 0.0) << cmp;
+  EXPECT_EQ(cmp["complete"], true) << cmp;
+  const auto an = ParseJson(RunShoal("analyze " + log + " --json", "restart_reset_an").out);
+  ASSERT_EQ(an["logged_restarts"].size(), 1u) << an;
+  EXPECT_EQ(an["logged_restarts"][0]["id"], 2);
+  EXPECT_NE(an["logged_restarts"][0]["message"].get<std::string>().find("controller reset"),
+            std::string::npos);
+  EXPECT_TRUE(ProcessesWith({log}).empty());
+}
+
+// Real time: the process is killed and restarted at the reset; the restarted one rejoins
+// at the current tick, without a jump in position.
+TEST(Restart, RealtimeControllerResetRestartsTheVehicleWhichRejoins) {
+  const std::string scenario = ResetScenario("restart_reset_rt", 4.0);
+  const std::string log = TmpPath("restart_reset_rt.lcmlog");
+  const auto run = RunShoal("run " + scenario + " --mode realtime --duration 9 --json --quiet --out " +
+                                log,
+                            "restart_reset_rt");
+  const auto j = ParseJson(run.out);
+  CheckResetRestart(j, 4.0);
+  const std::int64_t missing = j["states_missing_in_restarts"].get<std::int64_t>();
+  EXPECT_LE(missing, 50) << j;  // a restart takes well under a second
+  double gap = 0;
+  const double t_restart = j["restarts"][0]["mission_s"].get<double>();
+  const double jump = JumpAt(TrackOf(log, 2, "restart_reset_rt"), t_restart, &gap);
+  std::printf("realtime controller reset: restarted at t = %.2f s, %lld states not published, "
+              "position step beyond velocity x time %.2e m over %.3f s\n",
+              t_restart, static_cast<long long>(missing), jump, gap);
+  EXPECT_LT(jump, kJumpToleranceM);
+  EXPECT_TRUE(ProcessesWith({log}).empty());
+}
+
 }  // namespace
 }  // namespace shoal
