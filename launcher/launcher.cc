@@ -412,12 +412,23 @@ void Launch::StartAll() {
   // preempts the run at every message, and with SHOAL_CHANNEL batched it loses no fewer
   // states (docs/benchmarks.md, lockstep: 600 s runs, 36-39x against 50-56x).
   const bool root = geteuid() == 0;
+  // An earlier run's log at the same path is not this logger's: it has started once the
+  // file is new or truncated (lcm-logger -f opens it for writing from scratch).
+  struct stat before {};
+  const bool existed = stat(r_->log.c_str(), &before) == 0;
+  auto logger_started = [&] {
+    struct stat now {};
+    if (stat(r_->log.c_str(), &now) != 0) return false;
+    return !existed || now.st_ino != before.st_ino || now.st_size < before.st_size ||
+           now.st_mtim.tv_sec != before.st_mtim.tv_sec ||
+           now.st_mtim.tv_nsec != before.st_mtim.tv_nsec;
+  };
   Start("lcm-logger", kLoggerId,
         {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url,
          std::string("--channel=") + channels::kAllPattern, "-f", "-q", "--", r_->log},
         root ? -10 : 0, "logger");
   const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
-  for (int i = 0; i < 100 && access(r_->log.c_str(), F_OK) != 0; ++i) {
+  for (int i = 0; i < 100 && !logger_started(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   t0_ns_ = MonotonicNs() + 4000000000LL;  // real time: start margin
