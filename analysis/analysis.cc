@@ -806,7 +806,10 @@ RunAnalysis AnalyseRun(const RunData& run) {
   }
   AnalyseChannel(run, valid, &a);
   AnalyseHealth(run, &a);
-  if (events) a.events = AnalyseEvents(run, worst, a.end_s, a.period_us);
+  // A real-time emulator judges deafness at send + tau exactly (no tick grid).
+  if (events) {
+    a.events = AnalyseEvents(run, worst, a.end_s, a.mode == "realtime" ? 0 : a.period_us);
+  }
   return a;
 }
 

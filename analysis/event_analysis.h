@@ -26,7 +26,7 @@ std::string EventAffects(const ScenarioEvent& e);
 /// One EventAnalysis per event of run.scenario.events. `samples`: the complete samples in
 /// time order (empty without formation metrics: the formation figures stay NaN); `end_s`:
 /// the run's end (the last time a state may have); `period_us`: the control period (for a
-/// deaf receiver's due times).
+/// deaf receiver's due times; 0 for a real-time run, whose messages are due at send + tau).
 std::vector<EventAnalysis> AnalyseEvents(const RunData& run, const std::vector<WorstSample>& samples,
                                          double end_s, Micros period_us);
 
