@@ -117,6 +117,41 @@ void PrintRestarts(std::FILE* out, const RunAnalysis& a) {
   }
 }
 
+/// The channel's lines: counts, delays, message age, model check.
+void PrintChannel(std::FILE* out, const RunAnalysis& a) {
+  const ChannelAnalysis& c = a.channel;
+  std::fprintf(out, "  channel: %lld sent, %lld delivered, %lld dropped (loss %lld, queue %lld, invalid %lld)\n",
+              static_cast<long long>(c.sent), static_cast<long long>(c.delivered),
+              static_cast<long long>(c.dropped), static_cast<long long>(c.dropped_loss),
+              static_cast<long long>(c.dropped_queue), static_cast<long long>(c.dropped_invalid));
+  if (c.dropped_range > 0 || c.skipped_busy > 0) {
+    std::fprintf(out, "  acoustic: %lld dropped out of range (in the dropped above), %lld not sent: modem busy\n",
+                static_cast<long long>(c.dropped_range), static_cast<long long>(c.skipped_busy));
+  }
+  if (c.skipped_silent > 0 || c.dropped_link_down > 0 || c.dropped_deaf > 0) {
+    std::fprintf(out, "  timeline: %lld dropped: link down, %lld dropped: receiver deaf (in the dropped above), %lld not sent: sender silent\n",
+                static_cast<long long>(c.dropped_link_down), static_cast<long long>(c.dropped_deaf),
+                static_cast<long long>(c.skipped_silent));
+  }
+  if (c.delay_error_s.count > 0) {
+    std::fprintf(out, "  realised delay - configured tau: p50 %.3f ms, p99 %.3f ms, max %.3f ms (%s)\n",
+                c.delay_error_s.p50 * 1e3, c.delay_error_s.p99 * 1e3, c.delay_error_s.max * 1e3,
+                a.mode == "realtime" ? "scheduled release times; the release error is below"
+                                     : "tick quantisation: delivery at the first tick at or after send + tau");
+  }
+  if (c.age_at_use_s.count > 0) {
+    std::fprintf(out, "  message age at use: p50 %.3f s, p99 %.3f s, max %.3f s\n", c.age_at_use_s.p50,
+                c.age_at_use_s.p99, c.age_at_use_s.max);
+  }
+  if (c.model_mismatches > 0) {
+    std::fprintf(out, "  WARNING: %lld channel decisions drew a delay other than the scenario's tau(t)\n",
+                static_cast<long long>(c.model_mismatches));
+  }
+  if (a.mode == "realtime") {
+    std::fprintf(out, "  emulator release error p99 %.3f ms\n", c.release_error_p99_s * 1e3);
+  }
+}
+
 }  // namespace
 
 void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
@@ -151,37 +186,7 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
                   static_cast<long long>(f.stale_events));
     }
   }
-  const ChannelAnalysis& c = a.channel;
-  std::fprintf(out, "  channel: %lld sent, %lld delivered, %lld dropped (loss %lld, queue %lld, invalid %lld)\n",
-              static_cast<long long>(c.sent), static_cast<long long>(c.delivered),
-              static_cast<long long>(c.dropped), static_cast<long long>(c.dropped_loss),
-              static_cast<long long>(c.dropped_queue), static_cast<long long>(c.dropped_invalid));
-  if (c.dropped_range > 0 || c.skipped_busy > 0) {
-    std::fprintf(out, "  acoustic: %lld dropped out of range (in the dropped above), %lld not sent: modem busy\n",
-                static_cast<long long>(c.dropped_range), static_cast<long long>(c.skipped_busy));
-  }
-  if (c.skipped_silent > 0 || c.dropped_link_down > 0 || c.dropped_deaf > 0) {
-    std::fprintf(out, "  timeline: %lld dropped: link down, %lld dropped: receiver deaf (in the dropped above), %lld not sent: sender silent\n",
-                static_cast<long long>(c.dropped_link_down), static_cast<long long>(c.dropped_deaf),
-                static_cast<long long>(c.skipped_silent));
-  }
-  if (c.delay_error_s.count > 0) {
-    std::fprintf(out, "  realised delay - configured tau: p50 %.3f ms, p99 %.3f ms, max %.3f ms (%s)\n",
-                c.delay_error_s.p50 * 1e3, c.delay_error_s.p99 * 1e3, c.delay_error_s.max * 1e3,
-                a.mode == "realtime" ? "scheduled release times; the release error is below"
-                                     : "tick quantisation: delivery at the first tick at or after send + tau");
-  }
-  if (c.age_at_use_s.count > 0) {
-    std::fprintf(out, "  message age at use: p50 %.3f s, p99 %.3f s, max %.3f s\n", c.age_at_use_s.p50,
-                c.age_at_use_s.p99, c.age_at_use_s.max);
-  }
-  if (c.model_mismatches > 0) {
-    std::fprintf(out, "  WARNING: %lld channel decisions drew a delay other than the scenario's tau(t)\n",
-                static_cast<long long>(c.model_mismatches));
-  }
-  if (a.mode == "realtime") {
-    std::fprintf(out, "  emulator release error p99 %.3f ms\n", c.release_error_p99_s * 1e3);
-  }
+  PrintChannel(out, a);
   if (!a.processes.empty()) {
     std::fprintf(out, "  %-9s %10s %10s %10s %9s %10s %9s\n", "process", "late p50", "late p99",
                 "late max", "overruns", "saturated", "timeouts");

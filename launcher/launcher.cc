@@ -402,6 +402,25 @@ std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
   return a;
 }
 
+/// An earlier run's log at the same path is not the new logger's: it has started once the
+/// file is new or truncated (lcm-logger -f opens it for writing from scratch).
+class LogFileBefore {
+ public:
+  explicit LogFileBefore(const std::string& path)
+      : path_(path), existed_(stat(path.c_str(), &st_) == 0) {}
+  bool OpenedAnew() const {
+    struct stat now {};
+    if (stat(path_.c_str(), &now) != 0) return false;
+    return !existed_ || now.st_ino != st_.st_ino || now.st_size < st_.st_size ||
+           now.st_mtim.tv_sec != st_.st_mtim.tv_sec || now.st_mtim.tv_nsec != st_.st_mtim.tv_nsec;
+  }
+
+ private:
+  std::string path_;
+  struct stat st_ {};
+  bool existed_;
+};
+
 void Launch::StartAll() {
   // The logger first. lcm-logger's subscription queue holds 30 messages and drops beyond
   // that (LCM's default; lcm-logger has no option for it): the logger must not wait long
@@ -412,23 +431,13 @@ void Launch::StartAll() {
   // preempts the run at every message, and with SHOAL_CHANNEL batched it loses no fewer
   // states (docs/benchmarks.md, lockstep: 600 s runs, 36-39x against 50-56x).
   const bool root = geteuid() == 0;
-  // An earlier run's log at the same path is not this logger's: it has started once the
-  // file is new or truncated (lcm-logger -f opens it for writing from scratch).
-  struct stat before {};
-  const bool existed = stat(r_->log.c_str(), &before) == 0;
-  auto logger_started = [&] {
-    struct stat now {};
-    if (stat(r_->log.c_str(), &now) != 0) return false;
-    return !existed || now.st_ino != before.st_ino || now.st_size < before.st_size ||
-           now.st_mtim.tv_sec != before.st_mtim.tv_sec ||
-           now.st_mtim.tv_nsec != before.st_mtim.tv_nsec;
-  };
+  const LogFileBefore before(r_->log);
   Start("lcm-logger", kLoggerId,
         {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url,
          std::string("--channel=") + channels::kAllPattern, "-f", "-q", "--", r_->log},
         root ? -10 : 0, "logger");
   const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
-  for (int i = 0; i < 100 && !logger_started(); ++i) {
+  for (int i = 0; i < 100 && !before.OpenedAnew(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   t0_ns_ = MonotonicNs() + 4000000000LL;  // real time: start margin
