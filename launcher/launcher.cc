@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -213,6 +214,7 @@ class ProgressTracker {
     tail_.Poll([this](const std::string& ch, const void* d, int n) { OnEvent(ch, d, n); });
   }
   double sim_time_s() const { return ToSeconds(last_tick_utime_); }
+  bool any_state() const { return any_state_; }  // the log holds a state: the mission began
   double worst_error() const {
     return *std::max_element(follower_error_.begin(), follower_error_.end());
   }
@@ -225,6 +227,7 @@ class ProgressTracker {
     if (!Decode(d, n, &m) || m.vehicle_id < 0 || m.vehicle_id > s_.followers) return;
     const StateMsg st = FromLcm(m);
     last_tick_utime_ = std::max<std::int64_t>(last_tick_utime_, m.utime);
+    any_state_ = true;
     if (m.vehicle_id == 0) {
       leader_states_[st.utime] = st;
       while (leader_states_.size() > 256) leader_states_.erase(leader_states_.begin());
@@ -240,8 +243,78 @@ class ProgressTracker {
   LogTail tail_;
   std::optional<bus_auth::Authenticator> auth_;
   std::int64_t last_tick_utime_ = 0;
+  bool any_state_ = false;
   std::map<Micros, StateMsg> leader_states_;  // recent ones only
   std::vector<double> follower_error_;
+};
+
+/// One process's resource use, read from /proc: false if it is gone.
+bool ReadProcessResources(pid_t pid, long long* rss_kib, double* cpu_s) {
+  char path[64];
+  std::snprintf(path, sizeof(path), "/proc/%d/stat", static_cast<int>(pid));
+  char buf[1024];
+  FILE* f = std::fopen(path, "r");
+  if (f == nullptr) return false;
+  const std::size_t n = std::fread(buf, 1, sizeof(buf) - 1, f);
+  std::fclose(f);
+  buf[n] = 0;
+  // The command name (field 2) may hold spaces and parentheses: the fields after it start
+  // after the last ')'. utime and stime are fields 14 and 15, in clock ticks.
+  const char* p = std::strrchr(buf, ')');
+  unsigned long long utime = 0, stime = 0;
+  if (p == nullptr ||
+      std::sscanf(p + 1, " %*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %llu %llu", &utime,
+                  &stime) != 2) {
+    return false;
+  }
+  std::snprintf(path, sizeof(path), "/proc/%d/statm", static_cast<int>(pid));
+  f = std::fopen(path, "r");
+  if (f == nullptr) return false;
+  unsigned long long size = 0, resident = 0;
+  const bool ok = std::fscanf(f, "%llu %llu", &size, &resident) == 2;
+  std::fclose(f);
+  if (!ok || resident == 0) return false;  // 0: exiting, its memory already released
+  *rss_kib = static_cast<long long>(resident * static_cast<unsigned long long>(sysconf(_SC_PAGESIZE)) / 1024);
+  *cpu_s = static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
+  return true;
+}
+
+/// <log>.d/resources.csv (docs/run.md): a row per process and sample. Read from /proc by
+/// shoal run between its waitpid polls, so the supervised processes never wait for it.
+/// Each sample is flushed: a run that is killed keeps what was measured up to then.
+class ResourceLog {
+ public:
+  ResourceLog(const std::string& path, double interval_s) : interval_s_(interval_s) {
+    if (interval_s_ > 0) f_ = std::fopen(path.c_str(), "w");
+    if (f_ != nullptr) std::fprintf(f_, "sim_time_s,wall_time_s,process,pid,rss_kib,cpu_s\n");
+  }
+  ~ResourceLog() {
+    if (f_ != nullptr) std::fclose(f_);
+  }
+  ResourceLog(const ResourceLog&) = delete;
+  ResourceLog& operator=(const ResourceLog&) = delete;
+  bool open() const { return f_ != nullptr; }
+  /// Whether mission time `sim_s` has reached the next multiple of the interval.
+  bool Due(double sim_s) const { return f_ != nullptr && sim_s >= next_k_ * interval_s_; }
+  /// Samples every running child. Multiples missed since the last sample are skipped (one
+  /// row per process each time, never a burst of the same figures).
+  void Sample(double sim_s, double wall_s, const std::vector<Child>& kids) {
+    if (f_ == nullptr) return;
+    for (const Child& c : kids) {
+      long long rss = 0;
+      double cpu = 0.0;
+      if (!c.running || c.pid <= 0 || !ReadProcessResources(c.pid, &rss, &cpu)) continue;
+      std::fprintf(f_, "%.3f,%.3f,%s,%d,%lld,%.2f\n", sim_s, wall_s, c.name.c_str(),
+                   static_cast<int>(c.pid), rss, cpu);
+    }
+    std::fflush(f_);
+    next_k_ = std::max(next_k_ + 1, static_cast<long long>(std::floor(sim_s / interval_s_)) + 1);
+  }
+
+ private:
+  double interval_s_;
+  FILE* f_ = nullptr;
+  long long next_k_ = 0;
 };
 
 /// One run: prepared (checks, nothing started), started, supervised, shut down.
@@ -289,6 +362,10 @@ class Launch {
   /// what happened to the process before it; false if it could not be started.
   bool Respawn(Child& c, const std::string& what, const LaunchCallbacks& cb);
   bool OnChildEvent(Child& c, int status, const LaunchCallbacks& cb);
+  /// Samples the processes' resources into resources.csv when the mission has reached the
+  /// next multiple of the interval (`end`: now, whatever the time). Lockstep reads its
+  /// mission time from the log, at most every 200 ms of wall time.
+  void SampleResources(bool end);
 
   const Scenario& s_;
   const LaunchOptions& opt_;
@@ -302,6 +379,8 @@ class Launch {
   bool emulator_done_ = false;   // the channel emulator (the run's clock) ended normally
   std::unique_ptr<ProgressTracker> tracker_;  // the log as written so far
   std::chrono::steady_clock::time_point wall0_;  // when supervision started
+  std::unique_ptr<ResourceLog> resources_;       // LaunchOptions::resource_interval_s
+  std::chrono::steady_clock::time_point last_resource_poll_;
 };
 
 bool Launch::Prepare(std::string* error) {
@@ -735,6 +814,9 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
   tracker_ = std::make_unique<ProgressTracker>(s_, r_->log, r_->key);
   wall0_ = std::chrono::steady_clock::now();
   auto last_show = wall0_;
+  resources_ = std::make_unique<ResourceLog>(r_->process_output_dir + "/resources.csv",
+                                             opt_.resource_interval_s);
+  if (resources_->open()) r_->resources_file = r_->process_output_dir + "/resources.csv";
   bool go_on = !start_failed_;
   while (go_on && !emulator_done_ && !StopSignals::Requested()) {
     const timespec poll = {0, 50000000};
@@ -746,6 +828,7 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
       }
       if (!OnChildEvent(c, status, cb)) go_on = false;
     }
+    if (go_on) SampleResources(false);
     const auto now = std::chrono::steady_clock::now();
     if (go_on && cb.progress && now - last_show > std::chrono::milliseconds(500)) {
       last_show = now;
@@ -760,7 +843,26 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
       cb.progress(p);
     }
   }
+  SampleResources(true);  // the processes still running at the end, before they stop
   r_->wall_time_s = std::max(0.0, WallSeconds(wall0_));
+}
+
+void Launch::SampleResources(bool end) {
+  if (!resources_ || !resources_->open()) return;
+  double sim_s = 0.0;
+  if (mode_ == Mode::kRealtime) {
+    sim_s = (MonotonicNs() - t0_ns_) * 1e-9;
+  } else {
+    const auto now = std::chrono::steady_clock::now();
+    if (!end && now - last_resource_poll_ < std::chrono::milliseconds(200)) return;
+    last_resource_poll_ = now;
+    tracker_->Poll();
+    if (!tracker_->any_state()) return;
+    // The log on disk lags lcm-logger's buffers; an emulator that ended normally ran the
+    // final tick.
+    sim_s = end && emulator_done_ ? r_->duration_s : tracker_->sim_time_s();
+  }
+  if (end || resources_->Due(sim_s)) resources_->Sample(sim_s, WallSeconds(wall0_), kids_);
 }
 
 bool Launch::WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit) {

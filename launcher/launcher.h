@@ -39,6 +39,10 @@ struct LaunchOptions {
   bool restart_on_failure = false;
   int max_restarts = 3;
   bool insecure = false;   // no bus authentication (else a per-run key, docs/run.md)
+  /// Every process's RSS and CPU time are sampled at each multiple of this much mission
+  /// time (0 s included) and once at the end, into <log>.d/resources.csv (docs/run.md);
+  /// 0: not sampled.
+  double resource_interval_s = 60.0;
 };
 
 /// A process that died and was started again (LaunchOptions::restart_on_failure).
@@ -55,6 +59,9 @@ struct LaunchResult {
   std::string mode;
   std::string log;                 // the LCM log lcm-logger wrote
   std::string process_output_dir;  // <log>.d/: each process's stdout and stderr, <name>.txt
+  /// <log>.d/resources.csv: the processes' RSS and CPU time during the run ("" when not
+  /// sampled: LaunchOptions::resource_interval_s 0, or the file could not be written).
+  std::string resources_file;
   std::string lcm_url;
   double duration_s = 0.0;         // simulated seconds asked for
   double wall_time_s = 0.0;        // real time: from the common start time t0

@@ -79,6 +79,11 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
                 "stops the run")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
+  c->add_option("--resource-interval", run->launch.resource_interval_s,
+                "Sample every process's RSS and CPU time at each multiple of this many "
+                "mission seconds, and at the end, into <log>.d/resources.csv (0: never)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   c->add_flag("--json", run->json, "Print one JSON object instead of the summary");
   c->add_flag("--quiet", run->quiet, "No progress line");
   return c;
