@@ -1,0 +1,535 @@
+#include "analysis/soak_analysis.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "analysis/analysis.h"
+#include "analysis/run_data.h"
+
+namespace shoal {
+namespace {
+
+constexpr double kMinuteS = 60.0;
+
+/// A complete sample's worst follower (the definitions in soak_analysis.h).
+struct Sample {
+  double t_s = 0.0;
+  double position_m = 0.0;
+  bool within = false;
+};
+
+struct ResourceRow {
+  double sim_s = 0.0, wall_s = 0.0;
+  std::string process;
+  int pid = 0;
+  double rss_kib = 0.0, cpu_s = 0.0;
+};
+
+/// What the windows are measured from: the run, its analysis and the derived series.
+struct SoakData {
+  RunData run;
+  RunAnalysis a;
+  std::vector<Sample> samples;              // in time order
+  std::vector<long long> overrun_increase;  // aligned with run.health
+  /// (send time, realised - configured delay) of each delivered event, by send time.
+  std::vector<std::pair<double, double>> delay_errors;
+  double end_s = 0.0;                       // the run's expected end (last tick)
+  std::map<std::string, std::vector<ResourceRow>> resources;  // per process, in time order
+};
+
+std::string Num(double v) {
+  char b[48];
+  std::snprintf(b, sizeof(b), "%.6g", v);
+  return b;
+}
+
+/// Complete samples from the followers' errors (aligned with their tracks).
+std::vector<Sample> CompleteSamples(const RunData& run, const RunAnalysis& a) {
+  std::vector<Sample> out;
+  if (!a.has_formation) return out;
+  const MetricsConfig& tol = run.scenario.metrics;
+  const int n = run.followers;
+  std::vector<std::size_t> idx(n + 1, 0);
+  for (const StateMsg& l : run.vehicles[0].samples) {
+    if (l.utime < 0 || l.utime > a.bounds.limit_us) continue;
+    Sample s{ToSeconds(l.utime), 0.0, true};
+    bool complete = true;
+    for (int i = 1; i <= n && complete; ++i) {
+      const std::vector<StateMsg>& tr = run.vehicles[static_cast<std::size_t>(i)].samples;
+      std::size_t& k = idx[i];
+      while (k < tr.size() && tr[k].utime < l.utime) ++k;
+      if (k == tr.size() || tr[k].utime != l.utime) {
+        complete = false;
+        break;
+      }
+      const FormationErrors& e = a.followers[static_cast<std::size_t>(i - 1)].errors[k];
+      if (!(e.position_m <= s.position_m)) s.position_m = e.position_m;
+      if (!(e.position_m <= tol.position_tol_m)) s.within = false;
+    }
+    if (complete) out.push_back(s);
+  }
+  return out;
+}
+
+/// Each health report's increase of its process's overrun count since the process's
+/// previous report (a count that went down belongs to a restarted process: all of it).
+std::vector<long long> OverrunIncreases(const std::vector<HealthRecord>& health) {
+  std::vector<long long> out(health.size(), 0);
+  std::map<int, std::int64_t> last;
+  for (std::size_t k = 0; k < health.size(); ++k) {
+    const HealthRecord& h = health[k];
+    auto it = last.find(h.process_id);
+    const std::int64_t before = it == last.end() ? 0 : it->second;
+    out[k] = h.overruns >= before ? h.overruns - before : h.overruns;
+    last[h.process_id] = h.overruns;
+  }
+  return out;
+}
+
+std::vector<std::string> SplitCsv(const std::string& line) {
+  std::vector<std::string> f;
+  std::stringstream ss(line);
+  std::string cell;
+  while (std::getline(ss, cell, ',')) f.push_back(cell);
+  return f;
+}
+
+bool ReadResources(const std::string& path,
+                   std::map<std::string, std::vector<ResourceRow>>* out, std::string* error) {
+  std::ifstream in(path);
+  std::string line;
+  if (!in || !std::getline(in, line) ||
+      line.rfind("sim_time_s,wall_time_s,process,pid,rss_kib,cpu_s", 0) != 0) {
+    *error = path + ": cannot read the resource samples (no resources.csv header)";
+    return false;
+  }
+  for (int n = 2; std::getline(in, line); ++n) {
+    const std::vector<std::string> f = SplitCsv(line);
+    if (f.size() != 6) {
+      *error = path + ":" + std::to_string(n) + ": expected 6 columns";
+      return false;
+    }
+    ResourceRow r;
+    try {
+      r = {std::stod(f[0]), std::stod(f[1]), f[2], std::stoi(f[3]), std::stod(f[4]),
+           std::stod(f[5])};
+    } catch (const std::exception&) {
+      *error = path + ":" + std::to_string(n) + ": not a number where one is expected";
+      return false;
+    }
+    (*out)[r.process].push_back(r);
+  }
+  for (auto& [name, rows] : *out) {
+    std::stable_sort(rows.begin(), rows.end(),
+                     [](const ResourceRow& a, const ResourceRow& b) { return a.sim_s < b.sim_s; });
+  }
+  return true;
+}
+
+/// The first sample at or after `t_s`, else the last one (null if none).
+const ResourceRow* SampleAt(const std::vector<ResourceRow>& rows, double t_s) {
+  for (const ResourceRow& r : rows) {
+    if (r.sim_s >= t_s) return &r;
+  }
+  return rows.empty() ? nullptr : &rows.back();
+}
+
+/// Whether time t lies in [lo, hi), or at hi when hi is the run's end.
+bool InWindow(double t, double lo, double hi, double end_s) {
+  return t >= lo && (t < hi || (hi >= end_s && t <= end_s + 1e-9));
+}
+
+/// The figures of one window [lo, hi) that minutes and phases share.
+struct Window {
+  double lateness_p99_s = 0.0, release_error_p99_s = 0.0;
+  long long overruns = 0;
+  std::optional<double> delay_error_p99_s;
+  long long states = 0, states_expected = 0;
+};
+
+long long StatesIn(const SoakData& d, double lo, double hi) {
+  long long k = 0;
+  const Micros lo_us = static_cast<Micros>(std::floor(lo * 1e6));
+  for (const VehicleTrack& v : d.run.vehicles) {
+    auto it = std::lower_bound(v.samples.begin(), v.samples.end(), lo_us,
+                               [](const StateMsg& m, Micros t) { return m.utime < t; });
+    for (; it != v.samples.end() && it->utime <= d.a.bounds.limit_us; ++it) {
+      const double t = ToSeconds(it->utime);
+      if (!InWindow(t, lo, hi, d.end_s)) {
+        if (t >= lo) break;
+        continue;
+      }
+      ++k;
+    }
+  }
+  return k;
+}
+
+std::vector<std::pair<double, double>> DelayErrors(const RunData& run, const RunAnalysis& a) {
+  std::vector<std::pair<double, double>> out;
+  const std::vector<ChannelEventRecord>& ev = run.channel_events;
+  for (std::size_t k = 0; k < ev.size(); ++k) {
+    const double cfg = a.channel.configured_delay_s[k];
+    if (ev[k].status != 0 || std::isnan(cfg)) continue;
+    out.emplace_back(ToSeconds(ev[k].send_utime),
+                     ToSeconds(ev[k].deliver_utime - ev[k].send_utime) - cfg);
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  return out;
+}
+
+long long ExpectedStatesIn(const SoakData& d, double lo, double hi) {
+  const Micros p = d.a.period_us;
+  if (p <= 0 || d.a.bounds.expected_end_us < 0) return 0;
+  const Micros last = d.a.bounds.expected_end_us / p;  // last tick
+  long long ticks = 0;
+  for (Micros k = std::max<Micros>(0, static_cast<Micros>(std::floor(lo * 1e6 / p)) - 1);
+       k <= last; ++k) {
+    const double t = ToSeconds(k * p);
+    if (t >= hi && !(hi >= d.end_s)) break;
+    ticks += InWindow(t, lo, hi, d.end_s);
+  }
+  return ticks * (d.run.followers + 1);
+}
+
+Window Measure(const SoakData& d, double lo, double hi) {
+  Window w;
+  for (std::size_t k = 0; k < d.run.health.size(); ++k) {
+    const HealthRecord& h = d.run.health[k];
+    if (!InWindow(ToSeconds(h.utime), lo, hi, d.end_s)) continue;
+    double& p99 = h.process_id >= 0 ? w.lateness_p99_s : w.release_error_p99_s;
+    p99 = std::max(p99, h.lateness_p99_s);
+    w.overruns += d.overrun_increase[k];
+  }
+  std::vector<double> err;
+  auto e = std::lower_bound(d.delay_errors.begin(), d.delay_errors.end(), lo,
+                            [](const auto& x, double t) { return x.first < t; });
+  for (; e != d.delay_errors.end() && InWindow(e->first, lo, hi, d.end_s); ++e) {
+    err.push_back(e->second);
+  }
+  if (!err.empty()) w.delay_error_p99_s = QuantilesOf(&err).p99;
+  w.states = StatesIn(d, lo, hi);
+  w.states_expected = ExpectedStatesIn(d, lo, hi);
+  return w;
+}
+
+std::vector<SoakProcessUse> ProcessesAtMinute(const SoakData& d, int m, int last_minute) {
+  std::vector<SoakProcessUse> out;
+  for (const auto& [name, rows] : d.resources) {
+    const double end = m == last_minute ? 1e300 : (m + 1) * kMinuteS;
+    const ResourceRow* now = SampleAt(rows, end);
+    const ResourceRow* before = m == 0 ? &rows.front() : SampleAt(rows, m * kMinuteS);
+    if (now == nullptr) continue;
+    SoakProcessUse u{name, now->pid, now->rss_kib, std::nullopt};
+    if (before != nullptr && before->pid == now->pid && now->wall_s > before->wall_s) {
+      u.cpu_percent = 100.0 * (now->cpu_s - before->cpu_s) / (now->wall_s - before->wall_s);
+    }
+    out.push_back(u);
+  }
+  return out;
+}
+
+std::vector<SoakMinute> Minutes(const SoakData& d) {
+  std::vector<SoakMinute> out;
+  const int minutes = std::max(1, static_cast<int>(std::ceil(d.end_s / kMinuteS - 1e-9)));
+  std::size_t s = 0;
+  for (int m = 0; m < minutes; ++m) {
+    SoakMinute row;
+    row.minute = m;
+    row.start_s = m * kMinuteS;
+    row.end_s = std::min(d.end_s, (m + 1) * kMinuteS);
+    const double hi = m == minutes - 1 ? d.end_s : row.end_s;
+    for (; s < d.samples.size() && InWindow(d.samples[s].t_s, row.start_s, hi, d.end_s); ++s) {
+      const double e = d.samples[s].position_m;
+      if (!row.worst_position_error_m || !(e <= *row.worst_position_error_m)) {
+        row.worst_position_error_m = e;
+      }
+    }
+    const Window w = Measure(d, row.start_s, hi);
+    row.lateness_p99_s = w.lateness_p99_s;
+    row.release_error_p99_s = w.release_error_p99_s;
+    row.overruns = w.overruns;
+    row.delay_error_p99_s = w.delay_error_p99_s;
+    row.states = w.states;
+    row.states_expected = w.states_expected;
+    row.processes = ProcessesAtMinute(d, m, minutes - 1);
+    out.push_back(row);
+  }
+  return out;
+}
+
+nlohmann::ordered_json Opt(const std::optional<double>& v) {
+  return v ? nlohmann::ordered_json(*v) : nlohmann::ordered_json();
+}
+
+/// The formation metrics of a phase; *why gets a sentence if it did not re-converge.
+void PhaseFormation(const SoakData& d, const SoakPhase& p, double settle_s,
+                    nlohmann::ordered_json* m, std::vector<std::string>* why) {
+  const double from = p.start_s + settle_s;
+  std::optional<double> final_error, max_error;
+  double reconverged_at = kNaN;  // the first sample of the last stretch within tolerance
+  const Sample* first_out = nullptr;
+  long long judged = 0;
+  for (const Sample& s : d.samples) {
+    if (!InWindow(s.t_s, p.start_s, p.end_s, d.end_s)) continue;
+    final_error = s.position_m;
+    if (!s.within) reconverged_at = kNaN;
+    if (s.within && std::isnan(reconverged_at)) reconverged_at = s.t_s;
+    if (s.t_s < from) continue;
+    ++judged;
+    if (!max_error || !(s.position_m <= *max_error)) max_error = s.position_m;
+    if (!s.within && first_out == nullptr) first_out = &s;
+  }
+  const bool ok = judged > 0 && first_out == nullptr;
+  (*m)["reconverged"] = ok;
+  (*m)["reconverged_at_s"] =
+      std::isnan(reconverged_at) ? nlohmann::ordered_json() : nlohmann::ordered_json(reconverged_at);
+  (*m)["final_position_error_m"] = Opt(final_error);
+  (*m)["max_position_error_m"] = Opt(max_error);
+  if (judged == 0) {
+    why->push_back("no complete formation sample from " + Num(from) + " s (start + settle_s " +
+                   Num(settle_s) + " s) to " + Num(p.end_s) + " s to judge re-convergence");
+  } else if (first_out != nullptr) {
+    const MetricsConfig& tol = d.run.scenario.metrics;
+    why->push_back("did not re-converge: at " + Num(first_out->t_s) + " s, " +
+                   Num(first_out->t_s - p.start_s) + " s into the phase (settle_s " +
+                   Num(settle_s) + " s), the worst follower position error was " +
+                   Num(first_out->position_m) + " m > metrics.position_tol_m " +
+                   Num(tol.position_tol_m) + " m (at most " + Num(*max_error) +
+                   " m after settling)");
+  }
+}
+
+/// One criterion on a phase's metrics: "" if met, else why not.
+std::string CheckCriterion(const SoakCriterion& c, const nlohmann::ordered_json& m) {
+  if (!m.contains(c.metric)) return "criterion on " + c.metric + ": no such phase metric";
+  const nlohmann::ordered_json& v = m[c.metric];
+  if (!c.equals.is_null() && nlohmann::json(v) != c.equals) {
+    return c.metric + " is " + v.dump() + ", not " + c.equals.dump();
+  }
+  if (!c.min && !c.max) return "";
+  if (!v.is_number()) return c.metric + " is " + v.dump() + ": no number to bound";
+  const double x = v.get<double>();
+  if (c.min && !(x >= *c.min)) return c.metric + " " + Num(x) + " < min " + Num(*c.min);
+  if (c.max && !(x <= *c.max)) return c.metric + " " + Num(x) + " > max " + Num(*c.max);
+  return "";
+}
+
+/// Real time: a phase's loop and channel timing against the targets.
+void PhaseTargets(const SoakTargets& t, const Window& w, std::vector<std::string>* why) {
+  if (w.lateness_p99_s > t.lateness_p99_max_s) {
+    why->push_back("loop lateness p99 " + Num(w.lateness_p99_s * 1e3) + " ms > target " +
+                   Num(t.lateness_p99_max_s * 1e3) + " ms");
+  }
+  if (w.release_error_p99_s > t.delay_error_p99_max_s) {
+    why->push_back("channel release error p99 " + Num(w.release_error_p99_s * 1e3) +
+                   " ms > target " + Num(t.delay_error_p99_max_s * 1e3) + " ms");
+  }
+  if (w.delay_error_p99_s && *w.delay_error_p99_s > t.delay_error_p99_max_s) {
+    why->push_back("channel delay error p99 " + Num(*w.delay_error_p99_s * 1e3) +
+                   " ms > target " + Num(t.delay_error_p99_max_s * 1e3) + " ms");
+  }
+}
+
+SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, int index) {
+  SoakPhaseResult r;
+  r.index = index;
+  r.phase = in.phases[static_cast<std::size_t>(index)];
+  PhaseFormation(d, r.phase, in.settle_s, &r.metrics, &r.why);
+  const Window w = Measure(d, r.phase.start_s, r.phase.end_s);
+  r.metrics["delay_error_p99_s"] = Opt(w.delay_error_p99_s);
+  r.metrics["release_error_p99_s"] = w.release_error_p99_s;
+  r.metrics["lateness_p99_s"] = w.lateness_p99_s;
+  r.metrics["overruns"] = w.overruns;
+  r.metrics["states"] = w.states;
+  r.metrics["states_expected"] = w.states_expected;
+  if (in.engine == "realtime") PhaseTargets(in.targets, w, &r.why);
+  for (const SoakCriterion& c : in.criteria) {
+    const std::string miss = CheckCriterion(c, r.metrics);
+    if (!miss.empty()) r.why.push_back(miss);
+  }
+  r.pass = r.why.empty();
+  return r;
+}
+
+std::string PhaseName(const SoakPhaseResult& p) {
+  return "phase " + std::to_string(p.index) + " (" + p.phase.label + ", " +
+         Num(p.phase.start_s) + "-" + Num(p.phase.end_s) + " s)";
+}
+
+/// The run report's faults: failed or stopped processes, restarts, interruption, lost
+/// states.
+void JudgeReport(const nlohmann::json& j, std::vector<std::string>* reasons) {
+  if (!j.value("all_processes_ok", false)) {
+    std::string text = "a process failed or the run was interrupted";
+    for (const auto& p : j.value("problems", nlohmann::json::array())) {
+      text += "; " + p.get<std::string>();
+    }
+    if (j.value("interrupted", false)) text += "; the run was interrupted";
+    reasons->push_back(text);
+  }
+  for (const auto& r : j.value("restarts", nlohmann::json::array())) {
+    reasons->push_back(r.value("process", std::string("a process")) + " (pid " +
+                       std::to_string(r.value("pid", 0)) + ") " +
+                       r.value("reason", std::string("died")) + " at t = " +
+                       Num(r.value("mission_s", 0.0)) + " s and was restarted as pid " +
+                       std::to_string(r.value("new_pid", 0)));
+  }
+  if (!j.value("log_complete", false)) {
+    std::string text = "the log lost states: " + std::to_string(j.value("log_states", 0LL)) +
+                       " of " + std::to_string(j.value("log_states_expected", 0LL)) +
+                       " expected vehicle states recorded";
+    for (const auto& p : j.value("log_problems", nlohmann::json::array())) {
+      text += "; " + p.get<std::string>();
+    }
+    reasons->push_back(text);
+  }
+}
+
+std::vector<SoakProcessGrowth> Growth(const SoakData& d, const SoakInput& in,
+                                      std::vector<std::string>* reasons) {
+  std::vector<SoakProcessGrowth> out;
+  const double first_end = in.phases.front().end_s;
+  for (const auto& [name, rows] : d.resources) {
+    const ResourceRow* at = SampleAt(rows, first_end);
+    if (at == nullptr || at->rss_kib <= 0) continue;
+    SoakProcessGrowth g{name, at->rss_kib, at->rss_kib, 0.0};
+    for (const ResourceRow& r : rows) {
+      if (r.sim_s >= at->sim_s) g.rss_max_after_kib = std::max(g.rss_max_after_kib, r.rss_kib);
+    }
+    g.growth = g.rss_max_after_kib / g.rss_first_phase_kib - 1.0;
+    if (g.growth > in.targets.memory_growth_max) {
+      reasons->push_back(name + ": RSS grew " + Num(g.growth * 100) +
+                         " % after the first phase (from " + Num(g.rss_first_phase_kib) +
+                         " KiB at t = " + Num(at->sim_s) + " s to " + Num(g.rss_max_after_kib) +
+                         " KiB), more than memory_growth_max " +
+                         Num(in.targets.memory_growth_max * 100) + " %");
+    }
+    out.push_back(g);
+  }
+  return out;
+}
+
+bool LoadSoakData(const SoakInput& in, SoakData* d, std::string* error) {
+  LoadOptions opt;
+  opt.key_file = in.key_file;
+  if (!LoadRunLog(in.log, opt, &d->run, error)) return false;
+  if (!d->run.has_scenario) {
+    *error = in.log + ": the log holds no scenario: the formation cannot be judged";
+    return false;
+  }
+  d->a = AnalyseRun(d->run);
+  d->samples = CompleteSamples(d->run, d->a);
+  d->overrun_increase = OverrunIncreases(d->run.health);
+  d->delay_errors = DelayErrors(d->run, d->a);
+  d->end_s = d->a.bounds.expected_end_us >= 0 ? ToSeconds(d->a.bounds.expected_end_us) : 0.0;
+  return in.resources_csv.empty() || ReadResources(in.resources_csv, &d->resources, error);
+}
+
+bool CheckPhases(const std::vector<SoakPhase>& phases, std::string* error) {
+  if (phases.empty()) {
+    *error = "a soak run needs at least one phase";
+    return false;
+  }
+  for (std::size_t k = 0; k < phases.size(); ++k) {
+    const bool ordered = k == 0 || phases[k].start_s >= phases[k - 1].end_s;
+    if (!(phases[k].end_s > phases[k].start_s) || !ordered) {
+      *error = "phase " + std::to_string(k) + " (" + phases[k].label +
+               "): its window must be non-empty and after the previous phase's";
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+bool ParseSoakCriteria(const nlohmann::json& pass, std::vector<SoakCriterion>* out,
+                       std::string* error) {
+  out->clear();
+  if (pass.is_null()) return true;
+  if (!pass.is_object()) {
+    *error = "pass criteria: expected a table of metric = value or { min, max }";
+    return false;
+  }
+  for (const auto& [key, v] : pass.items()) {
+    SoakCriterion c;
+    c.metric = key;
+    if (v.is_object()) {
+      for (const auto& [bound, x] : v.items()) {
+        if ((bound != "min" && bound != "max") || !x.is_number()) {
+          *error = "pass criterion " + key + ": only min and max, numbers (got " + bound + ")";
+          return false;
+        }
+        (bound == "min" ? c.min : c.max) = x.get<double>();
+      }
+    } else {
+      c.equals = v;
+    }
+    out->push_back(c);
+  }
+  return true;
+}
+
+bool AnalyseSoak(const SoakInput& in, SoakResult* out, std::string* error) {
+  *out = SoakResult();
+  if (!CheckPhases(in.phases, error)) return false;
+  SoakData d;
+  if (!LoadSoakData(in, &d, error)) return false;
+  JudgeReport(in.report, &out->reasons);
+  out->minutes = Minutes(d);
+  for (const SoakMinute& m : out->minutes) {
+    if (m.states < m.states_expected) {
+      out->reasons.push_back("minute " + std::to_string(m.minute) + " (" + Num(m.start_s) + "-" +
+                             Num(m.end_s) + " s): " + std::to_string(m.states) + " of " +
+                             std::to_string(m.states_expected) + " vehicle states logged");
+    }
+  }
+  if (!d.resources.empty()) out->processes = Growth(d, in, &out->reasons);
+  for (int k = 0; k < static_cast<int>(in.phases.size()); ++k) {
+    out->phases.push_back(JudgePhase(d, in, k));
+    const SoakPhaseResult& p = out->phases.back();
+    for (const std::string& w : p.why) out->reasons.push_back(PhaseName(p) + ": " + w);
+  }
+  out->pass = out->reasons.empty();
+  return true;
+}
+
+nlohmann::ordered_json SoakJson(const SoakResult& r) {
+  nlohmann::ordered_json j;
+  j["verdict"] = r.pass ? "pass" : "fail";
+  j["reasons"] = r.reasons;
+  j["phases"] = nlohmann::ordered_json::array();
+  for (const SoakPhaseResult& p : r.phases) {
+    j["phases"].push_back({{"index", p.index}, {"value", p.phase.label},
+                           {"start_s", p.phase.start_s}, {"end_s", p.phase.end_s},
+                           {"metrics", p.metrics}, {"pass", p.pass}, {"why", p.why}});
+  }
+  j["minutes"] = nlohmann::ordered_json::array();
+  for (const SoakMinute& m : r.minutes) {
+    nlohmann::ordered_json procs = nlohmann::ordered_json::array();
+    for (const SoakProcessUse& u : m.processes) {
+      procs.push_back({{"name", u.name}, {"pid", u.pid}, {"rss_kib", u.rss_kib},
+                       {"cpu_percent", Opt(u.cpu_percent)}});
+    }
+    j["minutes"].push_back(
+        {{"minute", m.minute}, {"start_s", m.start_s}, {"end_s", m.end_s},
+         {"worst_position_error_m", Opt(m.worst_position_error_m)},
+         {"lateness_p99_s", m.lateness_p99_s}, {"release_error_p99_s", m.release_error_p99_s},
+         {"overruns", m.overruns}, {"delay_error_p99_s", Opt(m.delay_error_p99_s)},
+         {"states", m.states}, {"states_expected", m.states_expected}, {"processes", procs}});
+  }
+  j["processes"] = nlohmann::ordered_json::array();
+  for (const SoakProcessGrowth& g : r.processes) {
+    j["processes"].push_back({{"name", g.name}, {"rss_first_phase_kib", g.rss_first_phase_kib},
+                              {"rss_max_after_kib", g.rss_max_after_kib}, {"growth", g.growth}});
+  }
+  return j;
+}
+
+}  // namespace shoal

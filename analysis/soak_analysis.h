@@ -1,0 +1,139 @@
+// The judgement of a soak run: one long shoal run whose phases step a parameter (the
+// campaign spec's [soak]). Reads the run's log (LoadRunLog, AnalyseRun), its
+// <log>.d/resources.csv (docs/run.md) and its shoal run --json report, and gives
+// per-minute rows, per-phase metrics and a verdict with a sentence per reason.
+//
+// Definitions (mission time t; minute m covers [60 m, 60 (m + 1)); the run's last state
+// time counts in the last minute and the last phase when they end there):
+// - A complete sample: a time at which the leader and every follower have a state. Its
+//   worst position error is the largest follower position error; it is within tolerance
+//   when that is within the scenario's metrics.position_tol_m. Position only: the
+//   velocity tolerance of `converged` (FormationMetrics) would fail a phase for the
+//   velocity ripple a delay step leaves while the formation holds its shape.
+// - Lateness p99 of a window: the largest lateness_p99_s that a vehicle or the leader
+//   reported in a health_t within the window. health_t holds a p99 since the process
+//   started, so this is an upper envelope of the window's own p99, not its exact value.
+//   release_error_p99_s: the same of the channel emulator's reports (its release error).
+// - Overruns of a window: the increase of each process's cumulative count over the
+//   reports within the window (a restarted process counts from its own start), summed.
+// - delay_error_p99_s of a window: p99 (nearest rank) of realised - configured delay of the
+//   delivered channel events sent within it (ChannelAnalysis::configured_delay_s; tick
+//   quantised in lockstep, so within [0, one period)).
+// - States: distinct vehicle states in the log with times in the window; expected: the
+//   control ticks in the window up to the run's expected end, times (followers + 1).
+// - Per process, from resources.csv: at the end of minute m, the first sample at or after
+//   that time (the last sample for the run's last minute); CPU % = CPU seconds over wall
+//   seconds between that sample and the one at the end of the previous minute (the
+//   first sample for minute 0), null when the pid changed between them (a restart).
+// - Re-converged: every complete sample in [start + settle_s, end) is within tolerance
+//   (and there is one). Memory growth: each process's largest RSS after the first
+//   phase's end against its RSS at that end (the first sample at or after it).
+// The verdict fails on: a process that failed, was stopped, restarted or an interrupted
+// run (the report's all_processes_ok, restarts); lost states (log_complete false, or a
+// minute with fewer states than expected); RSS growth beyond targets.memory_growth_max;
+// real time only: a phase's lateness p99 beyond targets.lateness_p99_max_s, or its
+// delay error p99 or release error p99 beyond targets.delay_error_p99_max_s (shoal run
+// reports the release error as channel.delay_error_p99_s); a phase that does not
+// re-converge or misses a criterion.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace shoal {
+
+/// One phase of the soak run: mission time [start_s, end_s); `label` says its value
+/// ("channel.delay.base_s = 0.5").
+struct SoakPhase {
+  double start_s = 0.0, end_s = 0.0;
+  std::string label;
+};
+
+/// A pass criterion on a phase metric (keys of SoakPhaseResult::metrics): equality with
+/// `equals` (when not null), and/or bounds.
+struct SoakCriterion {
+  std::string metric;
+  nlohmann::json equals;  // null: no equality
+  std::optional<double> min, max;
+};
+
+/// The campaign's [pass] table as JSON ({"max_position_error_m": {"max": 1}, "reconverged":
+/// true}): one criterion per key. False with *error on a value of another shape.
+bool ParseSoakCriteria(const nlohmann::json& pass, std::vector<SoakCriterion>* out,
+                       std::string* error);
+
+struct SoakTargets {
+  double lateness_p99_max_s = 0.002;     // real time only
+  double delay_error_p99_max_s = 0.001;  // real time only
+  double memory_growth_max = 0.01;       // relative RSS growth after the first phase
+};
+
+struct SoakInput {
+  std::string log;            // the run's LCM log
+  std::string key_file;       // its key (<log>.key); "" for that default (LoadOptions)
+  std::string resources_csv;  // <log>.d/resources.csv; "" when not sampled (no judgement)
+  nlohmann::json report;      // the run's shoal run --json report
+  std::vector<SoakPhase> phases;  // in time order
+  double settle_s = 0.0;
+  std::vector<SoakCriterion> criteria;
+  SoakTargets targets;
+  std::string engine = "lockstep";  // "lockstep" or "realtime"
+};
+
+struct SoakProcessUse {
+  std::string name;
+  int pid = 0;
+  double rss_kib = 0.0;
+  std::optional<double> cpu_percent;
+};
+
+struct SoakMinute {
+  int minute = 0;
+  double start_s = 0.0, end_s = 0.0;
+  std::optional<double> worst_position_error_m;  // none: no complete sample
+  double lateness_p99_s = 0.0, release_error_p99_s = 0.0;
+  long long overruns = 0;
+  std::optional<double> delay_error_p99_s;  // none: no delivery sent in the minute
+  long long states = 0, states_expected = 0;
+  std::vector<SoakProcessUse> processes;
+};
+
+struct SoakPhaseResult {
+  int index = 0;
+  SoakPhase phase;
+  /// reconverged, reconverged_at_s, final_position_error_m, max_position_error_m,
+  /// delay_error_p99_s, release_error_p99_s, lateness_p99_s, overruns, states,
+  /// states_expected (null where the phase has no such data).
+  nlohmann::ordered_json metrics;
+  bool pass = true;
+  std::vector<std::string> why;
+};
+
+struct SoakProcessGrowth {
+  std::string name;
+  double rss_first_phase_kib = 0.0;
+  double rss_max_after_kib = 0.0;
+  double growth = 0.0;  // rss_max_after / rss_first_phase - 1
+};
+
+struct SoakResult {
+  bool pass = false;
+  std::vector<std::string> reasons;  // one sentence per failure
+  std::vector<SoakPhaseResult> phases;
+  std::vector<SoakMinute> minutes;
+  std::vector<SoakProcessGrowth> processes;
+};
+
+/// Judges the run. False with *error (user-facing) if the log or resources.csv cannot be
+/// read, or the phases are empty or not in order.
+bool AnalyseSoak(const SoakInput& in, SoakResult* out, std::string* error);
+
+/// soak.json: verdict ("pass"/"fail"), reasons[], phases[] (index, value, start_s, end_s,
+/// metrics, pass, why), minutes[], processes[] (name, rss_first_phase_kib,
+/// rss_max_after_kib, growth).
+nlohmann::ordered_json SoakJson(const SoakResult& r);
+
+}  // namespace shoal
