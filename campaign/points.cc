@@ -1,6 +1,8 @@
 #include "campaign/points.h"
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstdint>
 #include <numeric>
 
@@ -18,6 +20,14 @@ struct AxisValue {
 AxisValue FloatValue(double v) { return {TomlFloatText(v), v}; }
 
 AxisValue IntValue(std::int64_t v) { return {std::to_string(v), v}; }
+
+/// `v` rounded to 15 significant digits: grid values from decimal ends read as decimals
+/// (0.1 + 4 x 0.05 is 0.30000000000000004 in binary; the user wrote a grid of 0.3).
+double Decimal(double v) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.15g", v);
+  return std::strtod(text, nullptr);
+}
 
 /// from/to at fraction t in [0, 1], evenly or log spaced; the ends are exact.
 double Interpolate(const CampaignAxis& a, double t) {
@@ -37,7 +47,7 @@ std::vector<AxisValue> GridValues(const CampaignAxis& a) {
     case CampaignAxis::Kind::kFromTo:
       for (std::int64_t i = 0; i < a.steps; ++i) {
         const double t = a.steps == 1 ? 0.0 : static_cast<double>(i) / static_cast<double>(a.steps - 1);
-        out.push_back(FloatValue(Interpolate(a, t)));
+        out.push_back(FloatValue(Decimal(Interpolate(a, t))));
       }
       break;
     case CampaignAxis::Kind::kRange:

@@ -32,11 +32,12 @@ TEST(CampaignPoints, FromToIsInclusiveEvenOrLog) {
   ASSERT_EQ(points.size(), 10u);
   EXPECT_EQ(points[0].values[0], "0.05");
   EXPECT_EQ(points[9].values[0], "0.5");
-  EXPECT_NEAR(points[1].json[0].get<double>(), 0.1, 1e-15);
+  EXPECT_EQ(points[1].json[0].get<double>(), 0.1);
+  EXPECT_EQ(points[5].values[0], "0.3");  // not 0.30000000000000004
   points = MakePoints(Parse("[[axis]]\nkey = \"a\"\nfrom = 1\nto = 1000\nsteps = 4\nlog = true\n"));
   EXPECT_EQ(points[0].values[0], "1.0");
-  EXPECT_NEAR(points[1].json[0].get<double>(), 10, 1e-9);
-  EXPECT_NEAR(points[2].json[0].get<double>(), 100, 1e-9);
+  EXPECT_EQ(points[1].values[0], "10.0");
+  EXPECT_EQ(points[2].values[0], "100.0");
   EXPECT_EQ(points[3].values[0], "1000.0");
 }
 
