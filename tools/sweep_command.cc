@@ -200,7 +200,9 @@ bool Execute(const Prepared& p, const SweepOptions& opt, ResultsDir* dir,
   }
   Progress progress(total, !opt.quiet && isatty(2));
   for (const auto& [index, row] : dir->rows()) progress.Resumed(row.value("pass", false));
-  if (c.engine != CampaignEngine::kSim) std::filesystem::create_directories(opt.out + "/runs");
+  std::error_code ec;
+  if (c.engine != CampaignEngine::kSim) std::filesystem::create_directories(opt.out + "/runs", ec);
+  if (ec) throw CampaignError(opt.out + "/runs: cannot create the logs' directory (" + ec.message() + ")");
   ExecutorOptions options;
   options.workers = Workers(c, opt.workers);
   options.stop_requested = &StopSignals::Requested;
