@@ -12,8 +12,8 @@
 # cluster. PORT_BASE (default 16817): SlurmctldPort = PORT_BASE, SlurmdPort = PORT_BASE + 1;
 # two clusters on one machine need different bases. Needs root (slurmd starts jobs as
 # their user) and Debian's slurm-wlm and munge. Nothing outside DIR is written: munged
-# gets its own key, socket, pid, log and seed files; the daemons run in the foreground of
-# their own session, each with its pid in DIR/pids and, in its environment,
+# gets its own key, socket, pid, log and seed files; the daemons run in the foreground,
+# detached by setsid, each with its pid in DIR/pids and, in its environment,
 # SHOAL_SLURM_CLUSTER=DIR, which every process they start (slurmstepd) inherits: stop
 # ends exactly the processes carrying that mark, by pid.
 set -euo pipefail
@@ -89,7 +89,7 @@ EOF
   echo "export SLURM_CONF=$dir/slurm.conf" >"$dir/env"
 }
 
-# Starts one daemon in the foreground of its own session, its output in DIR/log/NAME.out.
+# Starts one daemon in the foreground, under setsid, its output in DIR/log/NAME.out.
 launch() {
   local dir=$1 name=$2
   shift 2
