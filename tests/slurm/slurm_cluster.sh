@@ -78,6 +78,7 @@ AccountingStorageType=accounting_storage/none
 JobAcctGatherType=jobacct_gather/none
 JobCompType=jobcomp/none
 MpiDefault=none
+MailProg=/bin/true
 ReturnToService=2
 MinJobAge=600
 NodeName=$node NodeAddr=127.0.0.1 CPUs=$cpus State=UNKNOWN
@@ -86,6 +87,7 @@ EOF
   # The default cgroup/v2 fails on a mixed v1/v2 hierarchy; with proctrack/linuxproc and
   # task/none nothing else of cgroups is used.
   echo "CgroupPlugin=cgroup/v1" >"$dir/cgroup.conf"
+  mkdir -p "$dir/spool/$node"
   echo "export SLURM_CONF=$dir/slurm.conf" >"$dir/env"
 }
 
