@@ -31,6 +31,7 @@
 
 #include "core/timeline.h"
 #include "core/topology.h"
+#include "scenario/override_tree.h"
 #include "scenario/regular_file.h"
 
 namespace shoal {
@@ -489,7 +490,24 @@ class Reader {
   /// "<file>:<line>: <key>: <what> (got <got>); <fix>"
   [[noreturn]] void Fail(int line, const std::string& key, std::string_view what,
                          const std::optional<std::string>& got, std::string_view fix) const {
-    std::string message = file_ + ":" + std::to_string(line) + ": ";
+    FailIn(file_ + ":" + std::to_string(line), key, what, got, fix);
+  }
+
+  /// Fail at `where`: "<file>:<line>", or the origin of an override (--set) when the node
+  /// came from one (its source path is then the origin, not the file).
+  [[noreturn]] void Fail(const toml::source_region& where, const std::string& key,
+                         std::string_view what, const std::optional<std::string>& got,
+                         std::string_view fix) const {
+    if (where.path && !where.path->empty() && *where.path != file_) {
+      FailIn(*where.path, key, what, got, fix);
+    }
+    Fail(LineOf(where), key, what, got, fix);
+  }
+
+  [[noreturn]] void FailIn(const std::string& location, const std::string& key,
+                           std::string_view what, const std::optional<std::string>& got,
+                           std::string_view fix) const {
+    std::string message = location + ": ";
     if (!key.empty()) message += key + ": ";
     message += what;
     if (got) message += " (got " + *got + ")";
@@ -500,7 +518,7 @@ class Reader {
   /// Fails on the line of `node`, quoting its value.
   [[noreturn]] void FailAt(const toml::node& node, const std::string& key, std::string_view what,
                            std::string_view fix) const {
-    Fail(LineOf(node), key, what, Show(node), fix);
+    Fail(node.source(), key, what, Show(node), fix);
   }
 
   const toml::node& Require(const Table& t, std::string_view key, std::string_view hint) const {
@@ -553,7 +571,7 @@ class Reader {
       const std::string where = t.key.empty() ? "at the top level" : "in " + t.label;
       const std::string what = is_table ? "unknown table [" + dotted + "]"
                                         : "unknown key '" + ShownKey(name) + "' " + where;
-      Fail(LineOf(key->source()), dotted, what, std::nullopt,
+      Fail(key->source(), dotted, what, std::nullopt,
            UnknownKeyFix(t, name, is_table, allowed));
     }
   }
@@ -743,7 +761,7 @@ void ReadRun(const Reader& r, const Table& t, Scenario* s) {
     // that rates right on it (3 Hz -> 333333 us, 1e6 mod 3 = 1) do not depend on rounding.
     const double period_us = 1e6 / s->control_rate_hz;
     if (std::abs(period_us - std::round(period_us)) > 1e-6 * period_us * (1.0 + 1e-9)) {
-      r.Fail(LineOf(*node), key,
+      r.Fail(node->source(), key,
              "the control period 1e6/rate must be a whole number of microseconds",
              Show(*node) + ", a period of " + FixedPoint(period_us, 3) + " us",
              "choose a rate such as 10, 20, 25, 50, 64, 100, 125, 200 or 1000");
@@ -1018,7 +1036,7 @@ void ReadTraceDelay(const Reader& r, const Table& t, DelayConfig* delay) {
   try {
     ParseTraceText(ReadLimitedFile(csv, "delay trace"), csv, trace.get());
   } catch (const ScenarioError& e) {
-    r.Fail(LineOf(node), t.KeyOf("file"), e.what(), std::nullopt,
+    r.Fail(node.source(), t.KeyOf("file"), e.what(), std::nullopt,
            "fix the trace, or the path (relative to the scenario file)");
   }
   delay->trace = std::move(trace);
@@ -1071,7 +1089,7 @@ DelayConfig ReadDelay(const Reader& r, const Table& t) {
                                       "omega_rad_s is the angular frequency of the delay");
   const double rate = delay.amplitude_s * delay.omega_rad_s;
   if (rate >= 1.0) {
-    r.Fail(LineOf(*t.Get("omega_rad_s")), t.KeyOf("omega_rad_s"),
+    r.Fail(t.Get("omega_rad_s")->source(), t.KeyOf("omega_rad_s"),
            "amplitude_s * omega_rad_s must be < 1 (Assumption 3: d tau/dt < 1)",
            FormatNumber(delay.amplitude_s) + " * " + FormatNumber(delay.omega_rad_s) + " = " +
                FormatNumber(rate),
@@ -1427,7 +1445,7 @@ void CheckEventLinks(const Reader& r, const std::vector<Table>& tables, const Sc
       const std::string edge =
           from == 0 ? std::to_string(to) + " in leader_links"
                     : "[" + std::to_string(to) + ", " + std::to_string(from) + "] in edges";
-      r.Fail(LineOf(*tables[k].Get("links")->as_array()->get(j)),
+      r.Fail(tables[k].Get("links")->as_array()->get(j)->source(),
              Index(tables[k].KeyOf("links"), j),
              LinkText(from, to) + " is not a link of any topology of the scenario",
              "[" + std::to_string(from) + ", " + std::to_string(to) + "]",
@@ -1675,7 +1693,7 @@ void ReadScenario(const Reader& r, const toml::table& root, Scenario* s) {
 // overflows the stack (a crash, no message). It bounds nested arrays and inline tables at
 // 256 levels but not key components, so those are counted here first, along the whole
 // path a key lies on: its table header, the inline tables around it and its own dots.
-constexpr int kMaxKeyDepth = 256;
+// (kMaxKeyDepth: scenario/override_tree.h; override values are counted the same way.)
 
 /// The index just past the string starting at text[i] (basic or literal, single- or
 /// multi-line), counting the newlines it holds into *line.
@@ -1698,9 +1716,10 @@ std::size_t SkipString(std::string_view text, std::size_t i, int* line) {
   return k;
 }
 
-/// The line of the first key deeper than kMaxKeyDepth tables, 0 if there is none. Just
-/// exact enough for this count: strings, comments and brackets are followed, nothing else
-/// is checked (the parser does that).
+}  // namespace
+
+/// Just exact enough for this count: strings, comments and brackets are followed, nothing
+/// else is checked (the parser does that).
 int LineOfTooDeepKey(std::string_view text) {
   int line = 1;
   int header = 0;           // depth of the current table header
@@ -1753,28 +1772,30 @@ int LineOfTooDeepKey(std::string_view text) {
   return 0;
 }
 
-}  // namespace
+namespace {
 
-Scenario LoadScenario(const std::string& path) {
-  return ParseScenario(ReadLimitedFile(path, "scenario file"), path);
-}
+std::string FileLabel(const std::string& path) { return path.empty() ? "<scenario>" : path; }
 
-Scenario ParseScenario(const std::string& text, const std::string& path) {
-  const std::string file = path.empty() ? "<scenario>" : path;
+/// The TOML tree of scenario text, within the key depth limit; throws a located
+/// ScenarioError on a syntax error.
+toml::table ParseToml(const std::string& text, const std::string& file) {
   if (const int line = LineOfTooDeepKey(text)) {
     throw ScenarioError(file + ":" + std::to_string(line) +
                         ": TOML syntax error: a key or table nests more than " +
                         std::to_string(kMaxKeyDepth) + " tables deep");
   }
-  toml::table root;
   try {
-    root = toml::parse(std::string_view(text), std::string_view(file));
+    return toml::parse(std::string_view(text), std::string_view(file));
   } catch (const toml::parse_error& e) {
     const toml::source_position& where = e.source().begin;
     throw ScenarioError(file + ":" + std::to_string(std::max(1, static_cast<int>(where.line))) +
                         ": TOML syntax error: " + std::string(e.description()) + " (column " +
                         std::to_string(where.column) + ")");
   }
+}
+
+/// Validates the tree of `path`; `text` is kept as the scenario's source text.
+Scenario ReadTree(const toml::table& root, const std::string& text, const std::string& path) {
   Scenario s;
   s.source_path = path;
   s.source_text = text;
@@ -1785,13 +1806,106 @@ Scenario ParseScenario(const std::string& text, const std::string& path) {
   std::error_code error;
   const bool is_file = !path.empty() && std::filesystem::is_regular_file(path, error);
   const std::string base = is_file ? std::filesystem::path(path).parent_path().string() : "";
-  ReadScenario(Reader(file, base), root, &s);
+  ReadScenario(Reader(FileLabel(path), base), root, &s);
   return s;
 }
 
-bool LoadScenarioOrReport(const std::string& who, const std::string& path, Scenario* out) {
+/// A comment line's text: newlines in a value would end the comment.
+std::string OneLine(const std::string& text) {
+  std::string line;
+  for (const char c : text) line += c == '\n' ? std::string("\\n") : std::string(1, c);
+  return line;
+}
+
+/// The merged tree as a TOML document, headed by comments naming the base file and each
+/// override, so that a log of the run shows (and reproduces) what ran.
+std::string EffectiveText(const toml::table& root, const std::string& path,
+                          const std::vector<ScenarioOverride>& overrides) {
+  std::ostringstream text;
+  text << "# Effective scenario: " << OneLine(FileLabel(path))
+       << " with these changes, in order:\n";
+  for (const ScenarioOverride& o : overrides) {
+    const std::string set = "--set " + o.key + "=" + o.value;
+    text << "#   " << OneLine(set);
+    if (o.origin != set) text << "   (" << OneLine(o.origin) << ")";
+    text << "\n";
+  }
+  text << "\n" << toml::toml_formatter(root) << "\n";
+  return text.str();
+}
+
+/// Whether `message` is located at an override ("<origin>: ...").
+bool NamesAnOverride(const std::string& message, const std::vector<ScenarioOverride>& overrides) {
+  return std::any_of(overrides.begin(), overrides.end(), [&](const ScenarioOverride& o) {
+    return message.compare(0, o.origin.size() + 1, o.origin + ":") == 0;
+  });
+}
+
+/// The error of the overridden scenario, saying that the overrides changed it unless the
+/// message names one of them or the file alone fails the same way.
+ScenarioError ChangedScenarioError(const ScenarioError& e, const std::string& text,
+                                   const std::string& path,
+                                   const std::vector<ScenarioOverride>& overrides) {
+  const std::string message = e.what();
+  if (NamesAnOverride(message, overrides)) return e;
   try {
-    *out = LoadScenario(path);
+    ParseScenario(text, path);
+  } catch (const ScenarioError& base) {
+    if (message == base.what()) return e;
+  }
+  std::string origins;
+  for (const ScenarioOverride& o : overrides) origins += (origins.empty() ? "" : ", ") + o.origin;
+  return ScenarioError(message + " (scenario changed by " + origins + ")");
+}
+
+}  // namespace
+
+Scenario LoadScenario(const std::string& path) {
+  return ParseScenario(ReadLimitedFile(path, "scenario file"), path);
+}
+
+Scenario LoadScenario(const std::string& path, const std::vector<ScenarioOverride>& overrides) {
+  return ParseScenario(ReadLimitedFile(path, "scenario file"), path, overrides);
+}
+
+Scenario ParseScenario(const std::string& text, const std::string& path) {
+  return ReadTree(ParseToml(text, FileLabel(path)), text, path);
+}
+
+std::string ApplyOverridesToText(const std::string& text, const std::string& path,
+                                 const std::vector<ScenarioOverride>& overrides) {
+  if (overrides.empty()) return text;
+  toml::table root = ParseToml(text, FileLabel(path));
+  ApplyOverrides(overrides, &root);
+  return EffectiveText(root, path, overrides);
+}
+
+Scenario ParseScenario(const std::string& text, const std::string& path,
+                       const std::vector<ScenarioOverride>& overrides) {
+  if (overrides.empty()) return ParseScenario(text, path);
+  toml::table root = ParseToml(text, FileLabel(path));
+  ApplyOverrides(overrides, &root);
+  const std::string effective = EffectiveText(root, path, overrides);
+  try {
+    // The merged tree is validated first, so that messages locate each value in the file
+    // or at its override; the scenario is then read from the effective text itself, so
+    // that it equals what a log of the run (which keeps that text) reads back, lines of
+    // events included.
+    ReadTree(root, effective, path);
+    return ParseScenario(effective, path);
+  } catch (const ScenarioError& e) {
+    throw ChangedScenarioError(e, text, path, overrides);
+  }
+}
+
+bool LoadScenarioOrReport(const std::string& who, const std::string& path, Scenario* out) {
+  return LoadScenarioOrReport(who, path, {}, out);
+}
+
+bool LoadScenarioOrReport(const std::string& who, const std::string& path,
+                          const std::vector<ScenarioOverride>& overrides, Scenario* out) {
+  try {
+    *out = LoadScenario(path, overrides);
     return true;
   } catch (const ScenarioError& e) {
     std::cerr << who << ": " << e.what() << "\n";

@@ -3,8 +3,10 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "core/scenario.h"
+#include "scenario/overrides.h"
 
 namespace shoal {
 
@@ -26,5 +28,23 @@ bool LoadScenarioOrReport(const std::string& who, const std::string& path, Scena
 /// name. Relative trace files are read from the directory of `path` if it names a regular
 /// file, else from the working directory (the text of a log).
 Scenario ParseScenario(const std::string& text, const std::string& path);
+
+// The same with overrides (--set) applied in order to the parsed file before validation.
+// A message about a value an override gave names the override's origin instead of
+// "<file>:<line>"; any other message that only the overrides caused ends with
+// "(scenario changed by <origins>)". Scenario::source_text is then ApplyOverridesToText's
+// document. With no overrides these are the functions above, message for message.
+Scenario LoadScenario(const std::string& path, const std::vector<ScenarioOverride>& overrides);
+Scenario ParseScenario(const std::string& text, const std::string& path,
+                       const std::vector<ScenarioOverride>& overrides);
+bool LoadScenarioOrReport(const std::string& who, const std::string& path,
+                          const std::vector<ScenarioOverride>& overrides, Scenario* out);
+
+/// The scenario text with the overrides applied (a TOML document), for logs and campaigns:
+/// the merged tree in TOML, headed by comments naming the base file and each override.
+/// `text` itself when there are none. Throws ScenarioError on a bad file or override (it
+/// does not validate the result: ParseScenario does).
+std::string ApplyOverridesToText(const std::string& text, const std::string& path,
+                                 const std::vector<ScenarioOverride>& overrides);
 
 }  // namespace shoal

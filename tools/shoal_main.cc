@@ -13,6 +13,7 @@
 #include "tools/render_command.h"
 #include "tools/run_command.h"
 #include "tools/sim_command.h"
+#include "tools/sweep_command.h"
 
 namespace {
 
@@ -192,6 +193,37 @@ CLI::App* AddRender(CLI::App* app, shoal::RenderOptions* ren) {
   return c;
 }
 
+CLI::App* AddSweep(CLI::App* app, shoal::SweepOptions* sw, shoal::SweepMergeOptions* merge) {
+  CLI::App* c = app->add_subcommand(
+      "sweep",
+      "Run every point of a campaign (parameter grid or Latin hypercube) as its own shoal "
+      "sim/run, judge each by the campaign's pass criteria, write results and the pass/fail "
+      "boundary (docs/campaign.md)");
+  c->add_option("campaign", sw->campaign, "Campaign file (TOML, see docs/campaign.md)");
+  c->add_option("--out", sw->out,
+                "Output directory: results.jsonl, results.csv, summary.json; run again with "
+                "the same directory to resume");
+  c->add_option("--workers", sw->workers,
+                "Points run at a time (default: the campaign's, else one per core; realtime 1)")
+      ->check(CLI::Range(1, 1024));
+  c->add_option("--shard", sw->shard,
+                "K/N: run only the points with index % N == K-1 (combine with sweep merge)");
+  c->add_option("--set", sw->set,
+                "KEY=VALUE scenario override for every point, applied before the axes "
+                "(repeatable)")
+      ->allow_extra_args(false);
+  c->add_flag("--quiet", sw->quiet, "No progress line and no summary");
+  CLI::App* m = c->add_subcommand(
+      "merge", "Combine the output directories of a campaign's shards into one, as one run");
+  m->add_option("dirs", merge->dirs, "Shard output directories")->required();
+  m->add_option("--out", merge->out, "Output directory")->required();
+  m->add_flag("--allow-missing", merge->allow_missing, "Merge even if some points have no row");
+  m->add_flag("--allow-overlap", merge->allow_overlap,
+              "Merge even if a point has rows in two directories (the first is kept)");
+  m->add_flag("--quiet", merge->quiet, "No summary");
+  return c;
+}
+
 /// -1 is the commands' "not given" marker: a --duration the user typed must be positive.
 bool CheckDuration(const CLI::App* cmd, const char* flag, double value) {
   if (!cmd->parsed() || cmd->count(flag) == 0 || value > 0) return true;
@@ -218,6 +250,9 @@ int main(int argc, char** argv) {
   CLI::App* ana_cmd = AddAnalyze(&app, &ana);
   CLI::App* design_cmd = AddDesign(&app, &design);
   CLI::App* ren_cmd = AddRender(&app, &ren);
+  shoal::SweepOptions sweep;
+  shoal::SweepMergeOptions sweep_merge;
+  CLI::App* sweep_cmd = AddSweep(&app, &sweep, &sweep_merge);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -234,5 +269,13 @@ int main(int argc, char** argv) {
   if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
   if (design_cmd->parsed()) return shoal::RunDesign(design);
   if (ren_cmd->parsed()) return shoal::RunRender(ren);
+  if (sweep_cmd->parsed()) {
+    if (sweep_cmd->get_subcommand("merge")->parsed()) return shoal::RunSweepMerge(sweep_merge);
+    if (sweep.campaign.empty() || sweep.out.empty()) {
+      std::cerr << "shoal sweep: give a campaign file and --out DIR (see shoal sweep --help)\n";
+      return shoal::kExitBadInput;
+    }
+    return shoal::RunSweep(sweep);
+  }
   return shoal::kExitBadInput;
 }

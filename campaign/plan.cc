@@ -1,0 +1,127 @@
+#include "campaign/plan.h"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdint>
+
+#include <algorithm>
+#include <map>
+#include <set>
+
+#include "core/theory.h"
+#include "core/topology.h"
+#include "scenario/loader.h"
+#include "scenario/regular_file.h"
+
+namespace shoal {
+
+std::string ReadScenarioText(const std::string& path) {
+  constexpr std::int64_t kMaxScenarioBytes = 16 << 20;  // as the scenario loader's limit
+  std::string error;
+  const int fd = OpenRegularFile(path, "scenario file", kMaxScenarioBytes, &error);
+  if (fd < 0) throw CampaignError(error);
+  std::string text;
+  char buffer[1 << 16];
+  for (;;) {
+    const ssize_t n = read(fd, buffer, sizeof(buffer));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      close(fd);
+      if (n < 0) throw CampaignError(path + ": cannot read scenario file");
+      return text;
+    }
+    text.append(buffer, static_cast<std::size_t>(n));
+    if (text.size() > static_cast<std::size_t>(kMaxScenarioBytes)) {
+      close(fd);
+      throw CampaignError(path + ": scenario file grew beyond 16 MiB while being read");
+    }
+  }
+}
+
+std::vector<ScenarioOverride> BaseOverrides(const Campaign& c,
+                                            const std::vector<std::string>& cli_set) {
+  std::vector<ScenarioOverride> out;
+  for (const CampaignSet& s : c.set) {
+    try {
+      ScenarioOverride o = ParseSetFlag(s.text);
+      o.origin = c.path + ":" + std::to_string(s.line) + ": set " + s.text;
+      out.push_back(std::move(o));
+    } catch (const ScenarioError& e) {
+      throw CampaignError(c.path + ":" + std::to_string(s.line) + ": campaign.set: " + e.what());
+    }
+  }
+  for (const std::string& text : cli_set) {
+    try {
+      out.push_back(ParseSetFlag(text));
+    } catch (const ScenarioError& e) {
+      throw CampaignError(e.what());
+    }
+  }
+  return out;
+}
+
+std::vector<ScenarioOverride> PointOverrides(const Campaign& c,
+                                             const std::vector<ScenarioOverride>& base,
+                                             const CampaignPoint& p) {
+  std::vector<ScenarioOverride> out = base;
+  for (std::size_t a = 0; a < c.axes.size(); ++a) {
+    const CampaignAxis& axis = c.axes[a];
+    out.push_back({axis.key, p.values[a],
+                   c.path + ":" + std::to_string(axis.line) + ": axis " + axis.key});
+  }
+  return out;
+}
+
+std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario_text,
+                                  const std::vector<ScenarioOverride>& base,
+                                  const std::vector<CampaignPoint>& points) {
+  std::vector<PointPlan> plans;
+  plans.reserve(points.size());
+  for (const CampaignPoint& p : points) {
+    PointPlan plan;
+    Scenario s;
+    try {
+      s = ParseScenario(scenario_text, c.scenario, PointOverrides(c, base, p));
+    } catch (const ScenarioError& e) {
+      throw CampaignError(std::string(e.what()) + " (point " + std::to_string(p.index) + ")");
+    }
+    plan.duration_s = c.duration_s > 0 ? c.duration_s : s.duration_s;
+    const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
+    const theory::DelayMargin m =
+        theory::ComputeDelayMargin(theory::HEigenvalues(topo.H()), s.k1, s.k2);
+    plan.delay_margin_s = m.stable_at_zero ? m.tau_s : 0.0;
+    plans.push_back(std::move(plan));
+  }
+  return plans;
+}
+
+double PointTimeout(const Campaign& c, const PointPlan& plan) {
+  if (c.timeout_s > 0) return c.timeout_s;
+  const double speed = c.engine == CampaignEngine::kRealtime   ? 1.0
+                       : c.engine == CampaignEngine::kLockstep ? 10.0
+                                                               : 100.0;
+  return 60.0 + 10.0 * plan.duration_s / speed;
+}
+
+nlohmann::ordered_json CampaignTheory(const Campaign& c, const std::vector<CampaignPoint>& points,
+                                      const std::vector<PointPlan>& plans) {
+  nlohmann::ordered_json curve = nlohmann::ordered_json::array();
+  std::set<std::string> seen;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    nlohmann::ordered_json values = nlohmann::ordered_json::object();
+    for (std::size_t a = 0; a < c.axes.size(); ++a) {
+      if (c.axes[a].key.rfind("channel", 0) != 0) values[c.axes[a].key] = points[i].json[a];
+    }
+    if (!seen.insert(values.dump()).second) continue;
+    curve.push_back({{"values", values}, {"delay_margin_s", plans[i].delay_margin_s}});
+  }
+  nlohmann::ordered_json theory;
+  theory["delay_margin_s"] = {
+      {"what", "exact constant-delay margin of protocol (10) for the point's gains and "
+               "initial topology (docs/theory.md)"},
+      {"curve", curve}};
+  return theory;
+}
+
+}  // namespace shoal

@@ -1,0 +1,26 @@
+// Changes to a scenario given on the command line (--set) or by a campaign, applied to the
+// parsed TOML tree before validation (docs/scenario.md, "Changing a scenario from the
+// command line: --set").
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace shoal {
+
+/// One `key=value` change of a scenario. `key`: dotted, as in the loader's messages
+/// ("channel.delay.base_s", "follower[2].k1", "channel.link[0].delay"); `value`: TOML value
+/// text ("0.3", "\"constant\"", "{ model = \"constant\", base_s = 0.3 }", "[1, 2]"); a
+/// bare word that is not a TOML value (constant) reads as a string. `origin`: how messages
+/// name where it came from ("--set channel.delay.base_s=0.3", "sweep.toml:12: axis
+/// channel.delay.base_s").
+struct ScenarioOverride {
+  std::string key;
+  std::string value;
+  std::string origin;
+};
+
+/// Parses "key=value" as given to --set; throws ScenarioError naming --set on bad syntax.
+ScenarioOverride ParseSetFlag(const std::string& text);
+
+}  // namespace shoal
