@@ -398,6 +398,8 @@ std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
                                 "--mode", opt_.mode, "--t0-ns", std::to_string(t0_ns_),
                                 "--duration", std::to_string(r_->duration_s)};
   if (opt_.insecure) a.push_back("--insecure");
+  // One argument each: a value is never taken for an option of its own.
+  for (const std::string& set : opt_.set) a.push_back("--set=" + set);
   a.insert(a.end(), more.begin(), more.end());
   return a;
 }

@@ -19,6 +19,7 @@ namespace shoal {
 
 struct LaunchOptions {
   std::string scenario;  // scenario file, passed on to every process
+  std::vector<std::string> set;  // --set KEY=VALUE changes of it, passed on likewise
   std::string mode = ModeName(Mode::kLockstep);  // a ModeName
   double duration_s = -1;    // simulated seconds; -1: the scenario's
   std::string out;           // log path; default <scenario name>.lcmlog

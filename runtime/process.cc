@@ -20,6 +20,9 @@ namespace shoal {
 
 void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
   app->add_option("--scenario", opt->scenario, "Scenario file (TOML)")->required();
+  app->add_option("--set", opt->set,
+                  "KEY=VALUE: change the scenario as shoal run was told to (repeatable)")
+      ->allow_extra_args(false);
   app->add_option("--lcm-url", opt->lcm_url, "LCM URL of the run's bus")->required();
   app->add_option("--rx-url", opt->rx_url,
                   "LCM URL on which this process receives (default: --lcm-url)");
@@ -40,7 +43,7 @@ int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
     return app->exit(e) == 0 ? 0 : 2;
   }
   InstallProcessSignals();
-  return LoadScenarioOrReport(name, opt.scenario, scenario) ? -1 : 2;
+  return LoadScenarioWithSetsOrReport(name, opt.scenario, opt.set, scenario) ? -1 : 2;
 }
 
 void InstallProcessSignals() {

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -25,6 +26,7 @@ inline std::optional<Mode> ParseMode(std::string_view name) {
 
 struct ProcessOptions {
   std::string scenario;
+  std::vector<std::string> set;  // --set KEY=VALUE changes of the scenario (shoal run's)
   std::string lcm_url;       // the run's shared bus
   std::string rx_url;        // where this process receives (lockstep clock, SHOAL_RX_<id>); "" = lcm_url
   std::string mode = ModeName(Mode::kLockstep);

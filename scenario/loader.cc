@@ -1899,7 +1899,7 @@ Scenario ParseScenario(const std::string& text, const std::string& path,
 }
 
 bool LoadScenarioOrReport(const std::string& who, const std::string& path, Scenario* out) {
-  return LoadScenarioOrReport(who, path, {}, out);
+  return LoadScenarioOrReport(who, path, std::vector<ScenarioOverride>(), out);
 }
 
 bool LoadScenarioOrReport(const std::string& who, const std::string& path,
@@ -1911,6 +1911,18 @@ bool LoadScenarioOrReport(const std::string& who, const std::string& path,
     std::cerr << who << ": " << e.what() << "\n";
     return false;
   }
+}
+
+bool LoadScenarioWithSetsOrReport(const std::string& who, const std::string& path,
+                                  const std::vector<std::string>& set_flags, Scenario* out) {
+  std::vector<ScenarioOverride> overrides;
+  try {
+    overrides = ParseSetFlags(set_flags);
+  } catch (const ScenarioError& e) {
+    std::cerr << who << ": " << e.what() << "\n";
+    return false;
+  }
+  return LoadScenarioOrReport(who, path, overrides, out);
 }
 
 }  // namespace shoal

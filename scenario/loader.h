@@ -40,6 +40,11 @@ Scenario ParseScenario(const std::string& text, const std::string& path,
 bool LoadScenarioOrReport(const std::string& who, const std::string& path,
                           const std::vector<ScenarioOverride>& overrides, Scenario* out);
 
+/// LoadScenarioOrReport with the text of --set flags (ParseSetFlags): a bad flag is
+/// reported the same way.
+bool LoadScenarioWithSetsOrReport(const std::string& who, const std::string& path,
+                                  const std::vector<std::string>& set_flags, Scenario* out);
+
 /// The scenario text with the overrides applied (a TOML document), for logs and campaigns:
 /// the merged tree in TOML, headed by comments naming the base file and each override.
 /// `text` itself when there are none. Throws ScenarioError on a bad file or override (it

@@ -254,6 +254,12 @@ ScenarioOverride ParseSetFlag(const std::string& text) {
   return o;
 }
 
+std::vector<ScenarioOverride> ParseSetFlags(const std::vector<std::string>& texts) {
+  std::vector<ScenarioOverride> overrides;
+  for (const std::string& text : texts) overrides.push_back(ParseSetFlag(text));
+  return overrides;
+}
+
 void ApplyOverrides(const std::vector<ScenarioOverride>& overrides, toml::table* root) {
   for (const ScenarioOverride& o : overrides) ApplyOne(o, root);
 }

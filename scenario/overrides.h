@@ -23,4 +23,7 @@ struct ScenarioOverride {
 /// Parses "key=value" as given to --set; throws ScenarioError naming --set on bad syntax.
 ScenarioOverride ParseSetFlag(const std::string& text);
 
+/// ParseSetFlag of each, in order.
+std::vector<ScenarioOverride> ParseSetFlags(const std::vector<std::string>& texts);
+
 }  // namespace shoal

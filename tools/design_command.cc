@@ -7,8 +7,11 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "design/report.h"
 #include "scenario/loader.h"
@@ -72,6 +75,53 @@ bool WriteCertificateFile(const std::string& path, design::DesignReport* r) {
   return true;
 }
 
+/// A double as TOML text that reads back as the same double.
+std::string ExactNumber(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.17g", v);
+  return text;
+}
+
+/// --write-scenario with --set: the effective scenario (the file changed by every --set,
+/// then by the advised gains), as shoal sim --set would run it, headed by the changes.
+bool WriteEffectiveScenarioWithGains(const DesignOptions& opt, double k1, double k2,
+                                     std::string* err) {
+  std::vector<ScenarioOverride> changes;
+  std::ifstream in(opt.scenario, std::ios::binary);
+  std::ostringstream file;
+  file << in.rdbuf();
+  std::string text;
+  try {
+    changes = ParseSetFlags(opt.set);
+    const std::string origin = "shoal design --advise";
+    changes.push_back({"control.k1", ExactNumber(k1), origin});
+    changes.push_back({"control.k2", ExactNumber(k2), origin});
+    // A scenario named in [run] gets the suffix its advised copy has without --set; one
+    // named by its file keeps taking the name of the file written.
+    const std::string effective = ApplyOverridesToText(file.str(), opt.scenario, changes);
+    if (ParseScenario(effective, "a").name == ParseScenario(effective, "b").name) {
+      const std::string name = ParseScenario(effective, "a").name + "_advised";
+      changes.push_back({"run.name", "\"" + name + "\"", origin});
+    }
+    text = ApplyOverridesToText(file.str(), opt.scenario, changes);
+    ParseScenario(text, opt.write_scenario);
+  } catch (const ScenarioError& e) {
+    *err = std::string("the rewritten scenario does not load: ") + e.what();
+    return false;
+  }
+  // Written beside the target and renamed over it, as without --set.
+  const std::string tmp = opt.write_scenario + ".tmp";
+  std::ofstream f(tmp, std::ios::binary);
+  f << text;
+  f.close();
+  if (!f || std::rename(tmp.c_str(), opt.write_scenario.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    *err = opt.write_scenario + ": cannot write there";
+    return false;
+  }
+  return true;
+}
+
 /// --write-scenario: the scenario with the advised gains. False if it could not be written.
 bool WriteAdvisedScenario(const DesignOptions& opt, design::DesignReport* r) {
   if (opt.write_scenario.empty()) return true;
@@ -83,7 +133,11 @@ bool WriteAdvisedScenario(const DesignOptions& opt, design::DesignReport* r) {
   }
   std::string err;
   const design::GainAdvice& g = r->advice->advice;
-  if (!design::WriteScenarioWithGains(opt.scenario, g.k1, g.k2, opt.write_scenario, &err)) {
+  const bool written =
+      opt.set.empty()
+          ? design::WriteScenarioWithGains(opt.scenario, g.k1, g.k2, opt.write_scenario, &err)
+          : WriteEffectiveScenarioWithGains(opt, g.k1, g.k2, &err);
+  if (!written) {
     std::cerr << "shoal design: --write-scenario: " << err << "\n";
     return false;
   }
@@ -95,7 +149,7 @@ bool WriteAdvisedScenario(const DesignOptions& opt, design::DesignReport* r) {
 
 int RunDesign(const DesignOptions& opt) {
   Scenario s;
-  if (!LoadScenarioOrReport("shoal design", opt.scenario, &s)) return 2;
+  if (!LoadScenarioWithSetsOrReport("shoal design", opt.scenario, opt.set, &s)) return 2;
   const design::DesignRequest request = RequestOf(opt);
   std::string why;
   if (!request.IsValid(s, &why)) {

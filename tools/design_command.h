@@ -2,11 +2,13 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace shoal {
 
 struct DesignOptions {
   std::string scenario;
+  std::vector<std::string> set;  // --set KEY=VALUE changes of the scenario, in order
   bool json = false;
   // Overrides of the scenario's values (empty: the scenario's).
   std::optional<double> k1, k2;

@@ -14,7 +14,7 @@ namespace shoal {
 
 int RunRun(const RunOptions& opt) {
   Scenario s;
-  if (!LoadScenarioOrReport("shoal run", opt.launch.scenario, &s)) return kExitBadInput;
+  if (!LoadScenarioWithSetsOrReport("shoal run", opt.launch.scenario, opt.launch.set, &s)) return kExitBadInput;
   const bool show = !opt.quiet && !opt.json && isatty(2);
   LaunchCallbacks cb;
   if (show) {

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "analysis/verdict.h"
 #include "runtime/process.h"
@@ -17,11 +18,22 @@
 
 namespace {
 
+/// --set KEY=VALUE, repeatable: one argument per occurrence, so that the scenario after
+/// it is never taken for a second change.
+void AddSetOption(CLI::App* c, std::vector<std::string>* set) {
+  c->add_option("--set", *set,
+                "Change the scenario: KEY=VALUE, a dotted key and a TOML value "
+                "(--set channel.delay.base_s=0.3); repeatable, applied in order "
+                "(docs/scenario.md)")
+      ->allow_extra_args(false);
+}
+
 CLI::App* AddSim(CLI::App* app, shoal::SimOptions* sim) {
   CLI::App* c = app->add_subcommand(
       "sim", "Run a scenario's whole swarm in one process, as fast as the CPU allows");
   c->add_option("scenario", sim->scenario, "Scenario file (TOML, see docs/scenario.md)")
       ->required();
+  AddSetOption(c, &sim->set);
   c->add_option("--out", sim->out, "Write an LCM log (lcm-logplayer format) to this path");
   c->add_option("--duration", sim->duration_s,
                 "Simulated seconds (default: the scenario's run.duration_s)");
@@ -38,6 +50,7 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
       "Launch the scenario as a SIL run: one process per vehicle, leader, channel "
       "emulator and lcm-logger, supervised");
   c->add_option("scenario", run->launch.scenario, "Scenario file (TOML)")->required();
+  AddSetOption(c, &run->launch.set);
   c->add_option("--mode", run->launch.mode,
                 "lockstep (deterministic, as fast as possible) or "
                 "realtime (wall-clock loops)")
@@ -135,6 +148,7 @@ CLI::App* AddDesign(CLI::App* app, shoal::DesignOptions* design) {
       "delay margin, a verdict; optionally the empirical margin and Ceres tuning "
       "(docs/theory.md)");
   c->add_option("scenario", design->scenario, "Scenario file (TOML)")->required();
+  AddSetOption(c, &design->set);
   c->add_flag("--json", design->json, "Print one JSON object instead of the report");
   c->add_option("--k1", design->k1, "Position gain k1 (default: the scenario's)");
   c->add_option("--k2", design->k2, "Velocity gain k2 (default: the scenario's)");

@@ -16,7 +16,7 @@ namespace shoal {
 
 int RunSim(const SimOptions& opt) {
   Scenario s;
-  if (!LoadScenarioOrReport("shoal sim", opt.scenario, &s)) return kExitBadInput;
+  if (!LoadScenarioWithSetsOrReport("shoal sim", opt.scenario, opt.set, &s)) return kExitBadInput;
   if (opt.duration_s == 0 || (opt.duration_s < 0 && opt.duration_s != -1)) {
     std::cerr << "shoal sim: --duration must be a positive number of seconds (got "
               << opt.duration_s << ")\n";

@@ -1,11 +1,13 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace shoal {
 
 struct SimOptions {
   std::string scenario;
+  std::vector<std::string> set;  // --set KEY=VALUE changes of the scenario, in order
   std::string out;          // LCM log path; "" = no log
   double duration_s = -1;   // < 0: the scenario's
   bool json = false;
