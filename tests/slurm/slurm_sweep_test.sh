@@ -156,8 +156,18 @@ EOF
 
 "$cluster_sh" stop "$work/cluster"
 t4=$(date +%s.%N)
+# A daemon that has exited may be a zombie for a moment, until init reaps it.
+running() {
+  local state
+  state=$(ps -o stat= -p "$1" 2>/dev/null || true)
+  [ -n "$state" ] && [ "${state:0:1}" != Z ]
+}
 for pid in $daemon_pids; do
-  ! kill -0 "$pid" 2>/dev/null || fail "daemon pid $pid still runs after stop"
+  for _ in $(seq 20); do
+    running "$pid" || break
+    sleep 0.1
+  done
+  ! running "$pid" || fail "daemon pid $pid ($(ps -o args= -p "$pid")) still runs after stop"
 done
 for env_file in /proc/[0-9]*/environ; do
   if grep -sqzxF "SHOAL_SLURM_CLUSTER=$work/cluster" "$env_file"; then
