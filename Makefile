@@ -16,8 +16,12 @@ DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
 # make test also runs each libFuzzer target briefly (bench/fuzz.sh): clang and its runtime,
 # about 45 MB to download. PACKAGES: what `deps` installs (make test adds these).
 FUZZ_PACKAGES := clang libclang-rt-14-dev
+# make test runs a sharded campaign on a single-node Slurm cluster it starts itself
+# (tests/slurm/): Slurm's daemons and clients and the munge authentication daemon, about
+# 8 MB to download; no daemon starts on install.
+SLURM_PACKAGES := slurm-wlm munge
 PACKAGES = $(DEB_PACKAGES)
-test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES)
+test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES)
 # Executions per fuzz target in make test (a few seconds each; bench/fuzz.sh 10000000 is
 # the campaign of docs/benchmarks.md).
 FUZZ_SHORT_RUNS ?= 50000
