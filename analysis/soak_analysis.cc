@@ -358,7 +358,7 @@ SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, int index) {
 }
 
 std::string PhaseName(const SoakPhaseResult& p) {
-  return "phase " + std::to_string(p.index) + " (" + p.phase.label + ", " +
+  return "phase " + std::to_string(p.index + 1) + " (" + p.phase.label + ", " +
          Num(p.phase.start_s) + "-" + Num(p.phase.end_s) + " s)";
 }
 
@@ -439,7 +439,7 @@ bool CheckPhases(const std::vector<SoakPhase>& phases, std::string* error) {
   for (std::size_t k = 0; k < phases.size(); ++k) {
     const bool ordered = k == 0 || phases[k].start_s >= phases[k - 1].end_s;
     if (!(phases[k].end_s > phases[k].start_s) || !ordered) {
-      *error = "phase " + std::to_string(k) + " (" + phases[k].label +
+      *error = "phase " + std::to_string(k + 1) + " (" + phases[k].label +
                "): its window must be non-empty and after the previous phase's";
       return false;
     }

@@ -9,8 +9,6 @@
 #include <map>
 #include <set>
 
-#include "core/theory.h"
-#include "core/topology.h"
 #include "scenario/loader.h"
 #include "scenario/regular_file.h"
 
@@ -87,10 +85,6 @@ std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario
       throw CampaignError(std::string(e.what()) + " (point " + std::to_string(p.index) + ")");
     }
     plan.duration_s = c.duration_s > 0 ? c.duration_s : s.duration_s;
-    const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
-    const theory::DelayMargin m =
-        theory::ComputeDelayMargin(theory::HEigenvalues(topo.H()), s.k1, s.k2);
-    plan.delay_margin_s = m.stable_at_zero ? m.tau_s : 0.0;
     plans.push_back(std::move(plan));
   }
   return plans;
@@ -102,26 +96,6 @@ double PointTimeout(const Campaign& c, const PointPlan& plan) {
                        : c.engine == CampaignEngine::kLockstep ? 10.0
                                                                : 100.0;
   return 60.0 + 10.0 * plan.duration_s / speed;
-}
-
-nlohmann::ordered_json CampaignTheory(const Campaign& c, const std::vector<CampaignPoint>& points,
-                                      const std::vector<PointPlan>& plans) {
-  nlohmann::ordered_json curve = nlohmann::ordered_json::array();
-  std::set<std::string> seen;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    nlohmann::ordered_json values = nlohmann::ordered_json::object();
-    for (std::size_t a = 0; a < c.axes.size(); ++a) {
-      if (c.axes[a].key.rfind("channel", 0) != 0) values[c.axes[a].key] = points[i].json[a];
-    }
-    if (!seen.insert(values.dump()).second) continue;
-    curve.push_back({{"values", values}, {"delay_margin_s", plans[i].delay_margin_s}});
-  }
-  nlohmann::ordered_json theory;
-  theory["delay_margin_s"] = {
-      {"what", "exact constant-delay margin of protocol (10) for the point's gains and "
-               "initial topology (docs/theory.md)"},
-      {"curve", curve}};
-  return theory;
 }
 
 }  // namespace shoal

@@ -18,7 +18,6 @@ namespace shoal {
 
 struct PointPlan {
   double duration_s = 0;       // simulated seconds of the point's run
-  double delay_margin_s = 0;   // exact constant-delay margin of its gains and topology
 };
 
 /// The base scenario's text (a regular file of at most 16 MiB); throws CampaignError.
@@ -43,12 +42,5 @@ std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario
 /// 60 s + 10 x its duration at the engine's slowest expected speed (realtime 1x,
 /// lockstep 10x, sim 100x).
 double PointTimeout(const Campaign& c, const PointPlan& plan);
-
-/// summary.json's "theory": the exact constant-delay margin (docs/theory.md) for each
-/// combination of the values of the axes that are not channel keys, the curve a
-/// stability map over a delay axis draws. The map itself (render/campaign_figures.h) is
-/// drawn from summary.json and results by the caller of this.
-nlohmann::ordered_json CampaignTheory(const Campaign& c, const std::vector<CampaignPoint>& points,
-                                      const std::vector<PointPlan>& plans);
 
 }  // namespace shoal

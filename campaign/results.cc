@@ -120,6 +120,23 @@ bool ParseShard(const std::string& text, Shard* out, std::string* error) {
   return true;
 }
 
+namespace {
+
+/// The pass criteria as a reader writes them: "converged = true", "x <= 0.5".
+ojson CriteriaText(const Campaign& c) {
+  ojson out = ojson::array();
+  for (const CampaignCriterion& cr : c.pass) {
+    if (cr.equals) out.push_back(cr.key + " = " + cr.equals->dump());
+    std::string bound = cr.key;
+    if (cr.min) bound = TomlFloatText(*cr.min) + " <= " + bound;
+    if (cr.max) bound += " <= " + TomlFloatText(*cr.max);
+    if (cr.min || cr.max) out.push_back(bound);
+  }
+  return out;
+}
+
+}  // namespace
+
 nlohmann::ordered_json MakeManifest(const Campaign& c, const std::string& scenario_text,
                                     const std::vector<std::string>& cli_set,
                                     const std::vector<CampaignPoint>& points, const Shard& shard,
@@ -152,8 +169,16 @@ nlohmann::ordered_json MakeManifest(const Campaign& c, const std::string& scenar
   m["sampling"] = c.sampling == CampaignSampling::kLhs ? "lhs" : "grid";
   m["points"] = static_cast<std::int64_t>(points.size());
   m["axes"] = axes;
-  m["map"] = {{"x", c.map_x.empty() && !c.axes.empty() ? c.axes[0].key : c.map_x},
-              {"y", c.map_y.empty() && c.axes.size() > 1 ? c.axes[1].key : c.map_y}};
+  const std::string map_x = c.map_x.empty() && !c.axes.empty() ? c.axes[0].key : c.map_x;
+  const std::string map_y = c.map_y.empty() && c.axes.size() > 1 ? c.axes[1].key : c.map_y;
+  const auto log_axis = [&](const std::string& key) {
+    for (const CampaignAxis& a : c.axes) {
+      if (a.key == key) return a.kind == CampaignAxis::Kind::kFromTo && a.log;
+    }
+    return false;
+  };
+  m["map"] = {{"x", map_x}, {"y", map_y}, {"x_log", log_axis(map_x)}, {"y_log", log_axis(map_y)}};
+  m["criteria"] = CriteriaText(c);
   m["set"] = set;
   m["hash"] = Fnv1a(all);
   m["shard"] = std::to_string(shard.k) + "/" + std::to_string(shard.n);
@@ -362,6 +387,7 @@ nlohmann::ordered_json Summarize(const nlohmann::ordered_json& manifest, const R
     s["axes"].push_back(a);
   }
   s["map"] = manifest.value("map", ojson());
+  s["criteria"] = manifest.value("criteria", ojson::array());
   s["theory"] = manifest.value("theory", ojson());
   return s;
 }

@@ -14,6 +14,7 @@
 #include "tools/render_command.h"
 #include "tools/run_command.h"
 #include "tools/sim_command.h"
+#include "tools/soak_command.h"
 #include "tools/sweep_command.h"
 
 namespace {
@@ -243,6 +244,22 @@ CLI::App* AddSweep(CLI::App* app, shoal::SweepOptions* sw, shoal::SweepMergeOpti
   return c;
 }
 
+CLI::App* AddSoak(CLI::App* app, shoal::SoakOptions* soak) {
+  CLI::App* c = app->add_subcommand(
+      "soak",
+      "One long SIL run (lockstep or realtime) whose phases step the campaign's channel "
+      "values, judged phase by phase and minute by minute: a pass/fail verdict, soak.json and "
+      "soak.png (docs/campaigns.md)");
+  c->add_option("campaign", soak->campaign, "Campaign file with a [soak] table (TOML)")->required();
+  c->add_option("--out", soak->out,
+                "Output directory: soak.lcmlog (the run's log), soak.json, soak.png")
+      ->required();
+  AddSetOption(c, &soak->set);
+  c->add_flag("--json", soak->json, "Print soak.json instead of the summary");
+  c->add_flag("--quiet", soak->quiet, "No progress line");
+  return c;
+}
+
 /// -1 is the commands' "not given" marker: a --duration the user typed must be positive.
 bool CheckDuration(const CLI::App* cmd, const char* flag, double value) {
   if (!cmd->parsed() || cmd->count(flag) == 0 || value > 0) return true;
@@ -272,6 +289,8 @@ int main(int argc, char** argv) {
   shoal::SweepOptions sweep;
   shoal::SweepMergeOptions sweep_merge;
   CLI::App* sweep_cmd = AddSweep(&app, &sweep, &sweep_merge);
+  shoal::SoakOptions soak;
+  CLI::App* soak_cmd = AddSoak(&app, &soak);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -288,6 +307,7 @@ int main(int argc, char** argv) {
   if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
   if (design_cmd->parsed()) return shoal::RunDesign(design);
   if (ren_cmd->parsed()) return shoal::RunRender(ren);
+  if (soak_cmd->parsed()) return shoal::RunSoak(soak);
   if (sweep_cmd->parsed()) {
     if (sweep_cmd->get_subcommand("merge")->parsed()) return shoal::RunSweepMerge(sweep_merge);
     if (sweep.campaign.empty() || sweep.out.empty()) {

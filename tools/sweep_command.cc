@@ -16,6 +16,7 @@
 #include "analysis/verdict.h"
 #include "campaign/campaign_file.h"
 #include "campaign/executor.h"
+#include "campaign/map.h"
 #include "campaign/plan.h"
 #include "campaign/points.h"
 #include "campaign/results.h"
@@ -135,6 +136,16 @@ void PrintSummary(const ojson& s, const std::string& dir) {
   std::printf("  results: %s/results.jsonl, results.csv, summary.json\n", dir.c_str());
 }
 
+/// Draws DIR/stability_map.png and says where it is, or why there is none.
+void ReportMap(const std::string& dir, const ojson& summary, const Rows& rows, bool quiet) {
+  std::string why;
+  if (DrawStabilityMap(dir, summary, rows, &why)) {
+    if (!quiet) std::printf("  stability map: %s/stability_map.png\n", dir.c_str());
+  } else {
+    std::fprintf(stderr, "shoal sweep: no stability map: %s\n", why.c_str());
+  }
+}
+
 /// 0 when all `expected` points finished and passed, else 1.
 int SummaryStatus(const ojson& s, std::int64_t expected) {
   const bool all_pass = s["passed"].get<std::int64_t>() == expected &&
@@ -176,7 +187,7 @@ Prepared Prepare(const SweepOptions& opt) {
   p.plans = PlanPoints(p.campaign, scenario_text, p.base, p.points);
   std::vector<std::string> cli_set = opt.set;
   p.manifest = MakeManifest(p.campaign, scenario_text, cli_set, p.points, p.shard,
-                            CampaignTheory(p.campaign, p.points, p.plans));
+                            MapTheory(p.campaign, scenario_text, p.base, p.points));
   return p;
 }
 
@@ -254,18 +265,20 @@ int RunSweep(const SweepOptions& opt) {
   }
   const ojson summary = Summarize(p.manifest, dir->rows());
   if (!opt.quiet) PrintSummary(summary, opt.out);
+  ReportMap(opt.out, summary, dir->rows(), opt.quiet);
   return SummaryStatus(summary, shard_points);
 }
 
 int RunSweepMerge(const SweepMergeOptions& opt) {
   try {
-    MergeResults(opt.dirs, opt.out, opt.allow_missing, opt.allow_overlap);
+    const Rows rows = MergeResults(opt.dirs, opt.out, opt.allow_missing, opt.allow_overlap);
     const ojson summary = nlohmann::ordered_json::parse(
         [&] {
           std::ifstream in(opt.out + "/summary.json");
           return std::string(std::istreambuf_iterator<char>(in), {});
         }());
     if (!opt.quiet) PrintSummary(summary, opt.out);
+    ReportMap(opt.out, summary, rows, opt.quiet);
     return SummaryStatus(summary, summary["points"].get<std::int64_t>());
   } catch (const CampaignError& e) {
     std::cerr << "shoal sweep merge: " << e.what() << "\n";

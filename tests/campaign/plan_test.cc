@@ -1,5 +1,7 @@
 #include "campaign/plan.h"
 
+#include "campaign/map.h"
+
 #include <gtest/gtest.h>
 
 namespace shoal {
@@ -45,20 +47,38 @@ TEST(CampaignPlan, ABadAxisValueNamesTheAxisLineAndPoint) {
   EXPECT_NE(PlanError(Parse(""), {"=3"}).find("--set"), std::string::npos);
 }
 
-TEST(CampaignPlan, TheoryIsTheExactDelayMarginPerGain) {
-  const Campaign c = Parse("duration_s = 50\n[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [0.1, 0.2]\n"
-                           "[[axis]]\nkey = \"control.k2\"\nvalues = [1.152, 2.0]\n");
+TEST(CampaignPlan, TheoryIsTheExactDelayMarginAndTheorem3AlongTheOtherMapAxis) {
+  const Campaign c = Parse(
+      "duration_s = 50\nset = ['channel.delay={ model = \"constant\", base_s = 0.1 }']\n"
+      "[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [0.1, 0.2]\n"
+      "[[axis]]\nkey = \"control.k2\"\nvalues = [1.152, 2.0]\n");
   const auto points = MakePoints(c);
-  const auto plans = PlanPoints(c, ReadScenarioText(c.scenario), BaseOverrides(c, {}), points);
+  const auto base = BaseOverrides(c, {});
+  const auto plans = PlanPoints(c, ReadScenarioText(c.scenario), base, points);
   ASSERT_EQ(plans.size(), 4u);
   EXPECT_EQ(plans[0].duration_s, 50);
-  EXPECT_NEAR(plans[0].delay_margin_s, 0.3435, 5e-5);  // docs/theory.md, Example 2
   EXPECT_EQ(PointTimeout(c, plans[0]), 65);
-  const auto theory = CampaignTheory(c, points, plans);
-  const auto& curve = theory["delay_margin_s"]["curve"];
-  ASSERT_EQ(curve.size(), 2u);  // one per k2: the delay axis does not change the margin
-  EXPECT_EQ(curve[0]["values"]["control.k2"], 1.152);
-  EXPECT_GT(curve[1]["delay_margin_s"].get<double>(), 0.0);
+  const auto theory = MapTheory(c, ReadScenarioText(c.scenario), base, points);
+  EXPECT_EQ(theory["delay_axis"], "channel.delay.base_s");
+  EXPECT_EQ(theory["along"], "control.k2");
+  const auto& curve = theory["points"];
+  ASSERT_EQ(curve.size(), 2u);  // one per k2: the delay axis does not change the bounds
+  EXPECT_EQ(curve[0]["at"], 1.152);
+  // docs/theory.md, Example 2: a constant delay has no offset from its base.
+  EXPECT_NEAR(curve[0]["exact_on_axis"].get<double>(), 0.3435, 5e-4);
+  EXPECT_TRUE(curve[0]["theorem3_on_axis"].is_null());  // infeasible even at h = 0
+  EXPECT_FALSE(curve[0]["theorem3_why"].get<std::string>().empty());
+  EXPECT_GT(curve[1]["exact_on_axis"].get<double>(), 0.0);
+  EXPECT_NE(curve[1]["exact_on_axis"], curve[0]["exact_on_axis"]);
+}
+
+TEST(CampaignPlan, WithoutADelayAxisTheTheoryIsTheFirstPointsForReference) {
+  const Campaign c = Parse("[[axis]]\nkey = \"run.seed\"\nrange = [1, 3]\n");
+  const auto points = MakePoints(c);
+  const auto theory = MapTheory(c, ReadScenarioText(c.scenario), BaseOverrides(c, {}), points);
+  EXPECT_TRUE(theory["delay_axis"].is_null());
+  ASSERT_EQ(theory["points"].size(), 1u);
+  EXPECT_NEAR(theory["points"][0]["exact_margin_s"].get<double>(), 0.3435, 5e-4);
 }
 
 }  // namespace

@@ -1,0 +1,171 @@
+#include "campaign/soak_plan.h"
+
+#include <algorithm>
+#include <sstream>
+
+#include <toml++/toml.h>
+
+#include "campaign/points.h"
+#include "campaign/plan.h"
+#include "scenario/loader.h"
+
+namespace shoal {
+namespace {
+
+/// Timeline limit of the scenario loader (docs/scenario.md): phases and the base
+/// scenario's own events share it.
+constexpr std::size_t kMaxEvents = 10000;
+
+[[noreturn]] void Fail(const Campaign& c, int line, const std::string& what) {
+  throw CampaignError(c.path + ":" + std::to_string(line) + ": " + what);
+}
+
+bool IsChannelModelKey(const std::string& key) {
+  for (const char* table : {"channel.delay", "channel.loss"}) {
+    const std::string t = table;
+    if (key == t || key.rfind(t + ".", 0) == 0) return true;
+  }
+  return false;
+}
+
+void CheckSoakable(const Campaign& c) {
+  if (!c.soak.present) {
+    Fail(c, 1, "no [soak] table; shoal soak needs one (phase_s, settle_s; docs/campaigns.md)");
+  }
+  if (c.engine == CampaignEngine::kSim) {
+    Fail(c, 1, "campaign.engine: a soak is one shoal run, in lockstep or realtime (got \"sim\"); "
+               "set engine = \"lockstep\" or \"realtime\"");
+  }
+  if (c.sampling != CampaignSampling::kGrid) {
+    Fail(c, 1, "campaign.sampling: a soak's phases are the grid's points in order (got "
+               "\"lhs\"); remove sampling");
+  }
+  if (!(c.soak.settle_s < c.soak.phase_s)) {
+    Fail(c, 1, "soak.settle_s: must be shorter than soak.phase_s (got " +
+                   TomlFloatText(c.soak.settle_s) + " >= " + TomlFloatText(c.soak.phase_s) + ")");
+  }
+  if (c.axes.empty()) Fail(c, 1, "a soak needs at least one [[axis]]: its values are the phases");
+  for (const CampaignAxis& axis : c.axes) {
+    if (!IsChannelModelKey(axis.key)) {
+      Fail(c, axis.line,
+           "axis " + axis.key + ": a soak steps only what a channel event changes mid-run; "
+           "use a key under channel.delay or channel.loss (sweep the others with shoal sweep)");
+    }
+  }
+}
+
+/// The tree of the scenario with `overrides` applied.
+toml::table EffectiveTree(const Campaign& c, const std::string& text,
+                          const std::vector<ScenarioOverride>& overrides) {
+  try {
+    return toml::parse(ApplyOverridesToText(text, c.scenario, overrides), c.scenario);
+  } catch (const ScenarioError& e) {
+    throw CampaignError(e.what());
+  } catch (const toml::parse_error& e) {
+    throw CampaignError(c.scenario + ": " + std::string(e.description()));
+  }
+}
+
+/// A copy of `node` written inline, tables inside tables too, so that it fits in one value.
+toml::table InlineCopy(const toml::table& t) {
+  toml::table copy = t;
+  copy.is_inline(true);
+  for (auto&& [key, value] : copy) {
+    if (auto* sub = value.as_table()) *sub = InlineCopy(*sub);
+  }
+  return copy;
+}
+
+std::string PhaseLabel(const Campaign& c, const CampaignPoint& p) {
+  std::string label;
+  for (std::size_t a = 0; a < c.axes.size(); ++a) {
+    label += (a ? ", " : "") + c.axes[a].key + " = " + p.values[a];
+  }
+  return label;
+}
+
+/// The `channel` event of phase `k`: the effective channel.delay and channel.loss of its
+/// point's scenario, on every link, for its window.
+toml::table PhaseEvent(const toml::table& tree, double start, double end, bool last) {
+  toml::table e;
+  e.insert("at_s", start);
+  if (!last) e.insert("until_s", end);
+  e.insert("kind", "channel");
+  const toml::table* channel = tree["channel"].as_table();
+  const toml::table none{{"model", "none"}};
+  for (const char* model : {"delay", "loss"}) {
+    const toml::table* t = channel ? (*channel)[model].as_table() : nullptr;
+    e.insert(model, InlineCopy(t ? *t : none));
+  }
+  return e;
+}
+
+double AtOf(const toml::node& n) {
+  const toml::table* t = n.as_table();
+  return t ? (*t)["at_s"].value<double>().value_or(0.0) : 0.0;
+}
+
+/// The `event` value: the base scenario's events and the phases', ordered by at_s (an
+/// event of the base at a phase's start comes first, as it was written first).
+std::string TimelineValue(const toml::table& base_tree, std::vector<toml::table> phase_events) {
+  toml::array events;
+  if (const toml::array* own = base_tree["event"].as_array()) {
+    for (const toml::node& n : *own) {
+      if (const toml::table* t = n.as_table()) events.push_back(InlineCopy(*t));
+    }
+  }
+  for (toml::table& e : phase_events) events.push_back(std::move(e));
+  std::vector<toml::table> sorted;
+  for (toml::node& n : events) sorted.push_back(*n.as_table());
+  std::stable_sort(sorted.begin(), sorted.end(), [](const toml::table& a, const toml::table& b) {
+    return AtOf(a) < AtOf(b);
+  });
+  toml::array ordered;
+  for (toml::table& t : sorted) ordered.push_back(std::move(t));
+  std::ostringstream out;
+  out << toml::toml_formatter{ordered, toml::format_flags::none};
+  return out.str();
+}
+
+}  // namespace
+
+SoakPlan PlanSoak(const Campaign& c, const std::string& scenario_text,
+                  const std::vector<ScenarioOverride>& base) {
+  CheckSoakable(c);
+  const std::vector<CampaignPoint> points = MakePoints(c);
+  if (points.size() > kMaxEvents) {
+    Fail(c, c.axes.front().line,
+         "a soak of " + std::to_string(points.size()) + " phases is beyond the timeline's " +
+             std::to_string(kMaxEvents) + " events; use fewer axis values");
+  }
+  SoakPlan plan;
+  const double phase_s = c.soak.phase_s;
+  std::vector<toml::table> events;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    SoakPlanPhase phase;
+    phase.start_s = phase_s * static_cast<double>(k);
+    phase.end_s = phase_s * static_cast<double>(k + 1);
+    phase.label = PhaseLabel(c, points[k]);
+    for (std::size_t a = 0; a < c.axes.size(); ++a) {
+      phase.values[c.axes[a].key] = points[k].json[a];
+    }
+    const std::vector<ScenarioOverride> own = PointOverrides(c, base, points[k]);
+    events.push_back(PhaseEvent(EffectiveTree(c, scenario_text, own), phase.start_s,
+                                phase.end_s, k + 1 == points.size()));
+    plan.phases.push_back(std::move(phase));
+  }
+  plan.duration_s = phase_s * static_cast<double>(points.size());
+  plan.overrides = base;
+  plan.overrides.push_back({"event",
+                            TimelineValue(EffectiveTree(c, scenario_text, base), std::move(events)),
+                            c.path + ": the soak's phases (" + std::to_string(points.size()) +
+                                " channel events)"});
+  try {
+    plan.scenario = ParseScenario(scenario_text, c.scenario, plan.overrides);
+  } catch (const ScenarioError& e) {
+    throw CampaignError(e.what());
+  }
+  return plan;
+}
+
+}  // namespace shoal
