@@ -1,4 +1,4 @@
-// Campaign file loading and validation (docs/campaign.md). Unknown keys are errors at
+// Campaign file loading and validation (docs/campaigns.md). Unknown keys are errors at
 // every level, with the closest valid key suggested.
 #include "campaign/campaign_file.h"
 

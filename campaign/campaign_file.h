@@ -1,4 +1,4 @@
-// The campaign file of `shoal sweep` and `shoal soak` (docs/campaign.md): which scenario,
+// The campaign file of `shoal sweep` and `shoal soak` (docs/campaigns.md): which scenario,
 // how each point runs, the axes of the points and the pass criteria. Loaded and validated
 // completely before anything runs; every problem is a CampaignError located as the
 // scenario loader's are: "<file>:<line>: <key>: <what> (got <value>); <fix>".

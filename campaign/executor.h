@@ -1,4 +1,4 @@
-// Runs a campaign's points as child processes, a few at a time (docs/campaign.md). Each
+// Runs a campaign's points as child processes, a few at a time (docs/campaigns.md). Each
 // point is its own process group, so that a hung point and everything it started can be
 // killed together, and Ctrl-C on the terminal reaches only `shoal sweep`, which then
 // stops the points itself (no process is left behind).

@@ -1,4 +1,4 @@
-// Every point's scenario, checked before any point runs (docs/campaign.md): the base
+// Every point's scenario, checked before any point runs (docs/campaigns.md): the base
 // scenario with the campaign's `set`, the command line's --set and the point's axis values
 // applied, validated as `shoal sim` would. A bad value is a CampaignError that names where
 // it came from ("sweep.toml:12: axis channel.delay.base_s: channel.delay.base_s: must be

@@ -1,4 +1,4 @@
-// The points of a campaign (docs/campaign.md): grid in nested-loop order (first axis
+// The points of a campaign (docs/campaigns.md): grid in nested-loop order (first axis
 // slowest) or a seeded Latin hypercube in draw order, numbered 0..P-1.
 #pragma once
 

@@ -1,4 +1,4 @@
-// The results of a campaign in its output directory (docs/campaign.md):
+// The results of a campaign in its output directory (docs/campaigns.md):
 //   campaign.json   what made the directory (points, hash, shard): resume and merge check it
 //   results.jsonl   one row per finished point, appended and flushed to disk as each ends;
 //                   rewritten in point order when the campaign ends
@@ -36,7 +36,7 @@ nlohmann::ordered_json MakeManifest(const Campaign& c, const std::string& scenar
                                     const std::vector<CampaignPoint>& points, const Shard& shard,
                                     const nlohmann::ordered_json& theory);
 
-/// One result row (field order as docs/campaign.md lists them).
+/// One result row (field order as docs/campaigns.md lists them).
 nlohmann::ordered_json MakeRow(const Campaign& c, const CampaignPoint& point,
                                const PointOutcome& outcome, const std::string& command);
 

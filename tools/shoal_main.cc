@@ -218,8 +218,8 @@ CLI::App* AddSweep(CLI::App* app, shoal::SweepOptions* sw, shoal::SweepMergeOpti
       "sweep",
       "Run every point of a campaign (parameter grid or Latin hypercube) as its own shoal "
       "sim/run, judge each by the campaign's pass criteria, write results and the pass/fail "
-      "boundary (docs/campaign.md)");
-  c->add_option("campaign", sw->campaign, "Campaign file (TOML, see docs/campaign.md)");
+      "boundary (docs/campaigns.md)");
+  c->add_option("campaign", sw->campaign, "Campaign file (TOML, see docs/campaigns.md)");
   c->add_option("--out", sw->out,
                 "Output directory: results.jsonl, results.csv, summary.json; run again with "
                 "the same directory to resume");

@@ -1,5 +1,5 @@
 // shoal sweep: every point of a campaign as its own `shoal sim|run` process, judged by the
-// campaign's criteria, with results that survive an interruption (docs/campaign.md).
+// campaign's criteria, with results that survive an interruption (docs/campaigns.md).
 #include "tools/sweep_command.h"
 
 #include <unistd.h>

@@ -1,4 +1,4 @@
-// shoal sweep and shoal sweep merge, run as a user runs them (docs/campaign.md).
+// shoal sweep and shoal sweep merge, run as a user runs them (docs/campaigns.md).
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>

@@ -1,0 +1,138 @@
+// shoal soak, run as a user runs it (docs/campaigns.md): one lockstep SIL run whose phases
+// step the delay, judged per phase; bad campaigns refused before anything runs; Ctrl-C
+// keeps the judgement of what ran.
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "tests/integration/test_util.h"
+
+namespace shoal::testing {
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+std::string WriteCampaign(const std::string& name, const std::string& text) {
+  const std::string dir = TmpPath("soak_cli_" + name);
+  std::system(("rm -rf " + dir + " && mkdir -p " + dir).c_str());
+  std::ofstream(dir + "/" + name + ".toml") << text;
+  return dir;
+}
+
+/// Example 2 with a constant delay, stepped through `values` every `phase_s`.
+std::string Steps(const std::string& values, const std::string& phase_s,
+                  const std::string& settle_s, const std::string& extra = "") {
+  return "[campaign]\nscenario = \"" + SourcePath("scenarios/paper_example2.toml") +
+         "\"\nengine = \"lockstep\"\n"
+         "set = ['channel.delay={ model = \"constant\", base_s = 0.1 }']\n" + extra +
+         "[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [" + values + "]\n"
+         "[pass]\nconverged = true\n"
+         "[soak]\nphase_s = " + phase_s + "\nsettle_s = " + settle_s + "\n";
+}
+
+int CountProcesses(const std::string& pattern) {
+  FILE* pipe = popen(("pgrep -c -f -- '" + pattern + "'").c_str(), "r");
+  char text[32] = {0};
+  if (pipe == nullptr) return -1;
+  const bool got = std::fgets(text, sizeof(text), pipe) != nullptr;
+  pclose(pipe);
+  return got ? std::atoi(text) : -1;
+}
+
+// The example campaign: two hours of mission time, the delay stepped from 0.05 s to 0.3 s
+// and back, all within Example 2's margin (0.3435 s).
+TEST(SoakCli, TwoHoursOfExample2InLockstepPass) {
+  const std::string dir = TmpPath("soak_cli_two_hours");
+  std::system(("rm -rf " + dir).c_str());
+  const RunResult r =
+      RunShoal("soak " + SourcePath("campaigns/soak_delay_steps.toml") + " --out " + dir, "soak_2h");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  const ojson soak = ParseJson(ReadFile(dir + "/soak.json"));
+  EXPECT_EQ(soak["verdict"], "pass") << soak["reasons"].dump();
+  ASSERT_EQ(soak["phases"].size(), 12u);
+  for (const ojson& p : soak["phases"]) EXPECT_TRUE(p["pass"].get<bool>()) << p.dump();
+  EXPECT_EQ(soak["phases"][5]["value"], "channel.delay.base_s = 0.3");
+  EXPECT_EQ(soak["phases"][11]["end_s"], 7200.0);
+  EXPECT_EQ(soak["minutes"].size(), 120u);
+  EXPECT_TRUE(soak["run"]["log_complete"].get<bool>());
+  EXPECT_EQ(soak["run"]["restarts"].size(), 0u);
+  for (const ojson& p : soak["processes"]) EXPECT_LE(p["growth"].get<double>(), 0.01) << p.dump();
+  EXPECT_GT(ReadFile(dir + "/soak.png").size(), 10000u);
+}
+
+TEST(SoakCli, APhaseBeyondTheMarginFailsTheVerdictNamingThatPhase) {
+  const std::string dir = WriteCampaign("beyond", Steps("0.1, 0.5, 0.1", "120", "90"));
+  const RunResult r = RunShoal("soak " + dir + "/beyond.toml --out " + dir + "/out", "soak_beyond");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  const ojson soak = ParseJson(ReadFile(dir + "/out/soak.json"));
+  EXPECT_EQ(soak["verdict"], "fail");
+  ASSERT_EQ(soak["phases"].size(), 3u);
+  EXPECT_TRUE(soak["phases"][0]["pass"].get<bool>());
+  EXPECT_FALSE(soak["phases"][1]["pass"].get<bool>());
+  EXPECT_FALSE(soak["phases"][1]["metrics"]["reconverged"].get<bool>());
+  ASSERT_FALSE(soak["reasons"].empty());
+  const std::string reason = soak["reasons"][0];
+  EXPECT_NE(reason.find("phase 2 (channel.delay.base_s = 0.5, 120-240 s)"), std::string::npos)
+      << reason;
+  EXPECT_NE(reason.find("did not re-converge"), std::string::npos) << reason;
+  EXPECT_NE(r.out.find("verdict FAIL"), std::string::npos) << r.out;
+  // The same campaign again into the same directory would overwrite a verdict: refused.
+  const RunResult again = RunShoal("soak " + dir + "/beyond.toml --out " + dir + "/out", "soak_again");
+  EXPECT_EQ(again.status, 2);
+  EXPECT_NE(again.err.find("already holds a soak"), std::string::npos) << again.err;
+}
+
+TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
+  const std::string head =
+      "[campaign]\nscenario = \"" + SourcePath("scenarios/paper_example2.toml") + "\"\n";
+  const std::string delay_axis = "[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [0.2]\n";
+  const std::string soak = "[soak]\nphase_s = 60\nsettle_s = 30\n";
+  const std::pair<std::string, std::string> cases[] = {
+      {head + "engine = \"sim\"\n" + delay_axis + soak,
+       "a soak is one shoal run, in lockstep or realtime"},
+      {Steps("0.1", "120", "120"), "soak.settle_s: must be shorter than soak.phase_s"},
+      {head + "engine = \"lockstep\"\n[[axis]]\nkey = \"control.k1\"\nvalues = [0.2]\n" + soak,
+       ":4: axis control.k1: a soak steps only what a channel event changes"},
+      {head + "engine = \"lockstep\"\n" + delay_axis, "no [soak] table"},
+      {head + "engine = \"lockstep\"\n" + delay_axis + "[pass]\nsettled = true\n" + soak,
+       "pass.settled: not a phase metric of a soak"},
+      {Steps("0.1, -1", "120", "90"), "axis channel.delay.base_s: channel.delay.base_s: must be"},
+  };
+  int i = 0;
+  for (const auto& [text, message] : cases) {
+    const std::string name = "bad" + std::to_string(i++);
+    const std::string dir = WriteCampaign(name, text);
+    const RunResult r = RunShoal("soak " + dir + "/" + name + ".toml --out " + dir + "/out", "soak_" + name);
+    EXPECT_EQ(r.status, 2) << text << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+    EXPECT_NE(access((dir + "/out").c_str(), F_OK), 0) << "nothing may be written or run";
+  }
+}
+
+TEST(SoakCli, CtrlCKeepsTheJudgementOfWhatRanAndLeavesNoProcess) {
+  const std::string dir = WriteCampaign("cut", Steps("0.1, 0.2, 0.1", "600", "300"));
+  const pid_t pid = StartShoal("soak " + dir + "/cut.toml --out " + dir + "/out", dir + "/cut.log");
+  std::this_thread::sleep_for(std::chrono::seconds(4));
+  kill(pid, SIGINT);
+  EXPECT_EQ(WaitExit(pid, 30, nullptr), 130) << ReadFile(dir + "/cut.log");
+  const ojson soak = ParseJson(ReadFile(dir + "/out/soak.json"));
+  EXPECT_EQ(soak["verdict"], "fail");
+  EXPECT_TRUE(soak["interrupted"].get<bool>());
+  bool said = false;
+  for (const ojson& reason : soak["reasons"]) {
+    said = said || reason.get<std::string>().find("interrupted") != std::string::npos;
+  }
+  EXPECT_TRUE(said) << soak["reasons"].dump();
+  EXPECT_GT(ReadFile(dir + "/out/soak.lcmlog").size(), 0u);
+  EXPECT_EQ(CountProcesses("[s]oak_cli_cut/out/soak.lcmlog"), 0);
+}
+
+}  // namespace
+}  // namespace shoal::testing
