@@ -36,7 +36,7 @@ struct SoakPlan {
 /// Plans the soak of campaign `c`; `scenario_text` is its base scenario's text and `base`
 /// BaseOverrides(c, --set). Throws CampaignError naming the campaign's line for a campaign
 /// soak cannot run (no [soak], sim engine, lhs sampling, an axis outside channel.delay and
-/// channel.loss, settle_s not shorter than phase_s) and for a scenario that does not load.
+/// channel.loss) and for a scenario that does not load.
 SoakPlan PlanSoak(const Campaign& c, const std::string& scenario_text,
                   const std::vector<ScenarioOverride>& base);
 

@@ -87,7 +87,7 @@ TEST(CampaignResults, SummaryHasPassRatesAndBoundaries) {
   EXPECT_EQ(d["boundary"][1].dump(), R"({"fixed":{"k":2},"last_pass":0.1,"first_fail":0.2})");
   const ojson& k = s["axes"][1];
   EXPECT_EQ(k["boundary"][2].dump(), R"({"fixed":{"d":0.3},"last_pass":null,"first_fail":1})");
-  EXPECT_EQ(s["map"].dump(), R"({"x":"d","y":"k"})");
+  EXPECT_EQ(s["map"].dump(), R"({"x":"d","y":"k","x_log":false,"y_log":false})");
 }
 
 TEST(CampaignResults, CsvQuotesWhatNeedsIt) {

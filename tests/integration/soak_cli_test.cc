@@ -97,13 +97,13 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
   const std::pair<std::string, std::string> cases[] = {
       {head + "engine = \"sim\"\n" + delay_axis + soak,
        "a soak is one shoal run, in lockstep or realtime"},
-      {Steps("0.1", "120", "120"), "soak.settle_s: must be shorter than soak.phase_s"},
+      {Steps("0.1", "120", "120"), "soak.settle_s: must be shorter than phase_s"},
       {head + "engine = \"lockstep\"\n[[axis]]\nkey = \"control.k1\"\nvalues = [0.2]\n" + soak,
        ":4: axis control.k1: a soak steps only what a channel event changes"},
       {head + "engine = \"lockstep\"\n" + delay_axis, "no [soak] table"},
       {head + "engine = \"lockstep\"\n" + delay_axis + "[pass]\nsettled = true\n" + soak,
        "pass.settled: not a phase metric of a soak"},
-      {Steps("0.1, -1", "120", "90"), "axis channel.delay.base_s: channel.delay.base_s: must be"},
+      {Steps("0.1, -1", "120", "90"), ":5: axis channel.delay.base_s: channel.delay.base_s: must be"},
   };
   int i = 0;
   for (const auto& [text, message] : cases) {
