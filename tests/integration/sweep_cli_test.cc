@@ -241,3 +241,50 @@ TEST(SweepCli, DelayBoundaryLiesWithinOneStepOfTheExactMargin) {
 
 }  // namespace
 }  // namespace shoal::testing
+
+namespace shoal::testing {
+namespace {
+
+/// Width and height from a PNG's IHDR chunk; {0, 0} if `path` is no PNG.
+std::pair<int, int> PngSize(const std::string& path) {
+  const std::string png = ReadFile(path);
+  if (png.size() < 24 || png.compare(1, 3, "PNG") != 0 || png.compare(12, 4, "IHDR") != 0) {
+    return {0, 0};
+  }
+  const auto be32 = [&](std::size_t at) {
+    int v = 0;
+    for (std::size_t i = 0; i < 4; ++i) v = v << 8 | static_cast<unsigned char>(png[at + i]);
+    return v;
+  };
+  return {be32(16), be32(20)};
+}
+
+TEST(SweepCli, StabilityMapDrawsShoalDesignsBoundsOnTheDelayAxis) {
+  const std::string dir = WriteCampaign(
+      "map", Head("duration_s = 60\nset = ['channel.delay={model=\"constant\",base_s=0.1}']\n") +
+                 "[[axis]]\nkey = \"control.k2\"\nvalues = [1.152, 2.0]\n"
+                 "[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [0.1, 0.6]\n"
+                 "[pass]\nconverged = true\n");
+  const RunResult r = RunShoal("sweep " + dir + "/map.toml --out " + dir + "/out", "sweep_map");
+  ASSERT_TRUE(r.status == 0 || r.status == 1) << r.err;
+  EXPECT_NE(r.out.find("stability map: " + dir + "/out/stability_map.png"), std::string::npos)
+      << r.out;
+  EXPECT_EQ(PngSize(dir + "/out/stability_map.png"), std::make_pair(1400, 1000));
+  const ojson summary = ParseJson(ReadFile(dir + "/out/summary.json"));
+  const ojson& theory = summary["theory"];
+  EXPECT_EQ(theory["delay_axis"], "channel.delay.base_s");
+  EXPECT_EQ(theory["along"], "control.k2");
+  ASSERT_EQ(theory["points"].size(), 2u);
+  const ojson design = ParseJson(
+      RunShoal("design " + SourcePath("scenarios/paper_example2.toml") +
+                   " --set 'channel.delay={model=\"constant\",base_s=0.1}' --json",
+               "sweep_map_design")
+          .out);
+  EXPECT_NEAR(theory["points"][0]["exact_on_axis"].get<double>(),
+              design["delay_margin_s"].get<double>(), 1e-9)
+      << design.dump();
+  EXPECT_EQ(summary["criteria"], ojson::parse(R"(["converged = true"])"));
+}
+
+}  // namespace
+}  // namespace shoal::testing
