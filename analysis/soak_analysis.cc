@@ -322,6 +322,11 @@ std::string CheckCriterion(const SoakCriterion& c, const nlohmann::ordered_json&
 
 /// Real time: a phase's loop and channel timing against the targets.
 void PhaseTargets(const SoakTargets& t, const Window& w, std::vector<std::string>* why) {
+  // Counted exactly per window, unlike the p99s below: a burst of late ticks late in a long
+  // run hardly moves a since-start p99, but every tick that overran its period is here.
+  if (w.overruns > 0) {
+    why->push_back(std::to_string(w.overruns) + " control ticks overran their period");
+  }
   if (w.lateness_p99_s > t.lateness_p99_max_s) {
     why->push_back("loop lateness p99 " + Num(w.lateness_p99_s * 1e3) + " ms > target " +
                    Num(t.lateness_p99_max_s * 1e3) + " ms");
@@ -394,7 +399,11 @@ void JudgeReport(const nlohmann::json& j, std::vector<std::string>* reasons) {
 std::vector<SoakProcessGrowth> Growth(const SoakData& d, const SoakInput& in,
                                       std::vector<std::string>* reasons) {
   std::vector<SoakProcessGrowth> out;
-  const double first_end = in.phases.front().end_s;
+  // The reference: the end of the first phase; with one phase, the end of its settle time
+  // (what comes before is start-up, not growth).
+  const double first_end = in.phases.size() > 1
+                               ? in.phases.front().end_s
+                               : in.phases.front().start_s + in.settle_s;
   for (const auto& [name, rows] : d.resources) {
     const ResourceRow* at = SampleAt(rows, first_end);
     if (at == nullptr || at->rss_kib <= 0) continue;
@@ -411,6 +420,10 @@ std::vector<SoakProcessGrowth> Growth(const SoakData& d, const SoakInput& in,
                          Num(in.targets.memory_growth_max * 100) + " %");
     }
     out.push_back(g);
+  }
+  if (out.empty()) {
+    reasons->push_back("memory growth not measured: no process has a resource sample at or "
+                       "after t = " + Num(first_end) + " s (resources.csv)");
   }
   return out;
 }
@@ -490,7 +503,13 @@ bool AnalyseSoak(const SoakInput& in, SoakResult* out, std::string* error) {
                              std::to_string(m.states_expected) + " vehicle states logged");
     }
   }
-  if (!d.resources.empty()) out->processes = Growth(d, in, &out->reasons);
+  if (!d.resources.empty()) {
+    out->processes = Growth(d, in, &out->reasons);
+  } else {
+    out->reasons.push_back("memory growth not measured: no resource samples (" +
+                           (in.resources_csv.empty() ? std::string("none given")
+                                                     : in.resources_csv) + ")");
+  }
   for (int k = 0; k < static_cast<int>(in.phases.size()); ++k) {
     out->phases.push_back(JudgePhase(d, in, k));
     const SoakPhaseResult& p = out->phases.back();

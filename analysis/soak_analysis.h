@@ -12,8 +12,10 @@
 //   velocity ripple a delay step leaves while the formation holds its shape.
 // - Lateness p99 of a window: the largest lateness_p99_s that a vehicle or the leader
 //   reported in a health_t within the window. health_t holds a p99 since the process
-//   started, so this is an upper envelope of the window's own p99, not its exact value.
-//   release_error_p99_s: the same of the channel emulator's reports (its release error).
+//   started, not the window's own: a long run's since-start p99 hides a burst of late
+//   ticks in one window, so this is NOT a bound on the window's p99. What the window does
+//   count exactly is its overruns (below), and in real time a phase with any overrun
+//   fails. release_error_p99_s: as lateness, of the channel emulator's reports.
 // - Overruns of a window: the increase of each process's cumulative count over the
 //   reports within the window (a restarted process counts from its own start), summed.
 // - delay_error_p99_s of a window: p99 (nearest rank) of realised - configured delay of the
@@ -27,11 +29,12 @@
 //   first sample for minute 0), null when the pid changed between them (a restart).
 // - Re-converged: every complete sample in [start + settle_s, end) is within tolerance
 //   (and there is one). Memory growth: each process's largest RSS after the first
-//   phase's end against its RSS at that end (the first sample at or after it).
+//   phase's end against its RSS at that end (the first sample at or after it); with one
+//   phase, after the end of its settle time. No sample to judge by fails the verdict.
 // The verdict fails on: a process that failed, was stopped, restarted or an interrupted
 // run (the report's all_processes_ok, restarts); lost states (log_complete false, or a
 // minute with fewer states than expected); RSS growth beyond targets.memory_growth_max;
-// real time only: a phase's lateness p99 beyond targets.lateness_p99_max_s, or its
+// real time only: a phase with an overrun, a phase's lateness p99 beyond targets.lateness_p99_max_s, or its
 // delay error p99 or release error p99 beyond targets.delay_error_p99_max_s (shoal run
 // reports the release error as channel.delay_error_p99_s); a phase that does not
 // re-converge or misses a criterion.

@@ -5,6 +5,7 @@
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/types.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -46,14 +47,19 @@ std::int64_t TestCrashPoint() {
 }
 
 /// In the child: its own process group, stdout and stderr to the pipes, default signals.
-[[noreturn]] void ExecChild(const PointJob& job, int out_w, int err_w) {
+[[noreturn]] void ExecChild(const PointJob& job, int out_w, int err_w, pid_t parent) {
   setpgid(0, 0);
+  // A sweep killed outright (SIGKILL, a Slurm job cancelled) must not leave its points
+  // running: SIGTERM lets a `shoal run` point stop its own processes in order.
+  prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (getppid() != parent) _exit(127);
   for (const int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGCHLD}) signal(sig, SIG_DFL);
   sigset_t none;
   sigemptyset(&none);
   sigprocmask(SIG_SETMASK, &none, nullptr);
   const int null_fd = open("/dev/null", O_RDONLY);
   if (null_fd >= 0) dup2(null_fd, 0);
+  if (null_fd > 2) close(null_fd);
   dup2(out_w, 1);
   dup2(err_w, 2);
   if (job.index == TestCrashPoint()) raise(SIGSEGV);
@@ -73,12 +79,13 @@ bool Start(const PointJob& job, Running* r) {
     close(out[0]), close(out[1]);
     return false;
   }
+  const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid < 0) {
     for (const int fd : {out[0], out[1], err[0], err[1]}) close(fd);
     return false;
   }
-  if (pid == 0) ExecChild(job, out[1], err[1]);
+  if (pid == 0) ExecChild(job, out[1], err[1], parent);
   setpgid(pid, pid);  // as the child does: whichever runs first, the group exists
   close(out[1]);
   close(err[1]);

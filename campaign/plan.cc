@@ -95,7 +95,9 @@ double PointTimeout(const Campaign& c, const PointPlan& plan) {
   const double speed = c.engine == CampaignEngine::kRealtime   ? 1.0
                        : c.engine == CampaignEngine::kLockstep ? 10.0
                                                                : 100.0;
-  return 60.0 + 10.0 * plan.duration_s / speed;
+  // Capped at a year: beyond that the deadline would overflow the clock, and a point
+  // that long is a mistake the scenario's own size limits let through.
+  return std::min(60.0 + 10.0 * plan.duration_s / speed, 365.0 * 86400.0);
 }
 
 }  // namespace shoal

@@ -74,7 +74,13 @@ Rows ReadRows(const std::string& path, std::int64_t points) {
   std::string line;
   while (std::getline(in, line)) {
     ojson row = ojson::parse(line, nullptr, /*allow_exceptions=*/false);
-    if (!row.is_object() || !row.contains("point") || !row["point"].is_number_integer()) continue;
+    // Only rows as MakeRow writes them: a damaged line (a torn write, an edit) is dropped,
+    // and its point runs again on resume.
+    if (!row.is_object() || !row.contains("point") || !row["point"].is_number_integer() ||
+        !row.contains("pass") || !row["pass"].is_boolean() || !row.contains("status") ||
+        !row["status"].is_string()) {
+      continue;
+    }
     const std::int64_t p = row["point"].get<std::int64_t>();
     if (p < 0 || p >= points) continue;
     rows[p] = std::move(row);
@@ -396,6 +402,13 @@ nlohmann::ordered_json Summarize(const nlohmann::ordered_json& manifest, const R
 Rows MergeResults(const std::vector<std::string>& dirs, const std::string& out,
                   bool allow_missing, bool allow_overlap) {
   if (dirs.empty()) throw CampaignError("merge: no directories given");
+  std::error_code same_ec;
+  for (const std::string& dir : dirs) {
+    if (std::filesystem::equivalent(dir, out, same_ec)) {
+      throw CampaignError("merge: --out " + out + " is one of the shard directories (" + dir +
+                          "); merge into a directory of its own");
+    }
+  }
   const ojson first = ReadManifest(dirs[0]);
   const std::int64_t points = first["points"].get<std::int64_t>();
   Rows rows;

@@ -40,6 +40,16 @@ void CheckSoakable(const Campaign& c) {
     Fail(c, 1, "campaign.sampling: a soak's phases are the grid's points in order (got "
                "\"lhs\"); remove sampling");
   }
+  // Settings of sweep points that a soak has no use for: silently ignoring them would let a
+  // user believe they took effect.
+  const std::pair<bool, const char*> unused[] = {
+      {c.duration_s > 0, "campaign.duration_s (the run lasts phases x soak.phase_s)"},
+      {c.timeout_s > 0, "campaign.timeout_s (a soak is one run, stopped with Ctrl-C)"},
+      {c.workers > 0, "campaign.workers (a soak is one run)"},
+      {!c.map_x.empty() || !c.map_y.empty(), "[map] (a soak draws soak.png)"}};
+  for (const auto& [given, what] : unused) {
+    if (given) throw CampaignError(c.path + ": " + what + ": not used by shoal soak; remove it");
+  }
   if (c.axes.empty()) Fail(c, 1, "a soak needs at least one [[axis]]: its values are the phases");
   for (const CampaignAxis& axis : c.axes) {
     if (!IsChannelModelKey(axis.key)) {
@@ -159,6 +169,15 @@ SoakPlan PlanSoak(const Campaign& c, const std::string& scenario_text,
                             TimelineValue(EffectiveTree(c, scenario_text, base), std::move(events)),
                             c.path + ": the soak's phases (" + std::to_string(points.size()) +
                                 " channel events)"});
+  // The timeline reaches every process of the run as one --set argument, and Linux caps
+  // one argument at 128 KiB (MAX_ARG_STRLEN).
+  constexpr std::size_t kMaxArgumentBytes = 120 * 1024;
+  if (plan.overrides.back().value.size() > kMaxArgumentBytes) {
+    Fail(c, c.axes.front().line,
+         "the soak's " + std::to_string(points.size()) + " phases make a timeline of " +
+             std::to_string(plan.overrides.back().value.size() / 1024) +
+             " KiB, more than one process argument may hold (120 KiB); use fewer phases");
+  }
   try {
     plan.scenario = ParseScenario(scenario_text, c.scenario, plan.overrides);
   } catch (const ScenarioError& e) {

@@ -2,6 +2,7 @@
 // campaign's criteria, with results that survive an interruption (docs/campaigns.md).
 #include "tools/sweep_command.h"
 
+#include <sched.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -163,6 +164,10 @@ int Workers(const Campaign& c, int flag) {
   if (flag > 0) return flag;
   if (c.workers > 0) return c.workers;
   if (c.engine == CampaignEngine::kRealtime) return 1;  // real-time runs measure timing
+  // The CPUs this process may run on (a Slurm task's allocation, taskset), not the node's.
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) == 0) return std::max(1, CPU_COUNT(&set));
   return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
 }
 
@@ -230,7 +235,8 @@ bool Execute(const Prepared& p, const SweepOptions& opt, ResultsDir* dir,
     progress.Count(row["pass"].get<bool>());
   };
   options.on_tick = [&] { progress.Draw(false); };
-  const StopSignals signals(StopSignals::Options{false, true});
+  // A closed terminal stops the sweep as Ctrl-C does: finished rows kept, points killed.
+  const StopSignals signals(StopSignals::Options{true, true});
   const bool finished = RunPoints(jobs, options);
   if (!opt.quiet) progress.Draw(true);
   if (!write_error.empty()) throw CampaignError(write_error);
@@ -262,6 +268,9 @@ int RunSweep(const SweepOptions& opt) {
   } catch (const CampaignError& e) {  // the output directory failed (disk full, removed)
     std::cerr << "shoal sweep: " << e.what() << "\n";
     return kExitFailed;
+  } catch (const nlohmann::json::exception& e) {
+    std::cerr << "shoal sweep: " << opt.out << ": damaged results (" << e.what() << ")\n";
+    return kExitFailed;
   }
   const ojson summary = Summarize(p.manifest, dir->rows());
   if (!opt.quiet) PrintSummary(summary, opt.out);
@@ -282,6 +291,9 @@ int RunSweepMerge(const SweepMergeOptions& opt) {
     return SummaryStatus(summary, summary["points"].get<std::int64_t>());
   } catch (const CampaignError& e) {
     std::cerr << "shoal sweep merge: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const nlohmann::json::exception& e) {
+    std::cerr << "shoal sweep merge: damaged results (" << e.what() << ")\n";
     return kExitBadInput;
   }
 }

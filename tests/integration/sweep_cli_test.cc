@@ -185,6 +185,28 @@ TEST(SweepCli, ResumeAfterInterruptGivesTheUninterruptedResults) {
   EXPECT_NE(other.err.find("holds the results of another campaign"), std::string::npos) << other.err;
 }
 
+TEST(SweepCli, ASweepKilledOutrightLeavesNoPointRunning) {
+  const std::string dir = SlowCampaign("killed", "0.2203");
+  // A seed no other test uses marks this sweep's points (each point's command holds it).
+  const pid_t pid = StartShoal("sweep " + dir + "/killed.toml --quiet --set run.seed=4711 --out " +
+                                   dir + "/out",
+                               dir + "/killed.log");
+  const auto t0 = std::chrono::steady_clock::now();
+  while (CountProcesses("[r]un.seed=4711") < 1 &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(20)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_GE(CountProcesses("[r]un.seed=4711"), 1) << ReadFile(dir + "/killed.log");
+  kill(pid, SIGKILL);
+  EXPECT_EQ(WaitExit(pid, 10, nullptr), 256 + SIGKILL);
+  int left = -1;
+  for (int i = 0; i < 100 && left != 0; ++i) {  // the points get SIGTERM as their parent dies
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    left = CountProcesses("[r]un.seed=4711");
+  }
+  EXPECT_EQ(left, 0);
+}
+
 TEST(SweepCli, ShardsMergedEqualOneRun) {
   const std::string dir = SlowCampaign("shards", "0.2202");
   const std::string args = "sweep " + dir + "/shards.toml --quiet --out " + dir;
