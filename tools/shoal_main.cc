@@ -221,7 +221,8 @@ CLI::App* AddSweep(CLI::App* app, shoal::SweepOptions* sw, shoal::SweepMergeOpti
       "boundary (docs/campaigns.md)");
   c->add_option("campaign", sw->campaign, "Campaign file (TOML, see docs/campaigns.md)");
   c->add_option("--out", sw->out,
-                "Output directory: results.jsonl, results.csv, summary.json, stability_map.png; run again with "
+                "Output directory: results.jsonl, results.csv, summary.json, "
+                "stability_map.png; run again with "
                 "the same directory to resume");
   c->add_option("--workers", sw->workers,
                 "Points run at a time (default: the campaign's, else one per core; realtime 1)")
