@@ -59,6 +59,10 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       resent_tick_(s.followers + 1, -1),
       resent_ns_(s.followers + 1, 0),
       next_of_(s.followers + 1, -1) {
+  // The states in transit are stored once each and reused: made now, at their encoded
+  // size (fixed for vehicle_state_t), for the largest delay the run can take.
+  channel_.ReservePayloads(
+      Datagram{0, 0, 0, Bytes(static_cast<std::size_t>(vehicle_state_t{}.getEncodedSize()))});
   for (int id = 0; id <= n_; ++id) {
     auto group = std::find_if(bus_groups_.begin(), bus_groups_.end(),
                               [&](const std::vector<int>& g) { return vbus_[g[0]] == vbus_[id]; });
@@ -166,12 +170,12 @@ void ChannelEmulatorApp::ResendClock(int id, std::int64_t first, std::int64_t la
   // process re-steps after dying between its publish and its checkpoint) get none.
   for (const Outgoing& o : outbox_[id]) {
     if (o.tick < first || o.tick > last) continue;
-    b->PublishRaw(rx_channels_[id], o.d.raw.data(), static_cast<int>(o.d.raw.size()));
+    b->PublishRaw(rx_channels_[id], o.d->raw.data(), static_cast<int>(o.d->raw.size()));
     c.delivery_tick.push_back(o.tick);
     c.delivery_receiver.push_back(id);
-    c.delivery_sender.push_back(o.d.sender);
-    c.delivery_seq.push_back(o.d.seq);
-    c.delivery_digest.push_back(o.d.digest);
+    c.delivery_sender.push_back(o.d->sender);
+    c.delivery_seq.push_back(o.d->seq);
+    c.delivery_digest.push_back(o.d->digest);
   }
   c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
   b->Publish(channels::Clock(), c);
@@ -245,7 +249,7 @@ void ChannelEmulatorApp::ReleaseWindow() {
   for (auto& o : outbox_) o.clear();
   for (std::int64_t j = win_first_; j <= win_last_; ++j) {
     channel_.DeliverDue(j * period_us_, [&](int receiver, const Datagram& d) {
-      outbox_[receiver].push_back(Outgoing{j, d});
+      outbox_[receiver].push_back(Outgoing{j, &d});
     });
   }
   // Bus by bus, the whole window in one burst: the deliveries due to the bus's vehicles,
@@ -262,7 +266,7 @@ void ChannelEmulatorApp::ReleaseWindow() {
       for (int id : group) {
         const std::vector<Outgoing>& out = outbox_[id];
         for (; next[id] < out.size() && out[next[id]].tick == j; ++next[id]) {
-          const Datagram& d = out[next[id]].d;
+          const Datagram& d = *out[next[id]].d;
           b->PublishRaw(rx_channels_[id], d.raw.data(), static_cast<int>(d.raw.size()));
           c.delivery_tick.push_back(j);
           c.delivery_receiver.push_back(id);

@@ -133,9 +133,12 @@ class ChannelEmulatorApp {
   // whether the shared bus is one of them (else the logger gets clock ticks of its own).
   std::vector<std::vector<int>> bus_groups_;
   bool shared_has_vehicles_ = false;
+  // The channel's own copy of the state: the channel overwrites it only in a later Submit,
+  // and SubmitWindow runs after the window's deliveries (and any ResendClock, called while
+  // the window's states are awaited) are published; no copy of the bytes per delivery.
   struct Outgoing {
     std::int64_t tick;
-    Datagram d;
+    const Datagram* d;
   };
   std::vector<std::vector<Outgoing>> outbox_;  // lockstep window, per receiving vehicle
   ChannelEventBatch events_;  // decided, not yet published

@@ -334,6 +334,28 @@ class Channel {
       std::size_t w = 8;
       while (static_cast<double>(w) <= horizon) w *= 2;
       wheel_.resize(w);
+      // Every link carries at most one message per tick and holds it at most `horizon`
+      // ticks, so this many queue entries are ever pending in the wheel: all of them are
+      // made (and touched) now, and a long run allocates nothing for its queue, whatever
+      // its delays do meanwhile.
+      horizon_ticks_ = static_cast<std::size_t>(horizon);
+      AddNodes(std::min(links_.size() * (horizon_ticks_ + 1), kMaxReserved));
+    }
+  }
+
+  /// Makes now, from `prototype`, as many payloads as can be in transit at once when each
+  /// sender submits at most one message per tick (period > 0): the copies stored later
+  /// reuse them, so that a payload that owns memory (the emulator's bytes) allocates
+  /// nothing in steady state. No effect in real time or on what the channel delivers.
+  void ReservePayloads(const Payload& prototype) {
+    if (period_us_ <= 0) return;
+    std::size_t senders = 0;
+    for (const auto& s : by_sender_) senders += !s.empty();
+    const std::size_t want = std::min(senders * (horizon_ticks_ + 1), kMaxReserved / 16);
+    while (pool_.size() < want) {
+      pool_.push_back(prototype);
+      refs_.push_back(0);
+      free_.push_back(static_cast<int>(pool_.size()) - 1);
     }
   }
 
@@ -403,8 +425,8 @@ class Channel {
     if (period_us_ <= 0) return heap_.top().due;
     const auto size = static_cast<std::int64_t>(wheel_.size());
     for (std::int64_t t = next_tick_; t < next_tick_ + size; ++t) {
-      const auto& b = wheel_[static_cast<std::size_t>(t) & (wheel_.size() - 1)];
-      if (!b.empty()) return b.front().due;
+      const Bucket& b = wheel_[static_cast<std::size_t>(t) & (wheel_.size() - 1)];
+      if (b.head >= 0) return nodes_[static_cast<std::size_t>(b.head)].p.due;
     }
     return overflow_.top().p.due;  // everything pending is beyond the wheel
   }
@@ -425,9 +447,17 @@ class Channel {
     const std::int64_t now_tick = now / period_us_;
     for (; next_tick_ <= now_tick && pending_ > 0; ++next_tick_) {
       Migrate();
-      auto& b = wheel_[static_cast<std::size_t>(next_tick_) & (wheel_.size() - 1)];
-      for (const Pending& p : b) Deliver(p, fn);
-      b.clear();
+      Bucket& b = wheel_[static_cast<std::size_t>(next_tick_) & (wheel_.size() - 1)];
+      for (int k = b.head; k >= 0;) {
+        Node& n = nodes_[static_cast<std::size_t>(k)];
+        const Pending p = n.p;
+        const int next = n.next;
+        n.next = free_node_;  // back to the free list before fn runs
+        free_node_ = k;
+        Deliver(p, fn);
+        k = next;
+      }
+      b = Bucket{};
     }
     next_tick_ = std::max(next_tick_, now_tick + 1);
   }
@@ -593,7 +623,34 @@ class Channel {
       overflow_.push(Far{tick, p});
       return;
     }
-    wheel_[static_cast<std::size_t>(tick) & (wheel_.size() - 1)].push_back(p);
+    Append(tick, p);
+  }
+
+  // Appends p to the bucket of `tick` (within the wheel), taking a free queue entry.
+  void Append(std::int64_t tick, const Pending& p) {
+    if (free_node_ < 0) AddNodes(std::max<std::size_t>(nodes_.size(), 8));
+    const int k = free_node_;
+    Node& n = nodes_[static_cast<std::size_t>(k)];
+    free_node_ = n.next;
+    n.p = p;
+    n.next = -1;
+    Bucket& b = wheel_[static_cast<std::size_t>(tick) & (wheel_.size() - 1)];
+    if (b.tail >= 0) {
+      nodes_[static_cast<std::size_t>(b.tail)].next = k;
+    } else {
+      b.head = k;
+    }
+    b.tail = k;
+  }
+
+  // Adds `count` queue entries to the free list.
+  void AddNodes(std::size_t count) {
+    const std::size_t first = nodes_.size();
+    nodes_.resize(first + count);
+    for (std::size_t k = nodes_.size(); k-- > first;) {
+      nodes_[k].next = free_node_;
+      free_node_ = static_cast<int>(k);
+    }
   }
 
   // Moves the overflowing deliveries whose tick came within the wheel into their buckets,
@@ -604,8 +661,9 @@ class Channel {
     while (!overflow_.empty() && overflow_.top().tick < end) {
       const Far& f = overflow_.top();
       const std::int64_t tick = std::max(f.tick, next_tick_);  // overdue: the next delivery
-      wheel_[static_cast<std::size_t>(tick) & (wheel_.size() - 1)].push_back(f.p);
+      const Pending p = f.p;
       overflow_.pop();
+      Append(tick, p);
     }
   }
 
@@ -643,7 +701,21 @@ class Channel {
   int last_id_ = -1;
   Micros last_t_ = 0;
   double last_delay_ = 0.0;
-  std::vector<std::vector<Pending>> wheel_;
+  // The wheel's buckets are lists, in submission order, threaded through one array of
+  // queue entries (nodes_) with a free list: unlike a vector per bucket, whose capacity
+  // each grows to the most that bucket ever held, the entries are made once for the
+  // largest delay and reused.
+  struct Node {
+    Pending p{};
+    int next = -1;  // next entry of its bucket, or of the free list; -1: none
+  };
+  struct Bucket {
+    int head = -1, tail = -1;
+  };
+  std::vector<Bucket> wheel_;
+  std::vector<Node> nodes_;
+  int free_node_ = -1;
+  std::size_t horizon_ticks_ = 0;  // wheel: most ticks a delivery waits
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> heap_;
   // A delivery beyond the wheel, ordered by (tick, submission order).
   struct Far {
@@ -654,6 +726,9 @@ class Channel {
     }
   };
   static constexpr std::size_t kMaxWheel = std::size_t{1} << 16;  // buckets
+  // Most queue entries made up front (2 MB; 4,096 payloads): a channel that may need more
+  // (long delays on many links) grows as it fills, as it would without the reservation.
+  static constexpr std::size_t kMaxReserved = std::size_t{1} << 16;
   std::priority_queue<Far, std::vector<Far>, std::greater<Far>> overflow_;
 };
 
