@@ -107,7 +107,7 @@ TEST(Soak, PhaseBeyondTheDelayMarginFailsAndTheOthersPass) {
   // Every reason is phase 1's, and it says what failed with its numbers.
   ASSERT_FALSE(s.reasons.empty());
   for (const std::string& why : s.reasons) {
-    EXPECT_EQ(why.rfind("phase 1 (channel.delay.base_s = 0.5, 120-240 s): ", 0), 0u) << why;
+    EXPECT_EQ(why.rfind("phase 2 (channel.delay.base_s = 0.5, 120-240 s): ", 0), 0u) << why;
   }
   EXPECT_NE(s.reasons[0].find("did not re-converge"), std::string::npos) << s.reasons[0];
   EXPECT_NE(s.reasons[0].find("> metrics.position_tol_m 0.5 m"), std::string::npos) << s.reasons[0];
