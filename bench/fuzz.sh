@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Fuzzing of every entry point that takes bytes from outside (tests/fuzz): a bus message
 # (fuzz_decode: runtime/lcm_bus.h's Decode of each type), a log file (fuzz_log_reader:
-# runtime/log_reader.h and analysis' LoadRunLog) and a scenario file (fuzz_scenario:
-# ParseScenario). libFuzzer with ASan + UBSan + LeakSanitizer, clang++ (Debian: clang,
-# libclang-rt-14-dev).
+# runtime/log_reader.h and analysis' LoadRunLog), a scenario file (fuzz_scenario:
+# ParseScenario) and a campaign file (fuzz_campaign: ParseCampaign). libFuzzer with ASan +
+# UBSan + LeakSanitizer, clang++ (Debian: clang, libclang-rt-14-dev).
 # Usage: bench/fuzz.sh [EXECUTIONS (1000000)] [TARGET...]
 #   make test runs it with FUZZ_SHORT_RUNS (50000) executions per target; the campaign
 #   figures of docs/benchmarks.md are `nice -n 19 bench/fuzz.sh 10000000 TARGET`.
@@ -20,7 +20,7 @@ cd "$(dirname "$0")/.."
 runs=${1:-1000000}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fuzz_decode fuzz_log_reader fuzz_scenario)
+[ ${#targets[@]} -gt 0 ] || targets=(fuzz_decode fuzz_log_reader fuzz_scenario fuzz_campaign)
 build=${FUZZ_BUILD:-build-fuzz}
 timeout=${FUZZ_TIMEOUT:-10}
 command -v clang++ > /dev/null || { echo "fuzz: clang++ missing (Debian: clang libclang-rt-14-dev)" >&2; exit 2; }

@@ -17,6 +17,7 @@
 #include <system_error>
 
 #include "scenario/regular_file.h"
+#include "scenario/toml_depth.h"
 
 namespace shoal {
 namespace {
@@ -659,6 +660,12 @@ Campaign ParseCampaign(const std::string& text, const std::string& path) {
   if (text.size() > kMaxCampaignBytes) {
     throw CampaignError(file + ": campaign file larger than " +
                         std::to_string(kMaxCampaignBytes) + " bytes");
+  }
+  // toml++ would recurse once per component of a deeper key and overflow the stack.
+  if (const int line = LineOfTooDeepKey(text)) {
+    throw CampaignError(file + ":" + std::to_string(line) +
+                        ": TOML syntax error: a key or table nests more than " +
+                        std::to_string(kMaxKeyDepth) + " tables deep");
   }
   toml::table root;
   try {

@@ -134,6 +134,34 @@ TEST(CampaignFile, LimitsAgainstHostileFiles) {
   EXPECT_NE(ErrorOf(std::string(kMaxCampaignBytes + 1, '#')).find("larger than"), std::string::npos);
 }
 
+TEST(CampaignFile, KeysNestedTooDeepAreRefusedBeforeParsing) {
+  // toml++ builds and frees one table per key component recursively: 200000 of them
+  // overflowed the stack (a segfault) before the depth was counted first.
+  std::string deep;
+  for (int i = 0; i < 200000; ++i) deep += "p.";
+  const std::string kMessage =
+      ": TOML syntax error: a key or table nests more than 256 tables deep";
+  EXPECT_EQ(ErrorOf(std::string(kHead) + deep + "q = 1\n"), "dir/sweep.toml:3" + kMessage);
+  EXPECT_EQ(ErrorOf(std::string(kHead) + "[pass]\nconverged = true\n" + deep + "q = 1\n"),
+            "dir/sweep.toml:5" + kMessage);
+  EXPECT_EQ(ErrorOf(std::string(kHead) + "[" + deep + "q]\n"), "dir/sweep.toml:3" + kMessage);
+  EXPECT_EQ(ErrorOf(std::string(kHead) + "[pass]\nx = { " + deep + "q = 1 }\n"),
+            "dir/sweep.toml:4" + kMessage);
+  try {
+    ParseCampaign(deep + "q = 1\n", "");
+    ADD_FAILURE() << "no error";
+  } catch (const CampaignError& e) {
+    EXPECT_EQ(std::string(e.what()), "<campaign>:1" + kMessage);
+  }
+  // 256 tables deep ([campaign] and 255 key components) is within the limit: the file is
+  // parsed, and its key is unknown.
+  std::string limit;
+  for (int i = 0; i < 254; ++i) limit += "p.";
+  const std::string error = ErrorOf(std::string(kHead) + limit + "q = 1\n");
+  EXPECT_EQ(error.find("nests more than"), std::string::npos) << error;
+  EXPECT_NE(error.find("dir/sweep.toml:3:"), std::string::npos) << error;
+}
+
 TEST(CampaignFile, LoadReportsUnreadableFiles) {
   try {
     LoadCampaign("/nonexistent/sweep.toml");

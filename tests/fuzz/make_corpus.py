@@ -9,6 +9,7 @@ fuzz_decode:     messages of a `shoal sim --out` log, one file per message, pref
                  channel decisions.
 fuzz_log_reader: the log's first events, whole and cut short.
 fuzz_scenario:   scenarios/*.toml and tests/data/bad_scenarios/*.toml.
+fuzz_campaign:   campaigns/*.toml and tests/data/campaigns/*.toml.
 Small on purpose (the fuzzer grows its own corpus in a work directory, bench/fuzz.sh).
 """
 import pathlib
@@ -90,7 +91,7 @@ def write(target, name, data):
 
 def main():
     build = pathlib.Path(sys.argv[1]).resolve()
-    for target in ("fuzz_decode", "fuzz_log_reader", "fuzz_scenario"):
+    for target in ("fuzz_decode", "fuzz_log_reader", "fuzz_scenario", "fuzz_campaign"):
         shutil.rmtree(CORPUS / target, ignore_errors=True)
     with tempfile.TemporaryDirectory() as tmp:
         log = pathlib.Path(tmp) / "sim.lcmlog"
@@ -115,6 +116,9 @@ def main():
     for src in sorted((ROOT / "scenarios").glob("*.toml")) + \
             sorted((ROOT / "tests" / "data" / "bad_scenarios").glob("*.toml")):
         write("fuzz_scenario", src.name, src.read_bytes())
+    for src in sorted((ROOT / "campaigns").glob("*.toml")) + \
+            sorted((ROOT / "tests" / "data" / "campaigns").glob("*.toml")):
+        write("fuzz_campaign", src.name, src.read_bytes())
 
 
 if __name__ == "__main__":

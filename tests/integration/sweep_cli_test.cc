@@ -116,6 +116,20 @@ TEST(SweepCli, BadAxisValueNamesTheAxisLineAndRunsNothing) {
   EXPECT_NE(unknown.err.find("--set nosuch.key=1"), std::string::npos) << unknown.err;
 }
 
+TEST(SweepCli, KeyNestedTooDeepIsASyntaxErrorNotACrash) {
+  // A 400 KB key of 200000 components: toml++ alone recursed once per component and
+  // the process died of SIGSEGV.
+  std::string deep;
+  for (int i = 0; i < 200000; ++i) deep += "p.";
+  const std::string dir = WriteCampaign("deep", Head() + "[pass]\n" + deep + "q = 1\n");
+  const RunResult r = RunShoal("sweep " + dir + "/deep.toml --out " + dir + "/out", "sweep_deep");
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find(dir + "/deep.toml:4: TOML syntax error: a key or table nests more "
+                       "than 256 tables deep"),
+            std::string::npos) << r.err;
+  EXPECT_FALSE(std::ifstream(dir + "/out/results.jsonl").good());
+}
+
 TEST(SweepCli, CrashedAndHungPointsAreReportedAndTheRestComplete) {
   // Point 1 runs a million simulated seconds (minutes of CPU): past timeout_s it counts as
   // hung and is killed. Point 2 crashes: no run crashes on demand, so the executor's
