@@ -437,6 +437,14 @@ bool LoadSoakData(const SoakInput& in, SoakData* d, std::string* error) {
     return false;
   }
   d->a = AnalyseRun(d->run);
+  // The run ends with its last phase: a real-time log has no final clock tick to say so,
+  // and its scenario's own duration is not the soak's (shoal soak sets --duration).
+  const Micros period = d->run.scenario.period_us();
+  if (!in.phases.empty() && period > 0) {
+    const Micros last = static_cast<Micros>(std::llround(in.phases.back().end_s * 1e6)) / period;
+    Micros& end = d->a.bounds.expected_end_us;
+    if (end < 0 || end > last * period) end = last * period;
+  }
   d->samples = CompleteSamples(d->run, d->a);
   d->overrun_increase = OverrunIncreases(d->run.health);
   d->delay_errors = DelayErrors(d->run, d->a);
