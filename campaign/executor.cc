@@ -62,7 +62,10 @@ std::int64_t TestCrashPoint() {
   if (null_fd > 2) close(null_fd);
   dup2(out_w, 1);
   dup2(err_w, 2);
-  if (job.index == TestCrashPoint()) raise(SIGSEGV);
+  if (job.index == TestCrashPoint()) {
+    signal(SIGSEGV, SIG_DFL);  // a sanitizer's handler would turn the crash into an exit
+    raise(SIGSEGV);
+  }
   std::vector<char*> argv;
   for (const std::string& a : job.argv) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
