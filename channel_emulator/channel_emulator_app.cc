@@ -609,7 +609,7 @@ int ChannelEmulatorMain(int argc, char** argv) {
                  "Replace an emulator that died (shoal run --restart on-failure): why and "
                  "when it ended, for the log");
   Scenario s;
-  const int started = StartProcess(&app, argc, argv, "shoal_channel_emulator", opt, &s);
+  const int started = StartProcess(&app, argc, argv, "shoal_channel_emulator", &opt, &s);
   if (started >= 0) return started;
   bus_auth::Setting auth;
   if (!bus_auth::SettingOrReport(opt.insecure, "shoal_channel_emulator", &auth)) return 2;

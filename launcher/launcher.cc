@@ -37,8 +37,6 @@
 namespace shoal {
 namespace {
 
-constexpr int kLoggerId = -100;  // Child::id of lcm-logger (not a vehicle or the emulator)
-
 struct Child {
   std::string name;  // "vehicle 3", "leader", "channel emulator", "lcm-logger"
   int id = kLoggerId;  // vehicle id, kEmulatorId, or kLoggerId
@@ -322,7 +320,11 @@ class Launch {
  public:
   Launch(const Scenario& s, const LaunchOptions& opt, LaunchResult* r)
       : s_(s), opt_(opt), r_(r) {}
-  bool Prepare(std::string* error);
+  /// Checks everything that can refuse the run and makes its plan; unless `for_print`,
+  /// also makes sure multicast stays on the host and prepares the log, the output folder
+  /// and the key. Nothing is started.
+  bool Prepare(bool for_print, std::string* error);
+  const LaunchPlan& plan() const { return plan_; }
   void StartAll();
   void Supervise(const LaunchCallbacks& cb);
   void Shutdown();
@@ -330,9 +332,15 @@ class Launch {
   void GatherRejections();
 
  private:
-  bool ChooseUrls(std::string* error);
-  void Start(const std::string& name, int id, const std::vector<std::string>& argv,
-             int nice_inc, const std::string& tag);
+  /// Mode, duration, size and executables.
+  bool CheckOptions(std::string* error);
+  bool ChooseUrls(bool ensure_multicast, std::string* error);
+  /// The run's processes, in start order (plan_): every command shoal run starts.
+  void BuildPlan();
+  void PlanEmulator();
+  void PlanNodes();
+  /// Starts planned process p, with `values` in place of the plan's placeholders.
+  void Start(const PlannedProcess& p, const std::map<std::string, std::string>& values);
   std::vector<std::string> ProcessArgs(const std::string& exe,
                                        const std::vector<std::string>& more) const;
   /// Waits (polling waitpid) up to `limit` for the children selected by `which` to exit.
@@ -373,7 +381,8 @@ class Launch {
   std::vector<std::string> vehicle_urls_;  // per-vehicle groups; empty: one shared bus
   std::string vehicle_exe_, leader_exe_, emulator_exe_;
   std::vector<Child> kids_;
-  std::int64_t t0_ns_ = 0;
+  LaunchPlan plan_;
+  std::int64_t t0_ns_ = 0;  // real time: tick 0 on CLOCK_MONOTONIC
   Mode mode_ = Mode::kLockstep;  // opt_.mode, parsed by Prepare
   bool start_failed_ = false;    // a process could not be forked
   bool emulator_done_ = false;   // the channel emulator (the run's clock) ended normally
@@ -383,7 +392,7 @@ class Launch {
   std::chrono::steady_clock::time_point last_resource_poll_;
 };
 
-bool Launch::Prepare(std::string* error) {
+bool Launch::CheckOptions(std::string* error) {
   const std::optional<Mode> mode = ParseMode(opt_.mode);
   if (!mode) {
     *error = "--mode must be lockstep or realtime (got " + opt_.mode + ")";
@@ -415,16 +424,24 @@ bool Launch::Prepare(std::string* error) {
     *error = "lcm-logger not found (Debian package liblcm-bin)";
     return false;
   }
-  // Everything that can refuse the run is checked before anything is written: a refused
-  // run leaves an earlier log and its process output as they were.
-  return ChooseUrls(error) && CheckLogWritable(r_->log, error) &&
-         PrepareOutputDir(r_->process_output_dir, error) && PrepareKey(opt_, r_, error);
+  return true;
 }
 
-bool Launch::ChooseUrls(std::string* error) {
+bool Launch::Prepare(bool for_print, std::string* error) {
+  if (!CheckOptions(error) || !ChooseUrls(!for_print, error)) return false;
+  BuildPlan();
+  if (for_print) return true;
+  // Everything that can refuse the run is checked before anything is written: a refused
+  // run leaves an earlier log and its process output as they were.
+  return CheckLogWritable(r_->log, error) && PrepareOutputDir(r_->process_output_dir, error) &&
+         PrepareKey(opt_, r_, error);
+}
+
+bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
   std::string url = opt_.lcm_url;
   int port = 0;
-  if ((url.empty() || url.rfind("udpm://", 0) == 0) && !EnsureLoopbackMulticast(error)) {
+  if (ensure_multicast && (url.empty() || url.rfind("udpm://", 0) == 0) &&
+      !EnsureLoopbackMulticast(error)) {
     return false;
   }
   if (url.empty()) {
@@ -448,24 +465,29 @@ bool Launch::ChooseUrls(std::string* error) {
   return true;
 }
 
-void Launch::Start(const std::string& name, int id, const std::vector<std::string>& argv,
-                   int nice_inc, const std::string& tag) {
+void Launch::Start(const PlannedProcess& p, const std::map<std::string, std::string>& values) {
   Child c;
-  c.name = name;
-  c.id = id;
+  c.name = p.name;
+  c.id = p.id;
   // lcm-logger records bytes as they are: it is not given the key.
-  std::vector<std::string> env = ChildEnvironment(id == kLoggerId ? nullptr : &r_->key);
+  std::vector<std::string> env = ChildEnvironment(p.gets_key ? &r_->key : nullptr);
   std::vector<char*> envp;
   for (std::string& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);
-  c.output = r_->process_output_dir + "/" + tag + ".txt";
-  c.argv = argv;
-  c.nice_inc = nice_inc;
-  c.tag = tag;
-  c.pid = Spawn(argv, nice_inc, c.output, envp.data());
+  c.output = r_->process_output_dir + "/" + p.tag + ".txt";
+  c.argv = p.prefix;
+  for (const std::string& a : p.argv) {
+    const auto v = values.find(a);
+    c.argv.push_back(v == values.end() ? a : v->second);
+  }
+  c.nice_inc = p.nice_inc;
+  c.tag = p.tag;
+  c.checkpoint = p.checkpoint;
+  c.reset_ticks = p.reset_ticks;
+  c.pid = Spawn(c.argv, c.nice_inc, c.output, envp.data());
   c.running = c.pid > 0;
   if (c.pid < 0) {  // no process to supervise: the run cannot go on
-    r_->problems.push_back("cannot start " + name + " (fork: " + std::strerror(errno) + ")");
+    r_->problems.push_back("cannot start " + p.name + " (fork: " + std::strerror(errno) + ")");
     start_failed_ = true;
   }
   kids_.push_back(c);
@@ -474,7 +496,8 @@ void Launch::Start(const std::string& name, int id, const std::vector<std::strin
 std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
                                              const std::vector<std::string>& more) const {
   std::vector<std::string> a = {exe, "--scenario", opt_.scenario, "--lcm-url", r_->lcm_url,
-                                "--mode", opt_.mode, "--t0-ns", std::to_string(t0_ns_),
+                                "--mode", opt_.mode,
+                                opt_.wall_clock_t0 ? "--t0-unix-ns" : "--t0-ns", kT0Arg,
                                 "--duration", std::to_string(r_->duration_s)};
   if (opt_.insecure) a.push_back("--insecure");
   // One argument each: a value is never taken for an option of its own.
@@ -502,7 +525,14 @@ class LogFileBefore {
   bool existed_;
 };
 
-void Launch::StartAll() {
+void Launch::BuildPlan() {
+  plan_ = LaunchPlan();
+  plan_.mode = mode_;
+  plan_.lcm_url = r_->lcm_url;
+  plan_.log = r_->log;
+  plan_.output_dir = r_->process_output_dir;
+  plan_.insecure = opt_.insecure;
+  plan_.keep_going = opt_.keep_going;
   // The logger first. lcm-logger's subscription queue holds 30 messages and drops beyond
   // that (LCM's default; lcm-logger has no option for it): the logger must not wait long
   // for the CPU while the run saturates it. As root it runs at nice -10 against the run's
@@ -511,69 +541,96 @@ void Launch::StartAll() {
   // program on the same port, a flood) never take a place in that queue (docs/run.md). Not SCHED_FIFO: a real-time logger
   // preempts the run at every message, and with SHOAL_CHANNEL batched it loses no fewer
   // states (docs/benchmarks.md, lockstep: 600 s runs, 36-39x against 50-56x).
-  const bool root = geteuid() == 0;
-  const LogFileBefore before(r_->log);
-  Start("lcm-logger", kLoggerId,
-        {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url,
-         std::string("--channel=") + channels::kAllPattern, "-f", "-q", "--", r_->log},
-        root ? -10 : 0, "logger");
-  const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
-  for (int i = 0; i < 100 && !before.OpenedAnew(); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  t0_ns_ = MonotonicNs() + 4000000000LL;  // real time: start margin
-  std::vector<std::string> emulator_more = {"--max-lookahead", std::to_string(opt_.max_lookahead)};
-  if (mode_ == Mode::kLockstep && logger_pid > 0) {
-    emulator_more.push_back("--recorder-pid");  // back-pressure: the log stays complete
-    emulator_more.push_back(std::to_string(logger_pid));
+  PlannedProcess logger;
+  logger.name = "lcm-logger";
+  logger.id = kLoggerId;
+  logger.tag = "logger";
+  logger.argv = {"/usr/bin/lcm-logger", "--lcm-url=" + r_->lcm_url,
+                 std::string("--channel=") + channels::kAllPattern, "-f", "-q", "--", r_->log};
+  logger.nice_inc = geteuid() == 0 ? -10 : 0;
+  logger.gets_key = false;
+  plan_.processes.push_back(logger);
+  PlanEmulator();
+  PlanNodes();
+}
+
+void Launch::PlanEmulator() {
+  std::vector<std::string> more = {"--max-lookahead", std::to_string(opt_.max_lookahead)};
+  if (mode_ == Mode::kLockstep) {
+    more.push_back("--recorder-pid");  // back-pressure: the log stays complete
+    more.push_back(kLoggerPidArg);
   }
   if (!vehicle_urls_.empty()) {
     std::string list;
     for (std::size_t i = 0; i < vehicle_urls_.size(); ++i) {
       list += (i ? "," : "") + vehicle_urls_[i];
     }
-    emulator_more.push_back("--vehicle-urls");
-    emulator_more.push_back(list);
+    more.push_back("--vehicle-urls");
+    more.push_back(list);
   }
+  PlannedProcess e;
+  e.name = "channel emulator";
+  e.id = kEmulatorId;
+  e.tag = "emulator";
+  e.argv = ProcessArgs(emulator_exe_, more);
+  // The clock master is every window's critical path (it waits for the last state, then
+  // releases the next window): in lockstep it runs at nice 0, above the vehicles' +5.
+  e.nice_inc = 0;
+  plan_.processes.push_back(e);
+}
+
+void Launch::PlanNodes() {
   // Lockstep saturates the CPU: its processes run at a lower priority than the logger,
   // under SCHED_BATCH (they set it themselves: a woken process does not preempt the one
-  // sending it a burst). Real time is paced by the clock. The clock master is every
-  // window's critical path (it waits for the last state, then releases the next window):
-  // in lockstep it runs at nice 0, above the vehicles' +5.
+  // sending it a burst). Real time is paced by the clock.
   const int run_nice = mode_ == Mode::kLockstep ? 5 : 0;
-  Start("channel emulator", kEmulatorId, ProcessArgs(emulator_exe_, emulator_more), 0,
-        "emulator");
   auto rx = [&](int id) {
     return vehicle_urls_.empty() ? std::vector<std::string>{}
                                  : std::vector<std::string>{"--rx-url", vehicle_urls_[id]};
   };
-  // With restarts each writes a checkpoint after every state it publishes, to resume from;
-  // so does a vehicle whose controller the scenario resets.
-  auto checkpoint = [&](const std::string& tag, std::vector<std::string>* more,
-                        bool resets = false) {
-    if (!opt_.restart_on_failure && !resets) return std::string();
-    const std::string file = r_->process_output_dir + "/" + tag + ".ckpt";
-    more->push_back("--checkpoint");
-    more->push_back(file);
-    return file;
-  };
-  std::vector<std::string> leader_more = rx(0);
-  const std::string leader_ckpt = checkpoint("leader", &leader_more);
-  Start("leader", 0, ProcessArgs(leader_exe_, leader_more), run_nice, "leader");
-  kids_.back().checkpoint = leader_ckpt;
-  for (int id = 1; id <= s_.followers; ++id) {
-    std::vector<std::string> more = {"--id", std::to_string(id)};
+  for (int id = 0; id <= s_.followers; ++id) {
+    PlannedProcess p;
+    p.name = id == 0 ? "leader" : "vehicle " + std::to_string(id);
+    p.id = id;
+    p.tag = id == 0 ? "leader" : "vehicle" + std::to_string(id);
+    std::vector<std::string> more;
+    if (id > 0) more = {"--id", std::to_string(id)};
     const std::vector<std::string> r = rx(id);
     more.insert(more.end(), r.begin(), r.end());
-    const std::string tag = "vehicle" + std::to_string(id);
-    const std::vector<std::int64_t> resets =
-        ClockedNode::ResetTicks(s_, id, s_.final_tick(r_->duration_s));
-    const std::string file = checkpoint(tag, &more, !resets.empty());
-    if (!resets.empty()) more.push_back("--stop-before-resets");
-    Start("vehicle " + std::to_string(id), id, ProcessArgs(vehicle_exe_, more), run_nice, tag);
-    kids_.back().checkpoint = file;
-    kids_.back().reset_ticks = resets;
+    if (id > 0) p.reset_ticks = ClockedNode::ResetTicks(s_, id, s_.final_tick(r_->duration_s));
+    // With restarts each writes a checkpoint after every state it publishes, to resume
+    // from; so does a vehicle whose controller the scenario resets.
+    if (opt_.restart_on_failure || !p.reset_ticks.empty()) {
+      p.checkpoint = r_->process_output_dir + "/" + p.tag + ".ckpt";
+      more.insert(more.end(), {"--checkpoint", p.checkpoint});
+    }
+    if (!p.reset_ticks.empty()) more.push_back("--stop-before-resets");
+    p.argv = ProcessArgs(id == 0 ? leader_exe_ : vehicle_exe_, more);
+    p.nice_inc = run_nice;
+    plan_.processes.push_back(p);
   }
+}
+
+void Launch::StartAll() {
+  const LogFileBefore before(r_->log);
+  Start(plan_.processes.front(), {});  // lcm-logger
+  const pid_t logger_pid = kids_.back().running ? kids_.back().pid : 0;
+  for (int i = 0; i < 100 && !before.OpenedAnew(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  // Real time: a start margin. On the wall clock, it is converted to the monotonic clock
+  // as each process does (process.h).
+  std::int64_t t0_arg = 0;
+  if (opt_.wall_clock_t0) {
+    t0_arg = RealtimeNs() + 4000000000LL;
+    t0_ns_ = MonotonicFromUnixNs(t0_arg);
+  } else {
+    t0_ns_ = t0_arg = MonotonicNs() + 4000000000LL;
+  }
+  // No logger (fork failed: the run stops at once): the emulator does not wait for one.
+  const std::map<std::string, std::string> values = {
+      {kT0Arg, std::to_string(t0_arg)}, {kLoggerPidArg, std::to_string(logger_pid)}};
+  for (std::size_t i = 1; i < plan_.processes.size(); ++i) Start(plan_.processes[i], values);
 }
 
 double Launch::WallSeconds(std::chrono::steady_clock::time_point wall0) const {
@@ -966,7 +1023,7 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
                LaunchResult* result, std::string* error) {
   *result = LaunchResult();
   Launch launch(s, opt, result);
-  if (!launch.Prepare(error)) return false;
+  if (!launch.Prepare(/*for_print=*/false, error)) return false;
   const StopSignals signals({/*hangup=*/true, /*wake_on_child=*/true});
   // Held until every child has stopped.
   std::unique_ptr<CpuLatencyRequest> latency;
@@ -977,6 +1034,28 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   launch.Supervise(callbacks);
   launch.Shutdown();
   launch.GatherRejections();
+  return true;
+}
+
+bool PlanLaunch(const Scenario& s, const LaunchOptions& opt, LaunchPlan* plan,
+                std::string* error) {
+  if (opt.restart_on_failure) {
+    *error = "--print-launch: a launch script does not restart processes; print it without "
+             "--restart on-failure";
+    return false;
+  }
+  LaunchOptions wall = opt;
+  wall.wall_clock_t0 = true;  // hosts can share it; one host loses nothing by it
+  LaunchResult result;
+  Launch launch(s, wall, &result);
+  if (!launch.Prepare(/*for_print=*/true, error)) return false;
+  for (const PlannedProcess& p : launch.plan().processes) {
+    if (p.reset_ticks.empty()) continue;
+    *error = "--print-launch: the scenario resets the controller of " + p.name +
+             ", which shoal run does by restarting that process; a launch script cannot";
+    return false;
+  }
+  *plan = launch.plan();
   return true;
 }
 

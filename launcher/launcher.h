@@ -44,6 +44,49 @@ struct LaunchOptions {
   /// time (0 s included) and once at the end, into <log>.d/resources.csv (docs/run.md);
   /// 0: not sampled.
   double resource_interval_s = 60.0;
+  /// Real time: give the processes tick 0 on the wall clock (--t0-unix-ns, CLOCK_REALTIME
+  /// ns), which processes on other hosts can share if the hosts' clocks agree, instead of
+  /// on this host's CLOCK_MONOTONIC (--t0-ns). Each process converts it to its monotonic
+  /// clock once, at its start. A printed launch script always uses the wall clock.
+  bool wall_clock_t0 = false;
+};
+
+/// Child id of lcm-logger in a plan (not a vehicle id, nor kEmulatorId).
+inline constexpr int kLoggerId = -100;
+
+/// Placeholders in PlannedProcess::argv for what is known only once lcm-logger has
+/// started: the start time of tick 0 (ns, on the clock the option before it names) and
+/// lcm-logger's pid.
+inline constexpr const char* kT0Arg = "${t0}";
+inline constexpr const char* kLoggerPidArg = "${logger_pid}";
+
+/// One process of a run: the command shoal run starts it with, and --print-launch prints.
+/// Both are built from the one plan (LaunchPlan), so that they cannot differ.
+struct PlannedProcess {
+  std::string name;  // "lcm-logger", "channel emulator", "leader", "vehicle 3"
+  int id = kLoggerId;  // vehicle id (0: the leader), kEmulatorId or kLoggerId
+  std::string tag;     // its output goes to <log>.d/<tag>.txt
+  /// The command it runs under, to place it elsewhere (another host, a network namespace);
+  /// empty: here. The process's command line is prefix, then argv.
+  std::vector<std::string> prefix;
+  /// argv[0] by absolute path; may hold kT0Arg and kLoggerPidArg.
+  std::vector<std::string> argv;
+  int nice_inc = 0;
+  bool gets_key = true;      // the run's key in its environment (all but lcm-logger)
+  std::string checkpoint;    // the --checkpoint file it writes ("" none)
+  std::vector<std::int64_t> reset_ticks;  // controller resets it stops itself before
+};
+
+/// A run's processes, in the order they are started (lcm-logger first), and where they
+/// meet.
+struct LaunchPlan {
+  Mode mode = Mode::kLockstep;
+  std::string lcm_url;     // the shared bus
+  std::string log;         // what lcm-logger writes
+  std::string output_dir;  // <log>.d
+  bool insecure = false;
+  bool keep_going = false;
+  std::vector<PlannedProcess> processes;
 };
 
 /// A process that died and was started again (LaunchOptions::restart_on_failure).
@@ -115,5 +158,13 @@ struct LaunchCallbacks {
 /// duration. Holds the CPU latency request until every child has stopped.
 bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallbacks& callbacks,
                LaunchResult* result, std::string* error);
+
+/// The plan of a run of `s` as LaunchRun would start it with `opt`, except that tick 0 is
+/// always on the wall clock (--t0-unix-ns): checks what LaunchRun checks before it starts
+/// anything, but writes nothing and leaves the loopback route alone (the script checks
+/// it). Refused (false with *error) for what a script cannot do: --restart on-failure,
+/// and a scenario that resets a vehicle's controller (shoal run restarts that process).
+bool PlanLaunch(const Scenario& s, const LaunchOptions& opt, LaunchPlan* plan,
+                std::string* error);
 
 }  // namespace shoal

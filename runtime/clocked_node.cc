@@ -387,7 +387,7 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
                 "With --checkpoint: stop (SIGSTOP) after the tick before each controller "
                 "reset of this vehicle, for shoal run to restart the process there");
   Scenario s;
-  const int started = StartProcess(app, argc, argv, name, opt, &s);
+  const int started = StartProcess(app, argc, argv, name, &opt, &s);
   if (started >= 0) return started;
   if (!valid(s)) return 2;
   bus_auth::Setting auth;

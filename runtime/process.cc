@@ -4,19 +4,51 @@
 #include <sched.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
 
 #include <CLI/CLI.hpp>
 
+#include "runtime/clock.h"
 #include "runtime/stop_signals.h"
 #include "scenario/loader.h"
 
 namespace shoal {
+
+namespace {
+
+// How a process started alone (not by shoal run) finds the others of its run.
+constexpr const char* kStartAloneHelp =
+    "Starting it alone (shoal run --print-launch SCENARIO prints every command of a run; "
+    "docs/run.md, \"Launching by hand or by script\"). Every process of a run gets the "
+    "same --scenario, --set, --mode and --duration, and:\n"
+    "  bus: --lcm-url is the run's shared LCM bus (states SHOAL_STATE_<id>, health, status, "
+    "the channel's decisions; lcm-logger records it); a vehicle (and the leader) receives "
+    "what the channel emulator delivers to it, and the lockstep clock, on its --rx-url "
+    "(default: --lcm-url), and the emulator is given those URLs in --vehicle-urls (leader "
+    "first). Nothing goes from vehicle to vehicle but through the emulator.\n"
+    "  key: the run's key in the environment, SHOAL_BUS_KEY=<64 hex digits>, the same for "
+    "every process (e.g. export SHOAL_BUS_KEY=$(head -c32 /dev/urandom | od -An -v -tx1 | "
+    "tr -d ' \\n')); or --insecure on every process.\n"
+    "  start time (realtime; required): tick k is due at t0 + k period. --t0-unix-ns is t0 "
+    "on the wall clock (CLOCK_REALTIME ns, e.g. $(( $(date +%s%N) + 4000000000 )) for 4 s "
+    "from now), which processes on several hosts can share: each converts it once at its "
+    "start to its own monotonic clock and keeps to that, so a wall-clock step or slew during "
+    "the run does not move its ticks. This assumes the hosts' wall clocks agree; how well "
+    "they agree (NTP: typically 1-10 ms, PTP: microseconds) bounds how well the hosts' "
+    "ticks line up. --t0-ns is t0 on CLOCK_MONOTONIC, on this host only. A start time in "
+    "the past is allowed (a restarted process goes on with the run's t0); one more than a "
+    "day from now is refused.\n"
+    "  lockstep: the channel emulator is the clock; the others wait for it (no t0 needed).";
+
+}  // namespace
 
 void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
   app->add_option("--scenario", opt->scenario, "Scenario file (TOML)")->required();
@@ -28,22 +60,92 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
                   "LCM URL on which this process receives (default: --lcm-url)");
   app->add_option("--mode", opt->mode, "lockstep or realtime")
       ->check(CLI::IsMember({ModeName(Mode::kLockstep), ModeName(Mode::kRealtime)}));
-  app->add_option("--t0-ns", opt->t0_ns, "realtime: CLOCK_MONOTONIC ns of tick 0");
+  app->add_option("--t0-ns", opt->t0_ns,
+                  "realtime: CLOCK_MONOTONIC ns of tick 0 (this host only; shoal run's "
+                  "default)");
+  app->add_option("--t0-unix-ns", opt->t0_unix_ns,
+                  "realtime: CLOCK_REALTIME ns (since 1970) of tick 0, shared by hosts whose "
+                  "wall clocks agree; converted once at start to CLOCK_MONOTONIC");
   app->add_option("--duration", opt->duration_s, "Simulated seconds (default: the scenario's)");
   app->add_flag("--insecure", opt->insecure,
                 "Do not authenticate the bus's messages (else the run's key is read from "
                 "SHOAL_BUS_KEY, docs/run.md)");
+  app->footer(kStartAloneHelp);
+}
+
+std::int64_t RealtimeNs() {
+  timespec ts;
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1000000000LL + ts.tv_nsec;
+}
+
+std::int64_t MonotonicFromUnixNs(std::int64_t unix_ns) {
+  // Monotonic before and after the wall clock: the wall clock was read at about their
+  // middle, give or take half the gap. Five pairs; the tightest wins.
+  std::int64_t best_gap = -1, offset = 0;  // offset: realtime - monotonic
+  for (int i = 0; i < 5; ++i) {
+    const std::int64_t before = MonotonicNs();
+    const std::int64_t wall = RealtimeNs();
+    const std::int64_t after = MonotonicNs();
+    if (best_gap < 0 || after - before < best_gap) {
+      best_gap = after - before;
+      offset = wall - (before + (after - before) / 2);
+    }
+  }
+  return unix_ns - offset;
+}
+
+bool ResolveStartTime(bool monotonic_given, bool unix_given, ProcessOptions* opt,
+                      std::string* error) {
+  if (monotonic_given && unix_given) {
+    *error = "give the start time once: --t0-ns (CLOCK_MONOTONIC) or --t0-unix-ns "
+             "(CLOCK_REALTIME), not both";
+    return false;
+  }
+  if (!monotonic_given && !unix_given) {
+    if (opt->parsed_mode() != Mode::kRealtime) return true;  // lockstep reads no clock
+    *error = "real time needs the run's start time (tick 0): give --t0-unix-ns NS "
+             "(CLOCK_REALTIME ns, the same for every process of the run, e.g. "
+             "$(( $(date +%s%N) + 4000000000 ))) or --t0-ns NS (CLOCK_MONOTONIC ns, this "
+             "host only); see --help";
+    return false;
+  }
+  const char* name = unix_given ? "--t0-unix-ns" : "--t0-ns";
+  const std::int64_t given = unix_given ? opt->t0_unix_ns : opt->t0_ns;
+  const std::int64_t now = unix_given ? RealtimeNs() : MonotonicNs();
+  // As doubles: a wild value must not overflow the difference.
+  const double away_s = (static_cast<double>(given) - static_cast<double>(now)) * 1e-9;
+  if (std::fabs(away_s) > kMaxStartOffsetNs * 1e-9) {
+    char text[320];
+    std::snprintf(text, sizeof(text),
+                  "%s %lld is %.0f s %s now, more than a day: refused as a mistake (%s is "
+                  "%s ns; now it reads %lld)",
+                  name, static_cast<long long>(given), std::fabs(away_s),
+                  away_s < 0 ? "before" : "after", name,
+                  unix_given ? "CLOCK_REALTIME (date +%s%N)" : "CLOCK_MONOTONIC",
+                  static_cast<long long>(now));
+    *error = text;
+    return false;
+  }
+  if (unix_given) opt->t0_ns = MonotonicFromUnixNs(opt->t0_unix_ns);
+  return true;
 }
 
 int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
-                 const ProcessOptions& opt, Scenario* scenario) {
+                 ProcessOptions* opt, Scenario* scenario) {
   try {
     app->parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app->exit(e) == 0 ? 0 : 2;
   }
+  std::string error;
+  if (!ResolveStartTime(app->count("--t0-ns") > 0, app->count("--t0-unix-ns") > 0, opt,
+                        &error)) {
+    std::fprintf(stderr, "%s: %s\n", name.c_str(), error.c_str());
+    return 2;
+  }
   InstallProcessSignals();
-  return LoadScenarioWithSetsOrReport(name, opt.scenario, opt.set, scenario) ? -1 : 2;
+  return LoadScenarioWithSetsOrReport(name, opt->scenario, opt->set, scenario) ? -1 : 2;
 }
 
 void InstallProcessSignals() {

@@ -30,22 +30,45 @@ struct ProcessOptions {
   std::string lcm_url;       // the run's shared bus
   std::string rx_url;        // where this process receives (lockstep clock, SHOAL_RX_<id>); "" = lcm_url
   std::string mode = ModeName(Mode::kLockstep);
-  std::int64_t t0_ns = 0;    // realtime: CLOCK_MONOTONIC time of tick 0
+  std::int64_t t0_ns = 0;    // realtime: CLOCK_MONOTONIC time of tick 0 (after StartProcess)
+  std::int64_t t0_unix_ns = 0;  // --t0-unix-ns: CLOCK_REALTIME time of tick 0, if given
   double duration_s = -1.0;  // < 0: the scenario's
   bool insecure = false;     // no bus authentication (else the key comes from SHOAL_BUS_KEY)
   Mode parsed_mode() const { return ParseMode(mode).value_or(Mode::kLockstep); }
 };
 
-/// Adds the common options to a CLI11 app.
+/// Adds the common options to a CLI11 app, and to its --help how a process started alone
+/// finds the others of its run (the bus, the key, the start time).
 void AddProcessOptions(CLI::App* app, ProcessOptions* opt);
 
 struct Scenario;
 
-/// The start of every process's main(): parses the command line, installs the signal
-/// handlers and loads the scenario. Returns -1 to go on, else the exit code (0 after
-/// --help, 2 for bad arguments or a bad scenario, reported on stderr as "<name>: ...").
+/// The start of every process's main(): parses the command line, checks the start time
+/// (ResolveStartTime), installs the signal handlers and loads the scenario. Returns -1 to
+/// go on, else the exit code (0 after --help, 2 for bad arguments, a bad start time or a
+/// bad scenario, reported on stderr as "<name>: ..."). Afterwards opt->t0_ns is tick 0 on
+/// this process's CLOCK_MONOTONIC, whichever option gave it.
 int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
-                 const ProcessOptions& opt, Scenario* scenario);
+                 ProcessOptions* opt, Scenario* scenario);
+
+/// The start time of a run's tick 0 given as --t0-ns (`monotonic_given`) or --t0-unix-ns
+/// (`unix_given`), converted once to CLOCK_MONOTONIC into opt->t0_ns: the process runs on
+/// the monotonic clock from then on, so that a step or slew of the wall clock during the
+/// run does not move its ticks. Real time needs one of them; both at once, or a time more
+/// than kMaxStartOffsetNs from now (a mistake: ms for ns, a monotonic time taken for a
+/// wall-clock one), are refused. False with *error saying so.
+bool ResolveStartTime(bool monotonic_given, bool unix_given, ProcessOptions* opt,
+                      std::string* error);
+/// How far from now a start time may be, either way (a restarted process resumes with the
+/// run's original t0, in the past).
+constexpr std::int64_t kMaxStartOffsetNs = 86400LL * 1000000000LL;
+
+/// CLOCK_REALTIME now, in nanoseconds since 1970.
+std::int64_t RealtimeNs();
+/// The CLOCK_MONOTONIC time at which CLOCK_REALTIME reads `unix_ns`, as the two clocks
+/// stand now: both are read back to back a few times, and the pair read closest together
+/// (least likely to have been preempted between the reads) gives the offset.
+std::int64_t MonotonicFromUnixNs(std::int64_t unix_ns);
 
 /// Installs SIGINT/SIGTERM handlers that set StopRequested(), and asks the kernel to send
 /// SIGTERM when the parent dies.

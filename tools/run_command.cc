@@ -6,15 +6,40 @@
 #include <iostream>
 
 #include "analysis/verdict.h"
+#include "launcher/launch_script.h"
 #include "launcher/run_report.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
 
 namespace shoal {
+namespace {
+
+/// --print-launch: the script on stdout; nothing is started or written.
+int PrintLaunch(const Scenario& s, const RunOptions& opt, const LaunchOptions& launch) {
+  LaunchPlan plan;
+  std::string error;
+  if (!PlanLaunch(s, launch, &plan, &error)) {
+    std::cerr << "shoal run: " << error << "\n";
+    return kExitBadInput;
+  }
+  LaunchScriptContext ctx;
+  ctx.scenario_name = s.name;
+  ctx.command = opt.command;
+  char cwd[4096];
+  ctx.working_dir = getcwd(cwd, sizeof(cwd)) != nullptr ? cwd : ".";
+  std::cout << LaunchScript(plan, ctx) << std::flush;
+  return std::cout ? kExitOk : kExitFailed;
+}
+
+}  // namespace
 
 int RunRun(const RunOptions& opt) {
   Scenario s;
   if (!LoadScenarioWithSetsOrReport("shoal run", opt.launch.scenario, opt.launch.set, &s)) return kExitBadInput;
+  LaunchOptions launch_options = opt.launch;
+  launch_options.restart_on_failure = opt.restart == "on-failure";
+  launch_options.wall_clock_t0 = opt.t0_clock == "wall";
+  if (opt.print_launch) return PrintLaunch(s, opt, launch_options);
   const bool show = !opt.quiet && !opt.json && isatty(2);
   LaunchCallbacks cb;
   if (show) {
@@ -37,8 +62,6 @@ int RunRun(const RunOptions& opt) {
       std::fprintf(stderr, "%sshoal run: %s\n", show ? "\n" : "", what.c_str());
     };
   }
-  LaunchOptions launch_options = opt.launch;
-  launch_options.restart_on_failure = opt.restart == "on-failure";
   LaunchResult launch;
   std::string error;
   if (!LaunchRun(s, launch_options, cb, &launch, &error)) {

@@ -9,6 +9,11 @@ struct RunOptions {
   bool json = false;
   bool quiet = false;
   std::string restart = "no";  // "no" or "on-failure" (sets launch.restart_on_failure)
+  std::string t0_clock = "monotonic";  // "monotonic" or "wall" (sets launch.wall_clock_t0)
+  /// --print-launch: print a bash script that starts the run as shoal run would, instead
+  /// of running it (docs/run.md, "Launching by hand or by script").
+  bool print_launch = false;
+  std::vector<std::string> command;  // shoal's command line, for the script's header
 };
 
 /// `shoal run`: launches lcm-logger, the channel emulator, the leader and every vehicle

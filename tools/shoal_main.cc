@@ -99,6 +99,17 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
                 "mission seconds, and at the end, into <log>.d/resources.csv (0: never)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  c->add_option("--t0-clock", run->t0_clock,
+                "realtime: the clock on which the processes are given tick 0: monotonic "
+                "(--t0-ns, this host's CLOCK_MONOTONIC) or wall (--t0-unix-ns, "
+                "CLOCK_REALTIME, for processes on hosts whose wall clocks agree: NTP "
+                "~1-10 ms, PTP us, which bounds how well their ticks line up)")
+      ->check(CLI::IsMember({"monotonic", "wall"}))
+      ->capture_default_str();
+  c->add_flag("--print-launch", run->print_launch,
+              "Start nothing: print to stdout a bash script that starts lcm-logger, the "
+              "emulator, the leader and the vehicles with the commands shoal run would use "
+              "(tick 0 on the wall clock; docs/run.md, \"Launching by hand or by script\")");
   c->add_flag("--json", run->json, "Print one JSON object instead of the summary");
   c->add_flag("--quiet", run->quiet, "No progress line");
   return c;
@@ -303,7 +314,11 @@ int main(int argc, char** argv) {
     return shoal::kExitBadInput;
   }
   if (sim_cmd->parsed()) return shoal::RunSim(sim);
-  if (run_cmd->parsed()) return shoal::RunRun(run);
+  if (run_cmd->parsed()) {
+    run.command.assign(argv, argv + argc);
+    run.command[0] = "shoal";
+    return shoal::RunRun(run);
+  }
   if (cmp_cmd->parsed()) return shoal::RunCompare(cmp);
   if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
   if (design_cmd->parsed()) return shoal::RunDesign(design);

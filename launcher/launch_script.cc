@@ -1,0 +1,283 @@
+#include "launcher/launch_script.h"
+
+#include <sstream>
+
+#include "runtime/bus_auth.h"
+#include "runtime/channels.h"
+
+namespace shoal {
+namespace {
+
+// Process bookkeeping, starting and stopping, as shoal run does it (launcher.cc: Spawn,
+// Stop, Shutdown). Each process's output goes to <log>.d/<tag>.txt, as with shoal run.
+constexpr const char* kHelpers = R"sh(
+declare -A name_of=()  # pid -> process name
+run_pids=()            # the run's processes (all but the logger), in start order
+logger_pid=
+status=0
+
+# start NAME TAG NICE COMMAND...: starts COMMAND in the background, output to
+# $out_dir/TAG.txt. The process dies with this script (each Shoal process asks the kernel
+# for SIGTERM when its parent dies); lcm-logger does not: the traps below stop it.
+start() {
+  local name=$1 tag=$2 nice=$3
+  shift 3
+  if [ "$nice" != 0 ]; then set -- nice -n "$nice" "$@"; fi
+  "$@" >"$out_dir/$tag.txt" 2>&1 </dev/null &
+  name_of[$!]=$name
+  started_pid=$!
+  echo "$0: started $name (pid $!)" >&2
+}
+
+alive() { kill -0 "$1" 2>/dev/null; }
+
+# stop SIGNAL GRACE_S PID...: sends SIGNAL (and SIGCONT, for a stopped process), then
+# SIGKILL to whoever has not exited after GRACE_S seconds.
+stop() {
+  local sig=$1 grace=$2 pid i any
+  shift 2
+  for pid; do kill -s "$sig" "$pid" 2>/dev/null && kill -s CONT "$pid" 2>/dev/null || true; done
+  for ((i = 0; i < grace * 20; i++)); do
+    any=0
+    for pid; do if alive "$pid"; then any=1; fi; done
+    if [ $any = 0 ]; then return 0; fi
+    sleep 0.05
+  done
+  for pid; do
+    if alive "$pid"; then
+      echo "$0: ${name_of[$pid]} did not stop within $grace s and was killed" >&2
+      kill -s KILL "$pid" 2>/dev/null || true
+      status=1
+    fi
+  done
+}
+
+# The run's processes first, the logger last (SIGINT: it flushes and closes the log), so
+# that it records everything they published; it drains its socket in between.
+shut_down() {
+  local pid left=()
+  for pid in "${run_pids[@]}"; do if alive "$pid"; then left+=("$pid"); fi; done
+  if [ ${#left[@]} != 0 ]; then stop TERM 2 "${left[@]}"; sleep 0.2; fi
+  if [ -n "$logger_pid" ] && alive "$logger_pid"; then stop INT 2 "$logger_pid"; fi
+}
+trap 'echo "$0: interrupted: stopping the run" >&2; exit 130' INT
+trap 'echo "$0: terminated: stopping the run" >&2; exit 143' TERM
+trap shut_down EXIT
+
+# describe STATUS: what a wait status means.
+describe() {
+  if [ "$1" -gt 128 ]; then
+    echo "killed by signal $(($1 - 128)) ($(kill -l $(($1 - 128))))"
+  else
+    echo "exited with status $1"
+  fi
+}
+)sh";
+
+// Watches the processes until the channel emulator ends the run, then stops the rest as
+// shoal run does: the others get 2 s to finish their last tick on their own.
+constexpr const char* kWatch = R"sh(
+# The channel emulator ends the run. Any process that fails, and the logger exiting
+# early, stops it (with keep_going=1 a vehicle or the leader that fails is reported and
+# the others go on; the run has failed all the same).
+watch=("$logger_pid" "${run_pids[@]}")
+declare -A exit_of=()  # pid -> exit status, of those seen to end so far
+while [ ${#watch[@]} != 0 ]; do
+  rc=0
+  done_pid=
+  wait -n -p done_pid "${watch[@]}" || rc=$?
+  if [ -z "$done_pid" ]; then break; fi
+  rest=()
+  for pid in "${watch[@]}"; do if [ "$pid" != "$done_pid" ]; then rest+=("$pid"); fi; done
+  watch=("${rest[@]}")
+  exit_of[$done_pid]=$rc
+  if [ "$done_pid" = "$emulator_pid" ] && [ $rc = 0 ]; then break; fi
+  if [ "$done_pid" = "$logger_pid" ]; then
+    echo "$0: lcm-logger exited early ($(describe $rc)): the log ends here" >&2
+    status=1
+    break
+  fi
+  if [ $rc != 0 ]; then
+    echo "$0: ${name_of[$done_pid]} (pid $done_pid) $(describe $rc)" >&2
+    status=1
+    if [ "$keep_going" = 1 ] && [ "$done_pid" != "$emulator_pid" ]; then continue; fi
+    echo "$0: the run was stopped there" >&2
+    break
+  fi
+done
+if [ $status = 0 ]; then
+  for ((i = 0; i < 40; i++)); do
+    any=0
+    for pid in "${run_pids[@]}"; do if alive "$pid"; then any=1; fi; done
+    if [ $any = 0 ]; then break; fi
+    sleep 0.05
+  done
+fi
+shut_down
+trap - EXIT
+for pid in "${run_pids[@]}"; do
+  if [ -n "${exit_of[$pid]:-}" ]; then continue; fi  # already seen (and said) above
+  rc=0
+  wait "$pid" || rc=$?
+  if [ $rc != 0 ] && [ $status = 0 ]; then
+    echo "$0: ${name_of[$pid]} (pid $pid) $(describe $rc)" >&2
+    status=1
+  fi
+done
+echo "$0: the run ended ($([ $status = 0 ] && echo "every process ran to the end" || echo "FAILED")); log: $log (shoal analyze $log)" >&2
+exit $status
+)sh";
+
+bool Plain(const std::string& w) {
+  if (w.empty()) return false;
+  for (const char c : w) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    std::string("-_./:=,@%+").find(c) != std::string::npos;
+    if (!ok) return false;
+  }
+  return true;
+}
+
+std::string Joined(const std::vector<std::string>& words) {
+  std::string s;
+  for (const std::string& w : words) s += (s.empty() ? "" : " ") + ShellWord(w);
+  return s;
+}
+
+/// What the script is, the processes and how they find each other.
+void WriteHeader(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ostream& o) {
+  const bool rt = plan.mode == Mode::kRealtime;
+  o << "#!/usr/bin/env bash\n"
+    << "# A Shoal SIL run of scenario " << ctx.scenario_name << " (" << ModeName(plan.mode)
+    << "), started as shoal run starts it. Printed by:\n#   " << Joined(ctx.command) << "\n"
+    << "# It starts, in this order (docs/run.md):\n"
+    << "#   lcm-logger        records the run's channels (" << channels::kAllPattern
+    << ") into the log\n"
+    << "#   channel emulator  the only path between vehicles: delay, loss and rate limit per\n"
+    << "#                     link; " << (rt ? "it releases each message at send time + delay"
+                                            : "the clock master of lockstep")
+    << "; its end ends the run\n"
+    << "#   leader            publishes the leader's path state (SHOAL_STATE_0)\n"
+    << "#   vehicle 1.." << plan.processes.size() - 3
+    << "      one per follower: publishes SHOAL_STATE_<id>, hears only SHOAL_RX_<id>\n"
+    << "# How they find each other: all publish on the run's shared bus (--lcm-url, an LCM\n"
+    << "# URL udpm://GROUP:PORT?ttl=0: a multicast group and port that never leave the host),\n"
+    << "# which the logger records. Where a process has --rx-url it receives there, on a bus\n"
+    << "# of its own (group 239.255.<77+id/200>.<20+id%200>, port <run port> + 1 + id); the\n"
+    << "# emulator delivers to each on it (--vehicle-urls, leader first). The URLs were\n"
+    << "# drawn when this was printed: print it again for a run beside this one.\n";
+  if (plan.insecure) {
+    o << "# --insecure: the bus is not authenticated (no key).\n";
+  } else {
+    o << "# Every message is signed with the run's key, " << bus_auth::kKeyEnv
+      << " in the environment\n# (64 hex digits, drawn below; also in <log>.key, to verify "
+         "the log later).\n";
+  }
+  o << "# Tick k is due at t0 + k period: t0 is given on the wall clock (--t0-unix-ns,\n"
+    << "# CLOCK_REALTIME ns), 4 s after the logger is up; each process converts it once to\n"
+    << "# its own monotonic clock (on several hosts their wall clocks must agree).\n"
+    << "# Exit status: 0 the emulator ended the run and every process ran to the end; 1 a\n"
+    << "# process failed or the logger exited early; 2 multicast not kept on the host;\n"
+    << "# 130/143 interrupted. Judge the run with: shoal analyze <log>.\n"
+    << "set -euo pipefail\n";
+}
+
+void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ostream& o) {
+  o << "cd " << ShellWord(ctx.working_dir) << "  # where shoal run was; the paths are from it\n"
+    << "log=" << ShellWord(plan.log) << "\nout_dir=" << ShellWord(plan.output_dir)
+    << "  # each process's output, <tag>.txt\n"
+    << "keep_going=" << (plan.keep_going ? 1 : 0) << "\n";
+  if (plan.lcm_url.rfind("udpm://", 0) == 0) {
+    const std::string fix = "ip link set lo multicast on && ip route add 239.255.0.0/16 dev lo";
+    o << "\n# Multicast must stay on this host (as shoal run checks).\n"
+      << "if ! ip route get 239.255.76.67 2>/dev/null | grep -q ' dev lo'; then\n"
+      << "  if [ \"$(id -u)\" = 0 ]; then\n    " << fix << "\n  else\n"
+      << "    echo \"$0: multicast is not routed to the loopback interface; as root run: "
+      << fix << "\" >&2\n    exit 2\n  fi\nfi\n";
+  }
+  o << "\nmkdir -p -- \"$out_dir\"\n"
+    << "rm -f -- \"$out_dir\"/{vehicle,leader,emulator,logger}*.{txt,ckpt}\n";
+  if (plan.insecure) {
+    o << "rm -f -- \"$log.key\"  # an earlier run's key would make this log look forged\n";
+  } else {
+    o << "\n# The run's key: 32 random bytes as 64 hex digits, also written to a new file\n"
+      << "# <log>.key (mode 0600) for shoal analyze and shoal compare. Exported only after\n"
+      << "# the logger has started: lcm-logger records bytes as they are and does not get it.\n"
+      << bus_auth::kKeyEnv << "=$(head -c 32 /dev/urandom | od -An -v -tx1 | tr -d ' \\n')\n"
+      << "rm -f -- \"$log.key\"\n"
+      << "(umask 077 && set -C && printf '%s\\n' \"$" << bus_auth::kKeyEnv
+      << "\" >\"$log.key\")\n";
+  }
+  o << kHelpers;
+}
+
+/// One `start` line: argv broken before each option.
+void WriteStart(const PlannedProcess& p, const std::string& nice, std::ostream& o) {
+  o << "start " << ShellWord(p.name) << " " << p.tag << " " << nice << " \\\n  ";
+  std::vector<std::string> words = p.prefix;
+  words.insert(words.end(), p.argv.begin(), p.argv.end());
+  for (std::size_t i = 0; i < words.size(); ++i) {
+    if (i > 0) o << (words[i].rfind("--", 0) == 0 ? " \\\n    " : " ");
+    o << ShellWord(words[i]);
+  }
+  o << "\n";
+}
+
+void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
+  const PlannedProcess& logger = plan.processes.front();
+  o << "\n# lcm-logger, first (as root at nice -10: its 30-message queue must not wait for the\n"
+    << "# CPU). The run's processes start once its log exists.\n"
+    << "logger_nice=0\nif [ \"$(id -u)\" = 0 ]; then logger_nice=-10; fi\n"
+    << "rm -f -- \"$log\"\n";
+  WriteStart(logger, "$logger_nice", o);
+  o << "logger_pid=$started_pid\n"
+    << "for ((i = 0; i < 250; i++)); do if [ -e \"$log\" ]; then break; fi; sleep 0.02; done\n"
+    << "if [ ! -e \"$log\" ]; then\n"
+    << "  echo \"$0: lcm-logger did not create $log within 5 s ($out_dir/logger.txt)\" >&2\n"
+    << "  exit 1\nfi\n";
+  if (!plan.insecure) o << "export " << bus_auth::kKeyEnv << "\n";
+  o << "# Tick 0 on the wall clock, 4 s from now (ns since 1970).\n"
+    << "t0=$(( $(date +%s%N) + 4000000000 ))\n";
+  for (std::size_t i = 1; i < plan.processes.size(); ++i) {
+    const PlannedProcess& p = plan.processes[i];
+    o << "\n";
+    if (p.id == kEmulatorId) {
+      o << "# The channel emulator: hears every state on the shared bus and delivers it to each\n"
+        << "# receiver after the link's delay (or drops it)"
+        << (plan.mode == Mode::kLockstep
+                ? "; the lockstep clock: it waits for every\n# process's \"ready\", "
+                  "releases the ticks and waits for their states"
+                : "")
+        << ".\n";
+    } else if (p.id == 0) {
+      o << "# The leader: its path state on the shared bus.\n";
+    } else {
+      o << "# " << p.name << ": its state on the shared bus; its neighbours' via the emulator.\n";
+    }
+    WriteStart(p, std::to_string(p.nice_inc), o);
+    o << "run_pids+=(\"$started_pid\")\n";
+    if (p.id == kEmulatorId) o << "emulator_pid=$started_pid\n";
+  }
+}
+
+}  // namespace
+
+std::string ShellWord(const std::string& word) {
+  if (word == kT0Arg) return "\"$t0\"";
+  if (word == kLoggerPidArg) return "\"$logger_pid\"";
+  if (Plain(word)) return word;
+  std::string q = "'";
+  for (const char c : word) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string LaunchScript(const LaunchPlan& plan, const LaunchScriptContext& ctx) {
+  std::ostringstream o;
+  WriteHeader(plan, ctx, o);
+  WriteSetup(plan, ctx, o);
+  WriteProcesses(plan, o);
+  o << kWatch;
+  return o.str();
+}
+
+}  // namespace shoal

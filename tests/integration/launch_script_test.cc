@@ -1,0 +1,316 @@
+// The start time of a real-time run (--t0-ns, --t0-unix-ns) and shoal run --print-launch:
+// the real executables, and the printed script run by bash.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <regex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "launcher/launch_script.h"
+#include "runtime/clock.h"
+#include "runtime/lcm_bus.h"
+#include "runtime/process.h"
+#include "tests/integration/test_util.h"
+
+namespace shoal {
+namespace {
+
+using shoal::testing::ParseJson;
+using shoal::testing::ReadFile;
+using shoal::testing::RunShoal;
+using shoal::testing::SourcePath;
+using shoal::testing::TmpPath;
+
+const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
+
+std::string Url(int port) { return "udpm://239.255.76.67:" + std::to_string(port) + "?ttl=0"; }
+
+std::string Exe(const std::string& which) {
+  if (which == "vehicle") return std::string(SHOAL_BINARY_DIR) + "/vehicle/shoal_vehicle --id 1";
+  if (which == "leader") return std::string(SHOAL_BINARY_DIR) + "/leader/shoal_leader";
+  return std::string(SHOAL_BINARY_DIR) + "/channel_emulator/shoal_channel_emulator";
+}
+
+struct Outcome {
+  int status = -1;
+  std::string output;
+  int messages = 0;  // what a listener on the process's bus heard meanwhile
+};
+
+/// Runs `command` (a real process of a run, on bus `port`, --insecure) while listening on
+/// that bus: what it said, its exit status, and how many messages it published.
+/// After `limit_s` it is killed (status 256 + 9).
+Outcome RunListening(const std::string& command, int port, const std::string& tag,
+                     double limit_s = 30.0) {
+  LcmBus listener(Url(port));
+  std::atomic<int> heard{0};
+  listener.Subscribe("SHOAL_.*", [&heard](const std::string&, const void*, int) { ++heard; });
+  const std::string out = TmpPath(tag + ".out");
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const std::string cmd = "exec " + command + " >" + out + " 2>&1 </dev/null";
+    execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  Outcome o;
+  int raw = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (waitpid(pid, &raw, WNOHANG) != pid) {
+    listener.Handle(20);
+    if (std::chrono::steady_clock::now() - t0 > std::chrono::duration<double>(limit_s)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &raw, 0);
+      break;
+    }
+  }
+  for (int i = 0; i < 10; ++i) listener.Handle(20);  // what is still on its way
+  o.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : 256 + WTERMSIG(raw);
+  o.output = ReadFile(out);
+  o.messages = heard;
+  return o;
+}
+
+std::string Common(int port, const std::string& mode) {
+  return " --insecure --scenario " + kExample2 + " --lcm-url '" + Url(port) + "' --mode " + mode +
+         " --duration 0.3";
+}
+
+TEST(StartTime, RealtimeProcessWithoutAStartTimeRefusesToStart) {
+  for (const std::string which : {"vehicle", "leader", "emulator"}) {
+    const Outcome o = RunListening(Exe(which) + Common(31711, "realtime"), 31711, "t0_none");
+    EXPECT_EQ(o.status, 2) << which << ": " << o.output;
+    EXPECT_NE(o.output.find("real time needs the run's start time"), std::string::npos)
+        << which << ": " << o.output;
+    EXPECT_NE(o.output.find("--t0-unix-ns"), std::string::npos) << which << ": " << o.output;
+    EXPECT_NE(o.output.find("--t0-ns"), std::string::npos) << which << ": " << o.output;
+    EXPECT_EQ(o.messages, 0) << which << ": it published";
+  }
+}
+
+TEST(StartTime, AVehicleGivenAStartTimeRunsAndPublishes) {
+  // The listener of the test above hears a process that does publish.
+  const std::string t0 = std::to_string(RealtimeNs() + 200000000LL);
+  const Outcome o = RunListening(Exe("vehicle") + Common(31712, "realtime") +
+                                     " --t0-unix-ns " + t0, 31712, "t0_unix");
+  EXPECT_EQ(o.status, 0) << o.output;
+  EXPECT_GE(o.messages, 16) << o.output;  // 0.3 s at 50 Hz: 16 states, statuses, health
+  // On time: the wall-clock start was converted to the monotonic clock correctly.
+  EXPECT_NE(o.output.find(", 0 overruns"), std::string::npos) << o.output;
+}
+
+TEST(StartTime, BothStartTimesOrOneMoreThanADayAwayAreRefused) {
+  const std::int64_t day = 86400LL * 1000000000LL;
+  const std::string mono_now = std::to_string(MonotonicNs());
+  const std::string unix_now = std::to_string(RealtimeNs());
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {" --t0-ns " + mono_now + " --t0-unix-ns " + unix_now, "not both"},
+      {" --t0-unix-ns " + std::to_string(RealtimeNs() + day + 60000000000LL), "more than a day"},
+      {" --t0-unix-ns " + std::to_string(RealtimeNs() - day - 60000000000LL), "more than a day"},
+      {" --t0-unix-ns " + mono_now, "more than a day"},  // the monotonic clock taken for it
+      {" --t0-ns " + unix_now, "more than a day"},       // and the other way round
+      {" --t0-ns 0", "more than a day"},  // (the machine has been up for less than a day)
+  };
+  for (const auto& [args, says] : bad) {
+    if (args == " --t0-ns 0" && MonotonicNs() > day) continue;
+    for (const std::string which : {"vehicle", "emulator"}) {
+      const Outcome o = RunListening(Exe(which) + Common(31713, "realtime") + args, 31713,
+                                     "t0_bad");
+      EXPECT_EQ(o.status, 2) << which << args << ": " << o.output;
+      EXPECT_NE(o.output.find(says), std::string::npos) << which << args << ": " << o.output;
+      EXPECT_EQ(o.messages, 0) << which << args;
+    }
+  }
+}
+
+TEST(StartTime, AStartTimeInThePastIsAllowed) {
+  // A restarted process goes on with the run's original t0.
+  const std::string t0 = std::to_string(RealtimeNs() - 3600LL * 1000000000LL);
+  const Outcome o = RunListening(Exe("vehicle") + Common(31714, "realtime") +
+                                     " --t0-unix-ns " + t0, 31714, "t0_past");
+  EXPECT_EQ(o.status, 0) << o.output;
+  EXPECT_GT(o.messages, 0) << o.output;
+}
+
+TEST(StartTime, WallClockConvertsToTheMonotonicClock) {
+  const std::int64_t unix_now = RealtimeNs();
+  const std::int64_t mono = MonotonicFromUnixNs(unix_now);
+  EXPECT_LT(std::llabs(mono - MonotonicNs()), 5000000LL);  // 5 ms, on a loaded machine
+  // A second later on one clock is a second later on the other.
+  EXPECT_LT(std::llabs(MonotonicFromUnixNs(unix_now + 1000000000LL) - mono - 1000000000LL),
+            5000000LL);
+}
+
+TEST(StartTime, LockstepNeedsNoStartTime) {
+  // Lockstep reads no clock: started without one, a vehicle announces itself and waits
+  // for the clock master as usual (here none comes: it is stopped after 1.5 s).
+  const Outcome o =
+      RunListening(Exe("vehicle") + Common(31715, "lockstep"), 31715, "t0_ls", 1.5);
+  EXPECT_EQ(o.status, 256 + SIGKILL) << o.output;
+  EXPECT_EQ(o.output.find("start time"), std::string::npos) << o.output;
+  EXPECT_GT(o.messages, 0) << o.output;  // its "ready" statuses
+}
+
+struct Script {
+  std::string path;
+  std::string text;
+};
+
+/// shoal run --print-launch ARGS, into a file.
+Script Print(const std::string& args, const std::string& tag) {
+  const auto r = RunShoal("run --print-launch " + args, tag);
+  EXPECT_EQ(r.status, 0) << r.err;
+  Script s{TmpPath(tag + ".sh"), r.out};
+  std::FILE* f = std::fopen(s.path.c_str(), "w");
+  std::fputs(r.out.c_str(), f);
+  std::fclose(f);
+  return s;
+}
+
+/// bash SCRIPT: exit status and stderr.
+std::pair<int, std::string> RunBash(const std::string& script, const std::string& tag) {
+  const std::string err = TmpPath(tag + ".bash.err");
+  const int raw = std::system(("bash " + script + " >/dev/null 2>" + err + " </dev/null").c_str());
+  return {WIFEXITED(raw) ? WEXITSTATUS(raw) : 256 + WTERMSIG(raw), ReadFile(err)};
+}
+
+TEST(LaunchScript, ShellWordsKeepEveryArgumentAsItIs) {
+  EXPECT_EQ(ShellWord("--duration"), "--duration");
+  EXPECT_EQ(ShellWord("udpm://239.255.76.67:1?ttl=0&x=1"), "'udpm://239.255.76.67:1?ttl=0&x=1'");
+  EXPECT_EQ(ShellWord("--set=name=it's $HOME"), "'--set=name=it'\\''s $HOME'");
+  EXPECT_EQ(ShellWord(""), "''");
+  EXPECT_EQ(ShellWord(kT0Arg), "\"$t0\"");
+  EXPECT_EQ(ShellWord(kLoggerPidArg), "\"$logger_pid\"");
+  // bash gives back each word as it was.
+  const std::string odd = "a b'c\"d$e`f\\g\nh*";
+  const std::string out = TmpPath("ls_words.out");
+  std::system(("printf '%s' " + ShellWord(odd) + " >" + out).c_str());
+  EXPECT_EQ(ReadFile(out), odd);
+}
+
+TEST(LaunchScript, HoldsShoalRunsCommands) {
+  const std::string log = TmpPath("ls_text.lcmlog");
+  const Script s = Print(kExample2 + " --mode realtime --duration 5 --out " + log +
+                             " --set channel.loss.p=0.25 --max-lookahead 7", "ls_text");
+  EXPECT_EQ(s.text.rfind("#!/usr/bin/env bash\n", 0), 0u) << s.text;
+  EXPECT_NE(s.text.find("set -euo pipefail"), std::string::npos);
+  EXPECT_NE(s.text.find("export SHOAL_BUS_KEY"), std::string::npos);
+  EXPECT_NE(s.text.find("t0=$(( $(date +%s%N) + 4000000000 ))"), std::string::npos);
+  EXPECT_NE(s.text.find("trap shut_down EXIT"), std::string::npos);
+  // Every run process gets the start time on the wall clock, the --set and the options.
+  const std::regex start(R"(start '?([a-z ]+[0-9]*)'? )");
+  int processes = 0;
+  for (auto it = std::sregex_iterator(s.text.begin(), s.text.end(), start);
+       it != std::sregex_iterator(); ++it) {
+    ++processes;
+  }
+  EXPECT_EQ(processes, 1 + 1 + 1 + 5) << s.text;  // logger, emulator, leader, 5 followers
+  auto count = [&](const std::string& what) {
+    int n = 0;
+    for (std::size_t p = s.text.find(what); p != std::string::npos; p = s.text.find(what, p + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("--t0-unix-ns \"$t0\""), 7) << s.text;
+  EXPECT_EQ(count("--set=channel.loss.p=0.25"), 7) << s.text;
+  EXPECT_EQ(count("--t0-ns"), 0) << s.text;
+  EXPECT_EQ(count("--max-lookahead 7"), 1) << s.text;
+  EXPECT_EQ(count("--rx-url"), 6) << s.text;
+  EXPECT_EQ(count(std::string(SHOAL_BINARY_DIR) + "/vehicle/shoal_vehicle"), 5) << s.text;
+  // What a script cannot do is refused.
+  const auto restart = RunShoal("run --print-launch " + kExample2 + " --restart on-failure",
+                                "ls_restart");
+  EXPECT_EQ(restart.status, 2) << restart.err;
+  EXPECT_NE(restart.err.find("does not restart"), std::string::npos) << restart.err;
+}
+
+TEST(LaunchScript, LockstepScriptLogsWhatShoalRunLogs) {
+  const std::string script_log = TmpPath("ls_script.lcmlog"), run_log = TmpPath("ls_run.lcmlog");
+  const Script s = Print(kExample2 + " --duration 10 --out " + script_log, "ls_lockstep");
+  const auto [status, err] = RunBash(s.path, "ls_lockstep");
+  ASSERT_EQ(status, 0) << err << s.text;
+  const auto run = RunShoal("run " + kExample2 + " --duration 10 --json --out " + run_log,
+                            "ls_lockstep_run");
+  ASSERT_TRUE(ParseJson(run.out)["all_processes_ok"].get<bool>()) << run.out << run.err;
+  // Each log verified with its own run's key (<log>.key): the script wrote its own.
+  const auto cmp = RunShoal("compare " + script_log + " " + run_log + " --json", "ls_lockstep_cmp");
+  const auto cj = ParseJson(cmp.out);
+  EXPECT_EQ(cmp.status, 0) << cmp.out << cmp.err;
+  EXPECT_EQ(cj["max_position_diff_m"].get<double>(), 0.0) << cmp.out;
+  EXPECT_EQ(cj["max_velocity_diff_mps"].get<double>(), 0.0) << cmp.out;
+  EXPECT_EQ(cj["only_in_a"].get<int>(), 0) << cmp.out;
+  EXPECT_EQ(cj["only_in_b"].get<int>(), 0) << cmp.out;
+  EXPECT_EQ(cj["samples"].get<int>(), 6 * 501) << cmp.out;  // 6 vehicles, ticks 0..500
+  EXPECT_EQ(cmp.err.find("authenticat"), std::string::npos) << cmp.err;
+}
+
+TEST(LaunchScript, RealtimeScriptRunsToTheEnd) {
+  const std::string log = TmpPath("ls_rt.lcmlog");
+  const Script s = Print(kExample2 + " --mode realtime --duration 3 --out " + log, "ls_rt");
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto [status, err] = RunBash(s.path, "ls_rt");
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_EQ(status, 0) << err;
+  EXPECT_LT(took, 15.0);  // 4 s margin, 3 s of mission, the end of the last delays
+  const auto ana = RunShoal("analyze --json " + log, "ls_rt_analyze");
+  const auto aj = ParseJson(ana.out);
+  EXPECT_EQ(aj["log_states"].get<int>(), aj["log_states_expected"].get<int>()) << ana.out;
+  EXPECT_EQ(aj["log_states"].get<int>(), 6 * 151) << ana.out;  // ticks 0..150
+  // Every process ran on time from the wall-clock start.
+  for (const std::string tag : {"leader", "vehicle1", "vehicle5"}) {
+    const std::string out = ReadFile(log + ".d/" + tag + ".txt");
+    EXPECT_NE(out.find(", 0 overruns"), std::string::npos) << tag << ": " << out;
+  }
+}
+
+TEST(LaunchScript, StoppingTheScriptStopsEveryProcess) {
+  const std::string log = TmpPath("ls_stop.lcmlog");
+  const Script s = Print(kExample2 + " --mode realtime --duration 60 --out " + log, "ls_stop");
+  const std::string err = TmpPath("ls_stop.bash.err");
+  const pid_t bash = fork();
+  if (bash == 0) {
+    const std::string cmd = "exec bash " + s.path + " >/dev/null 2>" + err + " </dev/null";
+    execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // Until every process has started (the script says so for each).
+  std::vector<int> pids;
+  const std::regex started(R"(started .* \(pid ([0-9]+)\))");
+  for (int i = 0; i < 200 && pids.size() < 8; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    pids.clear();
+    const std::string text = ReadFile(err);
+    for (auto it = std::sregex_iterator(text.begin(), text.end(), started);
+         it != std::sregex_iterator(); ++it) {
+      pids.push_back(std::stoi((*it)[1]));
+    }
+  }
+  ASSERT_EQ(pids.size(), 8u) << ReadFile(err);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  kill(bash, SIGTERM);
+  double took = 0;
+  EXPECT_EQ(shoal::testing::WaitExit(bash, 10.0, &took), 143) << ReadFile(err);
+  EXPECT_LT(took, 6.0);
+  for (const int pid : pids) EXPECT_NE(kill(pid, 0), 0) << "pid " << pid << " still runs";
+  EXPECT_GT(ReadFile(log).size(), 0u);  // the logger closed its log
+}
+
+TEST(ShoalRun, WallClockStartTimeRunsOnTime) {
+  const std::string log = TmpPath("ls_wall.lcmlog");
+  const auto r = RunShoal("run " + kExample2 + " --mode realtime --t0-clock wall --duration 3 "
+                          "--json --out " + log, "ls_wall");
+  const auto j = ParseJson(r.out);
+  EXPECT_TRUE(j["all_processes_ok"].get<bool>()) << r.out << r.err;
+  EXPECT_TRUE(j["log_complete"].get<bool>()) << r.out;
+  EXPECT_TRUE(j["timing_ok"].get<bool>()) << r.out;
+  EXPECT_NE(ReadFile(log + ".d/vehicle1.txt").find(", 0 overruns"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace shoal
