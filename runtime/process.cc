@@ -131,6 +131,26 @@ bool ResolveStartTime(bool monotonic_given, bool unix_given, ProcessOptions* opt
   return true;
 }
 
+namespace {
+
+/// For the process's output: where its ticks come from, and so how to compare its
+/// timing with that of processes on other hosts.
+void SayStartTime(const std::string& name, const ProcessOptions& opt, bool unix_given) {
+  if (opt.parsed_mode() != Mode::kRealtime) return;
+  if (unix_given) {
+    std::fprintf(stderr, "%s: tick 0 at --t0-unix-ns %lld (wall clock) = CLOCK_MONOTONIC %lld "
+                 "on this host, %.3f s from now\n", name.c_str(),
+                 static_cast<long long>(opt.t0_unix_ns), static_cast<long long>(opt.t0_ns),
+                 (opt.t0_ns - MonotonicNs()) * 1e-9);
+  } else {
+    std::fprintf(stderr, "%s: tick 0 at --t0-ns %lld (CLOCK_MONOTONIC), %.3f s from now\n",
+                 name.c_str(), static_cast<long long>(opt.t0_ns),
+                 (opt.t0_ns - MonotonicNs()) * 1e-9);
+  }
+}
+
+}  // namespace
+
 int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
                  ProcessOptions* opt, Scenario* scenario) {
   try {
@@ -139,11 +159,12 @@ int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
     return app->exit(e) == 0 ? 0 : 2;
   }
   std::string error;
-  if (!ResolveStartTime(app->count("--t0-ns") > 0, app->count("--t0-unix-ns") > 0, opt,
-                        &error)) {
+  const bool unix_given = app->count("--t0-unix-ns") > 0;
+  if (!ResolveStartTime(app->count("--t0-ns") > 0, unix_given, opt, &error)) {
     std::fprintf(stderr, "%s: %s\n", name.c_str(), error.c_str());
     return 2;
   }
+  SayStartTime(name, *opt, unix_given);
   InstallProcessSignals();
   return LoadScenarioWithSetsOrReport(name, opt->scenario, opt->set, scenario) ? -1 : 2;
 }
