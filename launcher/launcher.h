@@ -67,7 +67,8 @@ struct PlannedProcess {
   int id = kLoggerId;  // vehicle id (0: the leader), kEmulatorId or kLoggerId
   std::string tag;     // its output goes to <log>.d/<tag>.txt
   /// The command it runs under, to place it elsewhere (another host, a network namespace);
-  /// empty: here. The process's command line is prefix, then argv.
+  /// empty: here. The process's command line is prefix, then argv; shoal run executes its
+  /// first word as it is (no PATH search), so it is an absolute path.
   std::vector<std::string> prefix;
   /// argv[0] by absolute path; may hold kT0Arg and kLoggerPidArg.
   std::vector<std::string> argv;
