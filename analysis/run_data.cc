@@ -11,6 +11,7 @@
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
 #include <shoal/clock_window_t.hpp>
+#include <shoal/health2_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
@@ -115,6 +116,35 @@ bool DecodeClock(const std::uint8_t* p, int size, clock_window_t* c) {
   return Decode(p, size, c);
 }
 
+/// A health report, health2_t or (older logs) health_t, whose window count is then -1.
+bool DecodeHealth(const std::uint8_t* p, int size, health2_t* h) {
+  static const std::int64_t old_hash = health_t::getHash();
+  if (size >= 8 && I64(p) == old_hash) {
+    health_t o;
+    if (!Decode(p, size, &o)) return false;
+    *h = ToLcmHealth2(o, LatenessWindow());
+    h->lateness_window_count = -1;
+    return true;
+  }
+  return Decode(p, size, h);
+}
+
+/// The report's window into *r: false if its histogram cannot be (a negative count, or
+/// counts that do not sum to its count).
+bool WindowOf(const health2_t& h, HealthRecord* r) {
+  r->lateness_window_count = h.lateness_window_count;
+  r->lateness_window_max_s = h.lateness_window_max_s;
+  if (h.lateness_window_count < 0) return h.lateness_window_count == -1;
+  std::int64_t sum = 0;
+  for (int i = 0; i < health2_t::LATENESS_BINS; ++i) {
+    const std::int32_t n = h.lateness_window_bins[i];
+    if (n < 0) return false;
+    if (n > 0) r->lateness_window.push_back({static_cast<std::int16_t>(i), n});
+    sum += n;
+  }
+  return sum == h.lateness_window_count && std::isfinite(h.lateness_window_max_s);
+}
+
 }  // namespace
 
 RunDataBuilder::RunDataBuilder(RunData* out, const LoadOptions& opt) : d_(out), opt_(opt) {
@@ -205,16 +235,16 @@ void RunDataBuilder::AddChannelEvents(const std::uint8_t* data, int size) {
 }
 
 void RunDataBuilder::AddHealth(int id, const std::uint8_t* data, int size) {
-  health_t h{};
-  if (!Decode(data, size, &h)) {
+  health2_t h{};
+  if (!DecodeHealth(data, size, &h)) {
     ++d_->undecodable;
     return;
   }
-  if (h.vehicle_id != id || id < -1 || id > IdLimit()) {
+  HealthRecord r;
+  if (h.vehicle_id != id || id < -1 || id > IdLimit() || !WindowOf(h, &r)) {
     ++d_->rejected;
     return;
   }
-  HealthRecord r;
   r.utime = h.utime;
   r.process_id = h.vehicle_id;
   r.ticks = h.ticks;
@@ -229,7 +259,7 @@ void RunDataBuilder::AddHealth(int id, const std::uint8_t* data, int size) {
   r.active_neighbours = h.active_neighbours;
   r.saturated_ticks = h.saturated_ticks;
   r.saturation_fraction = h.saturation_fraction;
-  d_->health.push_back(r);
+  d_->health.push_back(std::move(r));
 }
 
 void RunDataBuilder::AddClock(const std::uint8_t* data, int size) {

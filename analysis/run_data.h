@@ -11,7 +11,9 @@
 //                     per utime (a repeated utime keeps the last one recorded)
 //   SHOAL_CHANNEL     one compact record per channel decision (no reason string), from
 //                     channel_events_t batches (or single channel_event_t, older logs)
-//   SHOAL_HEALTH_<id> every health_t, in log order
+//   SHOAL_HEALTH_<id> every health2_t (or health_t, older logs), in log order; a window
+//                     histogram whose counts are negative or do not sum to its count is
+//                     rejected with its report
 //   SHOAL_CLOCK       every tick
 //   SHOAL_RX_<id>     counted per receiver only (the same data as SHOAL_CHANNEL + states)
 // Messages that do not decode, carry the wrong fingerprint, name an id that does not
@@ -47,7 +49,13 @@ struct ChannelEventRecord {
   std::int8_t status = 0;    // channel_event_t::STATUS_*: 0 delivered, 1 loss, 2 queue, 3 invalid
 };
 
-/// One SHOAL_HEALTH_<id> report (health_t without the header's seq).
+/// One lateness_window_bins bin that holds samples (runtime/clock.h LatenessBins).
+struct LatenessBinCount {
+  std::int16_t bin = 0;
+  std::int32_t count = 0;
+};
+
+/// One SHOAL_HEALTH_<id> report (health2_t without the header's seq).
 struct HealthRecord {
   Micros utime = 0;
   int process_id = 0;  // vehicle id, or -1 for the channel emulator
@@ -59,6 +67,12 @@ struct HealthRecord {
   int active_neighbours = 0;
   std::int64_t saturated_ticks = 0;
   double saturation_fraction = 0.0;
+  /// The lateness samples since the process's previous report: their number (-1: not
+  /// reported, a health_t of an older log), maximum and histogram, only its non-empty
+  /// bins (a report holds a few of its 162: a long run keeps hundreds of thousands).
+  std::int64_t lateness_window_count = -1;
+  double lateness_window_max_s = 0.0;
+  std::vector<LatenessBinCount> lateness_window;
 };
 
 /// One clock message: a window of n_ticks ticks from `tick` on, at utime + k * period_us.
@@ -116,7 +130,8 @@ struct RunData {
   std::int64_t events = 0;          // events read (all channels)
   std::int64_t other_events = 0;    // events on non-Shoal channels (ignored)
   std::int64_t undecodable = 0;     // Shoal channel, but the bytes do not decode
-  std::int64_t rejected = 0;        // decoded, but inconsistent (id mismatch / out of range)
+  std::int64_t rejected = 0;        // decoded, but inconsistent (id mismatch / out of range,
+                                    // a health window that does not add up)
   Micros first_timestamp = 0, last_timestamp = 0;  // [us] event timestamps (recorder's clock)
   // Authentication (runtime/bus_auth.h).
   bool key_used = false;              // events were checked against the run's key

@@ -55,7 +55,8 @@ class LogObserver : public SwarmObserver {
   }
   void OnHealth(Micros utime, const Follower& f) override {
     log_->Write(Name(health_ch_, f.id(), channels::Health), utime,
-                ToLcmHealth(utime, f, health_seq_[f.id() % 256]++));
+                ToLcmHealth2(ToLcmHealth(utime, f, health_seq_[f.id() % 256]++),
+                             LatenessWindow()));
   }
 
  private:

@@ -1,6 +1,7 @@
 #include "analysis/soak_analysis.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -9,6 +10,7 @@
 
 #include "analysis/analysis.h"
 #include "analysis/run_data.h"
+#include "runtime/clock.h"
 
 namespace shoal {
 namespace {
@@ -197,15 +199,42 @@ long long ExpectedStatesIn(const SoakData& d, double lo, double hi) {
   return ticks * (d.run.followers + 1);
 }
 
+/// The lateness samples of the health reports within a window, summed (definitions in
+/// soak_analysis.h).
+struct WindowLateness {
+  std::array<std::int64_t, LatenessBins::kCount> bins{};
+  std::int64_t count = 0;
+  double max_s = 0.0;
+  bool all_windowed = true;     // every report carried its window (health2_t)
+  double since_start_p99 = 0.0;  // older logs: the largest since-start p99 reported
+
+  void Add(const HealthRecord& h) {
+    since_start_p99 = std::max(since_start_p99, h.lateness_p99_s);
+    if (h.lateness_window_count < 0) {
+      all_windowed = false;
+      return;
+    }
+    for (const LatenessBinCount& b : h.lateness_window) bins[b.bin] += b.count;
+    count += h.lateness_window_count;
+    max_s = std::max(max_s, h.lateness_window_max_s);
+  }
+  double P99() const {
+    if (!all_windowed) return since_start_p99;
+    return LatenessBins::Quantile(bins.data(), count, max_s, 0.99);
+  }
+};
+
 Window Measure(const SoakData& d, double lo, double hi) {
   Window w;
+  WindowLateness loop, release;
   for (std::size_t k = 0; k < d.run.health.size(); ++k) {
     const HealthRecord& h = d.run.health[k];
     if (!InWindow(ToSeconds(h.utime), lo, hi, d.end_s)) continue;
-    double& p99 = h.process_id >= 0 ? w.lateness_p99_s : w.release_error_p99_s;
-    p99 = std::max(p99, h.lateness_p99_s);
+    (h.process_id >= 0 ? loop : release).Add(h);
     w.overruns += d.overrun_increase[k];
   }
+  w.lateness_p99_s = loop.P99();
+  w.release_error_p99_s = release.P99();
   std::vector<double> err;
   auto e = std::lower_bound(d.delay_errors.begin(), d.delay_errors.end(), lo,
                             [](const auto& x, double t) { return x.first < t; });
@@ -322,8 +351,6 @@ std::string CheckCriterion(const SoakCriterion& c, const nlohmann::ordered_json&
 
 /// Real time: a phase's loop and channel timing against the targets.
 void PhaseTargets(const SoakTargets& t, const Window& w, std::vector<std::string>* why) {
-  // Counted exactly per window, unlike the p99s below: a burst of late ticks late in a long
-  // run hardly moves a since-start p99, but every tick that overran its period is here.
   if (w.overruns > 0) {
     why->push_back(std::to_string(w.overruns) + " control ticks overran their period");
   }

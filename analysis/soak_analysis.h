@@ -10,12 +10,15 @@
 //   when that is within the scenario's metrics.position_tol_m. Position only: the
 //   velocity tolerance of `converged` (FormationMetrics) would fail a phase for the
 //   velocity ripple a delay step leaves while the formation holds its shape.
-// - Lateness p99 of a window: the largest lateness_p99_s that a vehicle or the leader
-//   reported in a health_t within the window. health_t holds a p99 since the process
-//   started, not the window's own: a long run's since-start p99 hides a burst of late
-//   ticks in one window, so this is NOT a bound on the window's p99. What the window does
-//   count exactly is its overruns (below), and in real time a phase with any overrun
-//   fails. release_error_p99_s: as lateness, of the channel emulator's reports.
+// - Lateness p99 of a window: the p99 of the loop lateness samples of the vehicles and the
+//   leader, from the health reports within the window: each report's histogram of the
+//   samples since that process's previous report (health2_t, 1 Hz, so the window's
+//   samples from about a second before it starts up to its last report), summed; the
+//   upper edge of the bin holding the p99 rank, capped by the largest sample: at most one
+//   bin (9 %) above the exact p99 of those samples. A log of health_t (older builds, no
+//   histogram) gives the largest since-start p99 reported within the window instead,
+//   which a long history dilutes. release_error_p99_s: as lateness, of the channel
+//   emulator's reports (its release error samples).
 // - Overruns of a window: the increase of each process's cumulative count over the
 //   reports within the window (a restarted process counts from its own start), summed.
 // - delay_error_p99_s of a window: p99 (nearest rank) of realised - configured delay of the

@@ -317,7 +317,8 @@ void ChannelEmulatorApp::PublishHealth(Micros utime) {
   h.active_neighbours = alive;
   h.saturated_ticks = 0;
   h.saturation_fraction = 0.0;
-  bus_->Publish(channels::Health(kEmulatorId), h);
+  // Its "lateness" is its release error: the window's samples are the deliveries since.
+  bus_->Publish(channels::Health(kEmulatorId), ToLcmHealth2(h, release_error_.TakeWindow()));
 }
 
 void ChannelEmulatorApp::PublishStatus(RunState state, const std::string& message,

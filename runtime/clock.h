@@ -4,7 +4,10 @@
 #include <time.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace shoal {
@@ -25,6 +28,67 @@ inline void SleepUntilNs(std::int64_t deadline_ns) {
   clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
 }
 
+/// The geometric bins of health2_t's lateness_window_bins: bin 0 below 1 us, bin i in
+/// 1..kOctaves * kPerOctave holds [2^((i-1)/8), 2^(i/8)) us, the last bin what is beyond.
+/// 9 % wide: a quantile read from them is within 9 % above the exact one, whatever the
+/// window's length, at 162 counts a report.
+struct LatenessBins {
+  static constexpr int kPerOctave = 8;
+  static constexpr int kOctaves = 20;  // up to 2^20 us = 1.049 s
+  static constexpr int kCount = kPerOctave * kOctaves + 2;
+
+  static int Index(double late_s) {
+    const double us = late_s * 1e6;
+    if (!(us >= 1.0)) return 0;  // NaN too: never out of range
+    const double i = std::floor(std::log2(us) * kPerOctave) + 1.0;
+    return i >= kCount - 1 ? kCount - 1 : static_cast<int>(i);
+  }
+  /// The upper edge of bin i in seconds (infinity for the last bin).
+  static double UpperS(int i) {
+    if (i >= kCount - 1) return std::numeric_limits<double>::infinity();
+    return std::exp2(static_cast<double>(i) / kPerOctave) * 1e-6;
+  }
+  /// Quantile q in [0, 1] of `count` samples in `bins` (kCount sums) whose maximum is
+  /// `max_s`: the upper edge of the bin holding the sample of rank q (count - 1), nearest,
+  /// capped by the maximum; 0 if no samples. As LatenessStats::Quantile.
+  template <typename Count>
+  static double Quantile(const Count* bins, std::int64_t count, double max_s, double q) {
+    if (count <= 0) return 0.0;
+    const auto rank = static_cast<std::int64_t>(q * static_cast<double>(count - 1) + 0.5);
+    std::int64_t seen = 0;
+    for (int i = 0; i < kCount; ++i) {
+      seen += bins[i];
+      if (seen > rank) return std::min(max_s, UpperS(i));
+    }
+    return max_s;
+  }
+};
+
+/// Lateness samples since the last Take(): what a health report says of its own second.
+class LatenessWindow {
+ public:
+  void Add(double late_s) {
+    std::int32_t& n = bins_[static_cast<std::size_t>(LatenessBins::Index(late_s))];
+    if (n < std::numeric_limits<std::int32_t>::max()) ++n;  // the count itself stays exact
+    ++count_;
+    max_ = std::max(max_, late_s);
+  }
+  const std::array<std::int32_t, LatenessBins::kCount>& bins() const { return bins_; }
+  std::int64_t count() const { return count_; }
+  double max() const { return max_; }
+  /// This window, and a new empty one begins.
+  LatenessWindow Take() {
+    LatenessWindow w = *this;
+    *this = LatenessWindow();
+    return w;
+  }
+
+ private:
+  std::array<std::int32_t, LatenessBins::kCount> bins_{};
+  std::int64_t count_ = 0;
+  double max_ = 0.0;
+};
+
 /// Lateness statistics over a run, in a fixed histogram: Add() is O(1) and never
 /// allocates, and a quantile costs O(bins) whatever the run length, so reporting from
 /// inside a real-time loop stays cheap. Resolution 2 us up to 200 ms; later samples fall
@@ -40,7 +104,10 @@ class LatenessStats {
     ++bins_[i];
     ++count_;
     max_ = std::max(max_, late_s);
+    window_.Add(late_s);
   }
+  /// The samples since the previous call (or the start), for a health report.
+  LatenessWindow TakeWindow() { return window_.Take(); }
   /// Quantile q in [0, 1] (upper edge of its bin, at most the maximum); 0 if no samples.
   double Quantile(double q) const {
     if (count_ == 0) return 0.0;
@@ -61,6 +128,7 @@ class LatenessStats {
   std::vector<std::int64_t> bins_;
   std::int64_t count_ = 0;
   double max_ = 0.0;
+  LatenessWindow window_;
 };
 
 }  // namespace shoal

@@ -206,7 +206,7 @@ void ClockedNode::PublishHealth(Micros utime) {
   h.lateness_p99_s = lateness_.Quantile(0.99);
   h.lateness_max_s = lateness_.max();
   h.overruns = counters_.overruns;
-  bus_->Publish(health_channel_, h);
+  bus_->Publish(health_channel_, ToLcmHealth2(h, lateness_.TakeWindow()));
 }
 
 void ClockedNode::PublishStatus(const std::string& state, const std::string& message) {

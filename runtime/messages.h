@@ -9,6 +9,7 @@
 #include <shoal/channel_event_t.hpp>
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_window_t.hpp>
+#include <shoal/health2_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
@@ -16,6 +17,7 @@
 #include "core/channel_model.h"
 #include "core/follower.h"
 #include "core/state_msg.h"
+#include "runtime/clock.h"
 
 namespace shoal {
 
@@ -173,6 +175,34 @@ inline health_t ToLcmHealth(Micros utime, const Follower& f, std::int32_t seq) {
   h.saturated_ticks = c.saturated_ticks;
   h.saturation_fraction = c.ticks > 0 ? static_cast<double>(c.saturated_ticks) / c.ticks : 0.0;
   return h;
+}
+
+static_assert(health2_t::LATENESS_BINS == LatenessBins::kCount,
+              "health2_t.lcm's lateness_window_bins must have LatenessBins's layout");
+
+/// The report published and logged on SHOAL_HEALTH_<id>: the app's health `h` and the
+/// lateness samples `w` taken since the previous report (empty in sim and lockstep).
+inline health2_t ToLcmHealth2(const health_t& h, const LatenessWindow& w) {
+  health2_t r;
+  r.utime = h.utime;
+  r.vehicle_id = h.vehicle_id;
+  r.seq = h.seq;
+  r.ticks = h.ticks;
+  r.lateness_p50_s = h.lateness_p50_s;
+  r.lateness_p99_s = h.lateness_p99_s;
+  r.lateness_max_s = h.lateness_max_s;
+  r.overruns = h.overruns;
+  r.msgs_received = h.msgs_received;
+  r.msgs_dropped_invalid = h.msgs_dropped_invalid;
+  r.msgs_dropped_old = h.msgs_dropped_old;
+  r.neighbour_timeouts = h.neighbour_timeouts;
+  r.active_neighbours = h.active_neighbours;
+  r.saturated_ticks = h.saturated_ticks;
+  r.saturation_fraction = h.saturation_fraction;
+  r.lateness_window_count = w.count();
+  r.lateness_window_max_s = w.max();
+  std::copy(w.bins().begin(), w.bins().end(), r.lateness_window_bins);
+  return r;
 }
 
 }  // namespace shoal

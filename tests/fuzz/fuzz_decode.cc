@@ -15,6 +15,7 @@
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
 #include <shoal/clock_window_t.hpp>
+#include <shoal/health2_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
@@ -66,7 +67,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     case 1: DecodeOne<shoal::clock_window_t>(msg, n); break;
     case 2: DecodeOne<shoal::clock_tick_t>(msg, n); break;
     case 3: DecodeOne<shoal::channel_events_t>(msg, n); break;
-    case 4: DecodeOne<shoal::health_t>(msg, n); break;
+    case 4:  // both health layouts: the selector's meaning stays that of the saved inputs
+      DecodeOne<shoal::health_t>(msg, n);
+      DecodeOne<shoal::health2_t>(msg, n);
+      break;
     case 5: DecodeOne<shoal::run_status_t>(msg, n); break;
     case 6: DecodeOne<shoal::channel_event_t>(msg, n); break;
   }

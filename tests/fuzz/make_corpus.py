@@ -6,7 +6,8 @@
 fuzz_decode:     messages of a `shoal sim --out` log, one file per message, prefixed with
                  the byte that selects its type in fuzz_decode.cc; clock_window_t and
                  channel_event_t (not logged) built from the logged clock ticks and
-                 channel decisions.
+                 channel decisions; health_t (older logs) cut from the logged
+                 health2_t (its leading fields).
 fuzz_log_reader: the log's first events, whole and cut short.
 fuzz_scenario:   scenarios/*.toml and tests/data/bad_scenarios/*.toml.
 fuzz_campaign:   campaigns/*.toml and tests/data/campaigns/*.toml.
@@ -24,7 +25,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 CORPUS = ROOT / "tests" / "fuzz" / "corpus"
 # fuzz_decode.cc's type selector (first byte).
 SELECT = {"vehicle_state_t": 0, "clock_window_t": 1, "clock_tick_t": 2,
-          "channel_events_t": 3, "health_t": 4, "run_status_t": 5, "channel_event_t": 6}
+          "channel_events_t": 3, "health_t": 4, "health2_t": 4, "run_status_t": 5,
+          "channel_event_t": 6}
 SYNC = 0xEDA1DA01
 PER_TYPE = 3   # messages kept per type
 LOG_EVENTS = 40
@@ -48,7 +50,7 @@ def type_of(channel):
         return "vehicle_state_t"
     return {"SHOAL_CLOCK": "clock_tick_t", "SHOAL_CHANNEL": "channel_events_t",
             "SHOAL_STATUS": "run_status_t"}.get(channel,
-            "health_t" if channel.startswith("SHOAL_HEALTH_") else None)
+            "health2_t" if channel.startswith("SHOAL_HEALTH_") else None)
 
 
 def hash_of(build, name):
@@ -83,6 +85,13 @@ def channel_events(build, batches):
     return out
 
 
+def old_health(build, reports):
+    """health_t: health2_t without its window (count, max, 162 bins), under health_t's hash."""
+    window = 8 + 8 + 162 * 4
+    return [struct.pack(">Q", hash_of(build, "health_t")) + r[8:len(r) - window]
+            for r in reports]
+
+
 def write(target, name, data):
     d = CORPUS / target
     d.mkdir(parents=True, exist_ok=True)
@@ -106,6 +115,7 @@ def main():
             by_type.setdefault(t, []).append(data)
     by_type["clock_window_t"] = clock_windows(build, by_type.get("clock_tick_t", []))
     by_type["channel_event_t"] = channel_events(build, by_type.get("channel_events_t", []))
+    by_type["health_t"] = old_health(build, by_type.get("health2_t", []))
     for t, msgs in sorted(by_type.items()):
         for k, m in enumerate(msgs[:PER_TYPE]):
             write("fuzz_decode", f"{t}_{k}", bytes([SELECT[t]]) + m)

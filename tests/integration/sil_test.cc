@@ -18,6 +18,7 @@
 #include <thread>
 
 #include <shoal/clock_window_t.hpp>
+#include <shoal/health2_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
 
@@ -327,7 +328,7 @@ TEST(Sil, KilledVehicleIsReportedByIdAndTheOthersFinish) {
       ASSERT_GE(m.decode(ev->data, 0, ev->datalen), 0);
       (m.vehicle_id == 1 ? last1 : last3) = m.utime;
     } else if (ev->channel == "SHOAL_HEALTH_1") {
-      health_t h{};
+      health2_t h{};
       ASSERT_GE(h.decode(ev->data, 0, ev->datalen), 0);
       timeouts1 = h.neighbour_timeouts;
     }
@@ -528,10 +529,10 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
   // The counters saw them.
   lcm::LogFile lf(log, "r");
   ASSERT_TRUE(lf.good());
-  std::map<int, health_t> last;
+  std::map<int, health2_t> last;
   while (const lcm::LogEvent* ev = lf.readNextEvent()) {
     if (ev->channel.rfind("SHOAL_HEALTH_", 0) == 0) {
-      health_t h{};
+      health2_t h{};
       ASSERT_GE(h.decode(ev->data, 0, ev->datalen), 0);
       last[h.vehicle_id] = h;
     }

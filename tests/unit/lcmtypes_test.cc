@@ -7,6 +7,7 @@
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
 #include <shoal/clock_window_t.hpp>
+#include <shoal/health2_t.hpp>
 #include <shoal/health_t.hpp>
 #include <shoal/run_status_t.hpp>
 #include <shoal/vehicle_state_t.hpp>
@@ -21,6 +22,7 @@ TEST(LcmTypes, PublishedFingerprintsNeverChange) {
   EXPECT_EQ(channel_event_t::getHash(), 4278629453183202832LL);
   EXPECT_EQ(channel_events_t::getHash(), -5988383153357340512LL);
   EXPECT_EQ(health_t::getHash(), 6236032799249078093LL);
+  EXPECT_EQ(health2_t::getHash(), 4569272429480244270LL);
   EXPECT_EQ(run_status_t::getHash(), -3852900558415608576LL);
 }
 

@@ -1,0 +1,231 @@
+// The soak's per-window lateness: the histograms of the samples since each health report's
+// predecessor (health2_t), summed over a window, give that window's quantiles to within
+// one bin, however long the history before it.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "analysis/run_data.h"
+#include "analysis/soak_analysis.h"
+#include "runtime/channels.h"
+#include "runtime/clock.h"
+#include "runtime/log_writer.h"
+#include "runtime/messages.h"
+
+namespace shoal {
+namespace {
+
+const double kBinRatio = std::exp2(1.0 / LatenessBins::kPerOctave);
+
+std::string Tmp(const std::string& name) {
+  const std::string dir = std::string(SHOAL_BINARY_DIR) + "/test_tmp";
+  std::system(("mkdir -p " + dir).c_str());
+  return dir + "/soak_window_" + name;
+}
+
+double ExactQuantile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  const auto rank = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+  return v[rank];
+}
+
+TEST(LatenessBins, EdgesAreGeometricAndEveryValueHasABin) {
+  EXPECT_EQ(LatenessBins::Index(0.0), 0);
+  EXPECT_EQ(LatenessBins::Index(-1e-3), 0);
+  EXPECT_EQ(LatenessBins::Index(std::nan("")), 0);
+  EXPECT_EQ(LatenessBins::Index(0.99e-6), 0);
+  EXPECT_EQ(LatenessBins::Index(1e-6), 1);
+  EXPECT_EQ(LatenessBins::Index(1.5e-6), 5);  // 2^(4/8) = 1.414 <= 1.5 < 2^(5/8) = 1.542
+  EXPECT_EQ(LatenessBins::Index(1.1), LatenessBins::kCount - 1);
+  EXPECT_EQ(LatenessBins::Index(1e300), LatenessBins::kCount - 1);
+  for (int i = 0; i + 1 < LatenessBins::kCount; ++i) {
+    const double up = LatenessBins::UpperS(i);
+    EXPECT_EQ(LatenessBins::Index(up * 0.999), i) << i;
+    EXPECT_EQ(LatenessBins::Index(up * 1.001), i + 1) << i;
+  }
+  EXPECT_TRUE(std::isinf(LatenessBins::UpperS(LatenessBins::kCount - 1)));
+}
+
+TEST(LatenessBins, QuantileOfSummedWindowsIsTheExactOneWithinABin) {
+  std::mt19937_64 rng(7);
+  std::lognormal_distribution<double> late(std::log(300e-6), 1.2);  // 0.3 ms, long tail
+  LatenessStats stats;
+  std::array<std::int64_t, LatenessBins::kCount> sum{};
+  std::int64_t count = 0;
+  double max_s = 0.0;
+  std::vector<double> all;
+  for (int report = 0; report < 40; ++report) {
+    for (int k = 0; k < 50 + report; ++k) {
+      const double x = late(rng);
+      stats.Add(x);
+      all.push_back(x);
+    }
+    const LatenessWindow w = stats.TakeWindow();
+    EXPECT_EQ(w.count(), 50 + report);
+    for (int i = 0; i < LatenessBins::kCount; ++i) sum[i] += w.bins()[i];
+    count += w.count();
+    max_s = std::max(max_s, w.max());
+  }
+  EXPECT_EQ(stats.TakeWindow().count(), 0);  // taken: the next window starts empty
+  ASSERT_EQ(count, static_cast<std::int64_t>(all.size()));
+  for (double q : {0.0, 0.5, 0.9, 0.99, 0.999, 1.0}) {
+    const double exact = ExactQuantile(all, q);
+    const double got = LatenessBins::Quantile(sum.data(), count, max_s, q);
+    EXPECT_GE(got, exact) << q;
+    EXPECT_LE(got, exact * kBinRatio) << q;
+  }
+  EXPECT_EQ(LatenessBins::Quantile(sum.data(), 0, 0.0, 0.99), 0.0);
+}
+
+// One process's reports: since-start figures and the window of the second before.
+struct Process {
+  int id;
+  LatenessStats stats;
+  health2_t Report(Micros t) {
+    health_t h{};
+    h.utime = t;
+    h.vehicle_id = id;
+    h.ticks = stats.count();
+    h.lateness_p50_s = stats.Quantile(0.5);
+    h.lateness_p99_s = stats.Quantile(0.99);
+    h.lateness_max_s = stats.max();
+    return ToLcmHealth2(h, stats.TakeWindow());
+  }
+};
+
+const char* kScenario = R"([run]
+name = "soak_window"
+duration_s = 600
+control_rate_hz = 50
+
+[swarm]
+followers = 2
+leader_links = [1]
+edges = [[2, 1]]
+
+[control]
+k1 = 1
+k2 = 1
+offsets_m = [[6, 0, 0], [0, 6, 0]]
+)";
+
+// Ten minutes of quiet loops (0.2 ms late, release error 0.1 ms) at 50 Hz; in the second
+// phase (540-600 s) vehicle 1 is 30 ms late for 100 ticks of 570-572 s: 1.1 % of that
+// phase's samples but 0.33 % of vehicle 1's since start.
+std::string WriteLateSpikeLog() {
+  const std::string path = Tmp("late_spike.lcmlog");
+  LogWriter log(path);
+  run_status_t st;
+  st.utime = 0;
+  st.vehicle_id = kLauncherId;
+  st.state = "running";
+  st.scenario_name = "soak_window";
+  st.scenario_toml = kScenario;
+  st.followers = 2;
+  log.Write(channels::Status(), 0, st);
+  std::vector<Process> procs = {{0, {}}, {1, {}}, {2, {}}, {kEmulatorId, {}}};
+  for (int s = 1; s <= 600; ++s) {
+    for (Process& p : procs) {
+      for (int k = 0; k < 50; ++k) {
+        const bool spike = p.id == 1 && (s == 571 || s == 572);
+        p.stats.Add(spike ? 0.030 : (p.id == kEmulatorId ? 100e-6 : 200e-6));
+      }
+      log.Write(channels::Health(p.id), s * 1000000LL, p.Report(s * 1000000LL));
+    }
+  }
+  return path;
+}
+
+TEST(SoakWindow, ALateSpikeAfterALongQuietHistoryFailsItsPhase) {
+  SoakInput in;
+  in.log = WriteLateSpikeLog();
+  in.phases = {{0.0, 540.0, "quiet"}, {540.0, 600.0, "late"}};
+  in.settle_s = 10.0;
+  in.engine = "realtime";
+  in.report = nlohmann::json::object();  // no run report: only the windows are judged here
+  SoakResult r;
+  std::string error;
+  ASSERT_TRUE(AnalyseSoak(in, &r, &error)) << error;
+  ASSERT_EQ(r.phases.size(), 2u);
+  const double quiet = r.phases[0].metrics["lateness_p99_s"].get<double>();
+  const double late = r.phases[1].metrics["lateness_p99_s"].get<double>();
+  EXPECT_GE(quiet, 200e-6);
+  EXPECT_LE(quiet, 200e-6 * kBinRatio);
+  // 100 of the phase's 9000 loop samples are 30 ms: its p99 rank (8909) is among them.
+  EXPECT_EQ(late, 0.030);
+  for (const SoakPhaseResult& p : r.phases) {
+    const double release = p.metrics["release_error_p99_s"].get<double>();
+    EXPECT_GE(release, 100e-6);
+    EXPECT_LE(release, 100e-6 * kBinRatio);
+  }
+  auto names_lateness = [](const SoakPhaseResult& p) {
+    return std::any_of(p.why.begin(), p.why.end(), [](const std::string& w) {
+      return w.find("loop lateness p99 30 ms > target 2 ms") != std::string::npos;
+    });
+  };
+  EXPECT_FALSE(names_lateness(r.phases[0]));
+  EXPECT_TRUE(names_lateness(r.phases[1]));
+  EXPECT_TRUE(std::any_of(r.reasons.begin(), r.reasons.end(), [](const std::string& s) {
+    return s.rfind("phase 2 (late, 540-600 s): loop lateness p99", 0) == 0;
+  })) << ::testing::PrintToString(r.reasons);
+  // The since-start p99s reported within that phase never pass 2 ms: a window judged by
+  // their maximum (as before the histograms) would have passed it.
+  RunData run;
+  ASSERT_TRUE(LoadRunLog(in.log, LoadOptions(), &run, &error)) << error;
+  double since_start_max = 0.0;
+  for (const HealthRecord& h : run.health) {
+    if (h.utime >= 540000000) since_start_max = std::max(since_start_max, h.lateness_p99_s);
+  }
+  EXPECT_LT(since_start_max, 0.001);
+  // The minute holding the spike says so too; the minute before does not.
+  ASSERT_EQ(r.minutes.size(), 10u);
+  EXPECT_EQ(r.minutes[9].lateness_p99_s, 0.030);
+  EXPECT_LE(r.minutes[8].lateness_p99_s, 200e-6 * kBinRatio);
+}
+
+TEST(SoakWindow, ReportsKeepTheirWindowAndADamagedHistogramIsRejected) {
+  const std::string path = Tmp("damaged.lcmlog");
+  {
+    LogWriter log(path);
+    Process p{1, {}};
+    for (int k = 0; k < 10; ++k) p.stats.Add(k * 1e-4);
+    health2_t good = p.Report(1000000);
+    log.Write(channels::Health(1), 1000000, good);
+    health2_t negative = good;
+    negative.utime = 2000000;
+    negative.lateness_window_bins[3] = -1;
+    negative.lateness_window_count -= 1;
+    log.Write(channels::Health(1), 2000000, negative);
+    health2_t wrong_sum = good;
+    wrong_sum.utime = 3000000;
+    wrong_sum.lateness_window_count += 1;
+    log.Write(channels::Health(1), 3000000, wrong_sum);
+    health_t older{};  // an older build's report: no window
+    older.utime = 4000000;
+    older.vehicle_id = 1;
+    older.lateness_p99_s = 0.5;
+    log.Write(channels::Health(1), 4000000, older);
+  }
+  RunData run;
+  std::string error;
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &error)) << error;
+  ASSERT_EQ(run.health.size(), 2u);
+  EXPECT_EQ(run.rejected, 2);
+  const HealthRecord& h = run.health[0];
+  EXPECT_EQ(h.lateness_window_count, 10);
+  EXPECT_DOUBLE_EQ(h.lateness_window_max_s, 9e-4);
+  std::int64_t sum = 0;
+  for (const LatenessBinCount& b : h.lateness_window) sum += b.count;
+  EXPECT_EQ(sum, 10);
+  EXPECT_EQ(h.lateness_window.front().bin, 0);  // the sample of 0 s
+  EXPECT_EQ(run.health[1].lateness_window_count, -1);
+  EXPECT_EQ(run.health[1].lateness_p99_s, 0.5);
+}
+
+}  // namespace
+}  // namespace shoal
