@@ -29,6 +29,7 @@
 #include "runtime/clocked_node.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/lcm_queue_shim.h"
 #include "runtime/log_reader.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
@@ -372,6 +373,7 @@ class Launch {
   LaunchResult* r_;
   std::vector<std::string> vehicle_urls_;  // per-vehicle groups; empty: one shared bus
   std::string vehicle_exe_, leader_exe_, emulator_exe_;
+  std::string logger_queue_shim_;  // runtime/lcm_queue_shim.c, preloaded into lcm-logger
   std::vector<Child> kids_;
   std::int64_t t0_ns_ = 0;
   Mode mode_ = Mode::kLockstep;  // opt_.mode, parsed by Prepare
@@ -406,6 +408,7 @@ bool Launch::Prepare(std::string* error) {
   vehicle_exe_ = FindExe("vehicle", "shoal_vehicle");
   leader_exe_ = FindExe("leader", "shoal_leader");
   emulator_exe_ = FindExe("channel_emulator", "shoal_channel_emulator");
+  logger_queue_shim_ = FindExe("runtime", SHOAL_LCM_QUEUE_SHIM_FILE);
   if (vehicle_exe_.empty() || leader_exe_.empty() || emulator_exe_.empty()) {
     *error = "cannot find shoal_vehicle, shoal_leader or shoal_channel_emulator next to " +
              ExeDir();
@@ -455,6 +458,13 @@ void Launch::Start(const std::string& name, int id, const std::vector<std::strin
   c.id = id;
   // lcm-logger records bytes as they are: it is not given the key.
   std::vector<std::string> env = ChildEnvironment(id == kLoggerId ? nullptr : &r_->key);
+  if (id == kLoggerId && !logger_queue_shim_.empty()) {  // its queue: 65536, not 30
+    const char* before = std::getenv("LD_PRELOAD");
+    env.erase(std::remove_if(env.begin(), env.end(),
+                             [](const std::string& e) { return e.rfind("LD_PRELOAD=", 0) == 0; }),
+              env.end());
+    env.push_back("LD_PRELOAD=" + logger_queue_shim_ + (before ? std::string(":") + before : ""));
+  }
   std::vector<char*> envp;
   for (std::string& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);
@@ -526,6 +536,10 @@ void Launch::StartAll() {
   if (mode_ == Mode::kLockstep && logger_pid > 0) {
     emulator_more.push_back("--recorder-pid");  // back-pressure: the log stays complete
     emulator_more.push_back(std::to_string(logger_pid));
+    emulator_more.push_back("--recorder-queue");  // what a window may send it
+    emulator_more.push_back(std::to_string(logger_queue_shim_.empty()
+                                               ? SHOAL_LCM_DEFAULT_QUEUE_CAPACITY
+                                               : SHOAL_LOGGER_QUEUE_CAPACITY));
   }
   if (!vehicle_urls_.empty()) {
     std::string list;
