@@ -3,7 +3,8 @@
 # per follower (bench/scale_scenario.sh). For each N and run: a lockstep run and a
 # real-time run of the same scenario. Per run it records the lockstep real-time factor,
 # states logged of expected, each role's CPU per tick (from the run's resources.csv:
-# the difference between the 2 s sample and the last one, so start-up is not counted),
+# the difference between the 2 s sample and the last one, so start-up is not counted;
+# lockstep runs of fewer than 64 followers are longer, LOCKSTEP_S * 64 / N, for enough samples),
 # context switches per tick (sampled from /proc/PID/status while the run goes, so the
 # last fraction of a second is missed), UDP receive-buffer overflows on the host during
 # the run (/proc/net/snmp RcvbufErrors), and in real time the loop lateness p99, the
@@ -23,6 +24,7 @@ rt_dur=${4:-20}
 ns=${5:-"5 16 64 128"}
 out=${6:-scale.csv}
 extra=${7:-}
+modes=${MODES:-lockstep realtime}  # e.g. MODES=lockstep bench/scale.sh ...
 IFS=, read -r -a build_list <<< "$builds"
 for b in "${build_list[@]}"; do
   [ -x "$b/tools/shoal" ] || { echo "bench: $b/tools/shoal not built" >&2; exit 2; }
@@ -52,7 +54,9 @@ one_run() {
   local build=$1 mode=$2 n=$3 r=$4 dur
   local shoal="$build/tools/shoal" tag
   tag=$(basename "$build")
-  dur=$([ "$mode" = lockstep ] && echo "$ls_dur" || echo "$rt_dur")
+  # Lockstep: LOCKSTEP_S for 64 followers and more, longer for fewer (LOCKSTEP_S * 64 / N),
+  # so that every run lasts seconds of wall time and has enough resource samples.
+  dur=$([ "$mode" = lockstep ] && awk -v d="$ls_dur" -v n="$n" 'BEGIN {print (n < 64) ? int(d * 64 / n) : d}' || echo "$rt_dur")
   local scen="$dir/scale_$n.toml" log="$dir/${tag}_${mode}_${n}_$r.lcmlog"
   local json="$dir/${tag}_${mode}_${n}_$r.json" ctx="$dir/ctx_${tag}_${mode}_${n}_$r.csv"
   : > "$ctx"
@@ -99,7 +103,7 @@ echo "build,mode,followers,run,realtime_factor,log_states,log_states_expected,ve
 for n in $ns; do "$here/scale_scenario.sh" "$n" "$ls_dur" > "$dir/scale_$n.toml"; done
 for ((r = 1; r <= runs; r++)); do
   for n in $ns; do
-    for mode in lockstep realtime; do
+    for mode in $modes; do
       for b in "${build_list[@]}"; do
         one_run "$b" "$mode" "$n" "$r"
         tail -1 "$out" >&2
@@ -110,7 +114,7 @@ done
 med="${out%.csv}_median.csv"
 head -1 "$out" | cut -d, -f1-3,5- > "$med"
 for b in "${build_list[@]}"; do
-  for mode in lockstep realtime; do
+  for mode in $modes; do
     for n in $ns; do
       awk -F, -v t="$(basename "$b")" -v m="$mode" -v n="$n" '$1 == t && $2 == m && $3 == n' "$out" |
         awk -F, -v t="$(basename "$b")" -v m="$mode" -v n="$n" '
