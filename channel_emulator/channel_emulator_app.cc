@@ -21,26 +21,30 @@ constexpr std::int64_t kAnswerTimeoutNs = 5000000000LL;  // lockstep: a process 
 // long; giving up then loses states, so the wait is generous (20 ms gave up a few times per
 // 120 s run on a loaded machine).
 constexpr std::int64_t kRecorderWaitNs = 100000000LL;
-// lcm-logger hands messages from LCM's receive thread to its writer through a queue of 30
-// and drops beyond that. The recorder gate lets at most one window's messages pile up, so
-// a window may send the logger at most this many: the clock master's own messages (clock
-// and channel batch) included, with room left for the once-a-second health and status
-// messages of every process that can fall into the same window.
-constexpr std::int64_t kLoggerWindowMessages = 20;
+// lcm-logger hands messages from LCM's receive thread to its writer through a queue
+// (`recorder_queue` messages: LCM's 30, or what runtime/lcm_queue_shim.c gives it) and
+// drops beyond that. The recorder gate lets at most one window's messages pile up, so a
+// window may send the logger at most two thirds of the queue (20 of 30): the clock
+// master's own messages (clock and channel batch) included, with room left for the
+// once-a-second health and status messages of every process that can fall into the same
+// window.
 constexpr std::int64_t kMasterMessagesPerWindow = 2;  // SHOAL_CLOCK + SHOAL_CHANNEL
 
-/// Most ticks per window whose messages to the logger stay within kLoggerWindowMessages:
+/// Most ticks per window whose messages to the logger stay within two thirds of its queue:
 /// per tick a state of every vehicle and the deliveries the logger's bus carries.
-std::int64_t LoggerBoundLookahead(int followers, std::int64_t deliveries_per_tick) {
+std::int64_t LoggerBoundLookahead(int followers, std::int64_t deliveries_per_tick,
+                                  std::int64_t recorder_queue) {
+  const std::int64_t window_messages = recorder_queue * 2 / 3;
   const std::int64_t per_tick = followers + 1 + deliveries_per_tick;
-  return std::max<std::int64_t>(1, (kLoggerWindowMessages - kMasterMessagesPerWindow) / per_tick);
+  return std::max<std::int64_t>(1, (window_messages - kMasterMessagesPerWindow) / per_tick);
 }
 }  // namespace
 
 ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns,
                                        double duration_s, Bus* bus,
                                        std::vector<Bus*> vehicle_buses,
-                                       std::int64_t max_lookahead_ticks)
+                                       std::int64_t max_lookahead_ticks,
+                                       std::int64_t recorder_queue)
     : s_(s),
       mode_(mode),
       t0_ns_(t0_ns),
@@ -58,7 +62,8 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       ready_(s.followers + 1, false),
       resent_tick_(s.followers + 1, -1),
       resent_ns_(s.followers + 1, 0),
-      next_of_(s.followers + 1, -1) {
+      next_of_(s.followers + 1, -1),
+      bundled_(s.followers + 1, 0) {
   // The states in transit are stored once each and reused: made now, at their encoded
   // size (fixed for vehicle_state_t), for the largest delay the run can take.
   channel_.ReservePayloads(
@@ -80,7 +85,7 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
     for (const auto& link : channel_.links()) logged_deliveries += vbus_[link.to] == bus_;
     lookahead_ = std::max<std::int64_t>(
         1, std::min({channel_.MinLagTicks(), std::max<std::int64_t>(1, max_lookahead_ticks),
-                     LoggerBoundLookahead(n_, logged_deliveries)}));
+                     LoggerBoundLookahead(n_, logged_deliveries, recorder_queue)}));
   }
   const auto slots = static_cast<std::size_t>(lookahead_ * (n_ + 1));
   got_tick_.assign(slots, false);
@@ -254,12 +259,14 @@ void ChannelEmulatorApp::ReleaseWindow() {
   }
   // Bus by bus, the whole window in one burst: the deliveries due to the bus's vehicles,
   // tick by tick, then one clock message that covers the window's ticks and lists them.
-  // With a bus per vehicle a vehicle is woken once per window rather than once per
-  // message. Vehicles apply what the clock lists, whatever order the datagrams arrive in,
-  // so this order only matters for speed.
+  // Vehicles apply what the clock lists, whatever order the datagrams arrive in, so this
+  // order only matters for speed. On a bus of its own (not the logger's, which records
+  // each message) the burst goes out as one bundle: one datagram, and one wake-up of the
+  // vehicle, per window rather than one per message.
   std::vector<std::size_t> next(static_cast<std::size_t>(n_ + 1));
   for (const std::vector<int>& group : bus_groups_) {
     Bus* b = vbus_[group[0]];
+    if (b != bus_) b->BeginBundle();
     for (int id : group) next[id] = 0;
     clock_window_t c = WindowClock();
     for (std::int64_t j = win_first_; j <= win_last_; ++j) {
@@ -278,6 +285,7 @@ void ChannelEmulatorApp::ReleaseWindow() {
     }
     c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
     b->Publish(channels::Clock(), c);
+    if (b != bus_) b->EndBundle();
   }
   // The logger's copy when no vehicle shares its bus: the window, without the lists.
   if (!shared_has_vehicles_) bus_->Publish(channels::Clock(), WindowClock());
@@ -527,6 +535,33 @@ void ChannelEmulatorApp::SubmitWindow() {
   }
 }
 
+void ChannelEmulatorApp::ReleaseDue(Micros due) {
+  // What is due at one instant goes out bus by bus: on a vehicle's own bus as one bundle
+  // (one datagram and one wake-up for the messages of all its in-links that fall due
+  // together), each message's release error taken when its bundle has gone out.
+  const std::int64_t due_ns = t0_ns_ + due * 1000;
+  for (int id : released_to_) bundled_[id] = 0;
+  released_to_.clear();
+  channel_.DeliverDue(due, [&](int receiver, const Datagram& d) {
+    Bus* b = vbus_[receiver];
+    if (b == bus_) {
+      b->PublishRaw(rx_channels_[receiver], d.raw.data(), static_cast<int>(d.raw.size()));
+      release_error_.Add(static_cast<double>(MonotonicNs() - due_ns) * 1e-9);
+      return;
+    }
+    if (bundled_[receiver]++ == 0) {
+      released_to_.push_back(receiver);
+      b->BeginBundle();
+    }
+    b->PublishRaw(rx_channels_[receiver], d.raw.data(), static_cast<int>(d.raw.size()));
+  });
+  for (int id : released_to_) {
+    vbus_[id]->EndBundle();
+    const double error = static_cast<double>(MonotonicNs() - due_ns) * 1e-9;
+    for (int k = 0; k < bundled_[id]; ++k) release_error_.Add(error);
+  }
+}
+
 int ChannelEmulatorApp::RunRealtime() {
   // Restarted: the clock goes on as before; what the emulator that died held is lost.
   if (restarted_) {
@@ -552,12 +587,7 @@ int ChannelEmulatorApp::RunRealtime() {
     const Micros now_us = (now_ns - t0_ns_) / 1000;
     const Micros due = channel_.NextDue();
     if (due >= 0 && due <= now_us) {
-      const std::int64_t due_ns = t0_ns_ + due * 1000;
-      channel_.DeliverDue(due, [&](int receiver, const Datagram& d) {
-        vbus_[receiver]->PublishRaw(rx_channels_[receiver], d.raw.data(),
-                                    static_cast<int>(d.raw.size()));
-        release_error_.Add(static_cast<double>(MonotonicNs() - due_ns) * 1e-9);
-      });
+      ReleaseDue(due);
       continue;
     }
     // Decisions go out about once per control period, as one SHOAL_CHANNEL message.
@@ -584,31 +614,50 @@ int ChannelEmulatorApp::RunRealtime() {
   return StopRequested() ? 1 : 0;
 }
 
+namespace {
+struct EmulatorOptions {
+  std::vector<std::string> vehicle_urls;
+  std::int64_t max_lookahead = 50;
+  pid_t recorder_pid = 0;
+  std::int64_t recorder_queue = kLcmDefaultQueue;
+  std::string restart_note;
+};
+
+void AddEmulatorOptions(CLI::App* app, EmulatorOptions* o) {
+  app->add_option("--max-lookahead", o->max_lookahead,
+                  "lockstep: most ticks released per round trip; the channel's smallest "
+                  "delivery lag bounds it, and so does the logger's queue: a window sends "
+                  "the logger at most two thirds of --recorder-queue (1 = wait for every "
+                  "state after every tick)")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app->add_option("--recorder-pid", o->recorder_pid,
+                  "lockstep: the run's lcm-logger; before each window wait (at most 100 ms) "
+                  "until it has handled what it was sent, so that its queue "
+                  "never overflows (0 = do not wait)")
+      ->check(CLI::NonNegativeNumber);
+  app->add_option("--recorder-queue", o->recorder_queue,
+                  "lockstep: the messages the recorder's LCM subscription queue holds (LCM's "
+                  "default 30; shoal run preloads runtime/lcm_queue_shim.c into lcm-logger "
+                  "for 65536)")
+      ->check(CLI::Range(3, 1 << 30))
+      ->capture_default_str();
+  app->add_option("--vehicle-urls", o->vehicle_urls,
+                  "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
+      ->delimiter(',');
+  app->add_option("--restart-note", o->restart_note,
+                  "Replace an emulator that died (shoal run --restart on-failure): why and "
+                  "when it ended, for the log");
+}
+}  // namespace
+
 int ChannelEmulatorMain(int argc, char** argv) {
   CLI::App app{"Shoal channel emulator: the only path between vehicles (delay, loss, clock)"};
   ProcessOptions opt;
-  std::vector<std::string> vehicle_urls;
-  std::int64_t max_lookahead = 50;
   AddProcessOptions(&app, &opt);
-  app.add_option("--max-lookahead", max_lookahead,
-                 "lockstep: most ticks released per round trip; the channel's smallest "
-                 "delivery lag bounds it, and so does lcm-logger's queue: a window sends "
-                 "the logger at most 20 messages (1 = wait for every state after every tick)")
-      ->check(CLI::Range(1, 100000))
-      ->capture_default_str();
-  pid_t recorder_pid = 0;
-  app.add_option("--recorder-pid", recorder_pid,
-                 "lockstep: the run's lcm-logger; before each window wait (at most 100 ms) "
-                 "until it has handled what it was sent, so that its 30-message queue "
-                 "never overflows (0 = do not wait)")
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--vehicle-urls", vehicle_urls,
-                 "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
-      ->delimiter(',');
-  std::string restart_note;
-  app.add_option("--restart-note", restart_note,
-                 "Replace an emulator that died (shoal run --restart on-failure): why and "
-                 "when it ended, for the log");
+  EmulatorOptions eo;
+  AddEmulatorOptions(&app, &eo);
+  const std::vector<std::string>& vehicle_urls = eo.vehicle_urls;
   Scenario s;
   const int started = StartProcess(&app, argc, argv, "shoal_channel_emulator", &opt, &s);
   if (started >= 0) return started;
@@ -646,14 +695,16 @@ int ChannelEmulatorMain(int argc, char** argv) {
       vbus.push_back(found->second);
     }
     ChannelEmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus,
-                            max_lookahead);
+                            eo.max_lookahead, eo.recorder_queue);
     if (opt.parsed_mode() == Mode::kLockstep) {
       std::cerr << "shoal_channel_emulator: lockstep, " << app_.lookahead_ticks()
                 << " tick(s) per round trip\n";
     }
-    if (opt.parsed_mode() == Mode::kLockstep && recorder_pid > 0) app_.SetRecorder(recorder_pid);
+    if (opt.parsed_mode() == Mode::kLockstep && eo.recorder_pid > 0) {
+      app_.SetRecorder(eo.recorder_pid);
+    }
     if (auth.insecure) app_.SetInsecure();
-    if (!restart_note.empty()) app_.SetRestarted(restart_note);
+    if (!eo.restart_note.empty()) app_.SetRestarted(eo.restart_note);
     app_.Init();
     const int status = app_.Run();
     std::cerr << "shoal_channel_emulator: " << bus_auth::ExitNote(auth, bus.rejected()) << "\n";

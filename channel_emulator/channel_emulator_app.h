@@ -16,11 +16,15 @@
 #include "core/scenario.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/lcm_queue_shim.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
 #include "channel_emulator/recorder_gate.h"
 
 namespace shoal {
+
+/// LCM's subscription queue (messages), what lcm-logger has unless shoal run widens it.
+constexpr std::int64_t kLcmDefaultQueue = SHOAL_LCM_DEFAULT_QUEUE_CAPACITY;
 
 struct EmulatorCounters {
   std::int64_t states_accepted = 0;
@@ -36,11 +40,14 @@ class ChannelEmulatorApp {
   /// clock); entries may all be `bus`.
   /// `max_lookahead_ticks` (lockstep): how many ticks the clock master may release before
   /// it waits for the states; the channel's minimum delivery lag bounds it (see Run), and
-  /// so does the logger: one window sends the logger's bus at most 20 messages (states,
-  /// deliveries it carries, clock, channel batch), below lcm-logger's 30-message queue.
+  /// so does the logger: one window sends the logger's bus at most two thirds of
+  /// `recorder_queue` messages (states, deliveries it carries, clock, channel batch), the
+  /// queue of lcm-logger's subscription (LCM's default 30; shoal run preloads
+  /// runtime/lcm_queue_shim.c into it for SHOAL_LOGGER_QUEUE_CAPACITY).
   ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_t t0_ns, double duration_s,
                      Bus* bus, std::vector<Bus*> vehicle_buses,
-                     std::int64_t max_lookahead_ticks = 50);
+                     std::int64_t max_lookahead_ticks = 50,
+                     std::int64_t recorder_queue = kLcmDefaultQueue);
   void Init();
   /// 0: ran to the end with every process; 4: ran to the end, some process stopped
   /// answering (named on stderr and in SHOAL_STATUS); 1: interrupted; 3: start-up failed.
@@ -117,6 +124,8 @@ class ChannelEmulatorApp {
   /// Lockstep: the window's states enter the channel (tick by tick, in id order).
   void SubmitWindow();
   int RunRealtime();
+  /// Real time: releases every message due at `due` (mission time, us).
+  void ReleaseDue(Micros due);
 
   const Scenario& s_;
   Mode mode_;
@@ -171,6 +180,10 @@ class ChannelEmulatorApp {
   std::vector<std::int64_t> resent_tick_;
   std::vector<std::int64_t> resent_ns_;
   std::vector<std::int64_t> next_of_;  // lockstep: the next tick each "ready" status named
+  // Real time, per receiver: messages in the bundle being released, and the receivers
+  // with one.
+  std::vector<int> bundled_;
+  std::vector<int> released_to_;
   bool restarted_ = false;
   std::string restart_note_;
   std::int64_t start_tick_ = 0;  // lockstep: the first tick this emulator releases

@@ -215,6 +215,8 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
 void WriteStart(const PlannedProcess& p, const std::string& nice, std::ostream& o) {
   o << "start " << ShellWord(p.name) << " " << p.tag << " " << nice << " \\\n  ";
   std::vector<std::string> words = p.prefix;
+  if (!p.env.empty()) words.push_back("/usr/bin/env");  // execs in place: the same pid
+  words.insert(words.end(), p.env.begin(), p.env.end());
   words.insert(words.end(), p.argv.begin(), p.argv.end());
   for (std::size_t i = 0; i < words.size(); ++i) {
     if (i > 0) o << (words[i].rfind("--", 0) == 0 ? " \\\n    " : " ");
@@ -225,8 +227,9 @@ void WriteStart(const PlannedProcess& p, const std::string& nice, std::ostream& 
 
 void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
   const PlannedProcess& logger = plan.processes.front();
-  o << "\n# lcm-logger, first (as root at nice -10: its 30-message queue must not wait for the\n"
-    << "# CPU). The run's processes start once its log exists.\n"
+  o << "\n# lcm-logger, first (as root at nice -10: its subscription queue must not wait for\n"
+    << "# the CPU; with LD_PRELOAD the queue holds more than LCM's 30 messages). The run's\n"
+    << "# processes start once its log exists.\n"
     << "logger_nice=0\nif [ \"$(id -u)\" = 0 ]; then logger_nice=-10; fi\n"
     << "rm -f -- \"$log\"\n";
   WriteStart(logger, "$logger_nice", o);

@@ -29,6 +29,7 @@
 #include "runtime/clocked_node.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/lcm_queue_shim.h"
 #include "runtime/log_reader.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
@@ -380,6 +381,7 @@ class Launch {
   LaunchResult* r_;
   std::vector<std::string> vehicle_urls_;  // per-vehicle groups; empty: one shared bus
   std::string vehicle_exe_, leader_exe_, emulator_exe_;
+  std::string logger_queue_shim_;  // runtime/lcm_queue_shim.c, preloaded into lcm-logger
   std::vector<Child> kids_;
   LaunchPlan plan_;
   std::int64_t t0_ns_ = 0;  // real time: tick 0 on CLOCK_MONOTONIC
@@ -415,6 +417,7 @@ bool Launch::CheckOptions(std::string* error) {
   vehicle_exe_ = FindExe("vehicle", "shoal_vehicle");
   leader_exe_ = FindExe("leader", "shoal_leader");
   emulator_exe_ = FindExe("channel_emulator", "shoal_channel_emulator");
+  logger_queue_shim_ = FindExe("runtime", SHOAL_LCM_QUEUE_SHIM_FILE);
   if (vehicle_exe_.empty() || leader_exe_.empty() || emulator_exe_.empty()) {
     *error = "cannot find shoal_vehicle, shoal_leader or shoal_channel_emulator next to " +
              ExeDir();
@@ -471,6 +474,13 @@ void Launch::Start(const PlannedProcess& p, const std::map<std::string, std::str
   c.id = p.id;
   // lcm-logger records bytes as they are: it is not given the key.
   std::vector<std::string> env = ChildEnvironment(p.gets_key ? &r_->key : nullptr);
+  for (const std::string& e : p.env) {  // replaces a variable of the same name
+    const std::string name = e.substr(0, e.find('=') + 1);
+    env.erase(std::remove_if(env.begin(), env.end(),
+                             [&](const std::string& x) { return x.rfind(name, 0) == 0; }),
+              env.end());
+    env.push_back(e);
+  }
   std::vector<char*> envp;
   for (std::string& e : env) envp.push_back(e.data());
   envp.push_back(nullptr);
@@ -549,6 +559,11 @@ void Launch::BuildPlan() {
                  std::string("--channel=") + channels::kAllPattern, "-f", "-q", "--", r_->log};
   logger.nice_inc = geteuid() == 0 ? -10 : 0;
   logger.gets_key = false;
+  if (!logger_queue_shim_.empty()) {  // its queue: SHOAL_LOGGER_QUEUE_CAPACITY, not 30
+    const char* before = std::getenv("LD_PRELOAD");
+    logger.env = {"LD_PRELOAD=" + logger_queue_shim_ +
+                  (before != nullptr && *before != '\0' ? std::string(":") + before : "")};
+  }
   plan_.processes.push_back(logger);
   PlanEmulator();
   PlanNodes();
@@ -559,6 +574,9 @@ void Launch::PlanEmulator() {
   if (mode_ == Mode::kLockstep) {
     more.push_back("--recorder-pid");  // back-pressure: the log stays complete
     more.push_back(kLoggerPidArg);
+    more.push_back("--recorder-queue");  // what a window may send it
+    more.push_back(std::to_string(logger_queue_shim_.empty() ? SHOAL_LCM_DEFAULT_QUEUE_CAPACITY
+                                                             : SHOAL_LOGGER_QUEUE_CAPACITY));
   }
   if (!vehicle_urls_.empty()) {
     std::string list;

@@ -72,6 +72,8 @@ struct PlannedProcess {
   std::vector<std::string> prefix;
   /// argv[0] by absolute path; may hold kT0Arg and kLoggerPidArg.
   std::vector<std::string> argv;
+  /// NAME=VALUE set in its environment on top of shoal run's (lcm-logger's LD_PRELOAD).
+  std::vector<std::string> env;
   int nice_inc = 0;
   bool gets_key = true;      // the run's key in its environment (all but lcm-logger)
   std::string checkpoint;    // the --checkpoint file it writes ("" none)

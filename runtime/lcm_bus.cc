@@ -26,6 +26,53 @@ LcmBus::LcmBus(const std::string& url, std::optional<bus_auth::Key> key)
 }
 
 bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) {
+  if (!bundling_ || size < 0 || channel.empty() ||
+      channel.size() > static_cast<std::size_t>(bundle_wire::kMaxChannel)) {
+    return PublishSigned(channel, data, size);
+  }
+  if (size > 0 && data == nullptr) return false;
+  const std::size_t part = 1 + channel.size() + 4 + static_cast<std::size_t>(size);
+  bool ok = true;
+  if (bundle_parts_ > 0 && bundle_.size() + part > bundle_wire::kMaxBytes) ok = FlushBundle();
+  bundle_.push_back(static_cast<unsigned char>(channel.size()));
+  bundle_.insert(bundle_.end(), channel.begin(), channel.end());
+  for (int shift = 24; shift >= 0; shift -= 8) {
+    bundle_.push_back(static_cast<unsigned char>(static_cast<std::uint32_t>(size) >> shift));
+  }
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  if (size > 0) bundle_.insert(bundle_.end(), bytes, bytes + size);
+  ++bundle_parts_;
+  return ok;
+}
+
+void LcmBus::BeginBundle() {
+  bundling_ = true;
+  bundle_parts_ = 0;
+  bundle_.assign(std::begin(bundle_wire::kMagic), std::end(bundle_wire::kMagic));
+}
+
+bool LcmBus::EndBundle() {
+  const bool ok = FlushBundle();
+  bundling_ = false;
+  return ok;
+}
+
+bool LcmBus::FlushBundle() {
+  bool ok = true;
+  if (bundle_parts_ == 1) {  // alone: as it is, no bundle around it
+    bundle_wire::ForEachPart(bundle_.data(), static_cast<int>(bundle_.size()),
+                             [&](const std::string& ch, const unsigned char* d, int n) {
+                               ok = PublishSigned(ch, d, n);
+                             });
+  } else if (bundle_parts_ > 1) {
+    ok = PublishSigned(bundle_wire::kChannel, bundle_.data(), static_cast<int>(bundle_.size()));
+  }
+  bundle_parts_ = 0;
+  bundle_.resize(sizeof(bundle_wire::kMagic));
+  return ok;
+}
+
+bool LcmBus::PublishSigned(const std::string& channel, const void* data, int size) {
   if (!auth_) return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
   if (size < 0 || (size > 0 && data == nullptr)) return false;
   signed_.resize(static_cast<std::size_t>(size) + bus_auth::kTrailerBytes);
@@ -35,6 +82,7 @@ bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) 
 }
 
 void LcmBus::Sub::On(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+  if (channel == bundle_wire::kChannel) return;  // its parts come through OnBundle
   const int size = static_cast<int>(rb->data_size);
   if (!auth->has_value()) {
     handler(channel, rb->data, size);
@@ -58,13 +106,61 @@ void LcmBus::Subscribe(const std::string& channel, Handler handler) {
                              "': its port is in use by a program that does not share it "
                              "(the \"bind\" line above)");
   }
-  subs_.push_back(std::make_unique<Sub>(Sub{std::move(handler), &auth_, &rejected_}));
+  // LCM matches a pattern as ^pattern$; so does regex_match.
+  std::optional<std::regex> pattern;
+  if (channel.find_first_of(".[]()*+?{}|^$\\") != std::string::npos) {
+    pattern.emplace(channel, std::regex::extended);
+  }
+  subs_.push_back(std::make_unique<Sub>(
+      Sub{std::move(handler), &auth_, &rejected_, channel, std::move(pattern)}));
   lcm::Subscription* s = lcm_.subscribe(channel, &Sub::On, subs_.back().get());
   // Lockstep bursts (a tick's deliveries) must never be dropped by LCM's default
   // 30-message queue; real-time consumers read the newest anyway.
   if (s != nullptr) s->setQueueCapacity(10000);
+  if (!receiving_) {
+    lcm::Subscription* b = lcm_.subscribe(bundle_wire::kChannel, &LcmBus::OnBundle, this);
+    if (b != nullptr) b->setQueueCapacity(10000);
+  }
   receiving_ = true;
 }
+
+void LcmBus::OnBundle(const lcm::ReceiveBuffer* rb, const std::string& channel) {
+  int size = static_cast<int>(rb->data_size);
+  if (auth_) size = auth_->Verify(channel, rb->data, size);
+  const auto* p = static_cast<const unsigned char*>(rb->data);
+  const bool ok = size >= 0 && bundle_wire::ForEachPart(
+      p, size, [&](const std::string& ch, const unsigned char* d, int n) {
+        for (const std::unique_ptr<Sub>& sub : subs_) {
+          if (sub->Matches(ch)) sub->handler(ch, n > 0 ? d : nullptr, n);
+        }
+      });
+  if (!ok) ++rejected_;  // forged, damaged, or not a bundle
+}
+
+namespace bundle_wire {
+bool ForEachPart(const unsigned char* p, int size,
+                 const std::function<void(const std::string&, const unsigned char*, int)>& part) {
+  const int magic = static_cast<int>(sizeof(kMagic));
+  if (p == nullptr || size < magic || std::memcmp(p, kMagic, sizeof(kMagic)) != 0) return false;
+  // Checked whole before any part is handed on: a bundle is taken entire or not at all.
+  for (int pass = 0; pass < 2; ++pass) {
+    for (int pos = magic; pos < size;) {
+      const int len = p[pos];
+      if (len < 1 || len > kMaxChannel || size - pos - 1 < len + 4) return false;
+      const unsigned char* n = p + pos + 1 + len;
+      const std::uint32_t bytes = (std::uint32_t{n[0]} << 24) | (std::uint32_t{n[1]} << 16) |
+                                  (std::uint32_t{n[2]} << 8) | std::uint32_t{n[3]};
+      if (bytes > static_cast<std::uint32_t>(size - pos - 1 - len - 4)) return false;
+      if (pass == 1) {
+        part(std::string(reinterpret_cast<const char*>(p + pos + 1), static_cast<std::size_t>(len)),
+             n + 4, static_cast<int>(bytes));
+      }
+      pos += 1 + len + 4 + static_cast<int>(bytes);
+    }
+  }
+  return true;
+}
+}  // namespace bundle_wire
 
 int LcmBus::Handle(int timeout_ms) {
   if (!receiving_) {

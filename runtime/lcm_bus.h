@@ -17,6 +17,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,15 @@ class Bus {
   virtual int Handle(int timeout_ms) = 0;
   /// Messages dropped because they did not authenticate (runtime/bus_auth.h).
   virtual std::int64_t rejected() const { return 0; }
+  /// From BeginBundle to EndBundle, what is published on this bus may go out as one
+  /// message (a bundle: LcmBus) that the receiving LcmBus hands to its subscribers part by
+  /// part, in order, each as if it had been published alone: one datagram, one wake-up of
+  /// the receiver, instead of one per message. Only for buses whose every receiver is an
+  /// LcmBus (lcm-logger records a bundle as one message on kBundleChannel). By default the
+  /// messages go out one by one.
+  virtual void BeginBundle() {}
+  /// Sends what BeginBundle kept (a single message as it is). False if a publish failed.
+  virtual bool EndBundle() { return true; }
 
   template <typename Msg>
   bool Publish(const std::string& channel, const Msg& msg) {
@@ -71,6 +81,8 @@ class LcmBus : public Bus {
   void Subscribe(const std::string& channel, Handler handler) override;
   int Handle(int timeout_ms) override;
   std::int64_t rejected() const override { return rejected_; }
+  void BeginBundle() override;
+  bool EndBundle() override;
   int fileno() { return lcm_.getFileno(); }
   const std::string& url() const { return url_; }
   bool authenticated() const { return auth_.has_value(); }
@@ -80,8 +92,19 @@ class LcmBus : public Bus {
     Handler handler;
     const std::optional<bus_auth::Authenticator>* auth;
     std::int64_t* rejected;
+    std::string channel;  // the pattern as given, and as a regex when it is not a plain
+    std::optional<std::regex> pattern;  // name: to route the parts of a bundle
+    bool Matches(const std::string& ch) const {
+      return pattern ? std::regex_match(ch, *pattern) : ch == channel;
+    }
     void On(const lcm::ReceiveBuffer* rb, const std::string& channel);
   };
+  /// Signs (with a key) and publishes one message.
+  bool PublishSigned(const std::string& channel, const void* data, int size);
+  /// A bundle received: verified as one message, then each part to the subscriptions whose
+  /// pattern matches its channel, in order.
+  void OnBundle(const lcm::ReceiveBuffer* rb, const std::string& channel);
+  bool FlushBundle();
   std::string url_;
   lcm::LCM lcm_;
   std::optional<bus_auth::Authenticator> auth_;
@@ -89,7 +112,25 @@ class LcmBus : public Bus {
   std::vector<unsigned char> signed_;  // a message and its trailer, reused
   std::vector<std::unique_ptr<Sub>> subs_;
   bool receiving_ = false;  // subscribed, and LCM's receive socket is open
+  bool bundling_ = false;   // between BeginBundle and EndBundle
+  int bundle_parts_ = 0;
+  std::vector<unsigned char> bundle_;  // kBundleMagic, then the parts (bundle_wire below)
 };
+
+/// A bundle's channel and wire format: the 4-byte magic, then per part its channel's length
+/// (1 byte, 1..kMaxChannel), the channel, the part's size (4 bytes, big-endian) and its
+/// bytes; authenticated as one message. A bundle is cut before it would pass kMaxBytes,
+/// well under what LCM sends in one datagram (a part larger than that goes alone).
+namespace bundle_wire {
+constexpr const char* kChannel = "SHOAL_BUNDLE";
+constexpr unsigned char kMagic[4] = {'S', 'H', 'B', '1'};
+constexpr int kMaxChannel = 63;  // LCM's longest channel name
+constexpr int kMaxBytes = 60000;
+/// Calls part(channel, data, size) for each part, in order; false (having called it for
+/// none) if the bytes are not a well-formed bundle.
+bool ForEachPart(const unsigned char* p, int size,
+                 const std::function<void(const std::string&, const unsigned char*, int)>& part);
+}  // namespace bundle_wire
 
 /// Whether the array counts a message declares fit its size. LCM 1.3.1's generated
 /// decoders size each variable array by the count read from the message, in an `int`,

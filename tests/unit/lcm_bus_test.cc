@@ -1,10 +1,12 @@
 // Tests of runtime/lcm_bus: one call of Handle() dispatches a bounded number of messages;
-// Decode refuses strings LCM's encoder cannot have written.
+// Decode refuses strings LCM's encoder cannot have written; bundles reach subscribers as
+// their parts, in order, and only whole and authenticated.
 #include "runtime/lcm_bus.h"
 
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -56,6 +58,135 @@ TEST(LcmBus, DecodeRefusesStringsWithANulInsideOrNoClosingNul) {
   std::vector<std::uint8_t> open = good;
   open[text + 7] = 'x';  // the closing NUL replaced
   EXPECT_FALSE(Decode(open.data(), static_cast<int>(open.size()), &out));
+}
+
+
+bus_auth::Key TestKey(unsigned char fill) {
+  bus_auth::Key k;
+  k.fill(fill);
+  return k;
+}
+
+struct Received {
+  std::string channel;
+  std::string bytes;
+};
+
+// Given messages published between BeginBundle and EndBundle on an authenticated bus, when
+// the receiver handles the bus, then each subscriber gets exactly the parts on its
+// channels, in publication order and byte for byte, as if they had been sent one by one,
+// and it is one message on the bus.
+TEST(LcmBus, ABundleReachesEachSubscriberAsItsPartsInOrder) {
+  LcmBus bus("memq://", TestKey(7));
+  std::vector<Received> rx, clock;
+  bus.Subscribe("SHOAL_RX_[0-9]+", [&](const std::string& ch, const void* d, int n) {
+    rx.push_back({ch, std::string(static_cast<const char*>(d), static_cast<std::size_t>(n))});
+  });
+  bus.Subscribe("SHOAL_CLOCK", [&](const std::string& ch, const void* d, int n) {
+    clock.push_back({ch, std::string(static_cast<const char*>(d), static_cast<std::size_t>(n))});
+  });
+  bus.BeginBundle();
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_RX_3", "first", 5));
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_RX_3", "second", 6));
+  ASSERT_TRUE(bus.PublishRaw("OTHER", "x", 1));  // nobody listens: dropped, not misrouted
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_CLOCK", "tick", 4));
+  ASSERT_TRUE(bus.EndBundle());
+  EXPECT_EQ(bus.Handle(0), 1);  // one message on the bus
+  ASSERT_EQ(rx.size(), 2u);
+  EXPECT_EQ(rx[0].channel, "SHOAL_RX_3");
+  EXPECT_EQ(rx[0].bytes, "first");
+  EXPECT_EQ(rx[1].bytes, "second");
+  ASSERT_EQ(clock.size(), 1u);
+  EXPECT_EQ(clock[0].bytes, "tick");
+  EXPECT_EQ(bus.rejected(), 0);
+  // A single message goes out as it is; after EndBundle, messages go out one by one.
+  bus.BeginBundle();
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_CLOCK", "alone", 5));
+  ASSERT_TRUE(bus.EndBundle());
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_CLOCK", "after", 5));
+  EXPECT_EQ(bus.Handle(0), 2);
+  ASSERT_EQ(clock.size(), 3u);
+  EXPECT_EQ(clock[1].bytes, "alone");
+  EXPECT_EQ(clock[2].bytes, "after");
+}
+
+// Given a bundle larger than one datagram should carry, when it is sent, then it goes out
+// as several bundles, cut between parts, and every part arrives once, in order.
+TEST(LcmBus, ALargeBundleIsCutBetweenPartsAndLosesNone) {
+  LcmBus bus("memq://", TestKey(7));
+  std::vector<int> seen;
+  bus.Subscribe("SHOAL_RX_1", [&](const std::string&, const void* d, int n) {
+    ASSERT_EQ(n, 1000);
+    int v;
+    std::memcpy(&v, d, sizeof(v));
+    seen.push_back(v);
+  });
+  std::vector<unsigned char> part(1000, 0);
+  bus.BeginBundle();
+  for (int i = 0; i < 150; ++i) {  // 150 kB: three bundles of at most 60 kB
+    std::memcpy(part.data(), &i, sizeof(i));
+    ASSERT_TRUE(bus.PublishRaw("SHOAL_RX_1", part.data(), static_cast<int>(part.size())));
+  }
+  ASSERT_TRUE(bus.EndBundle());
+  EXPECT_EQ(bus.Handle(0), 3);
+  ASSERT_EQ(seen.size(), 150u);
+  for (int i = 0; i < 150; ++i) EXPECT_EQ(seen[i], i);
+}
+
+// Given a well-signed bundle whose part lengths do not fit, or without the magic, when it
+// arrives, then no part of it reaches any subscriber (a bundle is taken whole or not at
+// all) and it is counted as rejected.
+TEST(LcmBus, AMalformedBundleDeliversNothing) {
+  LcmBus bus("memq://", TestKey(2));
+  std::vector<std::string> got;
+  bus.Subscribe("SHOAL_RX_1", [&](const std::string&, const void* d, int n) {
+    got.emplace_back(static_cast<const char*>(d), static_cast<std::size_t>(n));
+  });
+  std::vector<unsigned char> b(std::begin(bundle_wire::kMagic), std::end(bundle_wire::kMagic));
+  auto add = [&](const std::string& payload, std::uint32_t declared) {
+    const std::string ch = "SHOAL_RX_1";
+    b.push_back(static_cast<unsigned char>(ch.size()));
+    b.insert(b.end(), ch.begin(), ch.end());
+    for (int shift = 24; shift >= 0; shift -= 8) {
+      b.push_back(static_cast<unsigned char>(declared >> shift));
+    }
+    b.insert(b.end(), payload.begin(), payload.end());
+  };
+  add("good", 4);
+  add("bad", 300);  // claims more than the bundle holds
+  // PublishRaw signs it with the bus's own key: it authenticates, and is still refused.
+  ASSERT_TRUE(bus.PublishRaw(bundle_wire::kChannel, b.data(), static_cast<int>(b.size())));
+  EXPECT_EQ(bus.Handle(0), 1);
+  EXPECT_TRUE(got.empty());
+  EXPECT_EQ(bus.rejected(), 1);
+  b.resize(b.size() - 3 - 4 - 10 - 1);  // only the good part is left
+  const std::vector<unsigned char> no_magic(b.begin() + 4, b.end());
+  ASSERT_TRUE(bus.PublishRaw(bundle_wire::kChannel, no_magic.data(),
+                             static_cast<int>(no_magic.size())));
+  EXPECT_EQ(bus.Handle(0), 1);
+  EXPECT_TRUE(got.empty());
+  EXPECT_EQ(bus.rejected(), 2);
+  ASSERT_TRUE(bus.PublishRaw(bundle_wire::kChannel, b.data(), static_cast<int>(b.size())));
+  EXPECT_EQ(bus.Handle(0), 1);
+  ASSERT_EQ(got.size(), 1u);  // the same bytes, well formed: taken
+  EXPECT_EQ(got[0], "good");
+}
+
+// Given a bundle signed with another run's key, when it arrives over udpm, then nothing of
+// it is delivered and it is counted as rejected, as a single forged message would be.
+TEST(LcmBus, ABundleWithAnotherKeyDeliversNothing) {
+  const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
+  LcmBus forger(url, TestKey(1));
+  LcmBus receiver(url, TestKey(2));
+  int got = 0;
+  receiver.Subscribe("SHOAL_RX_1", [&](const std::string&, const void*, int) { ++got; });
+  forger.BeginBundle();
+  ASSERT_TRUE(forger.PublishRaw("SHOAL_RX_1", "a", 1));
+  ASSERT_TRUE(forger.PublishRaw("SHOAL_RX_1", "b", 1));
+  ASSERT_TRUE(forger.EndBundle());
+  EXPECT_EQ(receiver.Handle(2000), 1);
+  EXPECT_EQ(got, 0);
+  EXPECT_EQ(receiver.rejected(), 1);
 }
 
 }  // namespace

@@ -1,0 +1,146 @@
+#!/usr/bin/env bash
+# Benchmark: how shoal run scales with the number of followers, at a fixed two in-links
+# per follower (bench/scale_scenario.sh). For each N and run: a lockstep run and a
+# real-time run of the same scenario. Per run it records the lockstep real-time factor,
+# states logged of expected, each role's CPU per tick (from the run's resources.csv:
+# the difference between the 2 s sample and the last one, so start-up is not counted;
+# lockstep runs of fewer than 64 followers are longer, LOCKSTEP_S * 64 / N, for enough samples),
+# context switches per tick (sampled from /proc/PID/status while the run goes, so the
+# last fraction of a second is missed), UDP receive-buffer overflows on the host during
+# the run (/proc/net/snmp RcvbufErrors), and in real time the loop lateness p99, the
+# release (delay) error p99, overruns and states logged. Runs are interleaved N by N.
+# Usage: bench/scale.sh [BUILD_DIRS] [RUNS] [LOCKSTEP_S] [REALTIME_S] [NS] [OUT_CSV] [EXTRA_ARGS]
+#   e.g. bench/scale.sh build 3 20 20 "5 16 64 128" scale.csv
+# BUILD_DIRS: one build directory, or several separated by commas (A/B: their runs are
+# interleaved, and each row names its build). Writes OUT_CSV (one row per run) and
+# OUT_CSV with .csv replaced by _median.csv (medians per build, mode and N), and, if
+# <first build>/bench/scale_plot exists, a PNG of CPU per tick per vehicle against N
+# (_cpu.png; with two builds, the second drawn dashed as "before").
+set -euo pipefail
+builds=${1:-build}
+runs=${2:-3}
+ls_dur=${3:-20}
+rt_dur=${4:-20}
+ns=${5:-"5 16 64 128"}
+out=${6:-scale.csv}
+extra=${7:-}
+modes=${MODES:-lockstep realtime}  # e.g. MODES=lockstep bench/scale.sh ...
+IFS=, read -r -a build_list <<< "$builds"
+for b in "${build_list[@]}"; do
+  [ -x "$b/tools/shoal" ] || { echo "bench: $b/tools/shoal not built" >&2; exit 2; }
+done
+here=$(cd "$(dirname "$0")" && pwd)
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+num() { grep -o "\"$1\":[0-9.e+-]*" "$2" | head -1 | cut -d: -f2; }
+rcvbuf_errors() { awk '/^Udp:/ {getline; print $6; exit}' /proc/net/snmp; }
+
+# Samples every child of shoal run (pid $1) until it exits: the newest voluntary and
+# involuntary context switch counts of each (all its threads), into $2 (name,pid,vol,nonvol).
+sample_ctx() {
+  local parent=$1 file=$2
+  while kill -0 "$parent" 2>/dev/null; do
+    # Every thread: LCM's receive thread and lcm-logger's writer are threads of their own.
+    for p in $(pgrep -P "$parent"); do
+      awk -v pid="$p" '/^Name:/ && n == "" {n=$2} /^voluntary_ctxt/ {v+=$2} /^nonvoluntary_ctxt/ {i+=$2}
+        END {if (n != "") print n "," pid "," v "," i}' /proc/"$p"/task/*/status 2>/dev/null || true
+    done >> "$file"
+    sleep 0.3
+  done
+}
+
+# One run: build, mode, N, run index. Appends a CSV row.
+one_run() {
+  local build=$1 mode=$2 n=$3 r=$4 dur
+  local shoal="$build/tools/shoal" tag
+  tag=$(basename "$build")
+  # Lockstep: LOCKSTEP_S for 64 followers and more, longer for fewer (LOCKSTEP_S * 64 / N),
+  # so that every run lasts seconds of wall time and has enough resource samples.
+  dur=$([ "$mode" = lockstep ] && awk -v d="$ls_dur" -v n="$n" 'BEGIN {print (n < 64) ? int(d * 64 / n) : d}' || echo "$rt_dur")
+  local scen="$dir/scale_$n.toml" log="$dir/${tag}_${mode}_${n}_$r.lcmlog"
+  local json="$dir/${tag}_${mode}_${n}_$r.json" ctx="$dir/ctx_${tag}_${mode}_${n}_$r.csv"
+  : > "$ctx"
+  local before after
+  before=$(rcvbuf_errors)
+  # shellcheck disable=SC2086
+  "$shoal" run "$scen" --mode "$mode" --duration "$dur" --out "$log" --json \
+    --resource-interval 1 $extra > "$json" 2> "$dir/err" &
+  local pid=$!
+  sample_ctx "$pid" "$ctx" &
+  local sampler=$!
+  wait "$pid" || true
+  wait "$sampler" || true
+  after=$(rcvbuf_errors)
+  local ticks
+  ticks=$(awk -v d="$dur" 'BEGIN {printf "%d", d * 50 + 1}')
+  # CPU per tick per role: (cpu at the last sample - cpu at 2 s) / ticks between.
+  local cpu
+  cpu=$(awk -F, 'NR > 1 {
+      role = ($3 ~ /^vehicle/) ? "vehicle" : $3
+      if ($1 + 0 >= 2 && !(($4) in first)) {first[$4] = $6; t0[$4] = $1; r[$4] = role}
+      if (($4) in first) {last[$4] = $6; t1[$4] = $1}
+    }
+    END {
+      for (p in first) if (t1[p] > t0[p]) {
+        s[r[p]] += (last[p] - first[p]) / ((t1[p] - t0[p]) * 50); c[r[p]]++
+      }
+      printf "%.1f,%.1f,%.1f", c["vehicle"] ? 1e6 * s["vehicle"] / c["vehicle"] : -1,
+        1e6 * s["channel emulator"], 1e6 * s["lcm-logger"]
+    }' "$log.d/resources.csv")
+  local cs
+  cs=$(awk -F, -v t="$ticks" '{k = $2; v[k] = $3 + $4; role[k] = ($1 ~ /vehicle/) ? "v" : ($1 ~ /shoal_channel/ ? "e" : ($1 ~ /lcm-logger/ ? "l" : "o"))}
+    END {for (k in v) {s[role[k]] += v[k]; if (role[k] == "v") nv++}
+      printf "%.2f,%.1f,%.1f", nv ? s["v"] / nv / t : -1, s["e"] / t, s["l"] / t}' "$ctx")
+  printf '%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n' "$tag" "$mode" "$n" "$r" \
+    "$(num realtime_factor "$json")" "$(num log_states "$json")" \
+    "$(num log_states_expected "$json")" "$cpu" "$cs" "$((after - before))" \
+    "$(num lateness_p99_s "$json")" "$(num delay_error_p99_s "$json")" \
+    "$(num overruns "$json")" "$(cut -d' ' -f1 /proc/loadavg)" >> "$out"
+}
+
+echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
+echo "build,mode,followers,run,realtime_factor,log_states,log_states_expected,vehicle_cpu_us_per_tick,emulator_cpu_us_per_tick,logger_cpu_us_per_tick,vehicle_ctxsw_per_tick,emulator_ctxsw_per_tick,logger_ctxsw_per_tick,rcvbuf_errors,lateness_p99_s,delay_error_p99_s,overruns,load1" > "$out"
+for n in $ns; do "$here/scale_scenario.sh" "$n" "$ls_dur" > "$dir/scale_$n.toml"; done
+for ((r = 1; r <= runs; r++)); do
+  for n in $ns; do
+    for mode in $modes; do
+      for b in "${build_list[@]}"; do
+        one_run "$b" "$mode" "$n" "$r"
+        tail -1 "$out" >&2
+      done
+    done
+  done
+done
+med="${out%.csv}_median.csv"
+head -1 "$out" | cut -d, -f1-3,5- > "$med"
+for b in "${build_list[@]}"; do
+  for mode in $modes; do
+    for n in $ns; do
+      awk -F, -v t="$(basename "$b")" -v m="$mode" -v n="$n" '$1 == t && $2 == m && $3 == n' "$out" |
+        awk -F, -v t="$(basename "$b")" -v m="$mode" -v n="$n" '
+      {for (c = 5; c <= NF; c++) v[c, NR] = $c; rows = NR; cols = NF}
+      END {
+        if (!rows) exit
+        line = t "," m "," n
+        for (c = 5; c <= cols; c++) {
+          k = 0; for (i = 1; i <= rows; i++) if (v[c, i] != "") a[++k] = v[c, i] + 0
+          for (i = 1; i <= k; i++) for (j = i + 1; j <= k; j++) if (a[j] < a[i]) {t = a[i]; a[i] = a[j]; a[j] = t}
+          line = line "," (k ? (k % 2 ? a[(k + 1) / 2] : (a[k / 2] + a[k / 2 + 1]) / 2) : "")
+        }
+        print line
+      }' >> "$med"
+    done
+  done
+done
+cat "$med"
+first=${build_list[0]}
+if [ -x "$first/bench/scale_plot" ]; then
+  one="$dir/first.csv" two="$dir/second.csv"
+  awk -F, -v t="$(basename "$first")" 'NR == 1 || $1 == t' "$med" > "$one"
+  if [ "${#build_list[@]}" -gt 1 ]; then
+    awk -F, -v t="$(basename "${build_list[1]}")" 'NR == 1 || $1 == t' "$med" > "$two"
+    "$first/bench/scale_plot" "$one" "${out%.csv}_cpu.png" "$two"
+  else
+    "$first/bench/scale_plot" "$one" "${out%.csv}_cpu.png"
+  fi
+fi
