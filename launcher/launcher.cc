@@ -24,6 +24,7 @@
 
 #include "core/metrics.h"
 #include "core/swarm.h"
+#include "launcher/remote_host.h"
 #include "runtime/channels.h"
 #include "runtime/checkpoint.h"
 #include "runtime/clocked_node.h"
@@ -57,6 +58,10 @@ struct Child {
   // A vehicle's controller resets still to come (ticks, ascending): it stops itself after
   // the tick before each, and is restarted there (ClockedNode::StopBeforeResets).
   std::vector<std::int64_t> reset_ticks;
+  // --hosts: a process started through its host's prefix reads the key from this pipe and
+  // is stopped when it closes (remote_host.h); -1 for a child of shoal run itself.
+  int stdin_fd = -1;
+  bool signals_reach = true;  // its pid is the process's own (HostCheck::same_process)
 };
 
 std::string ExeDir() {
@@ -97,8 +102,9 @@ std::string Failure(const Child& c) {
 
 /// `envp`: the child's environment (the run's key is handed over there, not on the
 /// command line, which every user of the host can read).
+/// `stdin_fd`: its standard input (-1: /dev/null).
 pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::string& output,
-            char* const* envp) {
+            char* const* envp, int stdin_fd = -1) {
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid != 0) return pid;
@@ -114,7 +120,7 @@ pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::strin
     dup2(fd, 2);
     close(fd);
   }
-  const int devnull = open("/dev/null", O_RDONLY);
+  const int devnull = stdin_fd >= 0 ? stdin_fd : open("/dev/null", O_RDONLY);
   if (devnull >= 0) dup2(devnull, 0);
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
@@ -322,6 +328,11 @@ class Launch {
  public:
   Launch(const Scenario& s, const LaunchOptions& opt, LaunchResult* r)
       : s_(s), opt_(opt), r_(r) {}
+  ~Launch() {
+    for (Child& c : kids_) CloseStdin(c);
+  }
+  Launch(const Launch&) = delete;
+  Launch& operator=(const Launch&) = delete;
   bool Prepare(std::string* error);
   void StartAll();
   void Supervise(const LaunchCallbacks& cb);
@@ -333,6 +344,13 @@ class Launch {
   bool ChooseUrls(std::string* error);
   void Start(const std::string& name, int id, const std::vector<std::string>& argv,
              int nice_inc, const std::string& tag);
+  /// Starts child c's `argv` on its host (--hosts), with the run's key; -1 if it failed.
+  pid_t SpawnChild(Child& c, const std::vector<std::string>& argv);
+  /// The host that runs the process `id` (nullptr without --hosts).
+  const Host* HostFor(int id) const;
+  static void CloseStdin(Child& c);
+  /// Whether the emulator can watch the logger's pid (--recorder-pid).
+  bool RecorderVisible() const;
   std::vector<std::string> ProcessArgs(const std::string& exe,
                                        const std::vector<std::string>& more) const;
   /// Waits (polling waitpid) up to `limit` for the children selected by `which` to exit.
@@ -381,6 +399,7 @@ class Launch {
   std::chrono::steady_clock::time_point wall0_;  // when supervision started
   std::unique_ptr<ResourceLog> resources_;       // LaunchOptions::resource_interval_s
   std::chrono::steady_clock::time_point last_resource_poll_;
+  std::map<std::string, HostCheck> host_checks_;  // --hosts: by host name
 };
 
 bool Launch::Prepare(std::string* error) {
@@ -422,14 +441,22 @@ bool Launch::Prepare(std::string* error) {
 }
 
 bool Launch::ChooseUrls(std::string* error) {
-  std::string url = opt_.lcm_url;
+  const HostsFile* hosts = opt_.hosts ? &*opt_.hosts : nullptr;
+  if (hosts && !hosts->bus_url.empty() && !opt_.lcm_url.empty()) {
+    *error = "give the LCM URL either with --lcm-url or as [bus] url in " + hosts->path;
+    return false;
+  }
+  std::string url = hosts && !hosts->bus_url.empty() ? hosts->bus_url : opt_.lcm_url;
   int port = 0;
-  if ((url.empty() || url.rfind("udpm://", 0) == 0) && !EnsureLoopbackMulticast(error)) {
+  // Over several hosts multicast must leave by each host's network, not loopback: each
+  // host's route is checked instead (CheckHosts, after the URLs are chosen).
+  if (!hosts && (url.empty() || url.rfind("udpm://", 0) == 0) && !EnsureLoopbackMulticast(error)) {
     return false;
   }
   if (url.empty()) {
     port = RandomPrivatePort(s_.followers);
     url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
+    if (hosts) url = UrlWithTtl(url, hosts->ttl);
   }
   r_->lcm_url = url;
   // Each vehicle receives on its own group unless asked otherwise: on one shared group
@@ -444,8 +471,17 @@ bool Launch::ChooseUrls(std::string* error) {
       return false;
     }
     vehicle_urls_ = PerVehicleLcmUrls(port, s_.followers);
+    for (std::string& u : vehicle_urls_) u = hosts ? UrlWithTtl(u, hosts->ttl) : u;
   }
-  return true;
+  if (!hosts) return true;
+  std::vector<std::string> groups = {GroupOfUrl(url)};
+  if (!vehicle_urls_.empty()) groups.push_back(GroupOfUrl(vehicle_urls_[0]));
+  if (groups[0].empty()) {
+    *error = "--hosts needs an udpm:// LCM URL (got " + url + ")";
+    return false;
+  }
+  return CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), mode_ == Mode::kRealtime,
+                    &host_checks_, error);
 }
 
 void Launch::Start(const std::string& name, int id, const std::vector<std::string>& argv,
@@ -453,22 +489,66 @@ void Launch::Start(const std::string& name, int id, const std::vector<std::strin
   Child c;
   c.name = name;
   c.id = id;
-  // lcm-logger records bytes as they are: it is not given the key.
-  std::vector<std::string> env = ChildEnvironment(id == kLoggerId ? nullptr : &r_->key);
-  std::vector<char*> envp;
-  for (std::string& e : env) envp.push_back(e.data());
-  envp.push_back(nullptr);
   c.output = r_->process_output_dir + "/" + tag + ".txt";
   c.argv = argv;
   c.nice_inc = nice_inc;
   c.tag = tag;
-  c.pid = Spawn(argv, nice_inc, c.output, envp.data());
+  c.pid = SpawnChild(c, argv);
   c.running = c.pid > 0;
   if (c.pid < 0) {  // no process to supervise: the run cannot go on
     r_->problems.push_back("cannot start " + name + " (fork: " + std::strerror(errno) + ")");
     start_failed_ = true;
   }
   kids_.push_back(c);
+}
+
+bool Launch::RecorderVisible() const {
+  // The emulator reads the logger's threads from /proc/<pid>: the pid must be the
+  // logger's own, in the emulator's pid namespace.
+  if (!opt_.hosts) return true;
+  const auto logger = host_checks_.find(HostFor(kLoggerId)->name);
+  const auto emulator = host_checks_.find(HostFor(kEmulatorId)->name);
+  return logger != host_checks_.end() && emulator != host_checks_.end() &&
+         logger->second.same_process && emulator->second.same_process;
+}
+
+const Host* Launch::HostFor(int id) const {
+  if (!opt_.hosts) return nullptr;
+  if (id == kLoggerId) return &opt_.hosts->HostOf(HostRole::kLogger);
+  if (id == kEmulatorId) return &opt_.hosts->HostOf(HostRole::kEmulator);
+  return &opt_.hosts->HostOfVehicle(id);
+}
+
+void Launch::CloseStdin(Child& c) {
+  if (c.stdin_fd >= 0) close(c.stdin_fd);
+  c.stdin_fd = -1;
+}
+
+pid_t Launch::SpawnChild(Child& c, const std::vector<std::string>& argv) {
+  // lcm-logger records bytes as they are: it is not given the key.
+  const bool with_key = c.id != kLoggerId && r_->key.has_value();
+  const Host* host = HostFor(c.id);
+  const bool prefixed = host != nullptr && !host->prefix.empty();
+  std::vector<std::string> env = ChildEnvironment(with_key && !prefixed ? &r_->key : nullptr);
+  std::vector<char*> envp;
+  for (std::string& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  if (!prefixed) return Spawn(argv, c.nice_inc, c.output, envp.data());
+  // Through the host's prefix the key goes to the process's standard input, which stays
+  // open while it runs (remote_host.h): never on a command line, which ssh and
+  // ip netns exec would pass on.
+  CloseStdin(c);
+  c.signals_reach = host_checks_[host->name].same_process;
+  int read_fd = -1;
+  std::string error;
+  if (!KeyPipe(with_key ? bus_auth::ToHex(*r_->key) : "", &read_fd, &c.stdin_fd, &error)) {
+    return -1;
+  }
+  char cwd[4096];
+  const std::string dir = getcwd(cwd, sizeof(cwd)) != nullptr ? cwd : ".";
+  const pid_t pid = Spawn(HostCommand(*host, argv, dir), c.nice_inc, c.output, envp.data(), read_fd);
+  close(read_fd);
+  return pid;
 }
 
 std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
@@ -521,9 +601,12 @@ void Launch::StartAll() {
   for (int i = 0; i < 100 && !before.OpenedAnew(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  t0_ns_ = MonotonicNs() + 4000000000LL;  // real time: start margin
+  // Real time: start margin. Every host's processes read this CLOCK_MONOTONIC time, which
+  // CheckHosts requires to be shoal run's clock; hosts on other kernels need a wall-clock
+  // start time instead.
+  t0_ns_ = MonotonicNs() + 4000000000LL;
   std::vector<std::string> emulator_more = {"--max-lookahead", std::to_string(opt_.max_lookahead)};
-  if (mode_ == Mode::kLockstep && logger_pid > 0) {
+  if (mode_ == Mode::kLockstep && logger_pid > 0 && RecorderVisible()) {
     emulator_more.push_back("--recorder-pid");  // back-pressure: the log stays complete
     emulator_more.push_back(std::to_string(logger_pid));
   }
@@ -679,14 +762,10 @@ bool Launch::Respawn(Child& c, const std::string& what, const LaunchCallbacks& c
   argv.insert(argv.end(), {"--restart-note", c.name + " restarted: the process before it (pid " +
                                                  std::to_string(c.pid) + ") " + what + " at " +
                                                  when});
-  std::vector<std::string> env = ChildEnvironment(&r_->key);
-  std::vector<char*> envp;
-  for (std::string& e : env) envp.push_back(e.data());
-  envp.push_back(nullptr);
   // Its own output file: the one of the process that died keeps that process's last words.
   c.output = r_->process_output_dir + "/" + c.tag + ".restart" +
              std::to_string(r_->restarts.size() + 1) + ".txt";
-  const pid_t pid = Spawn(argv, c.nice_inc, c.output, envp.data());
+  const pid_t pid = SpawnChild(c, argv);
   if (pid < 0) {
     r_->problems.push_back("cannot restart " + c.name + " (fork: " + std::strerror(errno) + ")");
     return false;
@@ -901,6 +980,12 @@ void SignalGroup(pid_t pid, int signal) {
 void Launch::Stop(bool logger, std::chrono::milliseconds grace) {
   for (Child& c : kids_) {
     if (!c.running || IsLogger(c) != logger) continue;
+    // On another host (through ssh) the pid is the ssh client's: the end of its standard
+    // input stops the process there, which then ends as it would on SIGTERM.
+    if (!c.signals_reach) {
+      CloseStdin(c);
+      continue;
+    }
     kill(c.pid, logger ? SIGINT : SIGTERM);
     if (c.stopped) kill(c.pid, SIGCONT);
   }

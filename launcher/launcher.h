@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/scenario.h"
+#include "launcher/hosts_file.h"
 #include "runtime/bus_auth.h"
 #include "runtime/process.h"
 
@@ -44,6 +45,9 @@ struct LaunchOptions {
   /// time (0 s included) and once at the end, into <log>.d/resources.csv (docs/run.md);
   /// 0: not sampled.
   double resource_interval_s = 60.0;
+  /// --hosts: the hosts the run spans, the bus and which host runs which process
+  /// (docs/run.md, "A swarm over several hosts"); none: everything on this host.
+  std::optional<HostsFile> hosts;
 };
 
 /// A process that died and was started again (LaunchOptions::restart_on_failure).

@@ -39,6 +39,19 @@ int RunRun(const RunOptions& opt) {
   }
   LaunchOptions launch_options = opt.launch;
   launch_options.restart_on_failure = opt.restart == "on-failure";
+  if (!opt.hosts_file.empty()) {
+    try {
+      launch_options.hosts = LoadHostsFile(opt.hosts_file);
+    } catch (const HostsFileError& e) {
+      std::cerr << "shoal run: " << e.what() << "\n";
+      return kExitBadInput;
+    }
+    const std::string misplaced = CheckPlacement(*launch_options.hosts, s.followers);
+    if (!misplaced.empty()) {
+      std::cerr << "shoal run: " << misplaced << "\n";
+      return kExitBadInput;
+    }
+  }
   LaunchResult launch;
   std::string error;
   if (!LaunchRun(s, launch_options, cb, &launch, &error)) {

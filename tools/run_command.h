@@ -9,6 +9,7 @@ struct RunOptions {
   bool json = false;
   bool quiet = false;
   std::string restart = "no";  // "no" or "on-failure" (sets launch.restart_on_failure)
+  std::string hosts_file;  // --hosts: read into launch.hosts (docs/run.md)
 };
 
 /// `shoal run`: launches lcm-logger, the channel emulator, the leader and every vehicle
