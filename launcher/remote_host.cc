@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <chrono>
 #include <cstring>
+#include <set>
 #include <sstream>
 
 namespace shoal {
@@ -37,6 +38,7 @@ constexpr const char* kProbe =
     "echo \"boot=$(cat /proc/sys/kernel/random/boot_id 2>/dev/null)\"; "
     "echo \"timens=$(readlink /proc/$$/ns/time 2>/dev/null)\"; "
     "echo \"pidns=$(readlink /proc/$$/ns/pid 2>/dev/null)\"; "
+    "echo \"netns=$(readlink /proc/$$/ns/net 2>/dev/null)\"; "
     "for g in \"$@\"; do echo \"route $g=$(ip route get \"$g\" 2>&1 | head -n 1)\"; done";
 
 constexpr int kProbeTimeoutS = 30;
@@ -203,7 +205,7 @@ std::string RouteProblem(const HostsFile& hosts, const Host& h, const std::strin
            h.interface + " (or a route for the group)";
   }
   if (spans_hosts && dev == "lo") {
-    return on + " stays on lo, and the run spans more than one host; there, ip route replace 224.0.0.0/4 dev " + iface;
+    return on + " stays on lo, and the run spans more than one network; there, ip route replace 224.0.0.0/4 dev " + iface;
   }
   return "";
 }
@@ -254,37 +256,47 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
                 int ttl, bool realtime, std::map<std::string, HostCheck>* checks,
                 std::string* error) {
   const std::vector<const Host*> used = hosts.UsedHosts(followers);
-  const bool spans = used.size() > 1;
+  std::vector<std::map<std::string, std::string>> probed(used.size());
+  std::vector<bool> in_place(used.size());
+  std::set<std::string> networks;  // boot id and network namespace of each host
+  for (std::size_t i = 0; i < used.size(); ++i) {
+    bool b = false;
+    if (!Probe(hosts, *used[i], groups, &probed[i], &b, error)) return false;
+    in_place[i] = b;
+    networks.insert(probed[i]["boot"] + " " + probed[i]["netns"]);
+  }
+  // Hosts that share one network stack (prefixes that start processes beside shoal run's)
+  // reach each other on loopback with a TTL of 0, as a run without --hosts does.
+  const bool spans = networks.size() > 1;
   if (spans && ttl == 0) {
-    *error = hosts.path + ": the run spans " + std::to_string(used.size()) +
-             " hosts, but its LCM URL's ttl is 0, which keeps every message on its host; "
+    *error = hosts.path + ": the run spans " + std::to_string(networks.size()) +
+             " networks, but its LCM URL's ttl is 0, which keeps every message on its host; "
              "use ttl = 1 ([bus] ttl, or ?ttl=1 in the URL)";
     return false;
   }
   const std::string boot = ReadLine("/proc/sys/kernel/random/boot_id");
   const std::string timens = ReadLink("/proc/self/ns/time");
   const std::string pidns = ReadLink("/proc/self/ns/pid");
-  for (const Host* h : used) {
-    std::map<std::string, std::string> f;
-    bool in_place = false;
-    if (!Probe(hosts, *h, groups, &f, &in_place, error)) return false;
+  for (std::size_t i = 0; i < used.size(); ++i) {
+    const Host& h = *used[i];
+    std::map<std::string, std::string>& f = probed[i];
     HostCheck c;
     c.same_clock = !boot.empty() && f["boot"] == boot && f["timens"] == timens;
-    c.same_process = in_place && f["pidns"] == pidns;
+    c.same_process = in_place[i] && f["pidns"] == pidns;
     for (const std::string& g : groups) {
       const std::string route = f["route " + g];
-      *error = RouteProblem(hosts, *h, g, route, spans);
+      *error = RouteProblem(hosts, h, g, route, spans);
       if (!error->empty()) return false;
       if (c.multicast_dev.empty()) c.multicast_dev = RouteDev(route);
     }
     if (realtime && !c.same_clock) {
-      *error = "host " + h->name + Where(hosts, *h) +
+      *error = "host " + h.name + Where(hosts, h) +
                " does not share shoal run's CLOCK_MONOTONIC (another kernel or time "
                "namespace), on which a real-time run's processes get their start time; "
                "real time over such hosts is not supported yet: use --mode lockstep";
       return false;
     }
-    (*checks)[h->name] = c;
+    (*checks)[h.name] = c;
   }
   return true;
 }
