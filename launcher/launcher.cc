@@ -24,6 +24,7 @@
 
 #include "core/metrics.h"
 #include "core/swarm.h"
+#include "launcher/remote_host.h"
 #include "runtime/channels.h"
 #include "runtime/checkpoint.h"
 #include "runtime/clocked_node.h"
@@ -49,6 +50,8 @@ struct Child {
   std::string output;     // its output file, <log>.d/<tag>.txt
   // What it was started with, to start it again (--restart on-failure).
   std::vector<std::string> argv;
+  std::vector<std::string> env;  // NAME=VALUE on top of shoal run's (PlannedProcess::env)
+  bool gets_key = true;          // lcm-logger records bytes as they are: it does not
   int nice_inc = 0;
   std::string tag;
   std::string checkpoint;  // its checkpoint file ("" without restarts or resets)
@@ -56,6 +59,10 @@ struct Child {
   // A vehicle's controller resets still to come (ticks, ascending): it stops itself after
   // the tick before each, and is restarted there (ClockedNode::StopBeforeResets).
   std::vector<std::int64_t> reset_ticks;
+  // --hosts: a process started through its host's prefix reads the key from this pipe and
+  // is stopped when it closes (remote_host.h); -1 for a child of shoal run itself.
+  int stdin_fd = -1;
+  bool signals_reach = true;  // its pid is the process's own (HostCheck::same_process)
 };
 
 std::string ExeDir() {
@@ -96,8 +103,9 @@ std::string Failure(const Child& c) {
 
 /// `envp`: the child's environment (the run's key is handed over there, not on the
 /// command line, which every user of the host can read).
+/// `stdin_fd`: its standard input (-1: /dev/null).
 pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::string& output,
-            char* const* envp) {
+            char* const* envp, int stdin_fd = -1) {
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid != 0) return pid;
@@ -113,7 +121,7 @@ pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::strin
     dup2(fd, 2);
     close(fd);
   }
-  const int devnull = open("/dev/null", O_RDONLY);
+  const int devnull = stdin_fd >= 0 ? stdin_fd : open("/dev/null", O_RDONLY);
   if (devnull >= 0) dup2(devnull, 0);
   std::vector<char*> args;
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
@@ -320,10 +328,15 @@ class ResourceLog {
 class Launch {
  public:
   Launch(const Scenario& s, const LaunchOptions& opt, LaunchResult* r)
-      : s_(s), opt_(opt), r_(r) {}
+      : s_(s), opt_(opt), r_(r), wall_clock_t0_(opt.wall_clock_t0) {}
+  ~Launch() {
+    for (Child& c : kids_) CloseStdin(c);
+  }
+  Launch(const Launch&) = delete;
+  Launch& operator=(const Launch&) = delete;
   /// Checks everything that can refuse the run and makes its plan; unless `for_print`,
-  /// also makes sure multicast stays on the host and prepares the log, the output folder
-  /// and the key. Nothing is started.
+  /// also makes sure multicast stays on the host (or, with --hosts, that each host can
+  /// take part) and prepares the log, the output folder and the key. Nothing is started.
   bool Prepare(bool for_print, std::string* error);
   const LaunchPlan& plan() const { return plan_; }
   void StartAll();
@@ -342,6 +355,13 @@ class Launch {
   void PlanNodes();
   /// Starts planned process p, with `values` in place of the plan's placeholders.
   void Start(const PlannedProcess& p, const std::map<std::string, std::string>& values);
+  /// Starts child c's `argv` on its host (--hosts), with the run's key; -1 if it failed.
+  pid_t SpawnChild(Child& c, const std::vector<std::string>& argv);
+  /// The host that runs the process `id` (nullptr without --hosts).
+  const Host* HostFor(int id) const;
+  static void CloseStdin(Child& c);
+  /// Whether the emulator can watch the logger's pid (--recorder-pid).
+  bool RecorderVisible() const;
   std::vector<std::string> ProcessArgs(const std::string& exe,
                                        const std::vector<std::string>& more) const;
   /// Waits (polling waitpid) up to `limit` for the children selected by `which` to exit.
@@ -385,6 +405,9 @@ class Launch {
   std::vector<Child> kids_;
   LaunchPlan plan_;
   std::int64_t t0_ns_ = 0;  // real time: tick 0 on CLOCK_MONOTONIC
+  /// Real time: the processes get tick 0 on the wall clock (--t0-unix-ns): asked for, or a
+  /// host does not share shoal run's CLOCK_MONOTONIC (another kernel or time namespace).
+  bool wall_clock_t0_ = false;
   Mode mode_ = Mode::kLockstep;  // opt_.mode, parsed by Prepare
   bool start_failed_ = false;    // a process could not be forked
   bool emulator_done_ = false;   // the channel emulator (the run's clock) ended normally
@@ -392,6 +415,7 @@ class Launch {
   std::chrono::steady_clock::time_point wall0_;  // when supervision started
   std::unique_ptr<ResourceLog> resources_;       // LaunchOptions::resource_interval_s
   std::chrono::steady_clock::time_point last_resource_poll_;
+  std::map<std::string, HostCheck> host_checks_;  // --hosts: by host name
 };
 
 bool Launch::CheckOptions(std::string* error) {
@@ -431,6 +455,10 @@ bool Launch::CheckOptions(std::string* error) {
 }
 
 bool Launch::Prepare(bool for_print, std::string* error) {
+  if (for_print && opt_.hosts) {
+    *error = "--print-launch starts every process on this host: it does not take --hosts";
+    return false;
+  }
   if (!CheckOptions(error) || !ChooseUrls(!for_print, error)) return false;
   BuildPlan();
   if (for_print) return true;
@@ -441,15 +469,23 @@ bool Launch::Prepare(bool for_print, std::string* error) {
 }
 
 bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
-  std::string url = opt_.lcm_url;
+  const HostsFile* hosts = opt_.hosts ? &*opt_.hosts : nullptr;
+  if (hosts && !hosts->bus_url.empty() && !opt_.lcm_url.empty()) {
+    *error = "give the LCM URL either with --lcm-url or as [bus] url in " + hosts->path;
+    return false;
+  }
+  std::string url = hosts && !hosts->bus_url.empty() ? hosts->bus_url : opt_.lcm_url;
   int port = 0;
-  if (ensure_multicast && (url.empty() || url.rfind("udpm://", 0) == 0) &&
+  // Over several hosts multicast must leave by each host's network, not loopback: each
+  // host's route is checked instead (CheckHosts, after the URLs are chosen).
+  if (!hosts && ensure_multicast && (url.empty() || url.rfind("udpm://", 0) == 0) &&
       !EnsureLoopbackMulticast(error)) {
     return false;
   }
   if (url.empty()) {
     port = RandomPrivatePort(s_.followers);
     url = PrivateLcmUrl(port) + "&recv_buf_size=4194304";
+    if (hosts) url = UrlWithTtl(url, hosts->ttl);
   }
   r_->lcm_url = url;
   // Each vehicle receives on its own group unless asked otherwise: on one shared group
@@ -464,7 +500,20 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
       return false;
     }
     vehicle_urls_ = PerVehicleLcmUrls(port, s_.followers);
+    for (std::string& u : vehicle_urls_) u = hosts ? UrlWithTtl(u, hosts->ttl) : u;
   }
+  if (!hosts) return true;
+  std::vector<std::string> groups = {GroupOfUrl(url)};
+  if (!vehicle_urls_.empty()) groups.push_back(GroupOfUrl(vehicle_urls_[0]));
+  if (groups[0].empty()) {
+    *error = "--hosts needs an udpm:// LCM URL (got " + url + ")";
+    return false;
+  }
+  if (!CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), mode_ == Mode::kRealtime,
+                  &host_checks_, error)) {
+    return false;
+  }
+  for (const auto& [name, check] : host_checks_) wall_clock_t0_ |= !check.same_clock;
   return true;
 }
 
@@ -472,29 +521,19 @@ void Launch::Start(const PlannedProcess& p, const std::map<std::string, std::str
   Child c;
   c.name = p.name;
   c.id = p.id;
-  // lcm-logger records bytes as they are: it is not given the key.
-  std::vector<std::string> env = ChildEnvironment(p.gets_key ? &r_->key : nullptr);
-  for (const std::string& e : p.env) {  // replaces a variable of the same name
-    const std::string name = e.substr(0, e.find('=') + 1);
-    env.erase(std::remove_if(env.begin(), env.end(),
-                             [&](const std::string& x) { return x.rfind(name, 0) == 0; }),
-              env.end());
-    env.push_back(e);
-  }
-  std::vector<char*> envp;
-  for (std::string& e : env) envp.push_back(e.data());
-  envp.push_back(nullptr);
   c.output = r_->process_output_dir + "/" + p.tag + ".txt";
   c.argv = p.prefix;
   for (const std::string& a : p.argv) {
     const auto v = values.find(a);
     c.argv.push_back(v == values.end() ? a : v->second);
   }
+  c.env = p.env;
+  c.gets_key = p.gets_key;
   c.nice_inc = p.nice_inc;
   c.tag = p.tag;
   c.checkpoint = p.checkpoint;
   c.reset_ticks = p.reset_ticks;
-  c.pid = Spawn(c.argv, c.nice_inc, c.output, envp.data());
+  c.pid = SpawnChild(c, c.argv);
   c.running = c.pid > 0;
   if (c.pid < 0) {  // no process to supervise: the run cannot go on
     r_->problems.push_back("cannot start " + p.name + " (fork: " + std::strerror(errno) + ")");
@@ -503,11 +542,74 @@ void Launch::Start(const PlannedProcess& p, const std::map<std::string, std::str
   kids_.push_back(c);
 }
 
+bool Launch::RecorderVisible() const {
+  // The emulator reads the logger's threads from /proc/<pid>: the pid must be the
+  // logger's own, in the emulator's pid namespace.
+  if (!opt_.hosts) return true;
+  const auto logger = host_checks_.find(HostFor(kLoggerId)->name);
+  const auto emulator = host_checks_.find(HostFor(kEmulatorId)->name);
+  return logger != host_checks_.end() && emulator != host_checks_.end() &&
+         logger->second.same_process && emulator->second.same_process;
+}
+
+const Host* Launch::HostFor(int id) const {
+  if (!opt_.hosts) return nullptr;
+  if (id == kLoggerId) return &opt_.hosts->HostOf(HostRole::kLogger);
+  if (id == kEmulatorId) return &opt_.hosts->HostOf(HostRole::kEmulator);
+  return &opt_.hosts->HostOfVehicle(id);
+}
+
+void Launch::CloseStdin(Child& c) {
+  if (c.stdin_fd >= 0) close(c.stdin_fd);
+  c.stdin_fd = -1;
+}
+
+pid_t Launch::SpawnChild(Child& c, const std::vector<std::string>& argv) {
+  const bool with_key = c.gets_key && r_->key.has_value();
+  const Host* host = HostFor(c.id);
+  const bool prefixed = host != nullptr && !host->prefix.empty();
+  std::vector<std::string> env = ChildEnvironment(with_key && !prefixed ? &r_->key : nullptr);
+  if (!prefixed) {
+    for (const std::string& e : c.env) {  // replaces a variable of the same name
+      const std::string name = e.substr(0, e.find('=') + 1);
+      env.erase(std::remove_if(env.begin(), env.end(),
+                               [&](const std::string& x) { return x.rfind(name, 0) == 0; }),
+                env.end());
+      env.push_back(e);
+    }
+  }
+  std::vector<char*> envp;
+  for (std::string& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  if (!prefixed) return Spawn(argv, c.nice_inc, c.output, envp.data());
+  // Through the host's prefix the key goes to the process's standard input, which stays
+  // open while it runs (remote_host.h): never on a command line, which ssh and
+  // ip netns exec would pass on. Its own variables go there with env(1), which execs in
+  // place.
+  CloseStdin(c);
+  c.signals_reach = host_checks_[host->name].same_process;
+  int read_fd = -1;
+  std::string error;
+  if (!KeyPipe(with_key ? bus_auth::ToHex(*r_->key) : "", &read_fd, &c.stdin_fd, &error)) {
+    return -1;
+  }
+  std::vector<std::string> command;
+  if (!c.env.empty()) command.push_back("/usr/bin/env");
+  command.insert(command.end(), c.env.begin(), c.env.end());
+  command.insert(command.end(), argv.begin(), argv.end());
+  char cwd[4096];
+  const std::string dir = getcwd(cwd, sizeof(cwd)) != nullptr ? cwd : ".";
+  const pid_t pid =
+      Spawn(HostCommand(*host, command, dir), c.nice_inc, c.output, envp.data(), read_fd);
+  close(read_fd);
+  return pid;
+}
+
 std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
                                              const std::vector<std::string>& more) const {
   std::vector<std::string> a = {exe, "--scenario", opt_.scenario, "--lcm-url", r_->lcm_url,
                                 "--mode", opt_.mode,
-                                opt_.wall_clock_t0 ? "--t0-unix-ns" : "--t0-ns", kT0Arg,
+                                wall_clock_t0_ ? "--t0-unix-ns" : "--t0-ns", kT0Arg,
                                 "--duration", std::to_string(r_->duration_s)};
   if (opt_.insecure) a.push_back("--insecure");
   // One argument each: a value is never taken for an option of its own.
@@ -571,7 +673,7 @@ void Launch::BuildPlan() {
 
 void Launch::PlanEmulator() {
   std::vector<std::string> more = {"--max-lookahead", std::to_string(opt_.max_lookahead)};
-  if (mode_ == Mode::kLockstep) {
+  if (mode_ == Mode::kLockstep && RecorderVisible()) {
     more.push_back("--recorder-pid");  // back-pressure: the log stays complete
     more.push_back(kLoggerPidArg);
     more.push_back("--recorder-queue");  // what a window may send it
@@ -639,7 +741,7 @@ void Launch::StartAll() {
   // Real time: a start margin. On the wall clock, it is converted to the monotonic clock
   // as each process does (process.h).
   std::int64_t t0_arg = 0;
-  if (opt_.wall_clock_t0) {
+  if (wall_clock_t0_) {
     t0_arg = RealtimeNs() + 4000000000LL;
     t0_ns_ = MonotonicFromUnixNs(t0_arg);
   } else {
@@ -754,14 +856,10 @@ bool Launch::Respawn(Child& c, const std::string& what, const LaunchCallbacks& c
   argv.insert(argv.end(), {"--restart-note", c.name + " restarted: the process before it (pid " +
                                                  std::to_string(c.pid) + ") " + what + " at " +
                                                  when});
-  std::vector<std::string> env = ChildEnvironment(&r_->key);
-  std::vector<char*> envp;
-  for (std::string& e : env) envp.push_back(e.data());
-  envp.push_back(nullptr);
   // Its own output file: the one of the process that died keeps that process's last words.
   c.output = r_->process_output_dir + "/" + c.tag + ".restart" +
              std::to_string(r_->restarts.size() + 1) + ".txt";
-  const pid_t pid = Spawn(argv, c.nice_inc, c.output, envp.data());
+  const pid_t pid = SpawnChild(c, argv);
   if (pid < 0) {
     r_->problems.push_back("cannot restart " + c.name + " (fork: " + std::strerror(errno) + ")");
     return false;
@@ -976,6 +1074,12 @@ void SignalGroup(pid_t pid, int signal) {
 void Launch::Stop(bool logger, std::chrono::milliseconds grace) {
   for (Child& c : kids_) {
     if (!c.running || IsLogger(c) != logger) continue;
+    // On another host (through ssh) the pid is the ssh client's: the end of its standard
+    // input stops the process there, which then ends as it would on SIGTERM.
+    if (!c.signals_reach) {
+      CloseStdin(c);
+      continue;
+    }
     kill(c.pid, logger ? SIGINT : SIGTERM);
     if (c.stopped) kill(c.pid, SIGCONT);
   }

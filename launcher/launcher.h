@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/scenario.h"
+#include "launcher/hosts_file.h"
 #include "runtime/bus_auth.h"
 #include "runtime/process.h"
 
@@ -49,6 +50,9 @@ struct LaunchOptions {
   /// on this host's CLOCK_MONOTONIC (--t0-ns). Each process converts it to its monotonic
   /// clock once, at its start. A printed launch script always uses the wall clock.
   bool wall_clock_t0 = false;
+  /// --hosts: the hosts the run spans, the bus and which host runs which process
+  /// (docs/run.md, "A swarm over several hosts"); none: everything on this host.
+  std::optional<HostsFile> hosts;
 };
 
 /// Child id of lcm-logger in a plan (not a vehicle id, nor kEmulatorId).

@@ -39,6 +39,19 @@ int RunRun(const RunOptions& opt) {
   LaunchOptions launch_options = opt.launch;
   launch_options.restart_on_failure = opt.restart == "on-failure";
   launch_options.wall_clock_t0 = opt.t0_clock == "wall";
+  if (!opt.hosts_file.empty()) {
+    try {
+      launch_options.hosts = LoadHostsFile(opt.hosts_file);
+    } catch (const HostsFileError& e) {
+      std::cerr << "shoal run: " << e.what() << "\n";
+      return kExitBadInput;
+    }
+    const std::string misplaced = CheckPlacement(*launch_options.hosts, s.followers);
+    if (!misplaced.empty()) {
+      std::cerr << "shoal run: " << misplaced << "\n";
+      return kExitBadInput;
+    }
+  }
   if (opt.print_launch) return PrintLaunch(s, opt, launch_options);
   const bool show = !opt.quiet && !opt.json && isatty(2);
   LaunchCallbacks cb;

@@ -14,6 +14,7 @@ struct RunOptions {
   /// of running it (docs/run.md, "Launching by hand or by script").
   bool print_launch = false;
   std::vector<std::string> command;  // shoal's command line, for the script's header
+  std::string hosts_file;  // --hosts: read into launch.hosts (docs/run.md)
 };
 
 /// `shoal run`: launches lcm-logger, the channel emulator, the leader and every vehicle

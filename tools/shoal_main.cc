@@ -61,6 +61,9 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
                 "Simulated seconds (default: the scenario's)");
   c->add_option("--out", run->launch.out, "LCM log path (default: <scenario name>.lcmlog)");
   c->add_option("--lcm-url", run->launch.lcm_url, "Use this LCM URL instead of a private one");
+  c->add_option("--hosts", run->hosts_file,
+                "Run the processes on several hosts, as this hosts file places them "
+                "(docs/run.md: A swarm over several hosts)");
   c->add_flag("--per-vehicle-urls", run->launch.per_vehicle_urls,
               "Deliver to each vehicle on its own multicast group (the default with "
               "the private URL; refused with --lcm-url)");
