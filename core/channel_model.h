@@ -529,7 +529,14 @@ class Channel {
       d.status = ChannelDecision::kDroppedQueue;
     }
     if (d.status == ChannelDecision::kDelivered) {
-      d.deliver_utime = DeliveryTime(send_utime, d.delay_s, period_us_);
+      // The links of one send usually share tau: DeliveryTime's divisions once for them.
+      if (send_utime != due_send_ || d.delay_s != due_delay_ || !due_valid_) {
+        due_ = DeliveryTime(send_utime, d.delay_s, period_us_);
+        due_send_ = send_utime;
+        due_delay_ = d.delay_s;
+        due_valid_ = true;
+      }
+      d.deliver_utime = due_;
       if (timeline_ && timeline_->Deaf(l.to, d.deliver_utime)) {
         d.status = ChannelDecision::kDroppedDeaf;
         d.deliver_utime = 0;
@@ -614,7 +621,12 @@ class Channel {
       heap_.push(p);
       return;
     }
-    std::int64_t tick = p.due / period_us_;
+    if (p.due != push_due_ || !push_valid_) {  // deliveries of one send share their due time
+      push_tick_ = p.due / period_us_;
+      push_due_ = p.due;
+      push_valid_ = true;
+    }
+    std::int64_t tick = push_tick_;
     // A message already due (submitted after its delivery tick was delivered) goes out at
     // the next DeliverDue().
     tick = std::max(tick, next_tick_);
@@ -701,6 +713,15 @@ class Channel {
   int last_id_ = -1;
   Micros last_t_ = 0;
   double last_delay_ = 0.0;
+  // Cache of the last DeliveryTime (a function of send time and delay) and of the last
+  // due time's tick.
+  bool due_valid_ = false;
+  Micros due_send_ = 0;
+  double due_delay_ = 0.0;
+  Micros due_ = 0;
+  bool push_valid_ = false;
+  Micros push_due_ = 0;
+  std::int64_t push_tick_ = 0;
   // The wheel's buckets are lists, in submission order, threaded through one array of
   // queue entries (nodes_) with a free list: unlike a vector per bucket, whose capacity
   // each grows to the most that bucket ever held, the entries are made once for the

@@ -17,16 +17,19 @@ bool StateHistory::Push(const HistorySample& s) {
   return true;
 }
 
-bool StateHistory::At(Micros t, HistorySample* out) const {
-  if (size_ == 0 || t < Oldest().utime || t > Newest().utime) return false;
+int StateHistory::FirstAtOrAfter(Micros t) const {
+  // Most look-ups are a few samples back (a neighbour message's delay, the uncertain
+  // factor's delay): scan back from the newest, without the division of the guess below.
+  if (size_ > kRecentSamples && Get(size_ - kRecentSamples).utime < t) {
+    int i = size_ - 1;
+    while (Get(i - 1).utime >= t) --i;
+    return i;
+  }
   // Samples are usually evenly spaced: try the interpolated index first.
   const Micros span = Newest().utime - Oldest().utime;
   if (span > 0) {
     const int guess = static_cast<int>((t - Oldest().utime) * (size_ - 1) / span);
-    if (Get(guess).utime == t) {
-      *out = Get(guess);
-      return true;
-    }
+    if (Get(guess).utime == t) return guess;
   }
   // Binary search for the first sample with utime >= t.
   int lo = 0, hi = size_ - 1;
@@ -38,6 +41,12 @@ bool StateHistory::At(Micros t, HistorySample* out) const {
       hi = mid;
     }
   }
+  return lo;
+}
+
+bool StateHistory::At(Micros t, HistorySample* out) const {
+  if (size_ == 0 || t < Oldest().utime || t > Newest().utime) return false;
+  const int lo = FirstAtOrAfter(t);
   const HistorySample& b = Get(lo);
   if (b.utime == t) {
     *out = b;

@@ -59,6 +59,11 @@ class StateHistory {
   const HistorySample& Oldest() const { return Get(0); }
 
  private:
+  // How far back from the newest sample At() scans before it searches.
+  static constexpr int kRecentSamples = 16;
+  // Index of the oldest sample with utime >= t; Oldest().utime <= t <= Newest().utime.
+  int FirstAtOrAfter(Micros t) const;
+
   // i-th oldest sample, 0 <= i < size_.
   const HistorySample& Get(int i) const { return buf_[(head_ + i) & mask_]; }
 

@@ -63,7 +63,7 @@ void LeaderPath::Point(double t, Vec3* p, Vec3* v, Vec3* a) const {
   }
 }
 
-LeaderSample LeaderPath::At(double t_s) const {
+LeaderSample LeaderPath::At(double t_s, bool with_nu) const {
   Vec3 p, v, a;
   Point(t_s, &p, &v, &a);
   LeaderSample s;
@@ -86,7 +86,7 @@ LeaderSample LeaderPath::At(double t_s) const {
   }
   s.eta << p, theta, WrapAngle(psi);
   s.eta_dot << v, theta_dot, psi_dot;
-  s.nu = FossenModel::JInv(s.eta) * s.eta_dot;
+  if (with_nu) s.nu = FossenModel::JInv(s.eta) * s.eta_dot;
   return s;
 }
 

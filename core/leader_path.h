@@ -16,7 +16,9 @@ struct LeaderSample {
 class LeaderPath {
  public:
   explicit LeaderPath(const LeaderConfig& c);
-  LeaderSample At(double t_s) const;
+  /// The sample at t_s; `with_nu` false leaves nu zero, without the sines and cosines of
+  /// J^{-1} (a caller that needs only eta and eta_dot).
+  LeaderSample At(double t_s, bool with_nu = true) const;
 
  private:
   // Position, velocity, acceleration of the path point (NED).

@@ -273,6 +273,34 @@ TEST(StateHistoryTest, UnevenlySpacedBufferAfterWrapAround) {
   }
 }
 
+TEST(StateHistoryTest, EveryFillFindsEverySampleAroundTheRecentScan) {
+  // Look-ups of the newest 16 samples scan back from the newest; older ones search. At
+  // every fill (below, at and above 16 samples, then wrapped), every sample and every
+  // time between two samples is found, on both sides of the scan's boundary.
+  Rng rng(7);
+  StateHistory h(32);
+  std::vector<HistorySample> pushed;
+  Micros t = 0;
+  HistorySample out;
+  for (int n = 1; n <= 80; ++n) {
+    t += 1 + static_cast<Micros>(rng.Uniform() * 30000);
+    pushed.push_back(RandomSample(&rng, t));
+    ASSERT_TRUE(h.Push(pushed.back()));
+    const int first = std::max(0, n - h.capacity());
+    for (int k = first; k < n; ++k) {
+      ASSERT_TRUE(h.At(pushed[k].utime, &out)) << n << " " << k;
+      ASSERT_TRUE(BitwiseEqual(out, pushed[k])) << n << " " << k;
+      if (k + 1 < n && pushed[k + 1].utime - pushed[k].utime > 1) {
+        const Micros q = pushed[k].utime + 1;
+        ASSERT_TRUE(h.At(q, &out)) << n << " " << k;
+        ExpectNear(out, Lerp(pushed[k], pushed[k + 1], q), 1e-12);
+      }
+    }
+    EXPECT_FALSE(h.At(pushed[first].utime - 1, &out)) << n;
+    EXPECT_FALSE(h.At(pushed.back().utime + 1, &out)) << n;
+  }
+}
+
 // The history is sized by the neighbour timeout, the largest delay and two periods, but
 // never beyond the run's ticks (+2): a delay of 1e9 s once asked for 5e10 samples.
 TEST(StateHistoryTest, FollowerHistoryIsBoundedByTheRun) {
