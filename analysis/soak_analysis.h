@@ -15,7 +15,8 @@
 //   samples since that process's previous report (health2_t, 1 Hz, so the window's
 //   samples from about a second before it starts up to its last report), summed; the
 //   upper edge of the bin holding the p99 rank, capped by the largest sample: at most one
-//   bin (9 %) above the exact p99 of those samples. A log of health_t (older builds, no
+//   bin (9 %) above the exact p99 of those samples between 1 us and 1.049 s (below, up to
+//   1 us; beyond, the window's largest sample). A log of health_t (older builds, no
 //   histogram) gives the largest since-start p99 reported within the window instead,
 //   which a long history dilutes. release_error_p99_s: as lateness, of the channel
 //   emulator's reports (its release error samples).

@@ -639,7 +639,7 @@ void AddEmulatorOptions(CLI::App* app, EmulatorOptions* o) {
   app->add_option("--recorder-queue", o->recorder_queue,
                   "lockstep: the messages the recorder's LCM subscription queue holds (LCM's "
                   "default 30; shoal run preloads runtime/lcm_queue_shim.c into lcm-logger "
-                  "for 65536)")
+                  "for 8192)")
       ->check(CLI::Range(3, 1 << 30))
       ->capture_default_str();
   app->add_option("--vehicle-urls", o->vehicle_urls,

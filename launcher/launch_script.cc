@@ -18,7 +18,9 @@ status=0
 
 # start NAME TAG NICE COMMAND...: starts COMMAND in the background, output to
 # $out_dir/TAG.txt. The process dies with this script (each Shoal process asks the kernel
-# for SIGTERM when its parent dies); lcm-logger does not: the traps below stop it.
+# for SIGTERM when its parent dies; lcm-logger is started under setpriv --pdeathsig INT,
+# which asks the same for it: SIGINT, on which it closes the log). The traps below stop
+# them in order when the script ends otherwise.
 start() {
   local name=$1 tag=$2 nice=$3
   shift 3
@@ -144,12 +146,22 @@ std::string Joined(const std::vector<std::string>& words) {
   return s;
 }
 
+/// `text` for a `#` comment line: a control character (a newline would end the comment and
+/// make the rest a command) is shown as '?'.
+std::string CommentText(const std::string& text) {
+  std::string out = text;
+  for (char& c : out) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  }
+  return out;
+}
+
 /// What the script is, the processes and how they find each other.
 void WriteHeader(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ostream& o) {
   const bool rt = plan.mode == Mode::kRealtime;
   o << "#!/usr/bin/env bash\n"
-    << "# A Shoal SIL run of scenario " << ctx.scenario_name << " (" << ModeName(plan.mode)
-    << "), started as shoal run starts it. Printed by:\n#   " << Joined(ctx.command) << "\n"
+    << "# A Shoal SIL run of scenario " << CommentText(ctx.scenario_name) << " (" << ModeName(plan.mode)
+    << "), started as shoal run starts it. Printed by:\n#   " << CommentText(Joined(ctx.command)) << "\n"
     << "# It starts, in this order (docs/run.md):\n"
     << "#   lcm-logger        records the run's channels (" << channels::kAllPattern
     << ") into the log\n"
@@ -195,6 +207,8 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
       << "    echo \"$0: multicast is not routed to the loopback interface; as root run: "
       << fix << "\" >&2\n    exit 2\n  fi\nfi\n";
   }
+  o << "\nunset " << bus_auth::kKeyEnv
+    << "  # a key exported by the calling shell would reach lcm-logger and other runs\n";
   o << "\nmkdir -p -- \"$out_dir\"\n"
     << "rm -f -- \"$out_dir\"/{vehicle,leader,emulator,logger}*.{txt,ckpt}\n";
   if (plan.insecure) {
@@ -215,6 +229,9 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
 void WriteStart(const PlannedProcess& p, const std::string& nice, std::ostream& o) {
   o << "start " << ShellWord(p.name) << " " << p.tag << " " << nice << " \\\n  ";
   std::vector<std::string> words = p.prefix;
+  // Shoal's processes ask for SIGTERM when their parent dies; lcm-logger cannot, so even
+  // a SIGKILLed script (no trap runs) leaves no logger behind.
+  if (p.id == kLoggerId) words.insert(words.end(), {"/usr/bin/setpriv", "--pdeathsig", "INT"});
   if (!p.env.empty()) words.push_back("/usr/bin/env");  // execs in place: the same pid
   words.insert(words.end(), p.env.begin(), p.env.end());
   words.insert(words.end(), p.argv.begin(), p.argv.end());

@@ -113,11 +113,14 @@ int RunCapture(const std::vector<std::string>& argv, int timeout_s, std::string*
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
         deadline - std::chrono::steady_clock::now());
     pollfd p = {fds[0], POLLIN, 0};
-    if (left.count() <= 0 || poll(&p, 1, static_cast<int>(left.count())) == 0) {
+    const int ready = left.count() <= 0 ? 0 : poll(&p, 1, static_cast<int>(left.count()));
+    if (ready < 0 && errno == EINTR) continue;  // a signal: wait again, within the time
+    if (ready == 0) {
       *timed_out = true;
       kill(-*pid, SIGKILL);
       break;
     }
+    if (ready < 0) break;
     const ssize_t n = read(fds[0], buf, sizeof(buf));
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;

@@ -30,8 +30,9 @@ inline void SleepUntilNs(std::int64_t deadline_ns) {
 
 /// The geometric bins of health2_t's lateness_window_bins: bin 0 below 1 us, bin i in
 /// 1..kOctaves * kPerOctave holds [2^((i-1)/8), 2^(i/8)) us, the last bin what is beyond.
-/// 9 % wide: a quantile read from them is within 9 % above the exact one, whatever the
-/// window's length, at 162 counts a report.
+/// 9 % wide: a quantile between 1 us and 1.049 s read from them is within 9 % above the
+/// exact one, whatever the window's length, at 162 counts a report (below 1 us it reads
+/// as up to 1 us; beyond 1.049 s, as the largest sample).
 struct LatenessBins {
   static constexpr int kPerOctave = 8;
   static constexpr int kOctaves = 20;  // up to 2^20 us = 1.049 s

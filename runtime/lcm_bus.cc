@@ -46,12 +46,17 @@ bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) 
 }
 
 void LcmBus::BeginBundle() {
+  // Nested: receivers that share one bus each open a bundle on it; what they queued goes
+  // out together when the outermost closes, none of it dropped by a later Begin.
+  if (bundle_depth_++ > 0) return;
   bundling_ = true;
   bundle_parts_ = 0;
   bundle_.assign(std::begin(bundle_wire::kMagic), std::end(bundle_wire::kMagic));
 }
 
 bool LcmBus::EndBundle() {
+  if (bundle_depth_ == 0) return true;
+  if (--bundle_depth_ > 0) return true;
   const bool ok = FlushBundle();
   bundling_ = false;
   return ok;
@@ -147,6 +152,12 @@ bool ForEachPart(const unsigned char* p, int size,
     for (int pos = magic; pos < size;) {
       const int len = p[pos];
       if (len < 1 || len > kMaxChannel || size - pos - 1 < len + 4) return false;
+      // A bundle inside a bundle is never sent: its parts would bypass the subscribers'
+      // exclusion of the bundle channel.
+      if (static_cast<std::size_t>(len) == std::strlen(kChannel) &&
+          std::memcmp(p + pos + 1, kChannel, static_cast<std::size_t>(len)) == 0) {
+        return false;
+      }
       const unsigned char* n = p + pos + 1 + len;
       const std::uint32_t bytes = (std::uint32_t{n[0]} << 24) | (std::uint32_t{n[1]} << 16) |
                                   (std::uint32_t{n[2]} << 8) | std::uint32_t{n[3]};

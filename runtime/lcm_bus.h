@@ -113,6 +113,7 @@ class LcmBus : public Bus {
   std::vector<std::unique_ptr<Sub>> subs_;
   bool receiving_ = false;  // subscribed, and LCM's receive socket is open
   bool bundling_ = false;   // between BeginBundle and EndBundle
+  int bundle_depth_ = 0;    // BeginBundle calls not yet ended
   int bundle_parts_ = 0;
   std::vector<unsigned char> bundle_;  // kBundleMagic, then the parts (bundle_wire below)
 };

@@ -4,7 +4,7 @@
 #ifndef SHOAL_RUNTIME_LCM_QUEUE_SHIM_H_
 #define SHOAL_RUNTIME_LCM_QUEUE_SHIM_H_
 
-#define SHOAL_LOGGER_QUEUE_CAPACITY 65536
+#define SHOAL_LOGGER_QUEUE_CAPACITY 8192
 /* LCM's own default, what lcm-logger 1.3.1 has without the shim (it has no option). */
 #define SHOAL_LCM_DEFAULT_QUEUE_CAPACITY 30
 /* The shim's file name, built next to the runtime library (build/runtime/). */

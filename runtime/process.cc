@@ -110,20 +110,28 @@ bool ResolveStartTime(bool monotonic_given, bool unix_given, ProcessOptions* opt
              "host only); see --help";
     return false;
   }
+  // Lockstep reads no clock: a start time given there is not used, so not judged.
+  if (opt->parsed_mode() != Mode::kRealtime) return true;
   const char* name = unix_given ? "--t0-unix-ns" : "--t0-ns";
+  const char* clock = unix_given ? "CLOCK_REALTIME (date +%s%N)" : "CLOCK_MONOTONIC";
   const std::int64_t given = unix_given ? opt->t0_unix_ns : opt->t0_ns;
   const std::int64_t now = unix_given ? RealtimeNs() : MonotonicNs();
-  // As doubles: a wild value must not overflow the difference.
+  // As doubles: a wild value must not overflow the difference. A start time in the past
+  // is a restarted process resuming its run, however long that run has lasted; only one
+  // before the clock can have read (before boot, or on the wall clock before 2000: the
+  // other clock's value) is a mistake.
   const double away_s = (static_cast<double>(given) - static_cast<double>(now)) * 1e-9;
-  if (std::fabs(away_s) > kMaxStartOffsetNs * 1e-9) {
-    char text[320];
+  const std::int64_t floor = unix_given ? kEarliestUnixStartNs : 0;
+  if (away_s > kMaxStartOffsetNs * 1e-9 || given < floor) {
+    char text[360];
     std::snprintf(text, sizeof(text),
-                  "%s %lld is %.0f s %s now, more than a day: refused as a mistake (%s is "
-                  "%s ns; now it reads %lld)",
+                  "%s %lld is %.0f s %s now, %s: refused as a mistake (%s is %s ns; now it "
+                  "reads %lld)",
                   name, static_cast<long long>(given), std::fabs(away_s),
-                  away_s < 0 ? "before" : "after", name,
-                  unix_given ? "CLOCK_REALTIME (date +%s%N)" : "CLOCK_MONOTONIC",
-                  static_cast<long long>(now));
+                  away_s < 0 ? "before" : "after", 
+                  given < floor ? (unix_given ? "before the year 2000" : "before boot")
+                                : "more than a day ahead",
+                  name, clock, static_cast<long long>(now));
     *error = text;
     return false;
   }

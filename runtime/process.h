@@ -54,14 +54,19 @@ int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
 /// The start time of a run's tick 0 given as --t0-ns (`monotonic_given`) or --t0-unix-ns
 /// (`unix_given`), converted once to CLOCK_MONOTONIC into opt->t0_ns: the process runs on
 /// the monotonic clock from then on, so that a step or slew of the wall clock during the
-/// run does not move its ticks. Real time needs one of them; both at once, or a time more
-/// than kMaxStartOffsetNs from now (a mistake: ms for ns, a monotonic time taken for a
-/// wall-clock one), are refused. False with *error saying so.
+/// run does not move its ticks. Real time needs one of them; both at once, a time more
+/// than kMaxStartOffsetNs ahead, or one before the clock can have read (before boot; on
+/// the wall clock before kEarliestUnixStartNs) are refused as mistakes (ms for ns, a
+/// monotonic time taken for a wall-clock one or the other way round). A time in the past
+/// is allowed, however far: a restarted process resumes with the run's original t0.
+/// Lockstep reads no clock: only "both at once" is refused there. False with *error.
 bool ResolveStartTime(bool monotonic_given, bool unix_given, ProcessOptions* opt,
                       std::string* error);
-/// How far from now a start time may be, either way (a restarted process resumes with the
-/// run's original t0, in the past).
+/// How far ahead of now a start time may be.
 constexpr std::int64_t kMaxStartOffsetNs = 86400LL * 1000000000LL;
+/// The earliest wall-clock start time taken: 2000-01-01T00:00:00Z (a CLOCK_MONOTONIC value
+/// given as --t0-unix-ns reads as a time in 1970).
+constexpr std::int64_t kEarliestUnixStartNs = 946684800LL * 1000000000LL;
 
 /// CLOCK_REALTIME now, in nanoseconds since 1970.
 std::int64_t RealtimeNs();

@@ -189,5 +189,44 @@ TEST(LcmBus, ABundleWithAnotherKeyDeliversNothing) {
   EXPECT_EQ(receiver.rejected(), 1);
 }
 
+// Given two receivers that share one bus, each opening its own bundle on it (the channel
+// emulator in real time, with --vehicle-urls naming one group twice), when both are
+// closed, then every part of both arrives: a second BeginBundle drops nothing.
+TEST(LcmBus, NestedBundlesOnOneBusLoseNoPart) {
+  LcmBus bus("memq://", TestKey(7));
+  int rx1 = 0, rx2 = 0;
+  bus.Subscribe("SHOAL_RX_1", [&](const std::string&, const void*, int) { ++rx1; });
+  bus.Subscribe("SHOAL_RX_2", [&](const std::string&, const void*, int) { ++rx2; });
+  bus.BeginBundle();
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_RX_1", "a", 1));
+  bus.BeginBundle();
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_RX_2", "b", 1));
+  ASSERT_TRUE(bus.EndBundle());
+  EXPECT_EQ(bus.Handle(0), 0);  // nothing out until the outer bundle closes
+  ASSERT_TRUE(bus.EndBundle());
+  EXPECT_EQ(bus.Handle(0), 1);
+  EXPECT_EQ(rx1, 1);
+  EXPECT_EQ(rx2, 1);
+  EXPECT_TRUE(bus.EndBundle());  // an unmatched end sends nothing and breaks nothing
+}
+
+// Given a well-signed bundle with a part on the bundle channel itself, when it arrives,
+// then nothing of it reaches a subscriber whose pattern matches that channel (no bundle
+// rides inside another past the subscribers' exclusion of the bundle channel).
+TEST(LcmBus, ABundleInsideABundleIsRefused) {
+  LcmBus bus("memq://", TestKey(3));
+  int got = 0;
+  bus.Subscribe("SHOAL_.*", [&](const std::string&, const void*, int) { ++got; });
+  std::vector<unsigned char> b(std::begin(bundle_wire::kMagic), std::end(bundle_wire::kMagic));
+  const std::string ch = bundle_wire::kChannel;
+  b.push_back(static_cast<unsigned char>(ch.size()));
+  b.insert(b.end(), ch.begin(), ch.end());
+  b.insert(b.end(), {0, 0, 0, 1, 'x'});
+  ASSERT_TRUE(bus.PublishRaw(bundle_wire::kChannel, b.data(), static_cast<int>(b.size())));
+  EXPECT_EQ(bus.Handle(0), 1);
+  EXPECT_EQ(got, 0);
+  EXPECT_EQ(bus.rejected(), 1);
+}
+
 }  // namespace
 }  // namespace shoal
