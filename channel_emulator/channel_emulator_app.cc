@@ -706,6 +706,8 @@ int ChannelEmulatorMain(int argc, char** argv) {
     if (auth.insecure) app_.SetInsecure();
     if (!eo.restart_note.empty()) app_.SetRestarted(eo.restart_note);
     app_.Init();
+    // After Init: its subscriptions have started LCM's receive thread and ring.
+    std::cerr << "shoal_channel_emulator: " << LockMemory() << "\n";
     const int status = app_.Run();
     std::cerr << "shoal_channel_emulator: " << bus_auth::ExitNote(auth, bus.rejected()) << "\n";
     return status;

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sched.h>
 #include <signal.h>
+#include <sys/mman.h>
 #include <sys/prctl.h>
 #include <time.h>
 #include <unistd.h>
@@ -204,6 +205,20 @@ std::string EnableBatchScheduling() {
   sp.sched_priority = 0;
   if (sched_setscheduler(0, SCHED_BATCH, &sp) == 0) return "SCHED_BATCH";
   return std::string("SCHED_OTHER (SCHED_BATCH refused: ") + std::strerror(errno) + ")";
+}
+
+std::string LockMemory() {
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define SHOAL_SANITIZED 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__) || defined(SHOAL_SANITIZED)
+  // Locking would fault in the sanitizer's terabytes of reserved shadow memory.
+  return "memory not locked (sanitizer build)";
+#endif
+  if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return "memory locked (mlockall)";
+  return std::string("memory not locked (mlockall: ") + std::strerror(errno) + ")";
 }
 
 CpuLatencyRequest::CpuLatencyRequest() {

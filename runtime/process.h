@@ -89,6 +89,13 @@ bool StopRequested();
 std::string EnableBatchScheduling();
 std::string EnableRealtimeScheduling(int priority);
 
+/// Locks the process's pages in memory (mlockall, current and future) when permitted (root,
+/// or RLIMIT_MEMLOCK large enough). A locked process takes no page fault in its loop, and
+/// its resident size is what it has allocated from the start: LCM's receive ring and the
+/// heap's spare pages are otherwise touched page by page as a backlog first reaches them,
+/// which a soak's memory verdict would read as growth. Returns what was done, for the log.
+std::string LockMemory();
+
 /// A PM QoS request for 0 us CPU wake-up latency (/dev/cpu_dma_latency), held while the
 /// object lives (the kernel drops it when the descriptor closes, also if the process dies).
 /// Idle CPUs then poll instead of halting. On a VM a halted vCPU is woken through the
