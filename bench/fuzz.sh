@@ -8,7 +8,10 @@
 #   make test runs it with FUZZ_SHORT_RUNS (50000) executions per target; the campaign
 #   figures of docs/benchmarks.md are `nice -n 19 bench/fuzz.sh 10000000 TARGET`.
 #   FUZZ_BUILD (build-fuzz): the build directory (configured here, SHOAL_FUZZ=ON)
-#   FUZZ_TIMEOUT (10): seconds after which one input counts as a timeout
+#   FUZZ_TIMEOUT (10): seconds after which one input counts as a timeout. libFuzzer counts
+#     wall time: at nice 19 on a loaded machine a fast input can be starved past 10 s, so
+#     long campaigns beside other work use FUZZ_TIMEOUT=120 (stat::slowest_unit_time_sec in
+#     the target's log tells a real slow input from a starved one).
 # Each target runs EXECUTIONS inputs, one process, from its seed corpus
 # (tests/fuzz/corpus/<target>), its regression inputs (tests/fuzz/regressions/<target>) and
 # what earlier runs found (FUZZ_BUILD/fuzz-work/<target>, kept). libFuzzer stops a target
