@@ -20,8 +20,13 @@ FUZZ_PACKAGES := clang libclang-rt-14-dev
 # (tests/slurm/): Slurm's daemons and clients and the munge authentication daemon, about
 # 8 MB to download; no daemon starts on install.
 SLURM_PACKAGES := slurm-wlm munge
+# make test decodes Shoal's logs through the Java classes lcm-spy uses (tests/java): a
+# headless JDK (OpenJDK 17) and LCM's Java library, about 120 MB to download;
+# SHOAL_REQUIRE_JAVA makes the configure fail rather than leave that test out.
+JAVA_PACKAGES := default-jdk-headless liblcm-java
 PACKAGES = $(DEB_PACKAGES)
-test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES)
+test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES) $(JAVA_PACKAGES)
+test: CMAKE_FLAGS += -DSHOAL_REQUIRE_JAVA=ON
 # Executions per fuzz target in make test (a few seconds each; bench/fuzz.sh 10000000 is
 # the campaign of docs/benchmarks.md).
 FUZZ_SHORT_RUNS ?= 50000
