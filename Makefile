@@ -12,7 +12,7 @@ DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
   liblcm-dev liblcm-bin libglib2.0-dev \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev \
   libsdp-dev libceres-dev libosmesa6-dev libstb-dev zlib1g-dev fonts-dejavu-core \
-  nlohmann-json3-dev universal-ctags libsodium-dev
+  nlohmann-json3-dev universal-ctags libsodium-dev python3
 # make test also runs each libFuzzer target briefly (bench/fuzz.sh): clang and its runtime,
 # about 45 MB to download. PACKAGES: what `deps` installs (make test adds these).
 FUZZ_PACKAGES := clang libclang-rt-14-dev
