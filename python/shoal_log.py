@@ -31,6 +31,7 @@ unchecked and the messages counted as unverified.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import hmac
 import importlib
@@ -658,6 +659,55 @@ def _check_usable(log: ShoalLog, reader: _EventReader) -> None:
     if not any_shoal:
         raise ShoalLogError("%s: an LCM log with %d events but no Shoal message (no valid "
                             "SHOAL_* channel)" % (log.path, log.events))
+
+
+# ------------------------------------------------------------------------- pandas
+
+# The state columns of shoal analyze --csv's vehicle_<id>.csv (docs/analyze.md).
+STATE_COLUMNS = (
+    ["x_m", "y_m", "z_m", "theta_rad", "psi_rad"],
+    ["u_mps", "v_mps", "w_mps", "q_radps", "r_radps"],
+    ["x_dot_mps", "y_dot_mps", "z_dot_mps", "theta_dot_radps", "psi_dot_radps"],
+    ["accel_x_mps2", "accel_y_mps2", "accel_z_mps2", "accel_theta_radps2", "accel_psi_radps2"],
+    ["tau_x_n", "tau_y_n", "tau_z_n", "tau_m_nm", "tau_n_nm"])
+
+
+def _state_row(s: State) -> dict:
+    row = {"vehicle": s.vehicle_id, "time_s": s.utime / 1e6, "utime_us": s.utime, "seq": s.seq}
+    for names, values in zip(STATE_COLUMNS, (s.eta, s.nu, s.eta_dot, s.accel_cmd, s.tau)):
+        row.update(zip(names, values))
+    row["flags"] = s.flags
+    return row
+
+
+def frames(log: ShoalLog) -> dict:
+    """pandas DataFrames of a log (pandas is optional: Debian's python3-pandas):
+    'states' (one row per state, the columns of shoal analyze --csv's vehicle_<id>.csv
+    plus vehicle and flags), 'decisions', 'clock', 'health' (without the histogram bins),
+    'statuses'. Raises ShoalLogError if pandas is not installed."""
+    try:
+        import pandas
+    except ImportError:
+        raise ShoalLogError("pandas is not installed (Debian: apt install python3-pandas); "
+                            "the records need no pandas: ShoalLog.states, .decisions, ...") \
+            from None
+    state_columns = ["vehicle", "time_s", "utime_us", "seq"] + \
+        [c for names in STATE_COLUMNS for c in names] + ["flags"]
+
+    def table(records, cls, leave_out=()):
+        names = [f.name for f in dataclasses.fields(cls) if f.name not in leave_out]
+        return pandas.DataFrame([[getattr(r, n) for n in names] for r in records],
+                                columns=names)
+
+    return {
+        "states": pandas.DataFrame([_state_row(s) for states in log.states.values()
+                                    for s in states], columns=state_columns),
+        "decisions": table(log.decisions, Decision),
+        "clock": table(log.clock, Clock),
+        "health": table([h for reports in log.health.values() for h in reports], Health,
+                        ("lateness_window_bins",)),
+        "statuses": table(log.statuses, Status),
+    }
 
 
 # ----------------------------------------------------------------------- the summary

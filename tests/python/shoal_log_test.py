@@ -27,6 +27,11 @@ sys.path.insert(0, PYDIR)
 import shoal_log  # noqa: E402  (the copy the build puts next to the generated types)
 
 try:
+    import pandas  # optional (Debian: python3-pandas): shoal_log.frames
+except ImportError:
+    pandas = None
+
+try:
     import tomllib  # Python 3.11+; the offsets of older Pythons come from a fixed table
 except ImportError:
     tomllib = None
@@ -156,6 +161,10 @@ class Logs(unittest.TestCase):
         self.assertEqual(len(log.states[0]), 2001)  # 40 s at 50 Hz, ticks 0..2000
         self.check_against_analyze(log, a)
         self.assertEqual({s.state for s in log.statuses} >= {"running", "finished"}, True)
+        only = shoal_log.read_log(self.sim_log, channels=("STATE",))
+        self.assertEqual(only.states, log.states)
+        self.assertEqual((only.decisions, only.clock, only.health), ([], [], {}))
+        self.assertEqual(only.events, log.events)
 
     def test_without_the_key_messages_are_unverified(self):
         bare = os.path.join(TMP, "nokey.lcmlog")
@@ -207,6 +216,43 @@ class Logs(unittest.TestCase):
         self.assertEqual(log.undecodable, 1)
         self.assertEqual(len(log.states[1]), len(shoal_log.read_log(self.sim_log).states[1]) - 1)
         self.check_against_analyze(log, analyze(longer))
+
+    @unittest.skipIf(pandas is None, "pandas is not installed (Debian: python3-pandas)")
+    def test_frames_equal_shoal_analyze_csv(self):
+        log = shoal_log.read_log(self.sim_log)
+        f = shoal_log.frames(log)
+        csv_dir = os.path.join(TMP, "csv")
+        run([SHOAL, "analyze", self.sim_log, "--csv", csv_dir])
+        states = f["states"]
+        self.assertEqual(states.groupby("vehicle").size().to_dict(),
+                         {v: len(s) for v, s in log.states.items()})
+        d = log.decision_counts()
+        self.assertEqual(f["decisions"].status_name.value_counts().to_dict(),
+                         {k: v for k, v in d.items() if v and k not in ("sent", "dropped")})
+        self.assertEqual(len(f["clock"]), len(log.clock))
+        self.assertEqual(len(f["health"]), sum(len(h) for h in log.health.values()))
+        self.assertEqual(list(f["statuses"].state), [s.state for s in log.statuses])
+        offsets = offsets_of(log)
+        lead = states[states.vehicle == 0].set_index("utime_us")
+        for i in (1, 4):
+            # The CSV holds the logged doubles in their shortest exact form: bit for bit
+            # when read back exactly (pandas 1.5's default parser can be 1 ulp off).
+            csv = pandas.read_csv(os.path.join(csv_dir, "vehicle_%d.csv" % i),
+                                  float_precision="round_trip")
+            mine = states[states.vehicle == i].reset_index(drop=True)
+            for column in csv.columns.intersection(mine.columns):
+                self.assertTrue((csv[column] == mine[column]).all(), column)
+            fol = mine.set_index("utime_us")
+            e = sum(((fol[c] - offsets[i - 1][k]) - lead[c]) ** 2
+                    for k, c in enumerate(("x_m", "y_m", "z_m"))) ** 0.5
+            diff = (e.reset_index(drop=True) - csv.position_error_m).abs().max()
+            self.assertLess(diff, 1e-9, i)
+        with self.assertRaisesRegex(shoal_log.ShoalLogError, "pandas is not installed"):
+            saved, sys.modules["pandas"] = sys.modules.get("pandas"), None
+            try:
+                shoal_log.frames(log)
+            finally:
+                sys.modules["pandas"] = saved
 
     def test_another_runs_key_verifies_nothing(self):
         other = os.path.join(TMP, "other.key")
