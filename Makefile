@@ -12,7 +12,7 @@ DEB_PACKAGES := cmake g++ make pkg-config iproute2 procps time \
   liblcm-dev liblcm-bin libglib2.0-dev \
   libeigen3-dev libtomlplusplus-dev libcli11-dev libgtest-dev libbenchmark-dev \
   libsdp-dev libceres-dev libosmesa6-dev libstb-dev zlib1g-dev fonts-dejavu-core \
-  nlohmann-json3-dev universal-ctags libsodium-dev
+  nlohmann-json3-dev universal-ctags libsodium-dev python3
 # make test also runs each libFuzzer target briefly (bench/fuzz.sh): clang and its runtime,
 # about 45 MB to download. PACKAGES: what `deps` installs (make test adds these).
 FUZZ_PACKAGES := clang libclang-rt-14-dev
@@ -24,8 +24,12 @@ SLURM_PACKAGES := slurm-wlm munge
 # headless JDK (OpenJDK 17) and LCM's Java library, about 120 MB to download;
 # SHOAL_REQUIRE_JAVA makes the configure fail rather than leave that test out.
 JAVA_PACKAGES := default-jdk-headless liblcm-java
+# python/shoal_log.py needs only the standard library; its DataFrame view (frames()) is
+# tested with Debian's pandas, about 30 MB to download.
+PYTHON_PACKAGES := python3-pandas
 PACKAGES = $(DEB_PACKAGES)
-test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES) $(JAVA_PACKAGES)
+test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES) $(JAVA_PACKAGES) \
+  $(PYTHON_PACKAGES)
 test: CMAKE_FLAGS += -DSHOAL_REQUIRE_JAVA=ON
 # Executions per fuzz target in make test (a few seconds each; bench/fuzz.sh 10000000 is
 # the campaign of docs/benchmarks.md).

@@ -1,0 +1,833 @@
+#!/usr/bin/env python3
+"""Reads a Shoal LCM log (shoal sim --out, shoal run, lcm-logger) into plain records.
+
+Standard library only (Python 3.9+); the messages are decoded by the Python types that the
+build generates with lcm-gen (build/python/shoal/). docs/analyze.md, "Reading a log from
+Python", has the commands. In short:
+
+    python3 build/python/shoal_log.py run.lcmlog            # summary; run.lcmlog.key is used
+    python3 build/python/shoal_log.py run.lcmlog --json
+
+    import sys; sys.path.insert(0, "build/python")
+    import shoal_log
+    log = shoal_log.read_log("run.lcmlog")
+    log.states[1][-1].eta          # follower 1's last state: x, y, z, theta, psi
+
+The generated types are looked for in, first to last: the `types_dir` argument (--types
+DIR), the environment variable SHOAL_PYTHON_TYPES, the directory of this file (the copy
+the build puts into build/python/), and ../build/python from it (the source tree's
+python/, next to a build directory named build). Each names the directory that holds the
+package `shoal/`.
+
+Authentication (runtime/bus_auth.h, docs/run.md): every message of a run is followed by a
+40-byte trailer, the magic b"SHOALMAC" and HMAC-SHA-512/256 (libsodium's
+crypto_auth_hmacsha512256: HMAC-SHA-512 under the run's 32-byte key, its first 32 bytes)
+over the channel name, a NUL and the message's bytes. With the run's key (`<log>.key`
+next to the log, or key_file) every message on a Shoal channel must verify: what does
+not is dropped and counted, as shoal analyze does. Without a key, trailers are stripped
+unchecked and the messages counted as unverified.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import hmac
+import importlib
+import io
+import json
+import math
+import mmap
+import os
+import re
+import struct
+import sys
+from dataclasses import dataclass, field
+from typing import Dict, Iterator, List, Optional, Tuple
+
+SYNC = 0xEDA1DA01
+SYNC_BYTES = struct.pack(">I", SYNC)
+HEADER_BYTES = 4 + 8 + 8 + 4 + 4
+MAX_CHANNEL = 256          # plausibility limits of an event header (runtime/log_reader.h)
+MAX_DATA = 256 << 20
+START_SCAN_BYTES = 1 << 20  # a damaged start: the first event is looked for this far
+MAX_WARNINGS = 20
+
+MAGIC = b"SHOALMAC"
+MAC_BYTES = 32
+TRAILER_BYTES = len(MAGIC) + MAC_BYTES
+KEY_BYTES = 32
+
+TYPES_ENV = "SHOAL_PYTHON_TYPES"
+
+# channel_event_t.status -> the key shoal analyze counts it under.
+STATUS_NAMES = {
+    0: "delivered", 1: "dropped_loss", 2: "dropped_queue", 3: "dropped_invalid",
+    4: "skipped_modem_busy", 5: "dropped_range", 6: "skipped_silent",
+    7: "dropped_link_down", 8: "dropped_deaf",
+}
+NOT_SENT = (4, 6)  # the state was never transmitted: not in `sent`
+
+
+class ShoalLogError(Exception):
+    """The log cannot be read at all (missing, empty, not an LCM log, no Shoal message,
+    a bad key file, the generated types not found). Damage inside a log is not an error:
+    it is in ShoalLog.warnings."""
+
+
+# ---------------------------------------------------------------------------- records
+
+@dataclass
+class State:
+    """vehicle_state_t on SHOAL_STATE_<id> (docs: lcmtypes/vehicle_state_t.lcm)."""
+    vehicle_id: int
+    utime: int                      # [us]
+    seq: int
+    eta: Tuple[float, ...]          # x, y, z (NED) [m], pitch theta, heading psi [rad]
+    nu: Tuple[float, ...]           # u, v, w [m/s], q, r [rad/s] (body frame)
+    eta_dot: Tuple[float, ...]
+    accel_cmd: Tuple[float, ...]
+    tau: Tuple[float, ...]
+    flags: int
+
+
+@dataclass
+class Decision:
+    """One channel_event_t: a channel decision for one message on one directed link."""
+    utime: int
+    sender: int
+    receiver: int
+    msg_seq: int
+    send_utime: int                 # [us]
+    delay_s: float                  # drawn delay
+    deliver_utime: int              # [us], 0 if not delivered
+    status: int
+    status_name: str                # STATUS_NAMES
+    reason: str
+
+
+@dataclass
+class Clock:
+    """One SHOAL_CLOCK message: ticks tick .. tick + n_ticks - 1 (clock_tick_t: one)."""
+    utime: int
+    vehicle_id: int
+    seq: int
+    tick: int
+    n_ticks: int
+    period_us: int
+    final_tick: bool
+    n_deliveries: int
+
+
+@dataclass
+class Health:
+    """health2_t (or health_t of older logs: the window fields are None)."""
+    utime: int
+    vehicle_id: int                 # -1: the channel emulator
+    seq: int
+    ticks: int
+    lateness_p50_s: float
+    lateness_p99_s: float
+    lateness_max_s: float
+    overruns: int
+    msgs_received: int
+    msgs_dropped_invalid: int
+    msgs_dropped_old: int
+    neighbour_timeouts: int
+    active_neighbours: int
+    saturated_ticks: int
+    saturation_fraction: float
+    lateness_window_count: Optional[int] = None
+    lateness_window_max_s: Optional[float] = None
+    lateness_window_bins: Optional[Tuple[int, ...]] = None
+
+
+@dataclass
+class Status:
+    """run_status_t on SHOAL_STATUS (the scenario text is kept once, ShoalLog.scenario_toml)."""
+    utime: int
+    vehicle_id: int                 # -1 emulator, -2 launcher / shoal sim
+    seq: int
+    state: str
+    scenario_name: str
+    seed: int
+    followers: int
+    message: str
+
+
+@dataclass
+class ShoalLog:
+    path: str
+    key_file: Optional[str] = None  # the key used; None: messages read unverified
+    states: Dict[int, List[State]] = field(default_factory=dict)  # by vehicle, by utime
+    decisions: List[Decision] = field(default_factory=list)       # in log order
+    clock: List[Clock] = field(default_factory=list)
+    health: Dict[int, List[Health]] = field(default_factory=dict)
+    statuses: List[Status] = field(default_factory=list)
+    rx: Dict[int, int] = field(default_factory=dict)  # SHOAL_RX_<id>: messages per receiver
+    scenario_toml: Optional[str] = None
+    followers: int = 0
+    events: int = 0                 # every event read (the unauthenticated ones too)
+    other_events: int = 0           # on channels no Shoal process publishes
+    verified: int = 0
+    unauthenticated: int = 0        # with a key: no trailer, or it did not verify (dropped)
+    unauthenticated_by_channel: Dict[str, int] = field(default_factory=dict)
+    unverified: int = 0             # no key: a trailer stripped unchecked
+    undecodable: int = 0            # a Shoal channel, but the bytes do not decode
+    rejected: int = 0               # decoded, but an id that does not fit
+    repeated_states: int = 0        # same vehicle and utime as an earlier state
+    insecure_run: bool = False      # a status says the bus was not authenticated
+    damaged: bool = False
+    warnings: List[str] = field(default_factory=list)
+
+    @property
+    def key_used(self) -> bool:
+        return self.key_file is not None
+
+    def decision_counts(self) -> Dict[str, int]:
+        """Decisions per status as shoal analyze counts them (channel.* of its JSON)."""
+        counts = {name: 0 for name in STATUS_NAMES.values()}
+        for d in self.decisions:
+            counts[d.status_name] += 1
+        counts["sent"] = sum(v for s, v in _by_status(self.decisions).items() if s not in NOT_SENT)
+        counts["dropped"] = counts["sent"] - counts["delivered"]
+        return counts
+
+    def clock_ticks(self) -> int:
+        """The distinct ticks the clock messages cover (a window logged twice counts once)."""
+        ticks, covered_to = 0, -1
+        for first, last in sorted((c.tick, c.tick + c.n_ticks - 1) for c in self.clock):
+            if last > covered_to:
+                ticks += last - max(first, covered_to + 1) + 1
+                covered_to = last
+        return ticks
+
+
+def _by_status(decisions: List[Decision]) -> Dict[int, int]:
+    out: Dict[int, int] = {}
+    for d in decisions:
+        out[d.status] = out.get(d.status, 0) + 1
+    return out
+
+
+# ------------------------------------------------------------------ the generated types
+
+def load_types(types_dir: Optional[str] = None):
+    """The generated package `shoal` (lcm-gen -p), from the first place that holds it
+    (module docstring). Raises ShoalLogError naming the places looked in."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    if types_dir is not None:  # an explicit directory without the types is an error
+        places = [types_dir]
+    else:
+        places = [p for p in (os.environ.get(TYPES_ENV), here,
+                              os.path.join(here, os.pardir, "build", "python")) if p]
+    places = [os.path.abspath(p) for p in places]
+    for place in places:
+        if os.path.isfile(os.path.join(place, "shoal", "__init__.py")):
+            return _import_types(place)
+    raise ShoalLogError(
+        "the generated Python message types (package shoal/, made by the build with "
+        "lcm-gen -p) are not in " + ", ".join(places) + ": build Shoal (cmake --build "
+        "build) and run build/python/shoal_log.py, or give --types DIR or " + TYPES_ENV +
+        "=DIR, DIR being the directory that holds shoal/")
+
+
+def _import_types(place: str):
+    if place not in sys.path:
+        sys.path.insert(0, place)
+    package = importlib.import_module("shoal")
+    origin = os.path.dirname(os.path.abspath(getattr(package, "__file__", "") or ""))
+    if origin != os.path.join(place, "shoal"):
+        raise ShoalLogError("a module named shoal from " + origin + " is already loaded; the "
+                            "message types in " + place + " cannot be imported beside it")
+    return package
+
+
+class _Decoder:
+    """Decodes by fingerprint, through the generated code. The generated decode reads what
+    its fields ask for and does not check the size: a message must decode to exactly its
+    bytes (as the C++ readers require), else it is undecodable."""
+
+    def __init__(self, types):
+        self.t = types
+        self.by_hash = {}
+        for name in ("vehicle_state_t", "channel_events_t", "channel_event_t",
+                     "clock_window_t", "clock_tick_t", "health2_t", "health_t",
+                     "run_status_t"):
+            cls = getattr(types, name)
+            self.by_hash[cls._get_packed_fingerprint()] = cls
+
+    def decode(self, data: bytes, accepted: Tuple[str, ...]):
+        cls = self.by_hash.get(bytes(data[:8]))
+        if cls is None or cls.__name__ not in accepted:
+            return None
+        buf = io.BytesIO(data)
+        try:
+            msg = cls.decode(buf)
+        except Exception:  # noqa: BLE001  whatever garbage makes it raise is undecodable
+            return None
+        return msg if buf.tell() == len(data) else None
+
+
+# ----------------------------------------------------------------------- the event log
+
+def _plausible_header(mm, pos: int, size: int) -> bool:
+    """A sync word, sane lengths and a printable channel (as far as the file goes)."""
+    if size - pos < HEADER_BYTES or mm[pos:pos + 4] != SYNC_BYTES:
+        return False
+    cl, dl = struct.unpack_from(">ii", mm, pos + 20)
+    if cl < 1 or cl > MAX_CHANNEL or dl < 0 or dl > MAX_DATA:
+        return False
+    name = mm[pos + HEADER_BYTES:min(size, pos + HEADER_BYTES + cl)]
+    return all(0x20 <= c <= 0x7E for c in name)
+
+
+def _check_event(mm, pos: int, size: int) -> str:
+    """'valid', or what is wrong with the event at pos (runtime/log_reader.cc's rules)."""
+    if size - pos < HEADER_BYTES:
+        avail = size - pos
+        return "cut" if mm[pos:pos + min(avail, 4)] == SYNC_BYTES[:min(avail, 4)] else "sync"
+    if mm[pos:pos + 4] != SYNC_BYTES:
+        return "sync"
+    cl, dl = struct.unpack_from(">ii", mm, pos + 20)
+    if cl < 1 or cl > MAX_CHANNEL or dl < 0 or dl > MAX_DATA:
+        return "header"
+    total = HEADER_BYTES + cl + dl
+    if total > size - pos:
+        return "cut"
+    if not all(0x20 <= c <= 0x7E for c in mm[pos + HEADER_BYTES:pos + HEADER_BYTES + cl]):
+        return "header"
+    # The next event should start right after this one. If it does not, and a plausible
+    # header lies inside this one, this one's lengths are damaged: it swallows a real event.
+    end = pos + total
+    if end + 4 <= size and mm[end:end + 4] != SYNC_BYTES:
+        k = mm.find(SYNC_BYTES, pos + 1, end)
+        while k >= 0:
+            if _plausible_header(mm, k, size):
+                return "not_followed"
+            k = mm.find(SYNC_BYTES, k + 1, end)
+    return "valid"
+
+
+_WHAT = {"sync": "no sync word", "header": "an implausible event header",
+         "cut": "an event cut short by the end of the file",
+         "not_followed": "an event whose lengths do not lead to the next event"}
+
+
+def _resync(mm, pos: int, size: int, limit: int = -1) -> int:
+    """The offset of the next valid event after pos (within limit bytes if >= 0), or -1."""
+    k = mm.find(SYNC_BYTES, pos + 1)
+    while k >= 0 and (limit < 0 or k - pos <= limit):
+        if _check_event(mm, k, size) == "valid":
+            return k
+        k = mm.find(SYNC_BYTES, k + 1)
+    return -1
+
+
+class _EventReader:
+    """Events of an LCM log file: (timestamp, channel, data). Damage is warned about and
+    skipped (resynchronised at the next valid event) or stops the reading, as shoal
+    analyze's reader does; a file that holds no event raises ShoalLogError."""
+
+    def __init__(self, path: str):
+        self.path = path
+        self.warnings: List[str] = []
+        self.damaged_regions = 0
+        if os.path.exists(path) and not os.path.isfile(path):  # a FIFO would block
+            raise ShoalLogError(path + ": not a log (not a regular file)")
+        try:
+            with open(path, "rb") as f:
+                self.size = os.fstat(f.fileno()).st_size
+                if self.size == 0:
+                    raise ShoalLogError(path + ": empty file (0 bytes), not an LCM log")
+                self.mm = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        except OSError as e:
+            raise ShoalLogError(path + ": cannot read log (" + e.strerror + ")") from None
+        if self.size < HEADER_BYTES:
+            raise ShoalLogError("%s: %d bytes, too short to hold one LCM log event "
+                                "(%d-byte header); not an LCM log" % (path, self.size, HEADER_BYTES))
+        self.start = 0
+        if _check_event(self.mm, 0, self.size) not in ("valid", "cut"):
+            self.start = _resync(self.mm, 0, self.size, START_SCAN_BYTES)
+            if self.start < 0:
+                raise ShoalLogError("%s: not an LCM log (no LCM event header with sync word "
+                                    "0xEDA1DA01 in its first %d bytes)"
+                                    % (path, min(START_SCAN_BYTES, self.size)))
+            self._warn("the file does not start with an LCM event (damaged start): skipped "
+                       "%d bytes to the first event, at byte %d" % (self.start, self.start))
+
+    def _warn(self, text: str) -> None:
+        self.damaged_regions += 1
+        if self.damaged_regions <= MAX_WARNINGS:
+            self.warnings.append(self.path + ": " + text)
+
+    def __iter__(self) -> Iterator[Tuple[int, str, bytes]]:
+        mm, size, pos = self.mm, self.size, self.start
+        while pos < size:
+            what = _check_event(mm, pos, size)
+            if what == "valid":
+                timestamp, cl, dl = struct.unpack_from(">qii", mm, pos + 12)
+                channel = mm[pos + HEADER_BYTES:pos + HEADER_BYTES + cl].decode("ascii")
+                data = mm[pos + HEADER_BYTES + cl:pos + HEADER_BYTES + cl + dl]
+                pos += HEADER_BYTES + cl + dl
+                yield timestamp, channel, data
+                continue
+            nxt = _resync(mm, pos, size)
+            if nxt >= 0:
+                self._warn("damaged at byte %d (%s): skipped %d bytes, resynchronised at the "
+                           "next valid event, at byte %d" % (pos, _WHAT[what], nxt - pos, nxt))
+                pos = nxt
+            elif what == "cut":
+                self._warn("truncated: the last event, at byte %d, is cut short by the end of "
+                           "the file (%d bytes left); analysed up to byte %d"
+                           % (pos, size - pos, pos))
+                return
+            else:
+                self._warn("damaged at byte %d (%s) and no valid event follows; stopped "
+                           "there, %d bytes not analysed" % (pos, _WHAT[what], size - pos))
+                return
+
+    def close(self) -> None:
+        self.mm.close()
+
+
+# ------------------------------------------------------------------- authentication
+
+def read_key_file(path: str) -> bytes:
+    """A run's key file: 64 hex digits (white space around them allowed)."""
+    try:
+        if not os.path.isfile(path):
+            raise ShoalLogError(path + ": not a key file (not a regular file)")
+        with open(path, "rb") as f:
+            text = f.read(4097)
+    except OSError as e:
+        raise ShoalLogError(path + ": cannot read the key file (" + e.strerror + ")") from None
+    text = text.strip(b" \t\r\n")
+    if len(text) != 2 * KEY_BYTES or not re.fullmatch(rb"[0-9a-fA-F]+", text):
+        raise ShoalLogError(path + ": the key is not 64 hex digits (got %d characters)"
+                            % len(text))
+    return bytes.fromhex(text.decode("ascii"))
+
+
+class Verifier:
+    """HMAC-SHA-512/256 of runtime/bus_auth.cc: libsodium's crypto_auth_hmacsha512256 is
+    HMAC with SHA-512 under the key, truncated to its first 32 bytes."""
+
+    def __init__(self, key: bytes):
+        if len(key) != KEY_BYTES:
+            raise ShoalLogError("a run's key is %d bytes, not %d" % (KEY_BYTES, len(key)))
+        self.keyed = hmac.new(key, digestmod=hashlib.sha512)  # after the key's pads
+
+    def mac(self, channel: str, payload: bytes) -> bytes:
+        h = self.keyed.copy()
+        h.update(channel.encode("ascii") + b"\0")
+        h.update(payload)
+        return h.digest()[:MAC_BYTES]
+
+    def sign(self, channel: str, payload: bytes) -> bytes:
+        return bytes(payload) + MAGIC + self.mac(channel, payload)
+
+    def verify(self, channel: str, data: bytes) -> Optional[bytes]:
+        """The message without its trailer if the trailer verifies for channel, else None."""
+        if not has_trailer(data):
+            return None
+        payload = data[:-TRAILER_BYTES]
+        return payload if hmac.compare_digest(self.mac(channel, payload),
+                                              data[-MAC_BYTES:]) else None
+
+
+def has_trailer(data: bytes) -> bool:
+    return len(data) >= TRAILER_BYTES and data[-TRAILER_BYTES:-MAC_BYTES] == MAGIC
+
+
+# ------------------------------------------------------------------------- channels
+
+_ID = r"(-[0-9]{1,6}|[0-9]{1,7})"  # runtime/channels.h: at most 7 characters
+_CHANNEL_RE = re.compile(r"SHOAL_(?:(STATE|RX|HEALTH)_" + _ID + r"|(CHANNEL|CLOCK|STATUS))\Z")
+
+
+def parse_channel(channel: str) -> Tuple[str, int]:
+    """('STATE' | 'RX' | 'HEALTH', id), ('CHANNEL' | 'CLOCK' | 'STATUS', 0), ('', 0) for a
+    channel no Shoal process publishes."""
+    m = _CHANNEL_RE.match(channel)
+    if m is None:
+        return "", 0
+    if m.group(1):
+        return m.group(1), int(m.group(2))
+    return m.group(3), 0
+
+
+# ------------------------------------------------------------------------ the reader
+
+class _Builder:
+    """Decodes events into a ShoalLog, keeping what shoal analyze keeps (docs/analyze.md,
+    "What it reads"); what does not decode, or names an id that does not fit, is counted."""
+
+    def __init__(self, log: ShoalLog, types):
+        self.log = log
+        self.dec = _Decoder(types)
+        self.handlers = {"STATE": self._state, "RX": self._rx, "HEALTH": self._health,
+                         "CHANNEL": self._channel, "CLOCK": self._clock,
+                         "STATUS": self._status}
+
+    def add(self, kind: str, cid: int, data: bytes) -> None:
+        if not kind:
+            self.log.other_events += 1
+            return
+        self.handlers[kind](cid, data)
+
+    def _decode(self, data: bytes, *accepted: str):
+        msg = self.dec.decode(data, accepted)
+        if msg is None:
+            self.log.undecodable += 1
+        return msg
+
+    def _state(self, cid: int, data: bytes) -> None:
+        m = self._decode(data, "vehicle_state_t")
+        if m is None:
+            return
+        if m.vehicle_id != cid or cid < 0:
+            self.log.rejected += 1
+            return
+        self.log.states.setdefault(cid, []).append(State(
+            m.vehicle_id, m.utime, m.seq, tuple(m.eta), tuple(m.nu), tuple(m.eta_dot),
+            tuple(m.accel_cmd), tuple(m.tau), m.flags))
+
+    def _rx(self, cid: int, data: bytes) -> None:
+        if cid < 0:
+            self.log.rejected += 1
+            return
+        self.log.rx[cid] = self.log.rx.get(cid, 0) + 1
+
+    def _channel(self, cid: int, data: bytes) -> None:
+        m = self._decode(data, "channel_events_t", "channel_event_t")
+        if m is None:
+            return
+        for e in (m.events if hasattr(m, "events") else [m]):
+            if e.sender < 0 or e.receiver < 0 or e.status not in STATUS_NAMES:
+                self.log.rejected += 1
+                continue
+            self.log.decisions.append(Decision(
+                e.utime, e.sender, e.receiver, e.msg_seq, e.send_utime, e.delay_s,
+                e.deliver_utime, e.status, STATUS_NAMES[e.status], e.reason))
+
+    def _clock(self, cid: int, data: bytes) -> None:
+        m = self._decode(data, "clock_window_t", "clock_tick_t")
+        if m is None:
+            return
+        n_ticks = getattr(m, "n_ticks", 1)
+        if n_ticks < 1 or n_ticks > 100000 or not 0 < m.period_us <= 10 ** 9 or \
+                not 0 <= m.tick <= 2 ** 40 or m.utime != m.tick * m.period_us or \
+                (m.tick + n_ticks) * m.period_us > 2 ** 62:  # shoal analyze's limits
+            self.log.rejected += 1
+            return
+        self.log.clock.append(Clock(m.utime, m.vehicle_id, m.seq, m.tick, n_ticks, m.period_us,
+                                    m.final_tick != 0, m.n_deliveries))
+
+    def _health(self, cid: int, data: bytes) -> None:
+        m = self._decode(data, "health2_t", "health_t")
+        if m is None:
+            return
+        bins = tuple(m.lateness_window_bins) if hasattr(m, "lateness_window_bins") else None
+        if m.vehicle_id != cid or cid < -1 or (bins is not None and (
+                min(bins) < 0 or sum(bins) != m.lateness_window_count)):
+            self.log.rejected += 1
+            return
+        self.log.health.setdefault(cid, []).append(Health(
+            m.utime, m.vehicle_id, m.seq, m.ticks, m.lateness_p50_s, m.lateness_p99_s,
+            m.lateness_max_s, m.overruns, m.msgs_received, m.msgs_dropped_invalid,
+            m.msgs_dropped_old, m.neighbour_timeouts, m.active_neighbours, m.saturated_ticks,
+            m.saturation_fraction, getattr(m, "lateness_window_count", None),
+            getattr(m, "lateness_window_max_s", None), bins))
+
+    def _status(self, cid: int, data: bytes) -> None:
+        m = self._decode(data, "run_status_t")
+        if m is None:
+            return
+        self.log.statuses.append(Status(m.utime, m.vehicle_id, m.seq, m.state,
+                                        m.scenario_name, m.seed, m.followers, m.message))
+        if m.scenario_toml and self.log.scenario_toml is None:
+            self.log.scenario_toml = m.scenario_toml
+
+    def finish(self) -> None:
+        """n from the statuses (else the largest id), states beyond it rejected, each
+        vehicle's states sorted by time with one per utime (the last recorded kept)."""
+        log = self.log
+        n = max([s.followers for s in log.statuses if 0 < s.followers <= 1023], default=0)
+        if n == 0:
+            n = max(log.states, default=0)
+        log.followers = n
+        for vid in [v for v in log.states if v > n]:
+            log.rejected += len(log.states.pop(vid))
+        for vid, states in log.states.items():
+            states.sort(key=lambda s: s.utime)  # stable: equal times keep the log's order
+            unique: List[State] = []
+            for s in states:
+                if unique and unique[-1].utime == s.utime:
+                    unique[-1] = s
+                    log.repeated_states += 1
+                else:
+                    unique.append(s)
+            log.states[vid] = unique
+        log.states = dict(sorted(log.states.items()))
+        log.health = dict(sorted(log.health.items()))
+        log.insecure_run = any("bus not authenticated (--insecure)" in s.message
+                               for s in log.statuses)
+
+
+def _key_file_for(path: str, key_file: Optional[str]) -> Optional[str]:
+    if key_file is not None:
+        return key_file
+    return path + ".key" if os.path.exists(path + ".key") else None
+
+
+def _authenticate(log: ShoalLog, verifier: Optional[Verifier], kind: str, channel: str,
+                  data: bytes) -> Optional[bytes]:
+    """The message without its trailer, or None when it does not verify (counted)."""
+    if not kind:
+        return data  # not a Shoal channel: not read, not checked
+    if verifier is None:
+        if has_trailer(data):
+            log.unverified += 1
+            return data[:-TRAILER_BYTES]
+        return data
+    payload = verifier.verify(channel, data)
+    if payload is None:
+        log.unauthenticated += 1
+        by = log.unauthenticated_by_channel
+        name = channel if len(by) < 256 or channel in by else "(other channels)"
+        by[name] = by.get(name, 0) + 1
+        return None
+    log.verified += 1
+    return payload
+
+
+def read_log(path: str, key_file: Optional[str] = None, types_dir: Optional[str] = None,
+             channels: Optional[Tuple[str, ...]] = None) -> ShoalLog:
+    """Reads the Shoal log at `path`. key_file: the run's key (default: <path>.key if it
+    exists; without one the messages are read unverified). types_dir: where the generated
+    types are (load_types). channels: decode only these kinds ('STATE', 'RX', 'HEALTH',
+    'CHANNEL', 'CLOCK', 'STATUS'; default all), the others are still verified and counted.
+    Raises ShoalLogError when the log cannot be read at all."""
+    types = load_types(types_dir)
+    log = ShoalLog(path=path, key_file=_key_file_for(path, key_file))
+    verifier = Verifier(read_key_file(log.key_file)) if log.key_file else None
+    reader = _EventReader(path)
+    builder = _Builder(log, types)
+    try:
+        for _timestamp, channel, data in reader:
+            log.events += 1
+            kind, cid = parse_channel(channel)
+            payload = _authenticate(log, verifier, kind, channel, data)
+            if payload is not None and (channels is None or kind in channels or not kind):
+                builder.add(kind, cid, payload)
+    finally:
+        reader.close()
+    builder.finish()
+    log.warnings = reader.warnings + _authentication_warnings(log)
+    log.damaged = reader.damaged_regions > 0
+    _check_usable(log, reader)
+    return log
+
+
+def _authentication_warnings(log: ShoalLog) -> List[str]:
+    w = []
+    if log.unauthenticated:
+        w.append("%d events did not authenticate with the run's key (forged, from another "
+                 "run, or damaged) and were dropped" % log.unauthenticated)
+    if log.unverified:
+        w.append("%d events carry an authentication trailer that could not be checked (no "
+                 "key: give --key FILE, or keep <log>.key next to the log); they were read "
+                 "unverified" % log.unverified)
+    if log.insecure_run:
+        w.append("the run's bus was not authenticated (--insecure): anyone on the host could "
+                 "have published into it")
+    return w
+
+
+def _check_usable(log: ShoalLog, reader: _EventReader) -> None:
+    if log.events == 0:
+        raise ShoalLogError(log.path + ": no complete LCM event in the file" +
+                            (" (" + reader.warnings[0] + ")" if reader.warnings else ""))
+    any_shoal = (log.states or log.decisions or log.health or log.clock or log.statuses or
+                 log.rx or log.undecodable or log.rejected)
+    if not any_shoal and log.unauthenticated:
+        raise ShoalLogError("%s: none of its %d events authenticates with the key in %s (the "
+                            "log of another run, or of a run with --insecure?)"
+                            % (log.path, log.events, log.key_file))
+    if not any_shoal:
+        raise ShoalLogError("%s: an LCM log with %d events but no Shoal message (no valid "
+                            "SHOAL_* channel)" % (log.path, log.events))
+
+
+# ------------------------------------------------------------------------- pandas
+
+# The state columns of shoal analyze --csv's vehicle_<id>.csv (docs/analyze.md).
+STATE_COLUMNS = (
+    ["x_m", "y_m", "z_m", "theta_rad", "psi_rad"],
+    ["u_mps", "v_mps", "w_mps", "q_radps", "r_radps"],
+    ["x_dot_mps", "y_dot_mps", "z_dot_mps", "theta_dot_radps", "psi_dot_radps"],
+    ["accel_x_mps2", "accel_y_mps2", "accel_z_mps2", "accel_theta_radps2", "accel_psi_radps2"],
+    ["tau_x_n", "tau_y_n", "tau_z_n", "tau_m_nm", "tau_n_nm"])
+
+
+def _state_row(s: State) -> dict:
+    row = {"vehicle": s.vehicle_id, "time_s": s.utime / 1e6, "utime_us": s.utime, "seq": s.seq}
+    for names, values in zip(STATE_COLUMNS, (s.eta, s.nu, s.eta_dot, s.accel_cmd, s.tau)):
+        row.update(zip(names, values))
+    row["flags"] = s.flags
+    return row
+
+
+def frames(log: ShoalLog) -> dict:
+    """pandas DataFrames of a log (pandas is optional: Debian's python3-pandas):
+    'states' (one row per state, the columns of shoal analyze --csv's vehicle_<id>.csv
+    plus vehicle and flags), 'decisions', 'clock', 'health' (without the histogram bins),
+    'statuses'. Raises ShoalLogError if pandas is not installed."""
+    try:
+        import pandas
+    except ImportError:
+        raise ShoalLogError("pandas is not installed (Debian: apt install python3-pandas); "
+                            "the records need no pandas: ShoalLog.states, .decisions, ...") \
+            from None
+    state_columns = ["vehicle", "time_s", "utime_us", "seq"] + \
+        [c for names in STATE_COLUMNS for c in names] + ["flags"]
+
+    def table(records, cls, leave_out=()):
+        names = [f.name for f in dataclasses.fields(cls) if f.name not in leave_out]
+        return pandas.DataFrame([[getattr(r, n) for n in names] for r in records],
+                                columns=names)
+
+    return {
+        "states": pandas.DataFrame([_state_row(s) for states in log.states.values()
+                                    for s in states], columns=state_columns),
+        "decisions": table(log.decisions, Decision),
+        "clock": table(log.clock, Clock),
+        "health": table([h for reports in log.health.values() for h in reports], Health,
+                        ("lateness_window_bins",)),
+        "statuses": table(log.statuses, Status),
+    }
+
+
+# ----------------------------------------------------------------------- the summary
+
+def summary(log: ShoalLog) -> dict:
+    """What the CLI prints: plain data (JSON-ready)."""
+    vehicles = []
+    for vid, states in log.states.items():
+        vehicles.append({"id": vid, "states": len(states),
+                         "first_s": states[0].utime / 1e6 if states else None,
+                         "last_s": states[-1].utime / 1e6 if states else None,
+                         "final_position_m": list(states[-1].eta[:3]) if states else None})
+    health = {}
+    for pid, reports in log.health.items():
+        last = reports[-1]
+        health[str(pid)] = {"reports": len(reports), "ticks": last.ticks,
+                            "lateness_p99_s": last.lateness_p99_s, "overruns": last.overruns,
+                            "msgs_received": last.msgs_received,
+                            "msgs_dropped_invalid": last.msgs_dropped_invalid}
+    names = [s.scenario_name for s in log.statuses if s.scenario_name]
+    return {
+        "log": log.path, "scenario": names[0] if names else None, "followers": log.followers,
+        "events": log.events, "states": sum(len(s) for s in log.states.values()),
+        "vehicles": vehicles, "decisions": log.decision_counts(),
+        "clock_messages": len(log.clock), "clock_ticks": log.clock_ticks(),
+        "rx_messages": {str(k): v for k, v in sorted(log.rx.items())},
+        "health": health, "statuses": [[s.vehicle_id, s.state] for s in log.statuses],
+        "authentication": {
+            "key_file": log.key_file, "verified": log.verified,
+            "unauthenticated": log.unauthenticated,
+            "unauthenticated_by_channel": dict(sorted(log.unauthenticated_by_channel.items())),
+            "unverified": log.unverified, "insecure_run": log.insecure_run},
+        "undecodable": log.undecodable, "rejected": log.rejected,
+        "repeated_states": log.repeated_states, "damaged": log.damaged,
+        "warnings": log.warnings,
+    }
+
+
+def _auth_line(s: dict) -> str:
+    a = s["authentication"]
+    if a["key_file"] is None:
+        text = "authentication: no key (no <log>.key, no --key): messages NOT verified"
+        if a["unverified"]:
+            text += " (%d carry a trailer, stripped unchecked)" % a["unverified"]
+        return text
+    text = "authentication: key %s, %d messages verified, %d did not verify (dropped)" % (
+        a["key_file"], a["verified"], a["unauthenticated"])
+    if a["unauthenticated_by_channel"]:
+        text += ": " + ", ".join("%s %d" % kv for kv in a["unauthenticated_by_channel"].items())
+    return text
+
+
+def format_summary(s: dict) -> str:
+    d = s["decisions"]
+    lines = ["%s: scenario %s, %d followers, %d events" % (s["log"], s["scenario"],
+                                                          s["followers"], s["events"]),
+             _auth_line(s),
+             "states: %d" % s["states"]]
+    for v in s["vehicles"]:
+        lines.append("  vehicle %d%s: %d states, %.3f..%.3f s" % (
+            v["id"], " (leader)" if v["id"] == 0 else "", v["states"], v["first_s"],
+            v["last_s"]))
+    lines.append("channel decisions: %d sent, %d delivered, %d dropped (loss %d, queue %d, "
+                 "range %d, link down %d, deaf %d, invalid %d); not sent: modem busy %d, "
+                 "silent %d" % (d["sent"], d["delivered"], d["dropped"], d["dropped_loss"],
+                                d["dropped_queue"], d["dropped_range"], d["dropped_link_down"],
+                                d["dropped_deaf"], d["dropped_invalid"],
+                                d["skipped_modem_busy"], d["skipped_silent"]))
+    lines.append("clock: %d messages, %d ticks" % (s["clock_messages"], s["clock_ticks"]))
+    for pid, h in s["health"].items():
+        lines.append("  health %s: %d reports, last: %d ticks, lateness p99 %.6f s, %d "
+                     "overruns, %d received, %d dropped invalid" % (
+                         pid, h["reports"], h["ticks"], h["lateness_p99_s"], h["overruns"],
+                         h["msgs_received"], h["msgs_dropped_invalid"]))
+    lines.append("statuses: " + ", ".join("%d %s" % (i, st) for i, st in s["statuses"]))
+    if s["undecodable"] or s["rejected"]:
+        lines.append("undecodable %d, rejected %d" % (s["undecodable"], s["rejected"]))
+    lines += ["warning: " + w for w in s["warnings"]]
+    return "\n".join(lines)
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="shoal_log.py", description="Summarises a Shoal LCM log (docs/analyze.md, "
+        "\"Reading a log from Python\"). Exit status 0 read (a damaged log too: warnings), "
+        "2 the log, the key or the generated types cannot be read.")
+    p.add_argument("log", help="the LCM log (shoal sim --out, shoal run --out, lcm-logger)")
+    p.add_argument("--key", metavar="FILE", help="the run's key file (default: LOG.key if "
+                   "it exists; without a key the messages are not verified)")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.add_argument("--types", metavar="DIR", help="the directory that holds the generated "
+                   "package shoal/ (default: $" + TYPES_ENV + ", this file's directory, "
+                   "../build/python)")
+    args = p.parse_args(argv)
+    try:
+        log = read_log(args.log, key_file=args.key, types_dir=args.types)
+    except ShoalLogError as e:
+        print("shoal_log.py: " + str(e), file=sys.stderr)
+        return 2
+    s = summary(log)
+    try:
+        print(json.dumps(_strict(s), indent=1) if args.json else format_summary(s), flush=True)
+    except BrokenPipeError:  # e.g. | head: the reader has gone, nothing more to say
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    for w in log.warnings:
+        print("shoal_log.py: warning: " + w, file=sys.stderr)
+    return 0
+
+
+def _strict(x):
+    """JSON without NaN or Infinity (a diverging vehicle's state): null, as shoal analyze."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _strict(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_strict(v) for v in x]
+    return x
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,362 @@
+#!/usr/bin/env python3
+"""python/shoal_log.py against shoal analyze, on the logs of a real lockstep run and of
+shoal sim: the same states per vehicle, channel decisions, clock ticks and authentication
+counts, the final formation position error recomputed from the states, one altered
+message refused by both, damaged logs read without a traceback.
+
+Usage (ctest runs it, tests/python/CMakeLists.txt): shoal_log_test.py BUILD_DIR SOURCE_DIR
+"""
+
+import json
+import math
+import os
+import random
+import re
+import shutil
+import subprocess
+import sys
+import unittest
+
+BUILD, SOURCE = (os.path.abspath(a) for a in sys.argv[1:3])
+PYDIR = os.path.join(BUILD, "python")
+SHOAL = os.path.join(BUILD, "tools", "shoal")
+TMP = os.path.join(BUILD, "test_tmp", "shoal_log_test")
+EXAMPLE2 = os.path.join(SOURCE, "scenarios", "paper_example2.toml")
+FAULTS = os.path.join(SOURCE, "scenarios", "faults.toml")
+
+sys.path.insert(0, PYDIR)
+import shoal_log  # noqa: E402  (the copy the build puts next to the generated types)
+
+try:
+    import pandas  # optional (Debian: python3-pandas): shoal_log.frames
+except ImportError:
+    pandas = None
+
+try:
+    import tomllib  # Python 3.11+; the offsets of older Pythons come from a fixed table
+except ImportError:
+    tomllib = None
+
+
+def run(args, ok=(0,), env=None):
+    p = subprocess.run(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                       timeout=240, env=None if env is None else dict(os.environ, **env))
+    if p.returncode not in ok:
+        raise AssertionError("%s: exit %d\n%s\n%s" % (args, p.returncode, p.stdout, p.stderr))
+    return p
+
+
+def analyze(log, *extra):
+    return json.loads(run([SHOAL, "analyze", log, "--json", *extra]).stdout)
+
+
+def analyze_refuses(log, *extra):
+    """shoal analyze's message for a log it cannot analyse (exit status 2)."""
+    return run([SHOAL, "analyze", log, *extra], ok=(2,)).stderr
+
+
+def offsets_of(log):
+    """The scenario's formation offsets d_i, from the scenario text in the log."""
+    if tomllib is not None:
+        return tomllib.loads(log.scenario_toml)["control"]["offsets_m"]
+    return [[6.0, 6.0, 0.0], [6.0, -6.0, 0.0], [-6.0, 6.0, 0.0], [-6.0, -6.0, 0.0],
+            [0.0, 0.0, 5.0]]  # paper_example2.toml and faults.toml
+
+
+def final_position_errors(log):
+    """Per follower i, ||(p_i - d_i) - p_0|| at the last complete sample: the last time at
+    which the leader and every follower have a state (docs/analyze.md, Metrics:
+    followers[].final_* are taken there, as shoal sim's)."""
+    times = set.intersection(*({s.utime for s in states} for states in log.states.values()))
+    last = max(times)
+    at = {v: next(s for s in states if s.utime == last) for v, states in log.states.items()}
+    out = {}
+    for i, d in enumerate(offsets_of(log), start=1):
+        e = [(at[i].eta[k] - d[k]) - at[0].eta[k] for k in range(3)]
+        out[i] = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+    return out
+
+
+def event_offsets(path):
+    """(offset, channel, data offset, data length) of every event of a clean log."""
+    with open(path, "rb") as f:
+        b = f.read()
+    out, pos = [], 0
+    while pos < len(b):
+        cl = int.from_bytes(b[pos + 20:pos + 24], "big")
+        dl = int.from_bytes(b[pos + 24:pos + 28], "big")
+        out.append((pos, b[pos + 28:pos + 28 + cl].decode(), pos + 28 + cl, dl))
+        pos += 28 + cl + dl
+    return out
+
+
+class Logs(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        shutil.rmtree(TMP, ignore_errors=True)
+        os.makedirs(TMP)
+        cls.run_log = os.path.join(TMP, "lockstep.lcmlog")
+        cls.sim_log = os.path.join(TMP, "sim.lcmlog")
+        # A real lockstep run: its own processes on a private bus (shoal run's random
+        # port), authenticated, with message loss so that some decisions are drops.
+        run([SHOAL, "run", EXAMPLE2, "--mode", "lockstep", "--duration", "10", "--quiet",
+             "--set", 'channel.loss={ model = "bernoulli", probability = 0.1 }',
+             "--out", cls.run_log], ok=(0, 1))
+        # Every status of the channel and the timeline's events (link down, silent, deaf):
+        # scenarios/faults.toml at a tenth of its times (40 s; its log is 10 MB, not 100).
+        with open(FAULTS) as f:
+            text = f.read()
+        text = re.sub(r"(?m)^(duration_s|at_s|until_s) = ([0-9]+)",
+                      lambda m: "%s = %g" % (m.group(1), int(m.group(2)) / 10), text)
+        scenario = os.path.join(TMP, "faults_short.toml")
+        with open(scenario, "w") as f:
+            f.write(text)
+        run([SHOAL, "sim", scenario, "--out", cls.sim_log], ok=(0, 1))
+
+    def check_against_analyze(self, log, a):
+        """The figures both compute from the same log."""
+        self.assertEqual(log.events, a["log_events"])
+        n = len(a["followers"])
+        self.assertEqual(log.followers, n)
+        self.assertEqual(sum(len(s) for s in log.states.values()), a["log_states"])
+        for f in a["followers"]:
+            self.assertEqual(len(log.states[f["id"]]), f["samples"], f["id"])
+        self.assertEqual(len(log.states[0]),
+                         a["log_states"] - sum(f["samples"] for f in a["followers"]))
+        counts = log.decision_counts()
+        for key in ("sent", "delivered", "dropped", "dropped_loss", "dropped_queue",
+                    "dropped_invalid", "dropped_range", "skipped_modem_busy",
+                    "skipped_silent", "dropped_link_down", "dropped_deaf"):
+            self.assertEqual(counts[key], a["channel"][key], key)
+        self.assertEqual(counts["delivered"], a["channel_delivered"])
+        self.assertEqual(counts["dropped"], a["channel_dropped"])
+        self.assertEqual(log.clock_ticks(), a["ticks"])
+        for key in ("verified", "unauthenticated", "unverified", "unauthenticated_by_channel"):
+            self.assertEqual(getattr(log, key), a["authentication"][key], key)
+        errors = final_position_errors(log)
+        for f in a["followers"]:
+            self.assertAlmostEqual(errors[f["id"]], f["final_position_error_m"], delta=1e-9)
+        self.assertAlmostEqual(max(errors.values()), a["final_position_error_m"], delta=1e-9)
+
+    def test_lockstep_run_equals_shoal_analyze(self):
+        log = shoal_log.read_log(self.run_log)
+        a = analyze(self.run_log)
+        self.assertEqual(log.key_file, self.run_log + ".key")
+        self.assertEqual(a["mode"], "lockstep")
+        self.assertTrue(a["bus_authenticated"])
+        self.assertGreater(log.verified, 1000)
+        self.assertEqual(log.unauthenticated, 0)
+        self.assertEqual(len(log.states), 6)
+        self.assertEqual(len(log.states[3]), 501)  # 10 s at 50 Hz, ticks 0..500
+        self.assertGreater(log.decision_counts()["dropped_loss"], 100)
+        self.assertEqual(log.warnings, [])
+        self.check_against_analyze(log, a)
+
+    def test_sim_log_equals_shoal_analyze(self):
+        log = shoal_log.read_log(self.sim_log)
+        a = analyze(self.sim_log)
+        self.assertIsNone(log.key_file)
+        self.assertEqual(log.unverified, 0)  # shoal sim has no bus: no trailers
+        c = log.decision_counts()
+        for key in ("dropped_link_down", "skipped_silent", "dropped_deaf", "dropped_loss"):
+            self.assertGreater(c[key], 0, key)
+        self.assertEqual(len(log.states[0]), 2001)  # 40 s at 50 Hz, ticks 0..2000
+        self.check_against_analyze(log, a)
+        self.assertEqual({s.state for s in log.statuses} >= {"running", "finished"}, True)
+        only = shoal_log.read_log(self.sim_log, channels=("STATE",))
+        self.assertEqual(only.states, log.states)
+        self.assertEqual((only.decisions, only.clock, only.health), ([], [], {}))
+        self.assertEqual(only.events, log.events)
+
+    def test_without_the_key_messages_are_unverified(self):
+        bare = os.path.join(TMP, "nokey.lcmlog")
+        shutil.copyfile(self.run_log, bare)
+        log = shoal_log.read_log(bare)
+        a = analyze(bare)
+        self.assertIsNone(log.key_file)
+        self.assertGreater(log.unverified, 1000)
+        self.assertEqual(log.unverified, a["authentication"]["unverified"])
+        self.assertEqual(log.verified, 0)
+        self.check_against_analyze(log, a)
+        p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), bare])
+        self.assertIn("NOT verified", p.stdout)
+
+    def test_an_altered_message_does_not_verify(self):
+        events = event_offsets(self.run_log)
+        states2 = [e for e in events if e[1] == "SHOAL_STATE_2"]
+        _, channel, data_at, _ = states2[len(states2) // 2]
+        forged = os.path.join(TMP, "forged.lcmlog")
+        with open(self.run_log, "rb") as f:
+            b = bytearray(f.read())
+        b[data_at + 40] ^= 0x01  # a bit of its x position
+        with open(forged, "wb") as f:
+            f.write(b)
+        shutil.copyfile(self.run_log + ".key", forged + ".key")
+        log = shoal_log.read_log(forged)
+        a = analyze(forged)
+        self.assertEqual(log.unauthenticated, 1)
+        self.assertEqual(log.unauthenticated_by_channel, {channel: 1})
+        self.assertEqual(a["authentication"]["unauthenticated"], 1)
+        self.assertEqual(len(log.states[2]), len(shoal_log.read_log(self.run_log).states[2]) - 1)
+        self.check_against_analyze(log, a)
+        p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), forged])
+        self.assertIn("1 did not verify (dropped): SHOAL_STATE_2 1", p.stdout)
+
+    def test_a_message_longer_than_its_type_does_not_decode(self):
+        # The generated decoder reads what the fields ask for and ignores the rest: a state
+        # with one byte more must be refused (shoal analyze's decoder needs every byte used).
+        events = event_offsets(self.sim_log)
+        at, _, data_at, size = [e for e in events if e[1] == "SHOAL_STATE_1"][100]
+        with open(self.sim_log, "rb") as f:
+            b = bytearray(f.read())
+        b[at + 24:at + 28] = (size + 1).to_bytes(4, "big")
+        b[data_at + size:data_at + size] = b"\0"
+        longer = os.path.join(TMP, "longer.lcmlog")
+        with open(longer, "wb") as f:
+            f.write(b)
+        log = shoal_log.read_log(longer)
+        self.assertEqual(log.undecodable, 1)
+        self.assertEqual(len(log.states[1]), len(shoal_log.read_log(self.sim_log).states[1]) - 1)
+        self.check_against_analyze(log, analyze(longer))
+
+    @unittest.skipIf(pandas is None, "pandas is not installed (Debian: python3-pandas)")
+    def test_frames_equal_shoal_analyze_csv(self):
+        log = shoal_log.read_log(self.sim_log)
+        f = shoal_log.frames(log)
+        csv_dir = os.path.join(TMP, "csv")
+        run([SHOAL, "analyze", self.sim_log, "--csv", csv_dir])
+        states = f["states"]
+        self.assertEqual(states.groupby("vehicle").size().to_dict(),
+                         {v: len(s) for v, s in log.states.items()})
+        d = log.decision_counts()
+        self.assertEqual(f["decisions"].status_name.value_counts().to_dict(),
+                         {k: v for k, v in d.items() if v and k not in ("sent", "dropped")})
+        self.assertEqual(len(f["clock"]), len(log.clock))
+        self.assertEqual(len(f["health"]), sum(len(h) for h in log.health.values()))
+        self.assertEqual(list(f["statuses"].state), [s.state for s in log.statuses])
+        offsets = offsets_of(log)
+        lead = states[states.vehicle == 0].set_index("utime_us")
+        for i in (1, 4):
+            # The CSV holds the logged doubles in their shortest exact form: bit for bit
+            # when read back exactly (pandas 1.5's default parser can be 1 ulp off).
+            csv = pandas.read_csv(os.path.join(csv_dir, "vehicle_%d.csv" % i),
+                                  float_precision="round_trip")
+            mine = states[states.vehicle == i].reset_index(drop=True)
+            for column in csv.columns.intersection(mine.columns):
+                self.assertTrue((csv[column] == mine[column]).all(), column)
+            fol = mine.set_index("utime_us")
+            e = sum(((fol[c] - offsets[i - 1][k]) - lead[c]) ** 2
+                    for k, c in enumerate(("x_m", "y_m", "z_m"))) ** 0.5
+            diff = (e.reset_index(drop=True) - csv.position_error_m).abs().max()
+            self.assertLess(diff, 1e-9, i)
+        with self.assertRaisesRegex(shoal_log.ShoalLogError, "pandas is not installed"):
+            saved, sys.modules["pandas"] = sys.modules.get("pandas"), None
+            try:
+                shoal_log.frames(log)
+            finally:
+                sys.modules["pandas"] = saved
+
+    def test_another_runs_key_verifies_nothing(self):
+        other = os.path.join(TMP, "other.key")
+        with open(other, "w") as f:
+            f.write("ab" * 32 + "\n")
+        with self.assertRaisesRegex(shoal_log.ShoalLogError, "none of its .* authenticates"):
+            shoal_log.read_log(self.run_log, key_file=other)
+        self.assertIn("authenticates with the key", analyze_refuses(self.run_log, "--key", other))
+        p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), self.run_log, "--key",
+                 other], ok=(2,))
+        self.assertNotIn("Traceback", p.stderr)
+
+    def damaged(self, name, edit):
+        with open(self.run_log, "rb") as f:
+            b = bytearray(f.read())
+        edit(b)
+        path = os.path.join(TMP, name)
+        with open(path, "wb") as f:
+            f.write(b)
+        shutil.copyfile(self.run_log + ".key", path + ".key")
+        return path
+
+    def test_damaged_logs_are_read_as_shoal_analyze_reads_them(self):
+        events = event_offsets(self.run_log)
+        middle = events[len(events) // 2]
+        cut = self.damaged("truncated.lcmlog", lambda b: b.__delitem__(
+            slice(events[-5][2] + 3, None)))
+        bad_sync = self.damaged("bad_sync.lcmlog", lambda b: b.__setitem__(middle[0], 0))
+        bad_len = self.damaged("bad_length.lcmlog", lambda b: b.__setitem__(
+            slice(middle[0] + 24, middle[0] + 28), (5000).to_bytes(4, "big")))
+        for path, words in ((cut, "truncated"), (bad_sync, "no sync word"),
+                            (bad_len, "lengths do not lead")):
+            log = shoal_log.read_log(path)
+            a = analyze(path)
+            self.assertTrue(log.damaged)
+            self.assertEqual(len(log.warnings), 1, log.warnings)
+            self.assertIn(words, log.warnings[0])
+            self.assertEqual([w for w in a["warnings"] if "byte" in w], log.warnings)
+            self.check_against_analyze(log, a)
+            p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), path])
+            self.assertIn("warning: ", p.stdout)
+            self.assertNotIn("Traceback", p.stderr)
+        self.assertEqual(shoal_log.read_log(bad_sync).events, len(events) - 1)
+
+    def test_random_damage_is_read_as_shoal_analyze_reads_it(self):
+        # Bytes changed or cut at random places (a fixed seed): the two readers find the
+        # same events, states, decisions, authentication failures and warnings.
+        rng = random.Random(7)
+        with open(self.run_log, "rb") as f:
+            original = f.read()
+        for case in range(24):
+            b = bytearray(original)
+            for _ in range(rng.randint(1, 4)):
+                at = rng.randrange(len(b))
+                b[at:at + 4] = bytes(rng.randrange(256) for _ in range(4))
+            if case % 3 == 0:
+                del b[rng.randrange(len(b) // 2, len(b)):]
+            path = self.damaged("random_%d.lcmlog" % case, lambda x: x.__setitem__(
+                slice(None), b))  # b, with the run's key beside it
+            log = shoal_log.read_log(path)
+            a = analyze(path)
+            self.assertEqual([w for w in a["warnings"] if "byte" in w],
+                             [w for w in log.warnings if "byte" in w], case)
+            self.check_against_analyze(log, a)
+
+    def test_what_is_no_log_is_a_clear_error(self):
+        junk = os.path.join(TMP, "junk.lcmlog")
+        with open(junk, "wb") as f:
+            f.write(os.urandom(4096).replace(shoal_log.SYNC_BYTES, b"    "))
+        empty = os.path.join(TMP, "empty.lcmlog")
+        open(empty, "wb").close()
+        for path, words in ((junk, "not an LCM log"), (empty, "empty file"),
+                            (os.path.join(TMP, "missing.lcmlog"), "cannot read log")):
+            p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), path], ok=(2,))
+            self.assertIn(words, p.stderr)
+            self.assertNotIn("Traceback", p.stderr)
+            self.assertIn(words, analyze_refuses(path))
+
+    def test_the_cli_finds_the_types_from_the_build_and_the_source_tree(self):
+        summary = json.loads(run([sys.executable, os.path.join(PYDIR, "shoal_log.py"),
+                                  self.run_log, "--json"]).stdout)
+        self.assertEqual([v["states"] for v in summary["vehicles"]], [501] * 6)
+        self.assertEqual(summary["authentication"]["unauthenticated"], 0)
+        # The source tree's script finds build/python from python/ (a build named build)
+        # or takes --types; a copy anywhere else takes --types or SHOAL_PYTHON_TYPES.
+        source_script = os.path.join(SOURCE, "python", "shoal_log.py")
+        alone = os.path.join(TMP, "alone")
+        os.makedirs(alone, exist_ok=True)
+        shutil.copy(source_script, alone)
+        alone_script = os.path.join(alone, "shoal_log.py")
+        for script, extra, env in ((source_script, ["--types", PYDIR], None),
+                                   (alone_script, ["--types", PYDIR], None),
+                                   (alone_script, [], {"SHOAL_PYTHON_TYPES": PYDIR})):
+            p = run([sys.executable, script, self.run_log, "--json", *extra], env=env)
+            self.assertEqual(json.loads(p.stdout)["states"], summary["states"])
+        for extra in ([], ["--types", TMP]):
+            p = run([sys.executable, alone_script, self.run_log, *extra], ok=(2,),
+                    env={"SHOAL_PYTHON_TYPES": ""})
+            self.assertIn("the generated Python message types", p.stderr)
+            self.assertIn("are not in " + (TMP if extra else alone), p.stderr)
+            self.assertNotIn("Traceback", p.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main(argv=[sys.argv[0], "-v"])
