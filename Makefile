@@ -20,8 +20,11 @@ FUZZ_PACKAGES := clang libclang-rt-14-dev
 # (tests/slurm/): Slurm's daemons and clients and the munge authentication daemon, about
 # 8 MB to download; no daemon starts on install.
 SLURM_PACKAGES := slurm-wlm munge
+# make test starts processes through a real ssh (tests/netns/ssh_hosts_test.sh): OpenSSH's
+# server and client; the test runs its own sshd with its own config, keys and port.
+SSH_PACKAGES := openssh-server openssh-client
 PACKAGES = $(DEB_PACKAGES)
-test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES)
+test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES) $(SSH_PACKAGES)
 # Executions per fuzz target in make test (a few seconds each; bench/fuzz.sh 10000000 is
 # the campaign of docs/benchmarks.md).
 FUZZ_SHORT_RUNS ?= 50000
