@@ -27,9 +27,12 @@ JAVA_PACKAGES := default-jdk-headless liblcm-java
 # python/shoal_log.py needs only the standard library; its DataFrame view (frames()) is
 # tested with Debian's pandas, about 30 MB to download.
 PYTHON_PACKAGES := python3-pandas
+# make test starts processes through a real ssh (tests/netns/ssh_hosts_test.sh): OpenSSH's
+# server and client; the test runs its own sshd with its own config, keys and port.
+SSH_PACKAGES := openssh-server openssh-client
 PACKAGES = $(DEB_PACKAGES)
 test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES) $(JAVA_PACKAGES) \
-  $(PYTHON_PACKAGES)
+  $(PYTHON_PACKAGES) $(SSH_PACKAGES)
 test: CMAKE_FLAGS += -DSHOAL_REQUIRE_JAVA=ON
 # Executions per fuzz target in make test (a few seconds each; bench/fuzz.sh 10000000 is
 # the campaign of docs/benchmarks.md).
@@ -100,6 +103,8 @@ test-tsan: deps
 	cmake --build --preset tsan -j $(JOBS) --target sil_test replay_test
 	ctest --preset tsan -j $(JOBS) -L 'sil|replay'
 
+# Installs the missing Debian packages; no daemon starts on install (policy-rc.d, unless the
+# machine has its own): the tests start the sshd, munge and Slurm daemons they need themselves.
 deps:
 	@missing=""; \
 	for p in $(PACKAGES); do \
@@ -109,6 +114,10 @@ deps:
 	if [ "$$(id -u)" = 0 ]; then \
 	  echo "== installing missing Debian packages:$$missing"; \
 	  export DEBIAN_FRONTEND=noninteractive; \
+	  if [ ! -e /usr/sbin/policy-rc.d ]; then \
+	    printf '#!/bin/sh\nexit 101\n' > /usr/sbin/policy-rc.d && chmod 755 /usr/sbin/policy-rc.d; \
+	    trap 'rm -f /usr/sbin/policy-rc.d' EXIT; \
+	  fi; \
 	  apt-get update -q && apt-get install -y -q --no-install-recommends $$missing; \
 	else \
 	  echo "Missing Debian packages:$$missing"; \

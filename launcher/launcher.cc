@@ -738,19 +738,35 @@ void Launch::StartAll() {
   for (int i = 0; i < 100 && !before.OpenedAnew(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  // Real time: a start margin. On the wall clock, it is converted to the monotonic clock
-  // as each process does (process.h).
+  // Real time: a start margin, longer by the logins the starts wait for (--hosts). On the
+  // wall clock, it is converted to the monotonic clock as each process does (process.h).
+  std::map<std::string, int> placed;  // processes by host
+  for (std::size_t i = 1; i < plan_.processes.size(); ++i) {
+    if (const Host* h = HostFor(plan_.processes[i].id)) ++placed[h->name];
+  }
+  double logins_s = 0;
+  for (const auto& [name, n] : placed) logins_s += LoginSeconds(host_checks_[name], n);
+  const std::int64_t margin_ns = 4000000000LL + static_cast<std::int64_t>(logins_s * 1e9);
   std::int64_t t0_arg = 0;
   if (wall_clock_t0_) {
-    t0_arg = RealtimeNs() + 4000000000LL;
+    t0_arg = RealtimeNs() + margin_ns;
     t0_ns_ = MonotonicFromUnixNs(t0_arg);
   } else {
-    t0_ns_ = t0_arg = MonotonicNs() + 4000000000LL;
+    t0_ns_ = t0_arg = MonotonicNs() + margin_ns;
   }
   // No logger (fork failed: the run stops at once): the emulator does not wait for one.
   const std::map<std::string, std::string> values = {
       {kT0Arg, std::to_string(t0_arg)}, {kLoggerPidArg, std::to_string(logger_pid)}};
-  for (std::size_t i = 1; i < plan_.processes.size(); ++i) Start(plan_.processes[i], values);
+  LoginPacer pacer;  // sshd refuses logins beyond its MaxStartups (remote_host.h)
+  for (std::size_t i = 1; i < plan_.processes.size(); ++i) {
+    const Host* h = HostFor(plan_.processes[i].id);
+    const bool login = h != nullptr && !h->prefix.empty() && !host_checks_[h->name].same_process;
+    if (login) pacer.WaitForRoom(h->name, [] { return StopSignals::Requested(); });
+    Start(plan_.processes[i], values);
+    if (login && kids_.back().running) {
+      pacer.Started(h->name, kids_.back().pid, kids_.back().stdin_fd);
+    }
+  }
 }
 
 double Launch::WallSeconds(std::chrono::steady_clock::time_point wall0) const {

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
+#include <sys/ioctl.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -13,6 +14,7 @@
 #include <cstring>
 #include <set>
 #include <sstream>
+#include <thread>
 
 namespace shoal {
 namespace {
@@ -170,14 +172,17 @@ std::string Where(const HostsFile& hosts, const Host& h) {
 
 /// Runs the probe on host h; false with *error if it does not answer as expected.
 bool Probe(const HostsFile& hosts, const Host& h, const std::vector<std::string>& groups,
-           std::map<std::string, std::string>* fields, bool* in_place, std::string* error) {
+           std::map<std::string, std::string>* fields, bool* in_place, double* seconds,
+           std::string* error) {
   std::vector<std::string> words = {"sh", "-c", kProbe, "shoal-probe"};
   words.insert(words.end(), groups.begin(), groups.end());
   const std::vector<std::string> cmd = Prefixed(h, words);
   std::string out;
   pid_t pid = -1;
   bool timed_out = false;
+  const auto start = std::chrono::steady_clock::now();
   const int status = RunCapture(cmd, kProbeTimeoutS, &out, &pid, &timed_out);
+  *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   *fields = Fields(out);
   if (status == 0 && fields->count("pid") != 0) {
     *in_place = (*fields)["pid"] == std::to_string(pid);
@@ -249,6 +254,42 @@ bool KeyPipe(const std::string& line, int* read_fd, int* write_fd, std::string* 
   return true;
 }
 
+void LoginPacer::WaitForRoom(const std::string& host, const std::function<bool()>& stop) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kProbeTimeoutS);
+  while (LoggingIn(host) >= kLoginsAtOnce && !stop() &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
+void LoginPacer::Started(const std::string& host, pid_t pid, int key_fd) {
+  started_.emplace(host, std::make_pair(pid, key_fd));
+}
+
+int LoginPacer::LoggingIn(const std::string& host) const {
+  int n = 0;
+  const auto [from, to] = started_.equal_range(host);
+  for (auto it = from; it != to; ++it) {
+    const auto [pid, fd] = it->second;
+    int unread = 0;
+    if (fd < 0 || ioctl(fd, FIONREAD, &unread) != 0 || unread == 0) continue;
+    // Ended (ssh failed): not logging in. WNOWAIT leaves it to the run's supervision.
+    siginfo_t info{};
+    if (waitid(P_PID, static_cast<id_t>(pid), &info, WEXITED | WNOHANG | WNOWAIT) == 0 &&
+        info.si_pid == pid) {
+      continue;
+    }
+    ++n;
+  }
+  return n;
+}
+
+double LoginSeconds(const HostCheck& c, int count) {
+  if (c.same_process || count <= 0) return 0;
+  const int waves = (count + kLoginsAtOnce - 1) / kLoginsAtOnce;
+  return 2.0 * c.login_s * waves;
+}
+
 std::string GroupOfUrl(const std::string& url) {
   if (url.rfind("udpm://", 0) != 0) return "";
   const std::string rest = url.substr(7);
@@ -261,10 +302,11 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
   const std::vector<const Host*> used = hosts.UsedHosts(followers);
   std::vector<std::map<std::string, std::string>> probed(used.size());
   std::vector<bool> in_place(used.size());
+  std::vector<double> login_s(used.size());
   std::set<std::string> networks;  // boot id and network namespace of each host
   for (std::size_t i = 0; i < used.size(); ++i) {
     bool b = false;
-    if (!Probe(hosts, *used[i], groups, &probed[i], &b, error)) return false;
+    if (!Probe(hosts, *used[i], groups, &probed[i], &b, &login_s[i], error)) return false;
     in_place[i] = b;
     networks.insert(probed[i]["boot"] + " " + probed[i]["netns"]);
   }
@@ -285,7 +327,10 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
     std::map<std::string, std::string>& f = probed[i];
     HostCheck c;
     c.same_clock = !boot.empty() && f["boot"] == boot && f["timens"] == timens;
-    c.same_process = in_place[i] && f["pidns"] == pidns;
+    // The pid namespace of a machine's init has the same inode on every machine, and the
+    // remote shell's pid may equal the local ssh client's by chance: the boot id tells.
+    c.same_process = in_place[i] && f["pidns"] == pidns && f["boot"] == boot;
+    c.login_s = login_s[i];
     for (const std::string& g : groups) {
       const std::string route = f["route " + g];
       *error = RouteProblem(hosts, h, g, route, spans);

@@ -2,8 +2,12 @@
 // each host before anything starts (docs/run.md, "A swarm over several hosts").
 #pragma once
 
+#include <sys/types.h>
+
+#include <functional>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "launcher/hosts_file.h"
@@ -21,7 +25,35 @@ struct HostCheck {
   /// is the local ssh client's.
   bool same_process = false;
   std::string multicast_dev;  // the interface of the host's route for the run's group
+  /// How long the probe took through the prefix (s): through ssh, about one login.
+  double login_s = 0;
 };
+
+/// At most this many processes log in to one host at once (hosts whose prefix does not
+/// run in place, HostCheck::same_process false): sshd drops connections still logging in
+/// beyond its MaxStartups, by default 10 (then 30 % of them, rising to all at 100).
+inline constexpr int kLoginsAtOnce = 8;
+
+/// Paces the starts of a run's processes through logins (ssh), host by host: a process
+/// has logged in once it has taken the key line from its pipe (ssh reads its standard
+/// input only once the login is done and the command's channel open) or has ended.
+class LoginPacer {
+ public:
+  /// Waits until fewer than kLoginsAtOnce processes started on `host` are logging in, for
+  /// at most 30 s (a login that hangs is ssh's to time out), or until `stop` says so.
+  void WaitForRoom(const std::string& host, const std::function<bool()>& stop);
+  /// Process `pid` was started on `host`; `key_fd`: the write end of its key pipe.
+  void Started(const std::string& host, pid_t pid, int key_fd);
+
+ private:
+  int LoggingIn(const std::string& host) const;
+  std::multimap<std::string, std::pair<pid_t, int>> started_;
+};
+
+/// About the longest that starting `count` processes on a host with check `c` takes:
+/// 0 where the prefix runs in place, else kLoginsAtOnce at a time, each twice as long as
+/// the probe's login took (s).
+double LoginSeconds(const HostCheck& c, int count);
 
 /// The command that starts `argv` on host `h` (h.prefix not empty), in the folder `cwd`:
 ///   PREFIX... sh -c SCRIPT shoal-host CWD ARGV...
