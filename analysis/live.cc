@@ -25,6 +25,8 @@ std::int64_t WallMicros() {
       .count();
 }
 
+constexpr int kRecvBufBytes = 16 << 20;
+
 /// A run-level end: shoal sim / the launcher (-2) or the channel emulator (-1) says the run
 /// is over. Vehicles' own "finished" statuses do not end it.
 bool RunEnded(const StatusRecord& st) {
@@ -104,12 +106,22 @@ bool Listen(const LiveOptions& opt, LcmBus* bus, const bool* ended, const bool* 
   return error->empty();
 }
 
+/// The URL to listen on: a udpm URL without its own recv_buf_size asks for kRecvBufBytes.
+/// The kernel's default (about 200 kB, some 90 datagrams) holds three ticks of Example 2;
+/// an analysis descheduled longer on a loaded host loses the rest, silently. The kernel
+/// caps the request at net.core.rmem_max.
+std::string ListenUrl(const std::string& url) {
+  if (url.rfind("udpm://", 0) != 0 || url.find("recv_buf_size=") != std::string::npos) return url;
+  return url + (url.find('?') == std::string::npos ? "?" : "&") +
+         "recv_buf_size=" + std::to_string(kRecvBufBytes);
+}
+
 }  // namespace
 
 bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, std::string* error) {
   std::unique_ptr<LcmBus> bus;
   try {
-    bus = std::make_unique<LcmBus>(opt.url);
+    bus = std::make_unique<LcmBus>(ListenUrl(opt.url));
   } catch (const std::exception& e) {
     *error = e.what();
     return false;
