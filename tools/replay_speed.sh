@@ -24,6 +24,7 @@ for speed in "$@"; do
       grep -qi ":$(printf '%04X' "$port") " /proc/net/udp && break
       sleep 0.05
     done
+    sleep 0.5  # the multicast join completes after the bind: the first ticks would be lost
     t0=$(date +%s.%N)
     lcm-logplayer --lcm-url="$url" --speed="$speed" "$log" >/dev/null 2>&1
     t1=$(date +%s.%N)

@@ -252,7 +252,8 @@ TEST_F(Replay, LiveAnalysisStopsOnSigintWithWhatItHas) {
 /// A copy of the original log without the first `head` and the last `tail` fraction of
 /// its events: a stream that starts mid-run, or ends without the run's end status.
 std::string Trimmed(const std::string& name, double head_fraction, double tail_fraction,
-                    std::int64_t* states_cut) {
+                    std::int64_t* states_cut, std::int64_t drop_channel_every = 0,
+                    std::int64_t* channel_dropped = nullptr) {
   LcmLogReader r;
   std::string err;
   EXPECT_TRUE(r.Open(Orig().log, &err)) << err;
@@ -265,11 +266,18 @@ std::string Trimmed(const std::string& name, double head_fraction, double tail_f
   const auto n = static_cast<double>(events.size());
   const auto head = static_cast<std::int64_t>(head_fraction * n);
   const auto tail = static_cast<std::int64_t>(tail_fraction * n);
+  std::int64_t batches = 0;
   for (std::size_t k = 0; k < events.size(); ++k) {
     const bool cut = static_cast<std::int64_t>(k) < head ||
                      static_cast<std::int64_t>(k) >= static_cast<std::int64_t>(events.size()) - tail;
     if (cut) {
       *states_cut += events[k].first.rfind("SHOAL_STATE_", 0) == 0;
+      continue;
+    }
+    // Every n-th channel batch after the first, never the last: gaps inside the stream.
+    if (drop_channel_every > 0 && events[k].first == "SHOAL_CHANNEL" && k + 1000 < events.size() &&
+        ++batches % drop_channel_every == 0) {
+      ++*channel_dropped;
       continue;
     }
     // lcm-logplayer paces by these stamps: 0.2 ms apart plays the run in a few seconds.
@@ -324,6 +332,20 @@ TEST_F(Replay, LiveStreamEndingWithoutEndStatusStopsWhenIdle) {
   EXPECT_EQ(j["stream"]["stopped_by"], "idle") << j;
   EXPECT_EQ(j["stream"]["until_idle_s"], 1.0) << j;
   EXPECT_GE(j["states_missed"].get<std::int64_t>(), cut) << j;
+  ExpectTruthfulLive(status, j);
+}
+
+// Channel batches lost inside the stream (every 50th here) are counted from their
+// sequence numbers, apart from the states: the stream is incomplete, exit 3.
+TEST_F(Replay, LiveCountsGapsInTheOtherChannels) {
+  std::int64_t cut = 0, dropped = 0;
+  const std::string log = Trimmed("replay_gaps.lcmlog", 0, 0, &cut, 50, &dropped);
+  ASSERT_GT(dropped, 5);
+  const auto [status, j] = LiveOf(log, "", "replay_gaps");
+  EXPECT_EQ(status, 3) << j;
+  EXPECT_EQ(j["complete"], false) << j;
+  EXPECT_GE(j["stream"]["messages_missed_by_channel"]["SHOAL_CHANNEL"].get<std::int64_t>(), dropped)
+      << j;
   ExpectTruthfulLive(status, j);
 }
 
