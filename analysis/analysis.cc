@@ -12,6 +12,7 @@
 #include "core/channel_model.h"
 #include "core/timeline.h"
 #include "core/topology.h"
+#include "runtime/messages.h"
 
 namespace shoal {
 namespace {
@@ -596,10 +597,12 @@ void AnalyseTicks(const RunData& run, const StateTimeBounds& b, const ValidState
     a->states_expected = (b.expected_end_us / a->period_us + 1) * (run.followers + 1);
   }
   // lcm-logger stamps events with the wall clock (us since 1970); shoal sim with
-  // simulated time. Only the former gives a recording span.
-  if (run.first_timestamp > 1000000000000000LL) {
-    a->wall_time_s = ToSeconds(run.last_timestamp - run.first_timestamp);
-  }
+  // simulated time. Only the former gives a recording span. A retimed log's stamps are
+  // mission time: its marker keeps the original recording's.
+  const bool retimed = run.retimed_from.retimed;
+  const std::int64_t first = retimed ? run.retimed_from.first_timestamp : run.first_timestamp;
+  const std::int64_t last = retimed ? run.retimed_from.last_timestamp : run.last_timestamp;
+  if (first > 1000000000000000LL) a->wall_time_s = ToSeconds(last - first);
 }
 
 /// The follower that diverged first, as shoal sim defines it: non-finite state or
@@ -731,9 +734,20 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
   // A run that ran its final tick says where it ended (sim and lockstep clocks): the
   // expectation of a run shortened with --duration; a final tick beyond the limit is
   // damaged and ignored.
+  bool final_seen = false;
   for (auto c = run.clock.rbegin(); c != run.clock.rend(); ++c) {
     if (c->final_tick && c->last_utime() >= 0 && c->last_utime() <= b.limit_us) {
       b.expected_end_us = c->last_utime();
+      final_seen = true;
+      break;
+    }
+  }
+  // Without it (a stream that missed the final clock window), the run-level "finished"
+  // status says the same: the emulator and shoal sim stamp it with the last tick.
+  for (auto st = run.statuses.rbegin(); !final_seen && st != run.statuses.rend(); ++st) {
+    if (st->vehicle_id < 0 && ParseRunState(st->state) == RunState::kFinished &&
+        st->utime >= 0 && st->utime <= b.limit_us) {
+      b.expected_end_us = st->utime;
       break;
     }
   }

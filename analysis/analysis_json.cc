@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "analysis/live.h"
 #include "analysis/verdict.h"
 
 namespace shoal {
@@ -174,6 +175,36 @@ void AddTimingKeys(double sim_time_s, double wall_time_s, Json* j) {
   (*j)["realtime_factor"] = wall_time_s > 0 ? sim_time_s / wall_time_s : kNaN;
 }
 
+namespace {
+
+/// --live: whether the stream held the whole run (JudgeLiveStream); null for a log. A
+/// retimed log: where its wall time comes from.
+void AddStreamKeys(const RunData& run, const RunAnalysis& a, Json* j) {
+  if (!run.stream.live) {
+    (*j)["complete"] = nullptr;
+    (*j)["states_missed"] = nullptr;
+    (*j)["stream"] = nullptr;
+  } else {
+    const LiveCompleteness c = JudgeLiveStream(run, a);
+    (*j)["complete"] = c.complete;
+    (*j)["states_missed"] = c.states_missed;
+    (*j)["stream"] = Json{{"end_status_received", run.stream.end_status},
+                          {"stopped_by", run.stream.stopped_by},
+                          {"until_idle_s", run.stream.idle_s},
+                          {"messages_missed", c.messages_missed},
+                          {"messages_missed_by_channel", run.stream.missed_by_channel},
+                          {"incomplete_reasons", c.reasons}};
+  }
+  const RetimedFrom& r = run.retimed_from;
+  (*j)["retimed_from"] =
+      r.retimed ? Json{{"log", r.source},
+                       {"first_timestamp_us", r.first_timestamp},
+                       {"last_timestamp_us", r.last_timestamp}}
+                : Json(nullptr);
+}
+
+}  // namespace
+
 Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource& source) {
   const RunSummary& s = a.summary;
   const bool f = a.has_formation;
@@ -218,6 +249,7 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   j["log_last_delivery_s"] =
       a.bounds.deliver_limit_us >= 0 ? ToSeconds(a.bounds.deliver_limit_us) : kNaN;
   j["lcm_url"] = source.live ? Json(run.source) : Json(nullptr);
+  AddStreamKeys(run, a, &j);
   j["complete_samples"] = a.complete_samples;
   j["leader"] = Json{{"path_length_m", a.leader_path_length_m},
                      {"start_m", Vec3Json(a.leader_start_m)},

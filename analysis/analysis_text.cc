@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "analysis/live.h"
 #include "analysis/verdict.h"
 
 namespace shoal {
@@ -67,6 +68,24 @@ void PrintEvents(std::FILE* out, const RunAnalysis& a) {
 
 namespace {
 
+/// --live: whether the stream held the whole run, said before any figure. A retimed log:
+/// which log it was made from.
+void PrintStream(std::FILE* out, const RunData& run, const RunAnalysis& a) {
+  if (run.retimed_from.retimed) {
+    std::fprintf(out, "  RETIMED log (event times in mission time) of %s; the wall time is the "
+                 "original recording's\n", run.retimed_from.source.c_str());
+  }
+  if (!run.stream.live) return;
+  const LiveCompleteness c = JudgeLiveStream(run, a);
+  if (c.complete) {
+    std::fprintf(out, "  stream complete: every expected state arrived, and the run's end status\n");
+    return;
+  }
+  std::fprintf(out, "  INCOMPLETE STREAM: %lld states missed; the figures below are of the part "
+               "received, not of the whole run\n", static_cast<long long>(c.states_missed));
+  for (const std::string& r : c.reasons) std::fprintf(out, "    %s\n", r.c_str());
+}
+
 /// The run, its states (and those at impossible times) and its length.
 void PrintHeader(std::FILE* out, const RunData& run, const RunAnalysis& a,
                  const AnalysisSource& source) {
@@ -79,6 +98,7 @@ void PrintHeader(std::FILE* out, const RunData& run, const RunAnalysis& a,
               static_cast<long long>(a.states_expected), s.sim_time_s);
   if (a.wall_time_s > 0) std::fprintf(out, ", recorded over %.2f s wall", a.wall_time_s);
   std::fprintf(out, "\n");
+  PrintStream(out, run, a);
   if (a.states_damaged > 0) {
     std::fprintf(out,
                  "  DAMAGED: %lld vehicle states at impossible times (%lld negative, %lld after "

@@ -7,6 +7,7 @@
 
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
 #include <shoal/channel_event_t.hpp>
 #include <shoal/channel_events_t.hpp>
 #include <shoal/clock_tick_t.hpp>
@@ -171,8 +172,25 @@ VehicleTrack* RunDataBuilder::Track(int id) {
   return &d_->vehicles[static_cast<std::size_t>(id)];
 }
 
+bool ParseRetimedMarker(const std::uint8_t* data, int size, RetimedFrom* out) {
+  const nlohmann::json j = nlohmann::json::parse(data, data + size, nullptr, false);
+  if (!j.is_object() || j.value("format", "") != kRetimedFormat) return false;
+  const auto first = j.find("first_timestamp_us"), last = j.find("last_timestamp_us");
+  if (first == j.end() || last == j.end() || !first->is_number_integer() ||
+      !last->is_number_integer()) {
+    return false;
+  }
+  out->retimed = true;
+  out->source = j.value("source", "");
+  out->first_timestamp = first->get<std::int64_t>();
+  out->last_timestamp = last->get<std::int64_t>();
+  return true;
+}
+
 void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size,
                          std::int64_t timestamp) {
+  // A retimed log's marker is no event of the run: the counts stay the original's.
+  if (ch == kRetimedChannel && ParseRetimedMarker(data, size, &d_->retimed_from)) return;
   ++d_->events;
   if (!have_time_) {
     d_->first_timestamp = timestamp;

@@ -108,8 +108,49 @@ struct VehicleTrack {
   Micros first_nonfinite_utime = -1;
 };
 
+/// shoal analyze --live: how the listening ended, and the messages the publishers'
+/// sequence numbers say did not arrive (every Shoal message starts with utime,
+/// vehicle_id, seq; seq counts +1 per message of a publisher on a channel).
+struct LiveStream {
+  bool live = false;        // the run was read from a bus, not a log
+  bool end_status = false;  // a run-level end status (finished, failed, interrupted) arrived
+  /// Why the listening stopped: "end status", "idle", "duration", "signal" or "error".
+  std::string stopped_by;
+  double idle_s = 0.0;      // --until-idle in force (0: none)
+  /// Messages missed inside the stream, by channel: the gaps in each publisher's seq on
+  /// SHOAL_CHANNEL, SHOAL_CLOCK, SHOAL_HEALTH_<id> and SHOAL_STATUS. States are judged
+  /// by the run's expected states instead (a restarted vehicle skips seqs it never sent).
+  std::map<std::string, std::int64_t> missed_by_channel;
+  std::int64_t messages_missed() const {
+    std::int64_t k = 0;
+    for (const auto& [ch, n] : missed_by_channel) k += n;
+    return k;
+  }
+};
+
+/// A log written by `shoal retime` (tools/retime_command.h): event timestamps in mission
+/// time; the original recorder's first and last stamps, which the analysis uses for the
+/// wall time, kept in its marker event.
+struct RetimedFrom {
+  bool retimed = false;
+  std::string source;  // the original log's name
+  std::int64_t first_timestamp = 0, last_timestamp = 0;  // [us] the original's stamps
+};
+
+/// The marker event `shoal retime` writes first: not a SHOAL_ channel (no live analysis
+/// subscribes to it, no key is needed for it); its data is a JSON object:
+/// {"format": kRetimedFormat, "source": the original log's file name,
+///  "first_timestamp_us", "last_timestamp_us": the original's stamps, "events": its count}.
+constexpr const char* kRetimedChannel = "SHOAL-RETIMED";
+constexpr const char* kRetimedFormat = "shoal retimed log 1";
+
+/// Reads a marker's data into *out (false if it is not a valid marker).
+bool ParseRetimedMarker(const std::uint8_t* data, int size, RetimedFrom* out);
+
 struct RunData {
   std::string source;  // log path or LCM URL
+  LiveStream stream;   // --live only
+  RetimedFrom retimed_from;  // a retimed log's marker
 
   // Scenario: from the log's first SHOAL_STATUS with scenario text, or given by the caller.
   bool has_scenario = false;

@@ -11,6 +11,7 @@ enum ExitStatus : int {
   kExitOk = 0,             // ran, and the verdict is success
   kExitFailed = 1,         // ran, and the verdict is failure (not converged, diverged, ...)
   kExitBadInput = 2,       // nothing was run: bad options, scenario or input file
+  kExitIncomplete = 3,     // shoal analyze --live: the stream missed part of the run
   kExitInterrupted = 130,  // stopped by SIGINT/SIGTERM (128 + SIGINT, as shells report it)
 };
 

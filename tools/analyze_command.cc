@@ -42,38 +42,52 @@ bool LiveKey(const std::string& key_file, std::optional<bus_auth::Key>* key) {
   return ok;
 }
 
-}  // namespace
-
-int RunAnalyze(const AnalyzeOptions& opt) {
+/// The options' problems, said on stderr before anything is read or listened to.
+bool CheckOptions(const AnalyzeOptions& opt) {
   const char* who = "shoal analyze: ";
   if (opt.live == !opt.log.empty()) {
     std::cerr << who
               << (opt.live ? "give either a LOG or --live, not both"
                            : "give a LOG to analyse, or --live to listen on an LCM URL")
               << "\n";
-    return kExitBadInput;
+    return false;
   }
-  if (!opt.live && (!std::isnan(opt.duration_s) || !opt.lcm_url.empty())) {
-    std::cerr << who << "--duration and --lcm-url go with --live\n";
-    return kExitBadInput;
+  if (!opt.live && (!std::isnan(opt.duration_s) || !opt.lcm_url.empty() ||
+                    !std::isnan(opt.until_idle_s))) {
+    std::cerr << who << "--duration, --until-idle and --lcm-url go with --live\n";
+    return false;
   }
   if (opt.live && !std::isnan(opt.duration_s) && !(opt.duration_s > 0 && std::isfinite(opt.duration_s))) {
     std::cerr << who << "--duration must be a positive number of seconds (got " << opt.duration_s
               << ")\n";
-    return kExitBadInput;
+    return false;
+  }
+  if (opt.live && !std::isnan(opt.until_idle_s) &&
+      !(opt.until_idle_s >= 0 && std::isfinite(opt.until_idle_s))) {
+    std::cerr << who << "--until-idle must be a number of seconds >= 0 (0: never; got "
+              << opt.until_idle_s << ")\n";
+    return false;
   }
   if (!opt.csv_dir.empty()) {  // before listening for a long time, not after it
     struct stat st {};
     if (mkdir(opt.csv_dir.c_str(), 0755) != 0 && errno != EEXIST) {
       std::cerr << who << opt.csv_dir << ": cannot create the CSV directory ("
                 << std::strerror(errno) << ")\n";
-      return kExitBadInput;
+      return false;
     }
     if (stat(opt.csv_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
       std::cerr << who << opt.csv_dir << ": exists and is not a directory; give --csv a directory\n";
-      return kExitBadInput;
+      return false;
     }
   }
+  return true;
+}
+
+}  // namespace
+
+int RunAnalyze(const AnalyzeOptions& opt) {
+  const char* who = "shoal analyze: ";
+  if (!CheckOptions(opt)) return kExitBadInput;
   Scenario scenario;
   LoadOptions lo;
   if (!opt.scenario.empty()) {
@@ -88,6 +102,7 @@ int RunAnalyze(const AnalyzeOptions& opt) {
   lo.key_file = opt.key_file;
   live.url = opt.lcm_url;
   live.duration_s = opt.duration_s;
+  live.until_idle_s = std::isnan(opt.until_idle_s) ? kDefaultUntilIdleS : opt.until_idle_s;
   live.progress = !opt.quiet && !opt.json;
   const bool ok = opt.live ? ReadLiveRun(live, lo, &run, &error)
                            : LoadRunLog(opt.log, lo, &run, &error);
@@ -120,7 +135,12 @@ int RunAnalyze(const AnalyzeOptions& opt) {
   } else {
     PrintAnalysisText(stdout, run, a, source);
   }
-  return kExitOk;
+  if (!opt.live) return kExitOk;
+  const LiveCompleteness c = JudgeLiveStream(run, a);
+  if (c.complete) return kExitOk;
+  std::cerr << who << "INCOMPLETE: the stream missed part of the run (" << c.states_missed
+            << " states missed); the analysis is of the part received\n";
+  return kExitIncomplete;
 }
 
 }  // namespace shoal

@@ -12,6 +12,7 @@
 #include "tools/compare_command.h"
 #include "tools/design_command.h"
 #include "tools/render_command.h"
+#include "tools/retime_command.h"
 #include "tools/run_command.h"
 #include "tools/sim_command.h"
 #include "tools/soak_command.h"
@@ -151,13 +152,32 @@ CLI::App* AddAnalyze(CLI::App* app, shoal::AnalyzeOptions* ana) {
                 "Scenario file to use instead of the one the log carries");
   c->add_flag("--live", ana->live,
               "Listen on an LCM URL (a running swarm or lcm-logplayer) instead of a log; "
-              "ends on Ctrl-C, when the run finishes, or after --duration");
+              "ends on Ctrl-C, when the run finishes, after --duration or --until-idle; "
+              "exit 3 when the stream missed part of the run");
   c->add_option("--lcm-url", ana->lcm_url, "With --live: LCM URL (default: LCM's default)");
   c->add_option("--duration", ana->duration_s, "With --live: stop after S wall-clock seconds");
+  c->add_option("--until-idle", ana->until_idle_s,
+                "With --live: stop when no Shoal message arrived for S wall-clock seconds, "
+                "after the first one (default 30; 0: never)");
   c->add_flag("--quiet", ana->quiet, "No progress line (--live)");
   c->add_option("--key", ana->key_file,
                 "The run's key file: every message must authenticate with it (default: "
                 "<log>.key if it exists; --live: SHOAL_BUS_KEY if set)");
+  return c;
+}
+
+CLI::App* AddRetime(CLI::App* app, shoal::RetimeOptions* ret) {
+  CLI::App* c = app->add_subcommand(
+      "retime",
+      "Copy a run's log with every event stamped at its mission time, so that "
+      "lcm-logplayer replays it at the mission's pace (docs/analyze.md, Replay)");
+  c->add_option("log", ret->log, "LCM log of shoal run, shoal sim or lcm-logger (only read)")
+      ->required();
+  c->add_option("--out", ret->out,
+                "The retimed log (written atomically; <log>.key is copied to <out>.key)")
+      ->required();
+  c->add_flag("--force", ret->force, "Replace --out if it exists (never the input log)");
+  c->add_flag("--quiet", ret->quiet, "No summary line");
   return c;
 }
 
@@ -306,6 +326,8 @@ int main(int argc, char** argv) {
   CLI::App* sweep_cmd = AddSweep(&app, &sweep, &sweep_merge);
   shoal::SoakOptions soak;
   CLI::App* soak_cmd = AddSoak(&app, &soak);
+  shoal::RetimeOptions retime;
+  CLI::App* retime_cmd = AddRetime(&app, &retime);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -326,6 +348,7 @@ int main(int argc, char** argv) {
   if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
   if (design_cmd->parsed()) return shoal::RunDesign(design);
   if (ren_cmd->parsed()) return shoal::RunRender(ren);
+  if (retime_cmd->parsed()) return shoal::RunRetime(retime);
   if (soak_cmd->parsed()) return shoal::RunSoak(soak);
   if (sweep_cmd->parsed()) {
     if (sweep_cmd->get_subcommand("merge")->parsed()) return shoal::RunSweepMerge(sweep_merge);

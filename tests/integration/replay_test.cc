@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -16,8 +17,12 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "runtime/lcm_bus.h"
+#include "runtime/log_reader.h"
+#include "runtime/log_writer.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -143,6 +148,26 @@ void ExpectSameAnalysis(const std::string& orig_text, const nlohmann::ordered_js
   EXPECT_EQ(other["channel_dropped"], 0);
 }
 
+/// A live analysis's verdict on its stream agrees with its figures: complete (exit 0)
+/// only if every expected state arrived; otherwise exit 3 with the states missed counted.
+void ExpectTruthfulLive(int status, const nlohmann::ordered_json& j) {
+  const auto expected = j["log_states_expected"].get<std::int64_t>();
+  const auto got = j["log_states"].get<std::int64_t>();
+  ASSERT_GT(expected, 0) << j;
+  EXPECT_EQ(j["states_missed"].get<std::int64_t>(),
+            std::max<std::int64_t>(0, expected - j["states_missing_in_restarts"].get<std::int64_t>() - got))
+      << j;
+  if (j["complete"] == true) {
+    EXPECT_EQ(status, 0) << j;
+    EXPECT_EQ(j["states_missed"], 0) << j;
+    EXPECT_EQ(j["stream"]["messages_missed"], 0) << j;
+    EXPECT_EQ(j["stream"]["end_status_received"], true) << j;
+  } else {
+    EXPECT_EQ(status, 3) << j;
+    EXPECT_FALSE(j["stream"]["incomplete_reasons"].empty()) << j;
+  }
+}
+
 // Not 8x: re-recording at 8x lost a third of the states on a loaded machine (lcm-logger's
 // 30-message queue), so a replay that fast is no safe test of equality.
 TEST_F(Replay, LoggerReRecordingAnalysesTheSameAtSeveralSpeeds) {
@@ -189,11 +214,15 @@ TEST_F(Replay, LiveAnalysisOfAReplayEndsOnTheFinalStatus) {
   const pid_t ana = Spawn(ShoalBinary() + " analyze --live --json --lcm-url '" + Url(port) + "'", out);
   ASSERT_TRUE(WaitForUdpListener(port, 10)) << "shoal analyze --live did not start";
   EXPECT_EQ(Play(Url(port), 4.0, "replay_live"), 0);
-  EXPECT_EQ(WaitExit(ana, 20, nullptr), 0) << ReadFile(out);
+  const int status = WaitExit(ana, 20, nullptr);
   const auto json = JsonLine(ReadFile(out));
   ExpectSameAnalysis(Orig().json, json);
   EXPECT_EQ(json["lcm_url"], Url(port));
   EXPECT_TRUE(json["log"].is_null()) << json;
+  EXPECT_EQ(json["stream"]["end_status_received"], true) << json;
+  EXPECT_EQ(json["stream"]["stopped_by"], "end status") << json;
+  // Kept up (exit 0, complete) or said what it missed (exit 3): never complete with a gap.
+  ExpectTruthfulLive(status, json);
 }
 
 // Ctrl-C ends a live analysis with the metrics of what arrived so far.
@@ -206,7 +235,8 @@ TEST_F(Replay, LiveAnalysisStopsOnSigintWithWhatItHas) {
                              TmpPath("replay_sigint.player.txt"));
   std::this_thread::sleep_for(std::chrono::seconds(3));  // some of the 30 s run, in real time
   kill(ana, SIGINT);
-  EXPECT_EQ(WaitExit(ana, 10, nullptr), 0) << ReadFile(out);
+  // What it has is a part of the run, and it says so: exit 3, not complete.
+  EXPECT_EQ(WaitExit(ana, 10, nullptr), 3) << ReadFile(out);
   kill(player, SIGTERM);
   WaitExit(player, 10, nullptr);
   const auto json = JsonLine(ReadFile(out));
@@ -214,6 +244,148 @@ TEST_F(Replay, LiveAnalysisStopsOnSigintWithWhatItHas) {
   EXPECT_GT(t, 0.5) << json;
   EXPECT_LT(t, 29.0) << json;
   EXPECT_GT(json["log_states"].get<double>(), 0.0);
+  EXPECT_EQ(json["complete"], false) << json;
+  EXPECT_EQ(json["stream"]["stopped_by"], "signal") << json;
+  EXPECT_GT(json["states_missed"].get<double>(), 1000.0) << json;  // 27 of the 30 s
+}
+
+/// A copy of the original log without the first `head` and the last `tail` fraction of
+/// its events: a stream that starts mid-run, or ends without the run's end status.
+std::string Trimmed(const std::string& name, double head_fraction, double tail_fraction,
+                    std::int64_t* states_cut, std::int64_t drop_channel_every = 0,
+                    std::int64_t* channel_dropped = nullptr) {
+  LcmLogReader r;
+  std::string err;
+  EXPECT_TRUE(r.Open(Orig().log, &err)) << err;
+  std::vector<std::pair<std::string, std::vector<std::uint8_t>>> events;
+  LogEventView ev;
+  while (r.Next(&ev)) events.push_back({std::string(ev.channel), {ev.data, ev.data + ev.size}});
+  const std::string path = TmpPath(name);
+  LogWriter w(path);
+  *states_cut = 0;
+  const auto n = static_cast<double>(events.size());
+  const auto head = static_cast<std::int64_t>(head_fraction * n);
+  const auto tail = static_cast<std::int64_t>(tail_fraction * n);
+  std::int64_t batches = 0;
+  for (std::size_t k = 0; k < events.size(); ++k) {
+    const bool cut = static_cast<std::int64_t>(k) < head ||
+                     static_cast<std::int64_t>(k) >= static_cast<std::int64_t>(events.size()) - tail;
+    if (cut) {
+      *states_cut += events[k].first.rfind("SHOAL_STATE_", 0) == 0;
+      continue;
+    }
+    // Every n-th channel batch after the first, never the last: gaps inside the stream.
+    if (drop_channel_every > 0 && events[k].first == "SHOAL_CHANNEL" && k + 1000 < events.size() &&
+        ++batches % drop_channel_every == 0) {
+      ++*channel_dropped;
+      continue;
+    }
+    // lcm-logplayer paces by these stamps: 0.2 ms apart plays the run in a few seconds.
+    w.WriteRaw(events[k].first, static_cast<std::int64_t>(k) * 200, events[k].second.data(),
+               static_cast<int>(events[k].second.size()));
+  }
+  w.Close();
+  return path;
+}
+
+/// shoal analyze --live --json of `log` played at speed 1; its exit status and JSON.
+std::pair<int, nlohmann::ordered_json> LiveOf(const std::string& log, const std::string& extra,
+                                              const std::string& tag) {
+  const int port = RandomEvenPort();
+  const std::string out = TmpPath(tag + ".json");
+  const pid_t ana = Spawn(ShoalBinary() + " analyze --live --json --lcm-url '" + Url(port) +
+                              "' " + extra, out);
+  EXPECT_TRUE(WaitForUdpListener(port, 10));
+  const std::string cmd = "lcm-logplayer --lcm-url='" + Url(port) + "' " + log;
+  EXPECT_EQ(WaitExit(Spawn(cmd, TmpPath(tag + ".player.txt")), 60, nullptr), 0);
+  double took = 0;
+  const int status = WaitExit(ana, 30, &took);
+  return {status, JsonLine(ReadFile(out))};
+}
+
+// A stream that starts mid-run (the first third of the events, the scenario's status
+// among them, never arrive): the states before it are counted missed, exit 3.
+TEST_F(Replay, LiveStreamStartingMidRunCountsTheStatesMissed) {
+  std::int64_t cut = 0;
+  const std::string log = Trimmed("replay_midrun.lcmlog", 1.0 / 3, 0, &cut);
+  ASSERT_GT(cut, 2000);
+  const auto [status, j] = LiveOf(log, "--scenario " + TmpPath("replay_short.toml"), "replay_midrun");
+  EXPECT_EQ(status, 3) << j;
+  EXPECT_EQ(j["complete"], false) << j;
+  EXPECT_GE(j["states_missed"].get<std::int64_t>(), cut) << j;
+  EXPECT_EQ(j["stream"]["end_status_received"], true) << j;
+  ExpectTruthfulLive(status, j);
+}
+
+// A stream that ends without the run's end status (the player stops early): --until-idle
+// ends the listening, and the analysis says that the run may have gone on.
+TEST_F(Replay, LiveStreamEndingWithoutEndStatusStopsWhenIdle) {
+  std::int64_t cut = 0;
+  const std::string log = Trimmed("replay_cut.lcmlog", 0, 1.0 / 3, &cut);
+  ASSERT_GT(cut, 2000);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto [status, j] = LiveOf(log, "--until-idle 1", "replay_cut");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 40.0);
+  EXPECT_EQ(status, 3) << j;
+  EXPECT_EQ(j["complete"], false) << j;
+  EXPECT_EQ(j["stream"]["end_status_received"], false) << j;
+  EXPECT_EQ(j["stream"]["stopped_by"], "idle") << j;
+  EXPECT_EQ(j["stream"]["until_idle_s"], 1.0) << j;
+  EXPECT_GE(j["states_missed"].get<std::int64_t>(), cut) << j;
+  ExpectTruthfulLive(status, j);
+}
+
+// Channel batches lost inside the stream (every 50th here) are counted from their
+// sequence numbers, apart from the states: the stream is incomplete, exit 3.
+TEST_F(Replay, LiveCountsGapsInTheOtherChannels) {
+  std::int64_t cut = 0, dropped = 0;
+  const std::string log = Trimmed("replay_gaps.lcmlog", 0, 0, &cut, 50, &dropped);
+  ASSERT_GT(dropped, 5);
+  const auto [status, j] = LiveOf(log, "", "replay_gaps");
+  EXPECT_EQ(status, 3) << j;
+  EXPECT_EQ(j["complete"], false) << j;
+  EXPECT_GE(j["stream"]["messages_missed_by_channel"]["SHOAL_CHANNEL"].get<std::int64_t>(), dropped)
+      << j;
+  ExpectTruthfulLive(status, j);
+}
+
+// The text says it before any figure; stderr says it too.
+TEST_F(Replay, LiveTextSaysTheStreamIsIncomplete) {
+  std::int64_t cut = 0;
+  const std::string log = Trimmed("replay_cut_text.lcmlog", 0, 1.0 / 3, &cut);
+  const int port = RandomEvenPort();
+  const std::string out = TmpPath("replay_cut_text.txt");
+  const pid_t ana = Spawn(ShoalBinary() + " analyze --live --until-idle 1 --lcm-url '" +
+                              Url(port) + "'", out);
+  ASSERT_TRUE(WaitForUdpListener(port, 10));
+  EXPECT_EQ(WaitExit(Spawn("lcm-logplayer --lcm-url='" + Url(port) + "' " + log,
+                           TmpPath("replay_cut_text.player.txt")), 60, nullptr), 0);
+  EXPECT_EQ(WaitExit(ana, 30, nullptr), 3);
+  const std::string text = ReadFile(out);
+  EXPECT_NE(text.find("INCOMPLETE STREAM"), std::string::npos) << text;
+  EXPECT_NE(text.find("no run-level end status arrived"), std::string::npos) << text;
+  EXPECT_LT(text.find("INCOMPLETE STREAM"), text.find("converged")) << text;
+}
+
+// A player far faster than the analysis can take: it keeps up or counts what it missed.
+TEST_F(Replay, LiveAtAnySpeedKeepsUpOrSaysWhatItMissed) {
+  const int port = RandomEvenPort();
+  const std::string out = TmpPath("replay_fast.json");
+  const pid_t ana = Spawn(ShoalBinary() + " analyze --live --json --until-idle 2 --lcm-url '" +
+                              Url(port) + "'", out);
+  ASSERT_TRUE(WaitForUdpListener(port, 10));
+  EXPECT_EQ(Play(Url(port), 1000.0, "replay_fast"), 0);
+  const int status = WaitExit(ana, 30, nullptr);
+  ExpectTruthfulLive(status, JsonLine(ReadFile(out)));
+}
+
+TEST(ReplayOptions, UntilIdleGoesWithLiveAndIsNotNegative) {
+  auto r = RunShoal("analyze x.lcmlog --until-idle 1", "replay_idle_log");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("go with --live"), std::string::npos) << r.err;
+  r = RunShoal("analyze --live --until-idle -1", "replay_idle_neg");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--until-idle"), std::string::npos) << r.err;
 }
 
 // Nothing on the bus: a clear message and exit 2 after --duration.
