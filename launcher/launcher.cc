@@ -725,6 +725,11 @@ void Launch::PlanNodes() {
       more.insert(more.end(), {"--checkpoint", p.checkpoint});
     }
     if (!p.reset_ticks.empty()) more.push_back("--stop-before-resets");
+    // A lockstep window's states as one datagram: lcm-logger records them one by one
+    // only with the shim, which unpacks such bundles (runtime/lcm_queue_shim.c).
+    if (mode_ == Mode::kLockstep && !logger_queue_shim_.empty()) {
+      more.push_back("--bundle-publishes");
+    }
     p.argv = ProcessArgs(id == 0 ? leader_exe_ : vehicle_exe_, more);
     p.nice_inc = run_nice;
     plan_.processes.push_back(p);

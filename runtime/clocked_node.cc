@@ -63,6 +63,10 @@ void ClockedNode::Enqueue(int kind, const void* data, int size) {
 
 int ClockedNode::HandleBus(int timeout_ms) {
   const int handled = rx_bus_->Handle(timeout_ms);
+  // What the inbox's ticks publish goes out together after it (BundlePublishes).
+  const bool bundle = bundle_publishes_ && mode_ == Mode::kLockstep && !checkpoint_ &&
+                      inbox_size_ > 0;
+  if (bundle) bus_->BeginBundle(/*recordable=*/true);
   // Applied in arrival order, each as its handler would have done it: entries stay in
   // place (their buffers are reused) and the inbox is empty again at the end.
   for (std::size_t k = 0; k < inbox_size_; ++k) {
@@ -78,6 +82,7 @@ int ClockedNode::HandleBus(int timeout_ms) {
     }
   }
   inbox_size_ = 0;
+  if (bundle) bus_->EndBundle();  // a failed publish is not fatal here, as in Step
   return handled;
 }
 
@@ -386,6 +391,11 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
   app->add_flag("--stop-before-resets", stop_before_resets,
                 "With --checkpoint: stop (SIGSTOP) after the tick before each controller "
                 "reset of this vehicle, for shoal run to restart the process there");
+  bool bundle_publishes = false;
+  app->add_flag("--bundle-publishes", bundle_publishes,
+                "Lockstep: publish a window's states and health on the shared bus as one "
+                "recordable bundle (every receiver of that bus must unpack it: shoal run "
+                "gives it when lcm-logger has runtime/lcm_queue_shim.c preloaded)");
   Scenario s;
   const int started = StartProcess(app, argc, argv, name, &opt, &s);
   if (started >= 0) return started;
@@ -415,6 +425,7 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
       return 2;
     }
     if (stop_before_resets) node->StopBeforeResets();
+    if (bundle_publishes) node->BundlePublishes();
     node->Init();
     const int status = node->Run();
     std::cerr << name << ": " << bus_auth::ExitNote(auth, c.rx_bus->rejected()) << "\n";

@@ -69,6 +69,14 @@ class ClockedNode {
   /// stops itself (SIGSTOP) for shoal run to kill it and start it again from that
   /// checkpoint. With a checkpoint only (EnableCheckpoints).
   void StopBeforeResets();
+  /// Lockstep: what the process publishes while it applies what one HandleBus call took
+  /// (a window's ticks: their states, and health) goes out on the shared bus as one
+  /// recordable bundle (Bus::BeginBundle): one datagram, one wake-up of the clock master and
+  /// of lcm-logger, per window instead of per message. Only when every receiver of the
+  /// shared bus is an LcmBus or lcm-logger with runtime/lcm_queue_shim.c (shoal run says so
+  /// with --bundle-publishes). Not with checkpoints: a checkpoint must follow its state's
+  /// publication.
+  void BundlePublishes() { bundle_publishes_ = true; }
   /// The ticks at which the scenario resets follower `id`'s controller and a process can
   /// stop before (1..final_tick: a reset at tick 0 has no tick before it).
   static std::vector<std::int64_t> ResetTicks(const Scenario& s, int id, std::int64_t final_tick);
@@ -174,6 +182,7 @@ class ClockedNode {
   std::int64_t last_step_ns_ = 0;  // lockstep: when a tick was last stepped
   bool done_ = false;
   bool stepped_ = false;  // a tick was stepped by this process
+  bool bundle_publishes_ = false;  // BundlePublishes()
   // Restart: where checkpoints go, and (resumed) from where and why.
   std::unique_ptr<CheckpointFile> checkpoint_;
   CheckpointPayload checkpoint_payload_;

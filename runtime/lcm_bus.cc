@@ -31,24 +31,32 @@ bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) 
     return PublishSigned(channel, data, size);
   }
   if (size > 0 && data == nullptr) return false;
-  const std::size_t part = 1 + channel.size() + 4 + static_cast<std::size_t>(size);
+  // A recordable bundle's part is the message as it would go out alone: with its trailer.
+  const int trailer = recordable_ && auth_ ? bus_auth::kTrailerBytes : 0;
+  const std::size_t bytes = static_cast<std::size_t>(size) + static_cast<std::size_t>(trailer);
+  const std::size_t part = 1 + channel.size() + 4 + bytes;
   bool ok = true;
   if (bundle_parts_ > 0 && bundle_.size() + part > bundle_wire::kMaxBytes) ok = FlushBundle();
   bundle_.push_back(static_cast<unsigned char>(channel.size()));
   bundle_.insert(bundle_.end(), channel.begin(), channel.end());
   for (int shift = 24; shift >= 0; shift -= 8) {
-    bundle_.push_back(static_cast<unsigned char>(static_cast<std::uint32_t>(size) >> shift));
+    bundle_.push_back(static_cast<unsigned char>(static_cast<std::uint32_t>(bytes) >> shift));
   }
-  const auto* bytes = static_cast<const unsigned char*>(data);
-  if (size > 0) bundle_.insert(bundle_.end(), bytes, bytes + size);
+  const auto* in = static_cast<const unsigned char*>(data);
+  if (size > 0) bundle_.insert(bundle_.end(), in, in + size);
+  if (trailer > 0) {
+    bundle_.resize(bundle_.size() + static_cast<std::size_t>(trailer));
+    auth_->Sign(channel, data, size, bundle_.data() + bundle_.size() - trailer);
+  }
   ++bundle_parts_;
   return ok;
 }
 
-void LcmBus::BeginBundle() {
+void LcmBus::BeginBundle(bool recordable) {
   // Nested: receivers that share one bus each open a bundle on it; what they queued goes
   // out together when the outermost closes, none of it dropped by a later Begin.
   if (bundle_depth_++ > 0) return;
+  recordable_ = recordable;
   if (bundle_.capacity() < static_cast<std::size_t>(bundle_wire::kMaxBytes)) {
     // The largest bundle's buffers, written once now: as windows grow with the channel's
     // delay, buffers that grew with them would show as memory growth late in a long run
@@ -58,7 +66,12 @@ void LcmBus::BeginBundle() {
   }
   bundling_ = true;
   bundle_parts_ = 0;
-  bundle_.assign(std::begin(bundle_wire::kMagic), std::end(bundle_wire::kMagic));
+  if (recordable) {
+    bundle_.assign(std::begin(bundle_wire::kMagicRecordable),
+                   std::end(bundle_wire::kMagicRecordable));
+  } else {
+    bundle_.assign(std::begin(bundle_wire::kMagic), std::end(bundle_wire::kMagic));
+  }
 }
 
 bool LcmBus::EndBundle() {
@@ -73,9 +86,15 @@ bool LcmBus::FlushBundle() {
   bool ok = true;
   if (bundle_parts_ == 1) {  // alone: as it is, no bundle around it
     bundle_wire::ForEachPart(bundle_.data(), static_cast<int>(bundle_.size()),
-                             [&](const std::string& ch, const unsigned char* d, int n) {
-                               ok = PublishSigned(ch, d, n);
+                             [&](std::string_view ch, const unsigned char* d, int n) {
+                               const std::string name(ch);
+                               // A recordable part is signed already.
+                               ok = recordable_ ? lcm_.publish(name, d, static_cast<unsigned>(n)) == 0
+                                                : PublishSigned(name, d, n);
                              });
+  } else if (bundle_parts_ > 1 && recordable_) {
+    ok = lcm_.publish(bundle_wire::kChannel, bundle_.data(),
+                      static_cast<unsigned int>(bundle_.size())) == 0;
   } else if (bundle_parts_ > 1) {
     ok = PublishSigned(bundle_wire::kChannel, bundle_.data(), static_cast<int>(bundle_.size()));
   }
@@ -123,6 +142,7 @@ void LcmBus::Subscribe(const std::string& channel, Handler handler) {
   if (channel.find_first_of(".[]()*+?{}|^$\\") != std::string::npos) {
     pattern.emplace(channel, std::regex::extended);
   }
+  routes_.clear();  // a bundle's parts may match the new subscription too
   subs_.push_back(std::make_unique<Sub>(
       Sub{std::move(handler), &auth_, &rejected_, channel, std::move(pattern)}));
   lcm::Subscription* s = lcm_.subscribe(channel, &Sub::On, subs_.back().get());
@@ -138,22 +158,51 @@ void LcmBus::Subscribe(const std::string& channel, Handler handler) {
 
 void LcmBus::OnBundle(const lcm::ReceiveBuffer* rb, const std::string& channel) {
   int size = static_cast<int>(rb->data_size);
-  if (auth_) size = auth_->Verify(channel, rb->data, size);
   const auto* p = static_cast<const unsigned char*>(rb->data);
-  const bool ok = size >= 0 && bundle_wire::ForEachPart(
-      p, size, [&](const std::string& ch, const unsigned char* d, int n) {
-        for (const std::unique_ptr<Sub>& sub : subs_) {
-          if (sub->Matches(ch)) sub->handler(ch, n > 0 ? d : nullptr, n);
-        }
-      });
+  const bool recordable = bundle_wire::Recordable(p, size);
+  if (auth_ && !recordable) size = auth_->Verify(channel, rb->data, size);
+  bool ok = size >= 0;
+  if (ok && recordable && auth_) {
+    // Each part verified as the message it would be alone; the bundle is taken entire or
+    // not at all.
+    ok = bundle_wire::ForEachPart(p, size, [&](std::string_view ch, const unsigned char* d, int n) {
+      ok = ok && auth_->Verify(ch, d, n) >= 0;
+    }) && ok;
+  }
+  ok = ok && bundle_wire::ForEachPart(p, size, [&](std::string_view ch, const unsigned char* d, int n) {
+    if (recordable && auth_) n -= bus_auth::kTrailerBytes;  // verified above
+    for (Sub* sub : SubsFor(ch)) {
+      sub->handler(std::string(ch), n > 0 ? d : nullptr, n);
+    }
+  });
   if (!ok) ++rejected_;  // forged, damaged, or not a bundle
 }
 
+const std::vector<LcmBus::Sub*>& LcmBus::SubsFor(std::string_view channel) {
+  auto found = routes_.find(channel);
+  if (found != routes_.end()) return found->second;
+  // Bounded: a flood of forged bundles naming ever new channels must not grow it.
+  if (routes_.size() >= 4096) routes_.clear();
+  std::vector<Sub*>& subs = routes_[std::string(channel)];
+  for (const std::unique_ptr<Sub>& sub : subs_) {
+    if (sub->Matches(channel)) subs.push_back(sub.get());
+  }
+  return subs;
+}
+
 namespace bundle_wire {
+bool Recordable(const unsigned char* p, int size) {
+  return p != nullptr && size >= static_cast<int>(sizeof(kMagicRecordable)) &&
+         std::memcmp(p, kMagicRecordable, sizeof(kMagicRecordable)) == 0;
+}
+
 bool ForEachPart(const unsigned char* p, int size,
-                 const std::function<void(const std::string&, const unsigned char*, int)>& part) {
+                 const std::function<void(std::string_view, const unsigned char*, int)>& part) {
   const int magic = static_cast<int>(sizeof(kMagic));
-  if (p == nullptr || size < magic || std::memcmp(p, kMagic, sizeof(kMagic)) != 0) return false;
+  if (p == nullptr || size < magic ||
+      (std::memcmp(p, kMagic, sizeof(kMagic)) != 0 && !Recordable(p, size))) {
+    return false;
+  }
   // Checked whole before any part is handed on: a bundle is taken entire or not at all.
   for (int pass = 0; pass < 2; ++pass) {
     for (int pos = magic; pos < size;) {
@@ -170,7 +219,8 @@ bool ForEachPart(const unsigned char* p, int size,
                                   (std::uint32_t{n[2]} << 8) | std::uint32_t{n[3]};
       if (bytes > static_cast<std::uint32_t>(size - pos - 1 - len - 4)) return false;
       if (pass == 1) {
-        part(std::string(reinterpret_cast<const char*>(p + pos + 1), static_cast<std::size_t>(len)),
+        part(std::string_view(reinterpret_cast<const char*>(p + pos + 1),
+                              static_cast<std::size_t>(len)),
              n + 4, static_cast<int>(bytes));
       }
       pos += 1 + len + 4 + static_cast<int>(bytes);

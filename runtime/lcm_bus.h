@@ -15,10 +15,12 @@
 #include <cstdint>
 #include <cstring>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <regex>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lcmtypes/wire.h"
@@ -50,7 +52,15 @@ class Bus {
   /// the receiver, instead of one per message. Only for buses whose every receiver is an
   /// LcmBus (lcm-logger records a bundle as one message on kBundleChannel). By default the
   /// messages go out one by one.
-  virtual void BeginBundle() {}
+  ///
+  /// `recordable`: each part is authenticated on its own, exactly as it would be if it went
+  /// out alone, and the bundle is not authenticated as a whole (bundle_wire::kMagicRecordable):
+  /// an LcmBus without a key then hands its subscribers the parts as they would have come
+  /// alone (trailer included), and lcm-logger with runtime/lcm_queue_shim.c preloaded records
+  /// each part as a message of its own, so the log is what the messages sent one by one make
+  /// it. For a bus lcm-logger records only with that shim preloaded. Nested: the outermost
+  /// BeginBundle decides.
+  virtual void BeginBundle(bool recordable = false) { (void)recordable; }
   /// Sends what BeginBundle kept (a single message as it is). False if a publish failed.
   virtual bool EndBundle() { return true; }
 
@@ -81,7 +91,7 @@ class LcmBus : public Bus {
   void Subscribe(const std::string& channel, Handler handler) override;
   int Handle(int timeout_ms) override;
   std::int64_t rejected() const override { return rejected_; }
-  void BeginBundle() override;
+  void BeginBundle(bool recordable = false) override;
   bool EndBundle() override;
   int fileno() { return lcm_.getFileno(); }
   const std::string& url() const { return url_; }
@@ -94,8 +104,8 @@ class LcmBus : public Bus {
     std::int64_t* rejected;
     std::string channel;  // the pattern as given, and as a regex when it is not a plain
     std::optional<std::regex> pattern;  // name: to route the parts of a bundle
-    bool Matches(const std::string& ch) const {
-      return pattern ? std::regex_match(ch, *pattern) : ch == channel;
+    bool Matches(std::string_view ch) const {
+      return pattern ? std::regex_match(ch.begin(), ch.end(), *pattern) : ch == channel;
     }
     void On(const lcm::ReceiveBuffer* rb, const std::string& channel);
   };
@@ -104,6 +114,9 @@ class LcmBus : public Bus {
   /// A bundle received: verified as one message, then each part to the subscriptions whose
   /// pattern matches its channel, in order.
   void OnBundle(const lcm::ReceiveBuffer* rb, const std::string& channel);
+  /// The subscriptions whose pattern matches `channel` (a bundle part's), remembered per
+  /// channel: a regular expression is matched once per channel, not once per part.
+  const std::vector<Sub*>& SubsFor(std::string_view channel);
   bool FlushBundle();
   std::string url_;
   lcm::LCM lcm_;
@@ -113,24 +126,32 @@ class LcmBus : public Bus {
   std::vector<std::unique_ptr<Sub>> subs_;
   bool receiving_ = false;  // subscribed, and LCM's receive socket is open
   bool bundling_ = false;   // between BeginBundle and EndBundle
+  bool recordable_ = false;  // the open bundle's parts are signed each (kMagicRecordable)
   int bundle_depth_ = 0;    // BeginBundle calls not yet ended
   int bundle_parts_ = 0;
   std::vector<unsigned char> bundle_;  // kBundleMagic, then the parts (bundle_wire below)
+  std::map<std::string, std::vector<Sub*>, std::less<>> routes_;  // SubsFor's memory
 };
 
 /// A bundle's channel and wire format: the 4-byte magic, then per part its channel's length
 /// (1 byte, 1..kMaxChannel), the channel, the part's size (4 bytes, big-endian) and its
-/// bytes; authenticated as one message. A bundle is cut before it would pass kMaxBytes,
-/// well under what LCM sends in one datagram (a part larger than that goes alone).
+/// bytes. kMagic: authenticated as one message (the parts carry no trailer). kMagicRecordable:
+/// each part is a message as it would go out alone, its own trailer included, and the bundle
+/// has none (runtime/lcm_queue_shim.c parses this form too, in C: keep the two in step). A
+/// bundle is cut before it would pass kMaxBytes, well under what LCM sends in one datagram (a
+/// part larger than that goes alone).
 namespace bundle_wire {
 constexpr const char* kChannel = "SHOAL_BUNDLE";
 constexpr unsigned char kMagic[4] = {'S', 'H', 'B', '1'};
+constexpr unsigned char kMagicRecordable[4] = {'S', 'H', 'B', '2'};
 constexpr int kMaxChannel = 63;  // LCM's longest channel name
 constexpr int kMaxBytes = 60000;
 /// Calls part(channel, data, size) for each part, in order; false (having called it for
-/// none) if the bytes are not a well-formed bundle.
+/// none) if the bytes are not a well-formed bundle (either magic).
 bool ForEachPart(const unsigned char* p, int size,
-                 const std::function<void(const std::string&, const unsigned char*, int)>& part);
+                 const std::function<void(std::string_view, const unsigned char*, int)>& part);
+/// Whether the bytes start with kMagicRecordable.
+bool Recordable(const unsigned char* p, int size);
 }  // namespace bundle_wire
 
 /// Whether the array counts a message declares fit its size. LCM 1.3.1's generated

@@ -1,23 +1,86 @@
-/* Preloaded into the run's lcm-logger (LD_PRELOAD, set by shoal run): every subscription
-   lcm-logger makes gets a queue of SHOAL_LOGGER_QUEUE_CAPACITY messages instead of LCM's 30.
+/* Preloaded into the run's lcm-logger (LD_PRELOAD, set by shoal run). Two things, both on
+   lcm-logger's behalf, through LCM's public API:
 
-   Why: LCM's receive thread reads each datagram off the socket and queues it for the
-   subscription until the program's handler thread takes it; beyond the queue's capacity it
-   drops the message. lcm-logger 1.3.1 (Debian liblcm-bin) never sets the capacity and has
-   no option for it, so a burst of more than 30 messages that arrives while its handler
-   thread waits for the CPU -- the states of 64 vehicles stepping the same tick, in lockstep
-   or in real time -- loses states from the log. lcm_subscription_set_queue_capacity is
-   LCM's public API for exactly this; the shim only calls it on lcm-logger's behalf.
-   Memory stays bounded: the queue holds what was received and not yet handed to the
-   logger's writer, which itself drops beyond its --max-unwritten-mb. */
+   1. Every subscription lcm-logger makes gets a queue of SHOAL_LOGGER_QUEUE_CAPACITY
+      messages instead of LCM's 30. LCM's receive thread reads each datagram off the socket
+      and queues it for the subscription until the program's handler thread takes it; beyond
+      the queue's capacity it drops the message. lcm-logger 1.3.1 (Debian liblcm-bin) never
+      sets the capacity and has no option for it, so a burst of more than 30 messages that
+      arrives while its handler thread waits for the CPU -- the states of 64 vehicles
+      stepping the same tick, in lockstep or in real time -- loses states from the log.
+      Memory stays bounded: the queue holds what was received and not yet handed to the
+      logger's writer, which itself drops beyond its --max-unwritten-mb.
+
+   2. A recordable bundle (runtime/lcm_bus.h, bundle_wire: magic "SHB2" on SHOAL_BUNDLE,
+      each part a message as it would go out alone, its authentication trailer included) is
+      handed to lcm-logger's handler part by part, each on its own channel with the bundle's
+      receive time, so that the log holds the messages as if each had been published alone:
+      readers of the log never see the bundle. A process sends its states of a lockstep
+      window as one such bundle: one datagram and one wake-up of the logger for many
+      messages. Anything else (a malformed bundle too) is handed on as it came. */
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <lcm/lcm.h>
+#include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "runtime/lcm_queue_shim.h"
 
 typedef lcm_subscription_t *(*SubscribeFn)(lcm_t *, const char *, lcm_msg_handler_t, void *);
+
+/* lcm-logger's own handler and its argument, for one subscription. */
+typedef struct {
+    lcm_msg_handler_t handler;
+    void *user;
+} Target;
+
+static const char kBundleChannel[] = "SHOAL_BUNDLE";
+static const unsigned char kRecordable[4] = {'S', 'H', 'B', '2'};
+enum { kMaxChannel = 63 };
+
+/* Walks the parts of a recordable bundle: with `t` NULL only checks that it is well formed
+   (a bundle is handed on entire or not at all); else hands each part to t's handler. */
+static int ForEachPart(const lcm_recv_buf_t *rbuf, const Target *t)
+{
+    const unsigned char *p = (const unsigned char *) rbuf->data;
+    const uint32_t size = rbuf->data_size;
+    uint32_t pos = sizeof(kRecordable);
+    while (pos < size) {
+        const uint32_t len = p[pos];
+        if (len < 1 || len > kMaxChannel || size - pos - 1 < len + 4) return 0;
+        if (len == sizeof(kBundleChannel) - 1 && memcmp(p + pos + 1, kBundleChannel, len) == 0) {
+            return 0; /* never a bundle inside a bundle */
+        }
+        const unsigned char *n = p + pos + 1 + len;
+        const uint32_t bytes =
+            ((uint32_t) n[0] << 24) | ((uint32_t) n[1] << 16) | ((uint32_t) n[2] << 8) | n[3];
+        if (bytes > size - pos - 1 - len - 4) return 0;
+        if (t != NULL) {
+            char channel[kMaxChannel + 1];
+            memcpy(channel, p + pos + 1, len);
+            channel[len] = '\0';
+            lcm_recv_buf_t part = *rbuf;
+            part.data = (void *) (n + 4);
+            part.data_size = bytes;
+            t->handler(&part, channel, t->user);
+        }
+        pos += 1 + len + 4 + bytes;
+    }
+    return 1;
+}
+
+static void Unbundle(const lcm_recv_buf_t *rbuf, const char *channel, void *user)
+{
+    const Target *t = (const Target *) user;
+    if (strcmp(channel, kBundleChannel) == 0 && rbuf->data_size >= sizeof(kRecordable) &&
+        memcmp(rbuf->data, kRecordable, sizeof(kRecordable)) == 0 && ForEachPart(rbuf, NULL)) {
+        ForEachPart(rbuf, t);
+        return;
+    }
+    t->handler(rbuf, channel, t->user);
+}
 
 lcm_subscription_t *lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler,
                                   void *userdata)
@@ -30,8 +93,17 @@ lcm_subscription_t *lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handl
             return NULL;
         }
     }
-    lcm_subscription_t *s = real(lcm, channel, handler, userdata);
-    if (s != NULL && lcm_subscription_set_queue_capacity(s, SHOAL_LOGGER_QUEUE_CAPACITY) != 0) {
+    /* Lives as long as the subscription: lcm-logger subscribes once, for the whole run. */
+    Target *t = (Target *) malloc(sizeof(Target));
+    if (t == NULL) return real(lcm, channel, handler, userdata);
+    t->handler = handler;
+    t->user = userdata;
+    lcm_subscription_t *s = real(lcm, channel, Unbundle, t);
+    if (s == NULL) {
+        free(t);
+        return NULL;
+    }
+    if (lcm_subscription_set_queue_capacity(s, SHOAL_LOGGER_QUEUE_CAPACITY) != 0) {
         fprintf(stderr, "shoal lcm queue shim: cannot set the queue capacity of \"%s\"\n",
                 channel);
     }

@@ -4,11 +4,13 @@
 // and a message it accepts must encode again to exactly `size` bytes that decode too --
 // unless a string holds a NUL byte: LCM's decoder keeps the string's bytes as they are,
 // its encoder writes them up to the first NUL (strlen), so such a message re-encodes
-// shorter (and encode() returns less than getEncodedSize()).
+// shorter (and encode() returns less than getEncodedSize()). The same bytes are also read
+// as a bundle (BundleParts).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <shoal/channel_event_t.hpp>
@@ -56,6 +58,25 @@ void DecodeOne(const std::uint8_t* data, int size) {
   if (!shoal::Decode(buf.data(), encoded_size, &again)) std::abort();
 }
 
+// The same bytes as a bundle (either form, bundle_wire in runtime/lcm_bus.h): every part
+// it hands on lies inside the bundle, with a channel of 1..kMaxChannel characters, and the
+// parts with their headers cover the bundle exactly; a bundle it refuses hands on nothing.
+void BundleParts(const std::uint8_t* p, int size) {
+  std::int64_t covered = sizeof(shoal::bundle_wire::kMagic);
+  int parts = 0;
+  const bool ok = shoal::bundle_wire::ForEachPart(
+      p, size, [&](std::string_view ch, const unsigned char* d, int n) {
+        if (ch.empty() || ch.size() > static_cast<std::size_t>(shoal::bundle_wire::kMaxChannel) ||
+            n < 0 || d < p || d + n > p + size) {
+          std::abort();
+        }
+        covered += 1 + static_cast<std::int64_t>(ch.size()) + 4 + n;
+        ++parts;
+      });
+  if (!ok && parts != 0) std::abort();
+  if (ok && covered != size) std::abort();
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -74,5 +95,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     case 5: DecodeOne<shoal::run_status_t>(msg, n); break;
     case 6: DecodeOne<shoal::channel_event_t>(msg, n); break;
   }
+  BundleParts(msg, n);
   return 0;
 }

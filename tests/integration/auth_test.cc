@@ -21,6 +21,7 @@
 #include <shoal/vehicle_state_t.hpp>
 
 #include "runtime/bus_auth.h"
+#include "runtime/lcm_bus.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -65,6 +66,7 @@ class Forger {
  public:
   explicit Forger(const std::string& url) : lcm_(url), other_key_(bus_auth::NewKey()) {
     lcm_.subscribe("SHOAL_STATE_1", &Forger::OnState, this);
+    lcm_.subscribe(bundle_wire::kChannel, &Forger::OnBundle, this);
     lcm_.subscribe("SHOAL_CLOCK", &Forger::OnClock, this);
     thread_ = std::thread([this] { Loop(); });
   }
@@ -77,14 +79,26 @@ class Forger {
 
  private:
   void OnState(const lcm::ReceiveBuffer* rb, const std::string&) {
-    const Bytes p = Payload(rb);
+    TakeState(static_cast<const unsigned char*>(rb->data), static_cast<int>(rb->data_size));
+  }
+  // Lockstep: a process sends its window's states as one recordable bundle, each part
+  // the message as it would be alone, trailer and all.
+  void OnBundle(const lcm::ReceiveBuffer* rb, const std::string&) {
+    bundle_wire::ForEachPart(static_cast<const unsigned char*>(rb->data),
+                             static_cast<int>(rb->data_size),
+                             [&](std::string_view ch, const unsigned char* d, int n) {
+                               if (ch == "SHOAL_STATE_1") TakeState(d, n);
+                             });
+  }
+  void TakeState(const unsigned char* d, int size) {
+    int n = size;
+    if (bus_auth::HasTrailer(d, n)) n -= bus_auth::kTrailerBytes;
     vehicle_state_t m{};
-    if (m.decode(p.data(), 0, static_cast<int>(p.size())) != static_cast<int>(p.size())) return;
+    if (m.decode(d, 0, n) != n) return;
     if (m.seq > 1000000) return;  // our own
     state_ = m;
     have_state_ = true;
-    state_raw_.assign(static_cast<const unsigned char*>(rb->data),
-                      static_cast<const unsigned char*>(rb->data) + rb->data_size);
+    state_raw_.assign(d, d + size);
   }
   void OnClock(const lcm::ReceiveBuffer* rb, const std::string&) {
     const Bytes p = Payload(rb);

@@ -2,13 +2,22 @@
 // (runtime/lcm_queue_shim.c, preloaded by shoal run), so that the states of many vehicles
 // stepping the same tick are all logged, and lockstep windows are no longer cut to 20
 // logger messages (docs/run.md, "The logger's queue").
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
 #include "runtime/lcm_bus.h"
+#include "runtime/log_reader.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -60,6 +69,72 @@ TEST(LoggerQueue, FortyFollowersInLockstepLogEveryStateInWindowsOfTheChannelsLag
   EXPECT_NE(ReadFile(log + ".d/emulator.txt").find("lockstep, 3 tick(s) per round trip"),
             std::string::npos)
       << ReadFile(log + ".d/emulator.txt");
+}
+
+// Given lcm-logger with the preloaded library, when a process publishes a recordable
+// bundle (its lockstep window's states and health) and then a message alone, then the log
+// holds each part as a message of its own, on its channel, byte for byte what it would be
+// had it been published alone (trailer included), in order; a malformed recordable bundle
+// is recorded as it came, on the bundle channel.
+TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
+  const std::string shim = std::string(SHOAL_BINARY_DIR) + "/runtime/libshoal_lcm_queue.so";
+  const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
+  const std::string log = TmpPath("recordable_bundle.lcmlog");
+  std::remove(log.c_str());
+  const std::string preload = "LD_PRELOAD=" + shim;
+  const std::string url_arg = "--lcm-url=" + url;
+  std::vector<char*> argv = {const_cast<char*>("/usr/bin/lcm-logger"),
+                             const_cast<char*>(url_arg.c_str()), const_cast<char*>("-f"),
+                             const_cast<char*>("-q"), const_cast<char*>("--"),
+                             const_cast<char*>(log.c_str()), nullptr};
+  std::vector<char*> envp = {const_cast<char*>(preload.c_str()), nullptr};
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), envp.data()), 0);
+  for (int i = 0; i < 100 && access(log.c_str(), F_OK) != 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // subscribed
+  bus_auth::Key key;
+  key.fill(4);
+  LcmBus bus(url, key);
+  bus.BeginBundle(/*recordable=*/true);
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_STATE_4", "tick0", 5));
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_STATE_4", "tick1", 5));
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_HEALTH_4", "health", 6));
+  ASSERT_TRUE(bus.EndBundle());
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_STATUS", "alone", 5));
+  const unsigned char bad[] = {'S', 'H', 'B', '2', 3, 'A', 'B', 'C', 0, 0, 0, 9, 'x'};
+  LcmBus plain(url);
+  ASSERT_TRUE(plain.PublishRaw(bundle_wire::kChannel, bad, sizeof(bad)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+
+  LcmLogReader reader;
+  std::string error;
+  ASSERT_TRUE(reader.Open(log, &error)) << error;
+  std::vector<std::pair<std::string, std::string>> events;
+  LogEventView ev;
+  while (reader.Next(&ev)) {
+    events.emplace_back(std::string(ev.channel),
+                        std::string(reinterpret_cast<const char*>(ev.data),
+                                    static_cast<std::size_t>(ev.size)));
+  }
+  const std::vector<std::pair<std::string, std::string>> sent = {
+      {"SHOAL_STATE_4", "tick0"}, {"SHOAL_STATE_4", "tick1"}, {"SHOAL_HEALTH_4", "health"},
+      {"SHOAL_STATUS", "alone"}};
+  ASSERT_EQ(events.size(), sent.size() + 1);
+  for (std::size_t k = 0; k < sent.size(); ++k) {
+    const std::string& text = sent[k].second;
+    std::string alone = text + std::string(bus_auth::kTrailerBytes, '\0');
+    bus_auth::Sign(key, sent[k].first, text.data(), static_cast<int>(text.size()),
+                   reinterpret_cast<unsigned char*>(&alone[text.size()]));
+    EXPECT_EQ(events[k].first, sent[k].first) << k;
+    EXPECT_EQ(events[k].second, alone) << k;
+  }
+  EXPECT_EQ(events.back().first, bundle_wire::kChannel);
+  EXPECT_EQ(events.back().second, std::string(reinterpret_cast<const char*>(bad), sizeof(bad)));
 }
 
 }  // namespace

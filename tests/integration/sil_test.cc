@@ -452,8 +452,22 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
         *have = true;
       }
     }
+    // In lockstep a process sends its window's states as one recordable bundle
+    // (ClockedNode::BundlePublishes): vehicle 1's state is one of its parts.
+    void OnBundle(const lcm::ReceiveBuffer* rb, const std::string&) {
+      if (*have) return;
+      bundle_wire::ForEachPart(static_cast<const unsigned char*>(rb->data),
+                               static_cast<int>(rb->data_size),
+                               [&](std::string_view ch, const unsigned char* d, int n) {
+                                 if (!*have && ch == "SHOAL_STATE_1") {
+                                   buf->assign(d, d + n);
+                                   *have = true;
+                                 }
+                               });
+    }
   } cap{&captured, &have};
   bus.subscribe("SHOAL_STATE_1", &Cap::On, &cap);
+  bus.subscribe(bundle_wire::kChannel, &Cap::OnBundle, &cap);
   const auto t0 = std::chrono::steady_clock::now();
   while (!have && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(10)) {
     bus.handleTimeout(50);

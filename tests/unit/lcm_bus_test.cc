@@ -228,5 +228,74 @@ TEST(LcmBus, ABundleInsideABundleIsRefused) {
   EXPECT_EQ(bus.rejected(), 1);
 }
 
+// Given a recordable bundle published on an authenticated bus, when a receiver with the
+// run's key and one without any key (shoal live, which verifies by itself) handle the bus,
+// then the keyed one gets each part without its trailer, and the unkeyed one gets each
+// part exactly as the message would have come alone: its bytes and its own trailer.
+TEST(LcmBus, ARecordableBundleArrivesAsItsMessagesWouldAlone) {
+  const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
+  LcmBus sender(url, TestKey(5));
+  LcmBus keyed(url, TestKey(5));
+  LcmBus open(url);
+  std::vector<Received> got_keyed, got_open;
+  keyed.Subscribe("SHOAL_STATE_[0-9]+", [&](const std::string& ch, const void* d, int n) {
+    got_keyed.push_back({ch, std::string(static_cast<const char*>(d), static_cast<std::size_t>(n))});
+  });
+  open.Subscribe("SHOAL_.*", [&](const std::string& ch, const void* d, int n) {
+    got_open.push_back({ch, std::string(static_cast<const char*>(d), static_cast<std::size_t>(n))});
+  });
+  sender.BeginBundle(/*recordable=*/true);
+  ASSERT_TRUE(sender.PublishRaw("SHOAL_STATE_4", "tick0", 5));
+  ASSERT_TRUE(sender.PublishRaw("SHOAL_STATE_4", "tick1", 5));
+  ASSERT_TRUE(sender.PublishRaw("SHOAL_HEALTH_4", "health", 6));
+  ASSERT_TRUE(sender.EndBundle());
+  EXPECT_EQ(keyed.Handle(2000), 1);  // one datagram
+  EXPECT_EQ(open.Handle(2000), 1);
+  ASSERT_EQ(got_keyed.size(), 2u);
+  EXPECT_EQ(got_keyed[0].bytes, "tick0");
+  EXPECT_EQ(got_keyed[1].bytes, "tick1");
+  EXPECT_EQ(keyed.rejected(), 0);
+  ASSERT_EQ(got_open.size(), 3u);
+  const char* texts[] = {"tick0", "tick1", "health"};
+  for (int k = 0; k < 3; ++k) {
+    const std::string text = texts[k];
+    std::string alone = text + std::string(bus_auth::kTrailerBytes, '\0');
+    bus_auth::Sign(TestKey(5), got_open[k].channel, text.data(), static_cast<int>(text.size()),
+                   reinterpret_cast<unsigned char*>(&alone[text.size()]));
+    EXPECT_EQ(got_open[k].bytes, alone) << k;
+  }
+  EXPECT_EQ(got_open[2].channel, "SHOAL_HEALTH_4");
+}
+
+// Given a recordable bundle one of whose parts is signed with another key, when it
+// arrives, then none of its parts is delivered and it counts as one rejection.
+TEST(LcmBus, ARecordableBundleWithOneForgedPartDeliversNothing) {
+  const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
+  LcmBus sender(url);  // builds the bundle by hand
+  LcmBus receiver(url, TestKey(6));
+  int got = 0;
+  receiver.Subscribe("SHOAL_STATE_1", [&](const std::string&, const void*, int) { ++got; });
+  std::vector<unsigned char> b(std::begin(bundle_wire::kMagicRecordable),
+                               std::end(bundle_wire::kMagicRecordable));
+  auto add = [&](const bus_auth::Key& key, const std::string& text) {
+    const std::string ch = "SHOAL_STATE_1";
+    std::vector<unsigned char> m(text.begin(), text.end());
+    m.resize(text.size() + bus_auth::kTrailerBytes);
+    bus_auth::Sign(key, ch, text.data(), static_cast<int>(text.size()), m.data() + text.size());
+    b.push_back(static_cast<unsigned char>(ch.size()));
+    b.insert(b.end(), ch.begin(), ch.end());
+    for (int shift = 24; shift >= 0; shift -= 8) {
+      b.push_back(static_cast<unsigned char>(m.size() >> shift));
+    }
+    b.insert(b.end(), m.begin(), m.end());
+  };
+  add(TestKey(6), "good");
+  add(TestKey(9), "forged");
+  ASSERT_TRUE(sender.PublishRaw(bundle_wire::kChannel, b.data(), static_cast<int>(b.size())));
+  EXPECT_EQ(receiver.Handle(2000), 1);
+  EXPECT_EQ(got, 0);
+  EXPECT_EQ(receiver.rejected(), 1);
+}
+
 }  // namespace
 }  // namespace shoal
