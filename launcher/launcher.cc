@@ -1050,7 +1050,9 @@ void Launch::SampleResources(bool end) {
     sim_s = (MonotonicNs() - t0_ns_) * 1e-9;
   } else {
     const auto now = std::chrono::steady_clock::now();
-    if (!end && now - last_resource_poll_ < std::chrono::milliseconds(200)) return;
+    // Every supervisor poll (50 ms): a lockstep run at 150x real time covers 7.5 s of
+    // mission in that time, so a 30 s --resource-interval still gets every sample it is due.
+    if (!end && now - last_resource_poll_ < std::chrono::milliseconds(50)) return;
     last_resource_poll_ = now;
     tracker_->Poll();
     if (!tracker_->any_state()) return;
