@@ -121,7 +121,10 @@ std::string ListenUrl(const std::string& url) {
 bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, std::string* error) {
   std::unique_ptr<LcmBus> bus;
   try {
-    bus = std::make_unique<LcmBus>(ListenUrl(opt.url));
+    // LCM's receive thread: its queue in memory absorbs a replay faster than the
+    // analysis, where the socket alone would overflow.
+    bus = std::make_unique<LcmBus>(ListenUrl(opt.url), std::nullopt,
+                                   LcmBus::Receiving::kLcmThread);
   } catch (const std::exception& e) {
     *error = e.what();
     return false;

@@ -15,9 +15,13 @@
 
 namespace shoal {
 
-LcmBus::LcmBus(const std::string& url, std::optional<bus_auth::Key> key)
+LcmBus::LcmBus(const std::string& url, std::optional<bus_auth::Key> key, Receiving receiving)
     : url_(url), lcm_(url) {
   if (key) auth_.emplace(*key);
+  UdpmAddress address;
+  if (receiving == Receiving::kInCaller && ParseUdpmUrl(url, &address)) {
+    receiver_ = std::make_unique<UdpmReceiver>(address);
+  }
   if (!lcm_.good()) {
     throw std::runtime_error("cannot open LCM at '" + url +
                              "' (for udpm on loopback, multicast must be routed to lo: "
@@ -114,25 +118,43 @@ bool LcmBus::PublishSigned(const std::string& channel, const void* data, int siz
 
 void LcmBus::Sub::On(const lcm::ReceiveBuffer* rb, const std::string& channel) {
   if (channel == bundle_wire::kChannel) return;  // its parts come through OnBundle
-  const int size = static_cast<int>(rb->data_size);
+  Deliver(channel, rb->data, static_cast<int>(rb->data_size));
+}
+
+void LcmBus::Sub::Deliver(const std::string& channel, const void* data, int size) {
   if (!auth->has_value()) {
-    handler(channel, rb->data, size);
+    handler(channel, data, size);
     return;
   }
-  const int payload = (*auth)->Verify(channel, rb->data, size);
+  const int payload = (*auth)->Verify(channel, data, size);
   if (payload < 0) {
     ++*rejected;  // forged, from another run, damaged, or without a trailer
     return;
   }
-  handler(channel, rb->data, payload);
+  handler(channel, data, payload);
+}
+
+void LcmBus::Dispatch(std::string_view channel, const unsigned char* data, int size) {
+  if (channel == bundle_wire::kChannel) {
+    OnBundleBytes(channel, data, size);
+    return;
+  }
+  const std::vector<Sub*>& subs = SubsFor(channel);
+  if (subs.empty()) return;  // LCM drops what no subscription matches, uncounted
+  const std::string name(channel);
+  for (Sub* sub : subs) sub->Deliver(name, size > 0 ? data : nullptr, size);
 }
 
 void LcmBus::Subscribe(const std::string& channel, Handler handler) {
+  std::string error;
+  if (receiver_ && !receiver_->Open(&error)) {
+    throw std::runtime_error("cannot receive on LCM URL '" + url_ + "': " + error);
+  }
   // LCM opens its receive socket here. If it cannot (the port is held by a socket bound
   // without SO_REUSEADDR), LCM 1.3.1 returns a subscription without its C half (setting
   // its queue then crashes) and later passes descriptor -1 to select() in handleTimeout,
   // which glibc aborts on. Say it plainly instead.
-  if (lcm_.getFileno() < 0) {
+  if (!receiver_ && lcm_.getFileno() < 0) {
     throw std::runtime_error("cannot receive on LCM URL '" + url_ +
                              "': its port is in use by a program that does not share it "
                              "(the \"bind\" line above)");
@@ -145,6 +167,10 @@ void LcmBus::Subscribe(const std::string& channel, Handler handler) {
   routes_.clear();  // a bundle's parts may match the new subscription too
   subs_.push_back(std::make_unique<Sub>(
       Sub{std::move(handler), &auth_, &rejected_, channel, std::move(pattern)}));
+  if (receiver_) {
+    receiving_ = true;
+    return;
+  }
   lcm::Subscription* s = lcm_.subscribe(channel, &Sub::On, subs_.back().get());
   // Lockstep bursts (a tick's deliveries) must never be dropped by LCM's default
   // 30-message queue; real-time consumers read the newest anyway.
@@ -157,10 +183,13 @@ void LcmBus::Subscribe(const std::string& channel, Handler handler) {
 }
 
 void LcmBus::OnBundle(const lcm::ReceiveBuffer* rb, const std::string& channel) {
-  int size = static_cast<int>(rb->data_size);
-  const auto* p = static_cast<const unsigned char*>(rb->data);
+  OnBundleBytes(channel, static_cast<const unsigned char*>(rb->data),
+                static_cast<int>(rb->data_size));
+}
+
+void LcmBus::OnBundleBytes(std::string_view channel, const unsigned char* p, int size) {
   const bool recordable = bundle_wire::Recordable(p, size);
-  if (auth_ && !recordable) size = auth_->Verify(channel, rb->data, size);
+  if (auth_ && !recordable) size = auth_->Verify(channel, p, size);
   bool ok = size >= 0;
   if (ok && recordable && auth_) {
     // Each part verified as the message it would be alone; the bundle is taken entire or
@@ -236,6 +265,12 @@ int LcmBus::Handle(int timeout_ms) {
     // abort if it could not). Wait as asked, then report nothing handled.
     if (timeout_ms > 0) usleep(static_cast<useconds_t>(timeout_ms) * 1000);
     return 0;
+  }
+  if (receiver_) {
+    return receiver_->Receive(timeout_ms, kMaxMessagesPerHandle,
+                              [this](std::string_view ch, const unsigned char* d, int size) {
+                                Dispatch(ch, d, size);
+                              });
   }
   int n = 0;
   int r = lcm_.handleTimeout(timeout_ms);

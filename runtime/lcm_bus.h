@@ -25,6 +25,7 @@
 
 #include "lcmtypes/wire.h"
 #include "runtime/bus_auth.h"
+#include "runtime/udpm_receiver.h"
 
 namespace shoal {
 
@@ -77,7 +78,11 @@ class Bus {
 };
 
 /// LCM over any provider URL (udpm://... for processes, memq:// for in-process tests).
-/// With a key, every message published carries an authentication trailer, and a handler
+/// A udpm bus is received, by default, in the thread that calls Handle (runtime/
+/// udpm_receiver.h: one wake-up per batch of datagrams instead of LCM's two per message);
+/// kLcmThread keeps LCM's receive thread, whose queue in memory outgrows the kernel's
+/// socket buffer (a listener slower than a fast replay). Publishing is LCM's either way, so
+/// every LCM tool hears what the bus sends. With a key, every message published carries an authentication trailer, and a handler
 /// receives only messages whose trailer verifies, without the trailer (so that decoding,
 /// size checks and lockstep digests see the message's own bytes); the others are dropped
 /// and counted in rejected(). Without a key (--insecure, in-process tests) messages go
@@ -86,14 +91,21 @@ class LcmBus : public Bus {
  public:
   /// Throws std::runtime_error if LCM cannot be initialised for `url`. Subscribe throws
   /// too if LCM cannot open its receive socket.
-  explicit LcmBus(const std::string& url, std::optional<bus_auth::Key> key = std::nullopt);
+  enum class Receiving { kInCaller, kLcmThread };
+  explicit LcmBus(const std::string& url, std::optional<bus_auth::Key> key = std::nullopt,
+                  Receiving receiving = Receiving::kInCaller);
   bool PublishRaw(const std::string& channel, const void* data, int size) override;
   void Subscribe(const std::string& channel, Handler handler) override;
   int Handle(int timeout_ms) override;
-  std::int64_t rejected() const override { return rejected_; }
+  /// Dropped unverified, and (received in the caller) datagrams that were not LCM's.
+  std::int64_t rejected() const override {
+    return rejected_ + (receiver_ ? receiver_->malformed() : 0);
+  }
+  /// Datagrams the kernel dropped for a full socket buffer (received in the caller only).
+  std::int64_t overflowed() const { return receiver_ ? receiver_->overflowed() : 0; }
   void BeginBundle(bool recordable = false) override;
   bool EndBundle() override;
-  int fileno() { return lcm_.getFileno(); }
+  int fileno() { return receiver_ ? receiver_->fd() : lcm_.getFileno(); }
   const std::string& url() const { return url_; }
   bool authenticated() const { return auth_.has_value(); }
 
@@ -108,18 +120,23 @@ class LcmBus : public Bus {
       return pattern ? std::regex_match(ch.begin(), ch.end(), *pattern) : ch == channel;
     }
     void On(const lcm::ReceiveBuffer* rb, const std::string& channel);
+    void Deliver(const std::string& channel, const void* data, int size);
   };
   /// Signs (with a key) and publishes one message.
   bool PublishSigned(const std::string& channel, const void* data, int size);
   /// A bundle received: verified as one message, then each part to the subscriptions whose
   /// pattern matches its channel, in order.
   void OnBundle(const lcm::ReceiveBuffer* rb, const std::string& channel);
+  void OnBundleBytes(std::string_view channel, const unsigned char* p, int size);
+  /// A message received in the caller, to the subscriptions LCM would hand it to.
+  void Dispatch(std::string_view channel, const unsigned char* data, int size);
   /// The subscriptions whose pattern matches `channel` (a bundle part's), remembered per
   /// channel: a regular expression is matched once per channel, not once per part.
   const std::vector<Sub*>& SubsFor(std::string_view channel);
   bool FlushBundle();
   std::string url_;
   lcm::LCM lcm_;
+  std::unique_ptr<UdpmReceiver> receiver_;  // receiving in the caller; null: LCM's thread
   std::optional<bus_auth::Authenticator> auth_;
   std::int64_t rejected_ = 0;
   std::vector<unsigned char> signed_;  // a message and its trailer, reused

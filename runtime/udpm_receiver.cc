@@ -1,0 +1,274 @@
+#include "runtime/udpm_receiver.h"
+
+#include <arpa/inet.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+namespace shoal {
+
+namespace {
+
+constexpr std::uint32_t kMagicShort = 0x4c433032;  // "LC02"
+constexpr std::uint32_t kMagicLong = 0x4c433033;   // "LC03"
+constexpr int kShortHeader = 8;
+constexpr int kLongHeader = 20;
+constexpr int kMaxChannel = 63;  // LCM_MAX_CHANNEL_NAME_LENGTH
+
+std::uint32_t Be32(const unsigned char* p) {
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) |
+         std::uint32_t{p[3]};
+}
+std::uint16_t Be16(const unsigned char* p) {
+  return static_cast<std::uint16_t>((p[0] << 8) | p[1]);
+}
+
+// The channel at p (at most `size` bytes): its length, or -1 if it has no NUL within
+// LCM's longest name.
+int ChannelLength(const unsigned char* p, int size) {
+  const int limit = std::min(size, kMaxChannel + 1);
+  const void* nul = std::memchr(p, 0, static_cast<std::size_t>(std::max(limit, 0)));
+  return nul == nullptr ? -1 : static_cast<int>(static_cast<const unsigned char*>(nul) - p);
+}
+
+// A whole number in [lo, hi] from `text`; false if it is not one.
+bool ParseInt(const std::string& text, long lo, long hi, int* out) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(text.c_str(), &end, 0);
+  if (errno != 0 || *end != '\0' || v < lo || v > hi) return false;
+  *out = static_cast<int>(v);
+  return true;
+}
+
+}  // namespace
+
+bool ParseUdpmUrl(const std::string& url, UdpmAddress* out) {
+  const std::string scheme = "udpm://";
+  if (url.compare(0, scheme.size(), scheme) != 0) return false;
+  std::string rest = url.substr(scheme.size());
+  std::string query;
+  if (const std::size_t q = rest.find('?'); q != std::string::npos) {
+    query = rest.substr(q + 1);
+    rest.resize(q);
+  }
+  UdpmAddress a;
+  std::string group = rest.empty() ? "239.255.76.67" : rest;
+  a.port = 7667;  // LCM's defaults
+  if (const std::size_t colon = rest.find(':'); colon != std::string::npos) {
+    group = rest.substr(0, colon);
+    if (!ParseInt(rest.substr(colon + 1), 0, 65535, &a.port)) return false;
+  }
+  if (inet_aton(group.c_str(), &a.group) == 0) return false;
+  for (std::size_t pos = 0; pos < query.size();) {
+    std::size_t amp = query.find('&', pos);
+    if (amp == std::string::npos) amp = query.size();
+    const std::string item = query.substr(pos, amp - pos);
+    const std::size_t eq = item.find('=');
+    if (eq != std::string::npos && item.compare(0, eq, "recv_buf_size") == 0 &&
+        !ParseInt(item.substr(eq + 1), 0, 1L << 30, &a.recv_buf_size)) {
+      return false;
+    }
+    pos = amp + 1;
+  }
+  *out = a;
+  return true;
+}
+
+UdpmReceiver::~UdpmReceiver() {
+  if (fd_ >= 0) close(fd_);
+}
+
+bool UdpmReceiver::Open(std::string* error) {
+  if (fd_ >= 0) return true;
+  const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) {
+    *error = std::string("cannot open a UDP socket (") + std::strerror(errno) + ")";
+    return false;
+  }
+  const int one = 1;
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  // Bound to the group, not to any address: the socket then takes only this group's
+  // datagrams, even where another group on the host uses the same port.
+  addr.sin_addr = address_.group;
+  addr.sin_port = htons(static_cast<std::uint16_t>(address_.port));
+  ip_mreq join{};
+  join.imr_multiaddr = address_.group;
+  join.imr_interface.s_addr = htonl(INADDR_ANY);
+  const char* step = nullptr;
+  if (setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one)) < 0) {
+    step = "SO_REUSEADDR";
+  } else if (bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) < 0) {
+    step = "bind";
+  } else if (setsockopt(fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &join, sizeof(join)) < 0) {
+    step = "joining the multicast group";
+  }
+  if (step != nullptr) {
+    *error = std::string(step) + " failed for port " + std::to_string(address_.port) + " (" +
+             std::strerror(errno) + ")";
+    close(fd);
+    return false;
+  }
+  // As much as asked (or the default), past net.core.rmem_max where the process may
+  // (SO_RCVBUFFORCE needs CAP_NET_ADMIN); otherwise up to that limit.
+  const int want = address_.recv_buf_size > 0 ? address_.recv_buf_size : kDefaultRecvBufBytes;
+  if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &want, sizeof(want)) < 0) {
+    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &want, sizeof(want));
+  }
+  socklen_t len = sizeof(recv_buf_bytes_);
+  getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &recv_buf_bytes_, &len);
+  setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof(one));  // a count; none if refused
+  fd_ = fd;
+  buffers_.assign(static_cast<std::size_t>(kBatch) * kDatagramBytes, 0);
+  return true;
+}
+
+int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handler) {
+  if (fd_ < 0) return -1;
+  if (timeout_ms != 0) {
+    pollfd pfd{fd_, POLLIN, 0};
+    const int r = poll(&pfd, 1, timeout_ms);
+    if (r < 0) return errno == EINTR ? 0 : -1;  // a signal: the caller looks why
+    if (r == 0) return 0;
+  }
+  mmsghdr msgs[kBatch];
+  iovec iov[kBatch];
+  sockaddr_in from[kBatch];
+  alignas(cmsghdr) unsigned char control[kBatch][CMSG_SPACE(sizeof(std::uint32_t))];
+  int handed = 0;
+  while (handed < max_messages) {
+    const int want = std::min(kBatch, max_messages - handed);
+    for (int k = 0; k < want; ++k) {
+      iov[k] = {buffers_.data() + static_cast<std::size_t>(k) * kDatagramBytes, kDatagramBytes};
+      msgs[k].msg_hdr = {};
+      msgs[k].msg_hdr.msg_name = &from[k];
+      msgs[k].msg_hdr.msg_namelen = sizeof(from[k]);
+      msgs[k].msg_hdr.msg_iov = &iov[k];
+      msgs[k].msg_hdr.msg_iovlen = 1;
+      msgs[k].msg_hdr.msg_control = control[k];
+      msgs[k].msg_hdr.msg_controllen = sizeof(control[k]);
+      msgs[k].msg_len = 0;
+    }
+    const int n = recvmmsg(fd_, msgs, static_cast<unsigned>(want), MSG_DONTWAIT, nullptr);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      if (errno == EAGAIN || errno == EWOULDBLOCK) break;
+      return handed > 0 ? handed : -1;
+    }
+    for (int k = 0; k < n; ++k) {
+      const msghdr& h = msgs[k].msg_hdr;
+      for (cmsghdr* c = CMSG_FIRSTHDR(&h); c != nullptr; c = CMSG_NXTHDR(const_cast<msghdr*>(&h), c)) {
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
+          std::uint32_t dropped = 0;
+          std::memcpy(&dropped, CMSG_DATA(c), sizeof(dropped));
+          overflowed_ = dropped;
+        }
+      }
+      if ((h.msg_flags & MSG_TRUNC) != 0) {  // larger than a datagram can be: not LCM's
+        ++malformed_;
+        continue;
+      }
+      const auto* p = static_cast<const unsigned char*>(iov[k].iov_base);
+      if (OnDatagram(p, static_cast<int>(msgs[k].msg_len), from[k], handler)) ++handed;
+    }
+    if (n < want) break;
+  }
+  return handed;
+}
+
+bool UdpmReceiver::OnDatagram(const unsigned char* p, int size, const sockaddr_in& from,
+                              const Handler& handler) {
+  if (size < kShortHeader) {
+    ++malformed_;
+    return false;
+  }
+  const std::uint32_t magic = Be32(p);
+  if (magic == kMagicLong) return OnFragment(p, size, from, handler);
+  if (magic != kMagicShort) {
+    ++malformed_;
+    return false;
+  }
+  const unsigned char* ch = p + kShortHeader;
+  const int len = ChannelLength(ch, size - kShortHeader);
+  if (len < 0) {
+    ++malformed_;
+    return false;
+  }
+  const int offset = kShortHeader + len + 1;
+  handler(std::string_view(reinterpret_cast<const char*>(ch), static_cast<std::size_t>(len)),
+          p + offset, size - offset);
+  return true;
+}
+
+void UdpmReceiver::DropPartial(std::map<std::uint64_t, Partial>::iterator it) {
+  partial_bytes_ -= it->second.data.size();
+  partials_.erase(it);
+}
+
+bool UdpmReceiver::OnFragment(const unsigned char* p, int size, const sockaddr_in& from,
+                              const Handler& handler) {
+  if (size < kLongHeader) {
+    ++malformed_;
+    return false;
+  }
+  const std::uint32_t seqno = Be32(p + 4);
+  const std::uint32_t msg_size = Be32(p + 8);
+  const std::uint32_t offset = Be32(p + 12);
+  const std::uint16_t fragment = Be16(p + 16);
+  const std::uint16_t fragments = Be16(p + 18);
+  const unsigned char* data = p + kLongHeader;
+  int n = size - kLongHeader;
+  std::string_view channel;
+  if (fragment == 0) {
+    const int len = ChannelLength(data, n);
+    if (len < 0) {
+      ++malformed_;
+      return false;
+    }
+    channel = std::string_view(reinterpret_cast<const char*>(data), static_cast<std::size_t>(len));
+    data += len + 1;
+    n -= len + 1;
+  }
+  if (fragments == 0 || fragment >= fragments || msg_size > kMaxPartialBytes ||
+      offset > msg_size || static_cast<std::uint32_t>(n) > msg_size - offset) {
+    ++malformed_;
+    return false;
+  }
+  const std::uint64_t key = (std::uint64_t{ntohl(from.sin_addr.s_addr)} << 16) | ntohs(from.sin_port);
+  auto it = partials_.find(key);
+  if (it != partials_.end() &&
+      (it->second.seqno != seqno || it->second.data.size() != msg_size)) {
+    DropPartial(it);  // what is left of an earlier message of that sender: it lost a fragment
+    it = partials_.end();
+  }
+  if (it == partials_.end()) {
+    while (!partials_.empty() &&
+           (partials_.size() >= kMaxPartials || partial_bytes_ + msg_size > kMaxPartialBytes)) {
+      DropPartial(partials_.begin());
+    }
+    Partial fresh;
+    fresh.seqno = seqno;
+    fresh.data.assign(msg_size, 0);
+    fresh.fragments_left = fragments;
+    partial_bytes_ += msg_size;
+    it = partials_.emplace(key, std::move(fresh)).first;
+  }
+  Partial& m = it->second;
+  if (fragment == 0) m.channel.assign(channel);
+  if (n > 0) std::memcpy(m.data.data() + offset, data, static_cast<std::size_t>(n));
+  if (--m.fragments_left > 0) return false;
+  const bool named = !m.channel.empty();
+  if (named) handler(m.channel, m.data.data(), static_cast<int>(m.data.size()));
+  else ++malformed_;
+  DropPartial(it);
+  return named;
+}
+
+}  // namespace shoal

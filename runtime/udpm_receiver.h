@@ -1,0 +1,97 @@
+// Receiving an LCM udpm bus on the caller's own thread. LCM 1.3.1 receives on a thread of
+// its own that hands each datagram to the handling thread through a pipe: two thread
+// wake-ups per message, where the process itself needs one. At scale those wake-ups are
+// most of a vehicle's CPU (docs/benchmarks.md, "shoal run at scale"); this reads the same
+// multicast group and port with recvmmsg in the thread that handles the messages, so a
+// process sleeps in one poll and wakes once for all that arrived meanwhile.
+//
+// The wire format is LCM's (lcm/udpm_util.h): a datagram is either a short message,
+// "LC02", a sequence number, the channel name with its NUL, then the payload; or one
+// fragment of a long one, "LC03", sequence number, message size, fragment offset,
+// fragment number and count (network byte order), the channel after the header of
+// fragment 0 only. What is not that is dropped and counted.
+#pragma once
+
+#include <netinet/in.h>
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace shoal {
+
+/// What a udpm URL names: udpm://GROUP:PORT?ttl=N&recv_buf_size=B.
+struct UdpmAddress {
+  in_addr group{};
+  int port = 0;
+  int recv_buf_size = 0;  // 0: not given
+};
+
+/// Parses an LCM udpm URL; false for any other provider or a malformed URL.
+bool ParseUdpmUrl(const std::string& url, UdpmAddress* out);
+
+class UdpmReceiver {
+ public:
+  using Handler = std::function<void(std::string_view channel, const unsigned char* data, int size)>;
+  /// The kernel receive buffer asked for when the URL names none: the socket is the only
+  /// queue between a sender and this process, so it must hold what arrives while the
+  /// process steps a window or sleeps to its next period.
+  static constexpr int kDefaultRecvBufBytes = 4 << 20;
+
+  explicit UdpmReceiver(const UdpmAddress& address) : address_(address) {}
+  ~UdpmReceiver();
+  UdpmReceiver(const UdpmReceiver&) = delete;
+  UdpmReceiver& operator=(const UdpmReceiver&) = delete;
+
+  /// Opens the socket, shared with every other receiver of the group and port (LCM's
+  /// SO_REUSEADDR), and joins the group. False with the reason in `error`.
+  bool Open(std::string* error);
+  int fd() const { return fd_; }
+
+  /// Waits at most timeout_ms for a datagram (0: not at all; -1: without limit), then hands
+  /// each complete message to `handler`, in arrival order, at most max_messages of them; the
+  /// rest stays in the socket. Returns the number handed on, or -1 if the socket failed.
+  int Receive(int timeout_ms, int max_messages, const Handler& handler);
+
+  /// Datagrams that were not LCM's (a bad magic, too short, a channel without its NUL or
+  /// longer than LCM allows, a fragment that does not fit its message).
+  std::int64_t malformed() const { return malformed_; }
+  /// Datagrams the kernel dropped because the socket's buffer was full (SO_RXQ_OVFL).
+  std::int64_t overflowed() const { return overflowed_; }
+  /// The receive buffer the kernel gave (bytes; it doubles what is asked for).
+  int recv_buf_bytes() const { return recv_buf_bytes_; }
+
+ private:
+  /// A long message being put together, per sender (LCM sends a message's fragments in
+  /// order, one message at a time per sender).
+  struct Partial {
+    std::uint32_t seqno = 0;
+    std::string channel;
+    std::vector<unsigned char> data;
+    int fragments_left = 0;
+  };
+  static constexpr int kBatch = 8;
+  static constexpr int kDatagramBytes = 65536;
+  /// Bounds on messages being put together (LCM's own: 16 MB in all, 1000 messages).
+  static constexpr std::size_t kMaxPartialBytes = std::size_t{1} << 24;
+  static constexpr std::size_t kMaxPartials = 1000;
+
+  /// One datagram: hands on a message if it completes one; returns whether it did.
+  bool OnDatagram(const unsigned char* p, int size, const sockaddr_in& from, const Handler& handler);
+  bool OnFragment(const unsigned char* p, int size, const sockaddr_in& from, const Handler& handler);
+  void DropPartial(std::map<std::uint64_t, Partial>::iterator it);
+
+  UdpmAddress address_;
+  int fd_ = -1;
+  int recv_buf_bytes_ = 0;
+  std::int64_t malformed_ = 0;
+  std::int64_t overflowed_ = 0;
+  std::vector<unsigned char> buffers_;  // kBatch datagrams of kDatagramBytes
+  std::map<std::uint64_t, Partial> partials_;  // by sender address and port
+  std::size_t partial_bytes_ = 0;
+};
+
+}  // namespace shoal

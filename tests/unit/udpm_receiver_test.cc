@@ -1,0 +1,180 @@
+// Tests of runtime/udpm_receiver: what LCM 1.3.1 publishes over udpm (a short message, a
+// message of many fragments) arrives whole, in order, on the caller's thread; what is not
+// an LCM datagram is dropped and counted, never handed on; one call hands on a bounded
+// number of messages and leaves the rest in the socket.
+#include "runtime/udpm_receiver.h"
+
+#include <arpa/inet.h>
+#include <lcm/lcm-cpp.hpp>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "runtime/lcm_bus.h"
+
+namespace shoal {
+namespace {
+
+struct Message {
+  std::string channel;
+  std::vector<unsigned char> bytes;
+};
+
+class UdpmReceiverTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string err;
+    ASSERT_TRUE(EnsureLoopbackMulticast(&err)) << err;
+    port_ = RandomPrivatePort(1);
+    url_ = PrivateLcmUrl(port_);
+    ASSERT_TRUE(ParseUdpmUrl(url_, &address_));
+    receiver_ = std::make_unique<UdpmReceiver>(address_);
+    ASSERT_TRUE(receiver_->Open(&err)) << err;
+  }
+  // Everything that arrives within `wait_ms` of the last message.
+  std::vector<Message> ReceiveAll(int wait_ms = 500) {
+    std::vector<Message> got;
+    while (receiver_->Receive(wait_ms, 1000, [&](std::string_view ch, const unsigned char* d, int n) {
+      got.push_back({std::string(ch), std::vector<unsigned char>(d, d + n)});
+    }) > 0) {
+    }
+    return got;
+  }
+  // Sends raw bytes to the group and port, as a foreign program could.
+  void SendRaw(const std::vector<unsigned char>& bytes) {
+    const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    ASSERT_GE(fd, 0);
+    const unsigned char ttl = 0;
+    setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof(ttl));
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_addr = address_.group;
+    to.sin_port = htons(static_cast<std::uint16_t>(port_));
+    ASSERT_EQ(sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof(to)),
+              static_cast<ssize_t>(bytes.size()));
+    close(fd);
+  }
+  int port_ = 0;
+  std::string url_;
+  UdpmAddress address_;
+  std::unique_ptr<UdpmReceiver> receiver_;
+};
+
+std::vector<unsigned char> Pattern(std::size_t n, unsigned seed) {
+  std::vector<unsigned char> v(n);
+  for (std::size_t k = 0; k < n; ++k) v[k] = static_cast<unsigned char>((k * 131 + seed) >> 3);
+  return v;
+}
+
+// Given LCM publishing a short message, a message of 200 kB (four fragments) and another
+// short one, when the receiver reads the bus, then it hands on the three, whole and in order.
+TEST_F(UdpmReceiverTest, ShortAndFragmentedMessagesOfLcmArriveWholeInOrder) {
+  lcm::LCM lcm(url_);
+  ASSERT_TRUE(lcm.good());
+  const auto a = Pattern(100, 1), big = Pattern(200000, 2), c = Pattern(0, 3);
+  ASSERT_EQ(lcm.publish("SHORT_A", a.data(), static_cast<unsigned>(a.size())), 0);
+  ASSERT_EQ(lcm.publish("LONG_B", big.data(), static_cast<unsigned>(big.size())), 0);
+  ASSERT_EQ(lcm.publish("SHORT_C", c.data(), 0u), 0);
+  const std::vector<Message> got = ReceiveAll();
+  ASSERT_EQ(got.size(), 3u);
+  EXPECT_EQ(got[0].channel, "SHORT_A");
+  EXPECT_EQ(got[0].bytes, a);
+  EXPECT_EQ(got[1].channel, "LONG_B");
+  EXPECT_EQ(got[1].bytes, big);
+  EXPECT_EQ(got[2].channel, "SHORT_C");
+  EXPECT_TRUE(got[2].bytes.empty());
+  EXPECT_EQ(receiver_->malformed(), 0);
+  EXPECT_GE(receiver_->recv_buf_bytes(), UdpmReceiver::kDefaultRecvBufBytes / 2);
+}
+
+// Given datagrams that are not LCM's (too short, a wrong magic, a channel without its NUL
+// or longer than 63 characters, fragments that do not fit their message or name no
+// fragment count), when they arrive among good messages, then each is dropped and counted
+// and the good ones arrive as sent.
+TEST_F(UdpmReceiverTest, DatagramsThatAreNotLcmsAreDroppedAndCounted) {
+  lcm::LCM lcm(url_);
+  const unsigned char payload[3] = {7, 8, 9};
+  std::vector<std::vector<unsigned char>> bad;
+  bad.push_back({1, 2, 3});
+  bad.push_back({'X', 'X', '0', '2', 0, 0, 0, 1, 'C', 0, 5});
+  std::vector<unsigned char> no_nul = {'L', 'C', '0', '2', 0, 0, 0, 1};
+  no_nul.insert(no_nul.end(), 80, 'c');
+  bad.push_back(no_nul);
+  std::vector<unsigned char> frag = {'L', 'C', '0', '3', 0, 0, 0, 9,  // seqno 9
+                                     0, 0, 0, 4,                       // message of 4 bytes
+                                     0, 0, 0, 2,                       // at offset 2
+                                     0, 1, 0, 2,                       // fragment 1 of 2
+                                     1, 2, 3};                         // 3 bytes: past the end
+  bad.push_back(frag);
+  frag[18] = 0, frag[19] = 0;  // fragment count 0
+  bad.push_back(frag);
+  ASSERT_EQ(lcm.publish("GOOD", payload, 3u), 0);
+  for (const auto& b : bad) SendRaw(b);
+  ASSERT_EQ(lcm.publish("GOOD", payload, 3u), 0);
+  const std::vector<Message> got = ReceiveAll();
+  ASSERT_EQ(got.size(), 2u);
+  for (const Message& m : got) {
+    EXPECT_EQ(m.channel, "GOOD");
+    EXPECT_EQ(m.bytes, std::vector<unsigned char>(payload, payload + 3));
+  }
+  EXPECT_EQ(receiver_->malformed(), static_cast<std::int64_t>(bad.size()));
+}
+
+// Given 50 messages waiting in the socket, when one call may hand on 10, then it hands on
+// the first 10 and the next calls the rest, in order: nothing is read and then dropped.
+TEST_F(UdpmReceiverTest, ACallHandsOnABoundedNumberAndTheRestFollowsInOrder) {
+  lcm::LCM lcm(url_);
+  for (int i = 0; i < 50; ++i) ASSERT_EQ(lcm.publish("N", &i, sizeof(i)), 0);
+  usleep(100000);
+  std::vector<int> seen;
+  auto take = [&](std::string_view, const unsigned char* d, int n) {
+    ASSERT_EQ(n, static_cast<int>(sizeof(int)));
+    int v;
+    std::memcpy(&v, d, sizeof(v));
+    seen.push_back(v);
+  };
+  EXPECT_EQ(receiver_->Receive(0, 10, take), 10);
+  EXPECT_EQ(seen.size(), 10u);
+  while (receiver_->Receive(200, 10, take) > 0) {
+  }
+  ASSERT_EQ(seen.size(), 50u);
+  for (int i = 0; i < 50; ++i) EXPECT_EQ(seen[static_cast<std::size_t>(i)], i);
+}
+
+// Given nothing on the bus, when the receiver waits, then it returns 0 after about the
+// time asked, and at once when asked not to wait.
+TEST_F(UdpmReceiverTest, WaitsNoLongerThanAsked) {
+  auto none = [](std::string_view, const unsigned char*, int) { FAIL(); };
+  EXPECT_EQ(receiver_->Receive(0, 10, none), 0);
+  EXPECT_EQ(receiver_->Receive(50, 10, none), 0);
+}
+
+// Given the URLs Shoal and LCM users write, when parsed, then group, port and receive
+// buffer are LCM's reading of them (its defaults where left out); other providers and
+// malformed URLs are refused.
+TEST(UdpmUrl, ParsedAsLcmReadsIt) {
+  UdpmAddress a;
+  ASSERT_TRUE(ParseUdpmUrl("udpm://239.255.77.20:10001?ttl=0&recv_buf_size=4194304", &a));
+  EXPECT_EQ(a.port, 10001);
+  EXPECT_EQ(a.recv_buf_size, 4194304);
+  EXPECT_EQ(ntohl(a.group.s_addr), (239u << 24) | (255u << 16) | (77u << 8) | 20u);
+  ASSERT_TRUE(ParseUdpmUrl("udpm://", &a));
+  EXPECT_EQ(a.port, 7667);
+  EXPECT_EQ(a.recv_buf_size, 0);
+  ASSERT_TRUE(ParseUdpmUrl("udpm://239.255.76.67:7667?ttl=1", &a));
+  EXPECT_FALSE(ParseUdpmUrl("memq://", &a));
+  EXPECT_FALSE(ParseUdpmUrl("udpm://239.255.76.67:notaport", &a));
+  EXPECT_FALSE(ParseUdpmUrl("udpm://239.255.76.67:70000", &a));
+  EXPECT_FALSE(ParseUdpmUrl("udpm://nowhere:7667", &a));
+  EXPECT_FALSE(ParseUdpmUrl("udpm://239.255.76.67:7667?recv_buf_size=lots", &a));
+}
+
+}  // namespace
+}  // namespace shoal
