@@ -97,10 +97,17 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
 }
 
 void ChannelEmulatorApp::Init() {
-  bus_->Subscribe(channels::kStatePattern, [this](const std::string& ch, const void* d, int n) {
+  if (uplink_ != nullptr) {
+    // Everything of the run, as it came (the recorder records the run's channels only).
+    uplink_->SubscribeAsReceived(channels::kAllPattern,
+                                 [this](const std::string& ch, const void* d, int n) {
+                                   bus_->PublishAsReceived(ch, d, n);
+                                 });
+  }
+  rx_bus()->Subscribe(channels::kStatePattern, [this](const std::string& ch, const void* d, int n) {
     Enqueue(false, ch, d, n);
   });
-  bus_->Subscribe(channels::Status(), [this](const std::string& ch, const void* d, int n) {
+  rx_bus()->Subscribe(channels::Status(), [this](const std::string& ch, const void* d, int n) {
     Enqueue(true, ch, d, n);
   });
 }
@@ -116,7 +123,11 @@ void ChannelEmulatorApp::Enqueue(bool status, const std::string& channel, const 
 }
 
 int ChannelEmulatorApp::HandleBus(int timeout_ms) {
-  const int handled = bus_->Handle(timeout_ms);
+  // What the uplink brings is passed on before any of it is applied: before the window it
+  // completes is released and the recorder's gate is waited for.
+  if (uplink_ != nullptr) bus_->BeginBundle(/*recordable=*/true);
+  const int handled = rx_bus()->Handle(timeout_ms);
+  if (uplink_ != nullptr) bus_->EndBundle();
   for (std::size_t k = 0; k < inbox_size_; ++k) {
     const Inbound& in = inbox_[k];
     const unsigned char* data = in.bytes.empty() ? nullptr : in.bytes.data();
@@ -317,7 +328,7 @@ void ChannelEmulatorApp::PublishHealth(Micros utime) {
   h.lateness_max_s = release_error_.max();
   h.overruns = 0;
   h.msgs_received = counters_.states_accepted;
-  h.msgs_dropped_invalid = counters_.states_invalid + bus_->rejected();
+  h.msgs_dropped_invalid = counters_.states_invalid + rx_bus()->rejected();
   h.msgs_dropped_old = counters_.states_old;
   h.neighbour_timeouts = 0;
   int alive = 0;
@@ -621,6 +632,7 @@ struct EmulatorOptions {
   pid_t recorder_pid = 0;
   std::int64_t recorder_queue = kLcmDefaultQueue;
   std::string restart_note;
+  std::string uplink_url;
 };
 
 void AddEmulatorOptions(CLI::App* app, EmulatorOptions* o) {
@@ -645,6 +657,12 @@ void AddEmulatorOptions(CLI::App* app, EmulatorOptions* o) {
   app->add_option("--vehicle-urls", o->vehicle_urls,
                   "LCM URL on which each vehicle 0..n receives (default: all on --lcm-url)")
       ->delimiter(',');
+  app->add_option("--uplink-url", o->uplink_url,
+                  "receive the processes' messages on this LCM URL (where they publish, and "
+                  "nobody else listens), and pass each that verified on to --lcm-url "
+                  "unchanged, packed per batch, for the recorder (lcm-logger with "
+                  "runtime/lcm_queue_shim.c). shoal run gives it in lockstep without "
+                  "restarts: what is in flight to an emulator that dies is lost with it");
   app->add_option("--restart-note", o->restart_note,
                   "Replace an emulator that died (shoal run --restart on-failure): why and "
                   "when it ended, for the log");
@@ -676,14 +694,21 @@ int ChannelEmulatorMain(int argc, char** argv) {
     std::cerr << "shoal_channel_emulator: " << EnableBatchScheduling() << "\n";
   }
   try {
+    auto address = [](const std::string& u) { return u.substr(0, u.find('?')); };
+    if (!eo.uplink_url.empty() && address(eo.uplink_url) == address(opt.lcm_url)) {
+      std::cerr << "shoal_channel_emulator: --uplink-url must differ from --lcm-url (what it "
+                   "passes on would come back to it)\n";
+      return 2;
+    }
     LcmBus bus(opt.lcm_url, auth.key);
+    std::unique_ptr<LcmBus> uplink;
+    if (!eo.uplink_url.empty()) uplink = std::make_unique<LcmBus>(eo.uplink_url, auth.key);
     std::vector<std::unique_ptr<LcmBus>> own;
     std::vector<Bus*> vbus;
     // One bus object per distinct URL: vehicles that share a URL share a bus, and get one
     // clock tick listing all their deliveries (two bus objects on one address would each
     // send a tick of their own, with half the list).
     // Keyed on the address (provider://group:port), not the options after '?'.
-    auto address = [](const std::string& u) { return u.substr(0, u.find('?')); };
     std::map<std::string, Bus*> by_url = {{address(opt.lcm_url), &bus}};
     for (int id = 0; id <= s.followers; ++id) {
       const std::string& u = vehicle_urls.empty() ? opt.lcm_url : vehicle_urls[id];
@@ -703,13 +728,15 @@ int ChannelEmulatorMain(int argc, char** argv) {
     if (opt.parsed_mode() == Mode::kLockstep && eo.recorder_pid > 0) {
       app_.SetRecorder(eo.recorder_pid);
     }
+    if (uplink) app_.SetUplink(uplink.get());
     if (auth.insecure) app_.SetInsecure();
     if (!eo.restart_note.empty()) app_.SetRestarted(eo.restart_note);
     app_.Init();
     // After Init: its subscriptions have started LCM's receive thread and ring.
     std::cerr << "shoal_channel_emulator: " << LockMemory() << "\n";
     const int status = app_.Run();
-    std::cerr << "shoal_channel_emulator: " << bus_auth::ExitNote(auth, bus.rejected()) << "\n";
+    const std::int64_t rejected = bus.rejected() + (uplink ? uplink->rejected() : 0);
+    std::cerr << "shoal_channel_emulator: " << bus_auth::ExitNote(auth, rejected) << "\n";
     return status;
   } catch (const std::exception& e) {
     std::cerr << "shoal_channel_emulator: " << e.what() << "\n";

@@ -58,6 +58,13 @@ class ChannelEmulatorApp {
   void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
   std::int64_t lookahead_ticks() const { return lookahead_; }
+  /// The processes publish on `uplink`, where only this process listens (before Init):
+  /// their messages are received there, and each that verified is passed on, unchanged,
+  /// to the run's bus for the recorder, packed as recordable bundles (runtime/lcm_bus.h)
+  /// per batch received; so the recorder is woken by a few datagrams a window instead of
+  /// one per process. Lockstep without restarts: what is in flight to a dead emulator is
+  /// never passed on.
+  void SetUplink(Bus* uplink) { uplink_ = uplink; }
   /// The run's bus is not authenticated (--insecure): every status says so.
   void SetInsecure() { insecure_ = true; }
   /// This emulator replaces one that died (shoal run --restart on-failure); `note` says
@@ -132,7 +139,11 @@ class ChannelEmulatorApp {
   std::int64_t t0_ns_;
   Micros period_us_;
   std::int64_t final_tick_;
+  /// Where the processes' messages come in: the uplink, or else the run's bus.
+  Bus* rx_bus() const { return uplink_ != nullptr ? uplink_ : bus_; }
+
   Bus* bus_;
+  Bus* uplink_ = nullptr;  // SetUplink
   std::vector<Bus*> vbus_;
   Channel<Datagram> channel_;
   std::vector<ChannelDecision> decisions_;

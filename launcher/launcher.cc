@@ -214,11 +214,23 @@ class ProgressTracker {
  public:
   ProgressTracker(const Scenario& s, const std::string& log,
                   const std::optional<bus_auth::Key>& key)
-      : s_(s), tail_(log), follower_error_(s.followers + 1, 0.0) {
+      : s_(s),
+        tail_(log),
+        recent_(2 * static_cast<std::size_t>(s.followers + 1)),
+        follower_error_(s.followers + 1, 0.0) {
     if (key) auth_.emplace(*key);
   }
+  /// Only the newest two ticks' worth of states written since the last call are verified
+  /// and decoded: they are all the progress line shows, and verifying every state of a
+  /// large lockstep run as the log grows cost this process as much CPU as the recorder.
   void Poll() {
-    tail_.Poll([this](const std::string& ch, const void* d, int n) { OnEvent(ch, d, n); });
+    kept_ = 0;
+    tail_.Poll([this](const std::string& ch, const void* d, int n) { Keep(ch, d, n); });
+    const std::size_t k = std::min(kept_, recent_.size());
+    for (std::size_t i = kept_ - k; i < kept_; ++i) {
+      const Kept& e = recent_[i % recent_.size()];
+      OnEvent(e.channel, e.bytes.data(), static_cast<int>(e.bytes.size()));
+    }
   }
   double sim_time_s() const { return ToSeconds(last_tick_utime_); }
   bool any_state() const { return any_state_; }  // the log holds a state: the mission began
@@ -246,9 +258,22 @@ class ProgressTracker {
           ErrorsOf(st, s_.offsets_m[m.vehicle_id - 1], l->second).position_m;
     }
   }
+  struct Kept {
+    std::string channel;
+    std::vector<unsigned char> bytes;
+  };
+  void Keep(const std::string& ch, const void* d, int n) {
+    if (!channels::ParseStateId(ch)) return;
+    Kept& e = recent_[kept_++ % recent_.size()];
+    e.channel = ch;
+    const auto* p = static_cast<const unsigned char*>(d);
+    e.bytes.assign(p, p + (n > 0 && p != nullptr ? n : 0));
+  }
   const Scenario& s_;
   LogTail tail_;
   std::optional<bus_auth::Authenticator> auth_;
+  std::vector<Kept> recent_;  // a ring: the newest states of one Poll
+  std::size_t kept_ = 0;      // states seen by this Poll
   std::int64_t last_tick_utime_ = 0;
   bool any_state_ = false;
   std::map<Micros, StateMsg> leader_states_;  // recent ones only
@@ -362,8 +387,10 @@ class Launch {
   static void CloseStdin(Child& c);
   /// Whether the emulator can watch the logger's pid (--recorder-pid).
   bool RecorderVisible() const;
+  /// `url`: where the process publishes (empty: the run's bus).
   std::vector<std::string> ProcessArgs(const std::string& exe,
-                                       const std::vector<std::string>& more) const;
+                                       const std::vector<std::string>& more,
+                                       const std::string& url = "") const;
   /// Waits (polling waitpid) up to `limit` for the children selected by `which` to exit.
   /// Returns true if all did.
   bool WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit);
@@ -400,6 +427,7 @@ class Launch {
   const LaunchOptions& opt_;
   LaunchResult* r_;
   std::vector<std::string> vehicle_urls_;  // per-vehicle groups; empty: one shared bus
+  std::string uplink_url_;  // where the vehicles and the leader publish; empty: the run's bus
   std::string vehicle_exe_, leader_exe_, emulator_exe_;
   std::string logger_queue_shim_;  // runtime/lcm_queue_shim.c, preloaded into lcm-logger
   std::vector<Child> kids_;
@@ -501,10 +529,19 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
     }
     vehicle_urls_ = PerVehicleLcmUrls(port, s_.followers);
     for (std::string& u : vehicle_urls_) u = hosts ? UrlWithTtl(u, hosts->ttl) : u;
+    // The processes' messages reach the recorder through the channel emulator, a few
+    // datagrams a window or period instead of one per process (ChannelEmulatorApp::
+    // SetUplink). Not with restarts: what is in flight to an emulator that dies would
+    // never reach the log.
+    if (!logger_queue_shim_.empty() && !opt_.restart_on_failure) {
+      uplink_url_ = UplinkLcmUrl(port, s_.followers);
+      if (hosts) uplink_url_ = UrlWithTtl(uplink_url_, hosts->ttl);
+    }
   }
   if (!hosts) return true;
   std::vector<std::string> groups = {GroupOfUrl(url)};
   if (!vehicle_urls_.empty()) groups.push_back(GroupOfUrl(vehicle_urls_[0]));
+  if (!uplink_url_.empty()) groups.push_back(GroupOfUrl(uplink_url_));
   if (groups[0].empty()) {
     *error = "--hosts needs an udpm:// LCM URL (got " + url + ")";
     return false;
@@ -606,8 +643,10 @@ pid_t Launch::SpawnChild(Child& c, const std::vector<std::string>& argv) {
 }
 
 std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
-                                             const std::vector<std::string>& more) const {
-  std::vector<std::string> a = {exe, "--scenario", opt_.scenario, "--lcm-url", r_->lcm_url,
+                                             const std::vector<std::string>& more,
+                                             const std::string& url) const {
+  std::vector<std::string> a = {exe, "--scenario", opt_.scenario,
+                                "--lcm-url", url.empty() ? r_->lcm_url : url,
                                 "--mode", opt_.mode,
                                 wall_clock_t0_ ? "--t0-unix-ns" : "--t0-ns", kT0Arg,
                                 "--duration", std::to_string(r_->duration_s)};
@@ -688,6 +727,7 @@ void Launch::PlanEmulator() {
     more.push_back("--vehicle-urls");
     more.push_back(list);
   }
+  if (!uplink_url_.empty()) more.insert(more.end(), {"--uplink-url", uplink_url_});
   PlannedProcess e;
   e.name = "channel emulator";
   e.id = kEmulatorId;
@@ -730,7 +770,7 @@ void Launch::PlanNodes() {
     if (mode_ == Mode::kLockstep && !logger_queue_shim_.empty()) {
       more.push_back("--bundle-publishes");
     }
-    p.argv = ProcessArgs(id == 0 ? leader_exe_ : vehicle_exe_, more);
+    p.argv = ProcessArgs(id == 0 ? leader_exe_ : vehicle_exe_, more, uplink_url_);
     p.nice_inc = run_nice;
     plan_.processes.push_back(p);
   }

@@ -36,7 +36,19 @@ bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) 
   }
   if (size > 0 && data == nullptr) return false;
   // A recordable bundle's part is the message as it would go out alone: with its trailer.
-  const int trailer = recordable_ && auth_ ? bus_auth::kTrailerBytes : 0;
+  return AppendPart(channel, data, size, recordable_ && auth_ ? bus_auth::kTrailerBytes : 0);
+}
+
+bool LcmBus::PublishAsReceived(const std::string& channel, const void* data, int size) {
+  if (size < 0 || (size > 0 && data == nullptr)) return false;
+  if (bundling_ && recordable_ && !channel.empty() &&
+      channel.size() <= static_cast<std::size_t>(bundle_wire::kMaxChannel)) {
+    return AppendPart(channel, data, size, 0);
+  }
+  return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+}
+
+bool LcmBus::AppendPart(const std::string& channel, const void* data, int size, int trailer) {
   const std::size_t bytes = static_cast<std::size_t>(size) + static_cast<std::size_t>(trailer);
   const std::size_t part = 1 + channel.size() + 4 + bytes;
   bool ok = true;
@@ -131,7 +143,7 @@ void LcmBus::Sub::Deliver(const std::string& channel, const void* data, int size
     ++*rejected;  // forged, from another run, damaged, or without a trailer
     return;
   }
-  handler(channel, data, payload);
+  handler(channel, data, as_received ? size : payload);
 }
 
 void LcmBus::Dispatch(std::string_view channel, const unsigned char* data, int size) {
@@ -146,6 +158,14 @@ void LcmBus::Dispatch(std::string_view channel, const unsigned char* data, int s
 }
 
 void LcmBus::Subscribe(const std::string& channel, Handler handler) {
+  AddSubscription(channel, std::move(handler), false);
+}
+
+void LcmBus::SubscribeAsReceived(const std::string& channel, Handler handler) {
+  AddSubscription(channel, std::move(handler), true);
+}
+
+void LcmBus::AddSubscription(const std::string& channel, Handler handler, bool as_received) {
   std::string error;
   if (receiver_ && !receiver_->Open(&error)) {
     throw std::runtime_error("cannot receive on LCM URL '" + url_ + "': " + error);
@@ -166,7 +186,7 @@ void LcmBus::Subscribe(const std::string& channel, Handler handler) {
   }
   routes_.clear();  // a bundle's parts may match the new subscription too
   subs_.push_back(std::make_unique<Sub>(
-      Sub{std::move(handler), &auth_, &rejected_, channel, std::move(pattern)}));
+      Sub{std::move(handler), &auth_, &rejected_, channel, std::move(pattern), as_received}));
   if (receiver_) {
     receiving_ = true;
     return;
@@ -199,9 +219,11 @@ void LcmBus::OnBundleBytes(std::string_view channel, const unsigned char* p, int
     }) && ok;
   }
   ok = ok && bundle_wire::ForEachPart(p, size, [&](std::string_view ch, const unsigned char* d, int n) {
-    if (recordable && auth_) n -= bus_auth::kTrailerBytes;  // verified above
+    // Verified above; the trailer goes only to those who pass the part on as it came.
+    const int payload = recordable && auth_ ? n - bus_auth::kTrailerBytes : n;
     for (Sub* sub : SubsFor(ch)) {
-      sub->handler(std::string(ch), n > 0 ? d : nullptr, n);
+      const int size = sub->as_received ? n : payload;
+      sub->handler(std::string(ch), size > 0 ? d : nullptr, size);
     }
   });
   if (!ok) ++rejected_;  // forged, damaged, or not a bundle
@@ -318,7 +340,7 @@ bool UdpPortFree(int port) {
 
 int RandomPrivatePort(int followers) {
   std::random_device rd;
-  const int block = followers + 2;
+  const int block = followers + 3;
   const int blocks = std::max(1, (EphemeralPortLow() - kPrivatePortLow) / block);
   int port = kPrivatePortLow;
   for (int attempt = 0; attempt < 64; ++attempt) {
@@ -338,6 +360,11 @@ std::vector<std::string> PerVehicleLcmUrls(int port, int followers) {
                    "?ttl=0&recv_buf_size=4194304");
   }
   return urls;
+}
+
+std::string UplinkLcmUrl(int port, int followers) {
+  return "udpm://239.255.76.68:" + std::to_string(port + followers + 2) +
+         "?ttl=0&recv_buf_size=4194304";
 }
 
 /// Makes sure multicast on the private group stays on loopback.

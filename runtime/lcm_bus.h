@@ -40,6 +40,17 @@ class Bus {
   virtual bool PublishRaw(const std::string& channel, const void* data, int size) = 0;
   /// `channel` is a regular expression (implicitly ^...$), as in LCM.
   virtual void Subscribe(const std::string& channel, Handler handler) = 0;
+  /// As Subscribe, but the handler gets each message that verified as it came, its
+  /// trailer included (a bundle's parts each as it would have come alone): to be passed
+  /// on unchanged with PublishAsReceived.
+  virtual void SubscribeAsReceived(const std::string& channel, Handler handler) {
+    Subscribe(channel, std::move(handler));
+  }
+  /// Publishes a message as another bus received it (SubscribeAsReceived): inside an open
+  /// recordable bundle as a part as it is, otherwise alone as it is; never signed again.
+  virtual bool PublishAsReceived(const std::string& channel, const void* data, int size) {
+    return PublishRaw(channel, data, size);
+  }
   /// Dispatches pending messages, waiting at most timeout_ms for the first, and at most
   /// kMaxMessagesPerHandle of them: a flood on the bus then cannot grow what a caller
   /// buffers between two calls without bound; the rest waits, in order, for the next call.
@@ -96,6 +107,8 @@ class LcmBus : public Bus {
                   Receiving receiving = Receiving::kInCaller);
   bool PublishRaw(const std::string& channel, const void* data, int size) override;
   void Subscribe(const std::string& channel, Handler handler) override;
+  void SubscribeAsReceived(const std::string& channel, Handler handler) override;
+  bool PublishAsReceived(const std::string& channel, const void* data, int size) override;
   int Handle(int timeout_ms) override;
   /// Dropped unverified, and (received in the caller) datagrams that were not LCM's.
   std::int64_t rejected() const override {
@@ -116,12 +129,16 @@ class LcmBus : public Bus {
     std::int64_t* rejected;
     std::string channel;  // the pattern as given, and as a regex when it is not a plain
     std::optional<std::regex> pattern;  // name: to route the parts of a bundle
+    bool as_received = false;  // SubscribeAsReceived: the trailer is handed on too
     bool Matches(std::string_view ch) const {
       return pattern ? std::regex_match(ch.begin(), ch.end(), *pattern) : ch == channel;
     }
     void On(const lcm::ReceiveBuffer* rb, const std::string& channel);
     void Deliver(const std::string& channel, const void* data, int size);
   };
+  void AddSubscription(const std::string& channel, Handler handler, bool as_received);
+  /// Appends one part to the open bundle, flushing first what would pass kMaxBytes.
+  bool AppendPart(const std::string& channel, const void* data, int size, int trailer);
   /// Signs (with a key) and publishes one message.
   bool PublishSigned(const std::string& channel, const void* data, int size);
   /// A bundle received: verified as one message, then each part to the subscriptions whose
@@ -289,7 +306,7 @@ inline std::int64_t Digest64(const void* data, int size) {
 std::string PrivateLcmUrl(int port, const std::string& group = "239.255.76.67");
 
 /// A random port for a private run with `followers` followers: the first of a block of
-/// followers + 2 ports (the shared bus, then one per vehicle), aligned to its size, so
+/// followers + 3 ports (the shared bus, one per vehicle, the uplink), aligned to its size, so
 /// that two runs with as many followers get the same block or disjoint ones (runs of
 /// different sizes can overlap; any two runs collide with a small probability, as two
 /// random ports can), at or above kPrivatePortLow and below the kernel's ephemeral port
@@ -306,6 +323,11 @@ constexpr int kPrivatePortLow = 10000;
 /// different groups would still receive -- and wake up for -- each other's traffic.
 /// Groups 239.255.77-82.x (up to 1200 vehicles), never the shared 239.255.76.67.
 std::vector<std::string> PerVehicleLcmUrls(int port, int followers);
+
+/// The URL on which the vehicles and the leader of a private run on `port` publish when
+/// only the channel emulator is to hear them (ChannelEmulatorApp::SetUplink): the last port
+/// of the run's block, on a group of its own.
+std::string UplinkLcmUrl(int port, int followers);
 
 /// Makes sure multicast on the private groups stays on loopback (adds the route as
 /// root). False with the reason and the command to run in `err` otherwise.

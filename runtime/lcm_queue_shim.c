@@ -1,5 +1,5 @@
-/* Preloaded into the run's lcm-logger (LD_PRELOAD, set by shoal run). Two things, both on
-   lcm-logger's behalf, through LCM's public API:
+/* Preloaded into the run's lcm-logger (LD_PRELOAD, set by shoal run). Four things, all on
+   lcm-logger's behalf, through LCM's and GLib's public API:
 
    1. Every subscription lcm-logger makes gets a queue of SHOAL_LOGGER_QUEUE_CAPACITY
       messages instead of LCM's 30. LCM's receive thread reads each datagram off the socket
@@ -19,7 +19,17 @@
       window as one such bundle: one datagram and one wake-up of the logger for many
       messages. Anything else (a malformed bundle too) is handed on as it came.
 
-   3. lcm-logger's memory is locked (mlockall, current and future) at its first
+   3. The parts of one bundle reach lcm-logger's writer thread in one hand-off. Its handler
+      queues each message for the writer (g_async_queue_push); handed a bundle's parts one by
+      one, the writer on the other CPU wakes for the first, writes it, finds the queue empty
+      and sleeps again before the next is pushed: a wake-up per part, most of the logger's
+      CPU at scale (docs/benchmarks.md). While a bundle is unpacked the shim holds the
+      queue's lock and pushes each part under it (g_async_queue_push_unlocked), so the
+      writer wakes once and finds them all. No deadlock: the writer takes the queue's lock
+      and lcm-logger's own mutex one after the other, never one inside the other, and the
+      handler takes that mutex under the queue's lock, as it takes nothing else.
+
+   4. lcm-logger's memory is locked (mlockall, current and future) at its first
       subscription, when permitted (root, or a large enough RLIMIT_MEMLOCK): its resident
       size is then what it has allocated, not the pages of LCM's receive ring and of its
       heaps that a backlog on a loaded machine happens to reach first, which a soak's memory
@@ -37,6 +47,47 @@
 #include "runtime/lcm_queue_shim.h"
 
 typedef lcm_subscription_t *(*SubscribeFn)(lcm_t *, const char *, lcm_msg_handler_t, void *);
+
+/* GLib's asynchronous queue, as lcm-logger uses it; looked up at run time, so that the shim
+   needs no GLib headers or link of its own. */
+typedef struct _GAsyncQueue GAsyncQueue;
+typedef void (*QueueFn)(GAsyncQueue *);
+typedef void (*PushFn)(GAsyncQueue *, void *);
+static PushFn real_push, push_unlocked;
+static QueueFn queue_lock, queue_unlock;
+/* While a bundle is unpacked (the handler thread): the queue whose lock is held, if any. */
+static __thread int unbundling;
+static __thread GAsyncQueue *held;
+
+static int FindQueueFunctions(void)
+{
+    if (real_push == NULL) {
+        real_push = (PushFn) dlsym(RTLD_NEXT, "g_async_queue_push");
+        push_unlocked = (PushFn) dlsym(RTLD_DEFAULT, "g_async_queue_push_unlocked");
+        queue_lock = (QueueFn) dlsym(RTLD_DEFAULT, "g_async_queue_lock");
+        queue_unlock = (QueueFn) dlsym(RTLD_DEFAULT, "g_async_queue_unlock");
+    }
+    return real_push != NULL && push_unlocked != NULL && queue_lock != NULL &&
+           queue_unlock != NULL;
+}
+
+void g_async_queue_push(GAsyncQueue *queue, void *data)
+{
+    if (!FindQueueFunctions()) {
+        if (real_push != NULL) real_push(queue, data);
+        return;
+    }
+    if (!unbundling) {
+        real_push(queue, data);
+        return;
+    }
+    if (held != queue) {
+        if (held != NULL) queue_unlock(held);
+        queue_lock(queue);
+        held = queue;
+    }
+    push_unlocked(queue, data);
+}
 
 /* lcm-logger's own handler and its argument, for one subscription. */
 typedef struct {
@@ -84,7 +135,13 @@ static void Unbundle(const lcm_recv_buf_t *rbuf, const char *channel, void *user
     const Target *t = (const Target *) user;
     if (strcmp(channel, kBundleChannel) == 0 && rbuf->data_size >= sizeof(kRecordable) &&
         memcmp(rbuf->data, kRecordable, sizeof(kRecordable)) == 0 && ForEachPart(rbuf, NULL)) {
+        unbundling = 1;
         ForEachPart(rbuf, t);
+        unbundling = 0;
+        if (held != NULL) {
+            queue_unlock(held);
+            held = NULL;
+        }
         return;
     }
     t->handler(rbuf, channel, t->user);

@@ -97,16 +97,19 @@ sockaddr_in AddressOf(const std::string& url) {
 }
 
 /// The groups of a run started with the default private bus: [0] the shared one, then
-/// vehicle 0..followers's own; empty if the run did not start within 10 s.
+/// vehicle 0..followers's own, then the uplink on which the processes publish to the
+/// channel emulator; empty if the run did not start within 10 s.
 std::vector<sockaddr_in> RunGroups(pid_t run) {
   const auto t0 = Clock::now();
   while (Clock::now() - t0 < std::chrono::seconds(10)) {
     const std::string shared = EmulatorArg(run, "--lcm-url");
     const std::string vehicles = EmulatorArg(run, "--vehicle-urls");
-    if (!shared.empty() && !vehicles.empty()) {
+    const std::string uplink = EmulatorArg(run, "--uplink-url");
+    if (!shared.empty() && !vehicles.empty() && !uplink.empty()) {
       std::vector<sockaddr_in> g = {AddressOf(shared)};
       std::istringstream list(vehicles);
       for (std::string u; std::getline(list, u, ',');) g.push_back(AddressOf(u));
+      g.push_back(AddressOf(uplink));
       return g;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -202,11 +205,13 @@ class Flooder {
       return b;
     };
     for (std::size_t g = 0; g < groups_.size(); ++g) {
-      // Group 0 is the shared bus (states, statuses, the clock master's input); group
-      // 1 + id is vehicle id's own (its deliveries and clock windows).
+      // Group 0 is the shared bus (what the logger records), the last the uplink (states
+      // and statuses: the clock master's input); group 1 + id between them is vehicle id's
+      // own (its deliveries and clock windows).
       const int id = static_cast<int>(g) - 1;
+      const bool input = g == 0 || g + 1 == groups_.size();
       const std::vector<std::string> run_channels =
-          g == 0 ? std::vector<std::string>{"SHOAL_STATE_1", "SHOAL_STATE_0", "SHOAL_STATUS",
+          input ? std::vector<std::string>{"SHOAL_STATE_1", "SHOAL_STATE_0", "SHOAL_STATUS",
                                             "SHOAL_CLOCK"}
                  : std::vector<std::string>{"SHOAL_RX_" + std::to_string(id), "SHOAL_CLOCK"};
       if (foreign_only_) {
@@ -279,7 +284,7 @@ FloodedRun RunFlooded(const std::string& args, double rate, const std::string& t
   const pid_t pid = StartShoal("run " + kExample2 + " --json " + args, out);
   FloodedRun r;
   const std::vector<sockaddr_in> groups = RunGroups(pid);
-  EXPECT_EQ(groups.size(), 2u + kFollowers) << "the run's groups were not found";
+  EXPECT_EQ(groups.size(), 3u + kFollowers) << "the run's groups were not found";
   {
     Flooder f(groups, rate, foreign_only);
     r.status = WaitExit(pid, 120, nullptr);
@@ -412,7 +417,7 @@ TEST(Flood, ForgeriesOnAVehiclesOwnPortAreCountedByThatVehicle) {
   const pid_t pid = StartShoal("run " + kExample2 + " --per-vehicle-urls --duration 600 --out " +
                                    log, out);
   const std::vector<sockaddr_in> groups = RunGroups(pid);
-  ASSERT_EQ(groups.size(), 2u + kFollowers);
+  ASSERT_EQ(groups.size(), 3u + kFollowers);
   // 2000 states of vehicle 1 as deliveries to vehicle 3, half without a trailer, half
   // signed with another key, over 0.5 s, well before the run ends.
   const bus_auth::Key other = bus_auth::NewKey();

@@ -379,17 +379,25 @@ TEST(Sil, PerVehicleBusesCarryOnlyTheirOwnTraffic) {
   EXPECT_EQ(received(urls[1], urls[2]), 0);
   EXPECT_EQ(received(urls[1], urls[0]), 0);
   EXPECT_EQ(received(urls[1], PrivateLcmUrl(port)), 0);
-  // Two runs' port blocks are the same or disjoint.
+  // The uplink, the block's last port: the logger on the shared bus and the vehicles do not
+  // hear what the processes send the channel emulator there.
+  const std::string uplink = UplinkLcmUrl(port, 3);
+  EXPECT_EQ(uplink.find("udpm://239.255.76.68:" + std::to_string(port + 5) + "?ttl=0"), 0u)
+      << uplink;
+  EXPECT_EQ(received(uplink, uplink), 5);
+  EXPECT_EQ(received(PrivateLcmUrl(port), uplink), 0);
+  EXPECT_EQ(received(urls[3], uplink), 0);
+  // Two runs' port blocks (followers + 3 ports) are the same or disjoint.
   for (int k = 0; k < 200; ++k) {
     const int p = RandomPrivatePort(5);
-    EXPECT_EQ((p - kPrivatePortLow) % 7, 0);
+    EXPECT_EQ((p - kPrivatePortLow) % 8, 0);
     EXPECT_GE(p, kPrivatePortLow);
     int ephemeral_low = 32768;  // the kernel's default
     if (FILE* f = std::fopen("/proc/sys/net/ipv4/ip_local_port_range", "r")) {
       if (std::fscanf(f, "%d", &ephemeral_low) != 1) ephemeral_low = 32768;
       std::fclose(f);
     }
-    EXPECT_LT(p + 6, std::max(ephemeral_low, kPrivatePortLow + 7));
+    EXPECT_LT(p + 7, std::max(ephemeral_low, kPrivatePortLow + 8));
   }
 }
 
