@@ -735,6 +735,11 @@ int ChannelEmulatorMain(int argc, char** argv) {
     // After Init: its subscriptions have started LCM's receive thread and ring.
     std::cerr << "shoal_channel_emulator: " << LockMemory() << "\n";
     const int status = app_.Run();
+    const std::int64_t overflowed = bus.overflowed() + (uplink ? uplink->overflowed() : 0);
+    if (overflowed > 0) {  // before the authentication line, which shoal run reads as the last
+      std::cerr << "shoal_channel_emulator: the kernel dropped " << overflowed
+                << " datagram(s) sent to this process: its receive buffer was full\n";
+    }
     const std::int64_t rejected = bus.rejected() + (uplink ? uplink->rejected() : 0);
     std::cerr << "shoal_channel_emulator: " << bus_auth::ExitNote(auth, rejected) << "\n";
     return status;

@@ -428,6 +428,13 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
     if (bundle_publishes) node->BundlePublishes();
     node->Init();
     const int status = node->Run();
+    // A lockstep run that stalls on a lost datagram says where it was lost. Before the
+    // authentication line, which shoal run reads as the last.
+    const std::int64_t overflowed = (rx ? rx.get() : &bus)->overflowed();
+    if (overflowed > 0) {
+      std::cerr << name << ": the kernel dropped " << overflowed
+                << " datagram(s) sent to this process: its receive buffer was full\n";
+    }
     std::cerr << name << ": " << bus_auth::ExitNote(auth, c.rx_bus->rejected()) << "\n";
     return status;
   } catch (const std::exception& e) {

@@ -1,6 +1,7 @@
 #include "runtime/udpm_receiver.h"
 
 #include <arpa/inet.h>
+#include <linux/sock_diag.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -124,7 +125,6 @@ bool UdpmReceiver::Open(std::string* error) {
   }
   socklen_t len = sizeof(recv_buf_bytes_);
   getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &recv_buf_bytes_, &len);
-  setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof(one));  // a count; none if refused
   fd_ = fd;
   buffers_.assign(static_cast<std::size_t>(kBatch) * kDatagramBytes, 0);
   return true;
@@ -141,7 +141,6 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
   mmsghdr msgs[kBatch];
   iovec iov[kBatch];
   sockaddr_in from[kBatch];
-  alignas(cmsghdr) unsigned char control[kBatch][CMSG_SPACE(sizeof(std::uint32_t))];
   int handed = 0;
   while (handed < max_messages) {
     const int want = std::min(kBatch, max_messages - handed);
@@ -152,8 +151,6 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
       msgs[k].msg_hdr.msg_namelen = sizeof(from[k]);
       msgs[k].msg_hdr.msg_iov = &iov[k];
       msgs[k].msg_hdr.msg_iovlen = 1;
-      msgs[k].msg_hdr.msg_control = control[k];
-      msgs[k].msg_hdr.msg_controllen = sizeof(control[k]);
       msgs[k].msg_len = 0;
     }
     const int n = recvmmsg(fd_, msgs, static_cast<unsigned>(want), MSG_DONTWAIT, nullptr);
@@ -163,15 +160,7 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
       return handed > 0 ? handed : -1;
     }
     for (int k = 0; k < n; ++k) {
-      const msghdr& h = msgs[k].msg_hdr;
-      for (cmsghdr* c = CMSG_FIRSTHDR(&h); c != nullptr; c = CMSG_NXTHDR(const_cast<msghdr*>(&h), c)) {
-        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
-          std::uint32_t dropped = 0;
-          std::memcpy(&dropped, CMSG_DATA(c), sizeof(dropped));
-          overflowed_ = dropped;
-        }
-      }
-      if ((h.msg_flags & MSG_TRUNC) != 0) {  // larger than a datagram can be: not LCM's
+      if ((msgs[k].msg_hdr.msg_flags & MSG_TRUNC) != 0) {  // larger than a datagram can be: not LCM's
         ++malformed_;
         continue;
       }
@@ -181,6 +170,17 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
     if (n < want) break;
   }
   return handed;
+}
+
+std::int64_t UdpmReceiver::overflowed() const {
+  if (fd_ < 0) return 0;
+  std::uint32_t info[SK_MEMINFO_VARS] = {};
+  socklen_t len = sizeof(info);
+  if (getsockopt(fd_, SOL_SOCKET, SO_MEMINFO, info, &len) != 0 ||
+      len <= static_cast<socklen_t>(SK_MEMINFO_DROPS * sizeof(info[0]))) {
+    return 0;  // a kernel without it (before 4.6): not known
+  }
+  return info[SK_MEMINFO_DROPS];
 }
 
 bool UdpmReceiver::OnDatagram(const unsigned char* p, int size, const sockaddr_in& from,

@@ -59,8 +59,9 @@ class UdpmReceiver {
   /// Datagrams that were not LCM's (a bad magic, too short, a channel without its NUL or
   /// longer than LCM allows, a fragment that does not fit its message).
   std::int64_t malformed() const { return malformed_; }
-  /// Datagrams the kernel dropped because the socket's buffer was full (SO_RXQ_OVFL).
-  std::int64_t overflowed() const { return overflowed_; }
+  /// Datagrams the kernel dropped because the socket's buffer was full, up to now
+  /// (SO_MEMINFO's drop count).
+  std::int64_t overflowed() const;
   /// The receive buffer the kernel gave (bytes; it doubles what is asked for).
   int recv_buf_bytes() const { return recv_buf_bytes_; }
 
@@ -88,7 +89,6 @@ class UdpmReceiver {
   int fd_ = -1;
   int recv_buf_bytes_ = 0;
   std::int64_t malformed_ = 0;
-  std::int64_t overflowed_ = 0;
   std::vector<unsigned char> buffers_;  // kBatch datagrams of kDatagramBytes
   std::map<std::uint64_t, Partial> partials_;  // by sender address and port
   std::size_t partial_bytes_ = 0;

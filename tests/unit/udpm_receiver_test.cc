@@ -148,6 +148,30 @@ TEST_F(UdpmReceiverTest, ACallHandsOnABoundedNumberAndTheRestFollowsInOrder) {
   for (int i = 0; i < 50; ++i) EXPECT_EQ(seen[static_cast<std::size_t>(i)], i);
 }
 
+// Given a receive buffer far too small for a burst, when the burst arrives before the
+// process reads, then every datagram is either handed on or counted as dropped by the
+// kernel: a lockstep run that stalls on a lost datagram can say where it was lost.
+TEST_F(UdpmReceiverTest, DatagramsTheKernelDropsForAFullBufferAreCounted) {
+  UdpmAddress small = address_;
+  small.recv_buf_size = 4096;
+  UdpmReceiver rx(small);
+  std::string err;
+  ASSERT_TRUE(rx.Open(&err)) << err;
+  lcm::LCM lcm(url_);
+  const std::vector<unsigned char> payload(1000, 7);
+  constexpr int kSent = 100;
+  for (int i = 0; i < kSent; ++i) {
+    ASSERT_EQ(lcm.publish("BURST", payload.data(), static_cast<unsigned>(payload.size())), 0);
+  }
+  usleep(100000);
+  int received = 0;
+  while (rx.Receive(100, 1000, [&](std::string_view, const unsigned char*, int) { ++received; }) >
+         0) {
+  }
+  EXPECT_GT(rx.overflowed(), 0);
+  EXPECT_EQ(received + rx.overflowed(), kSent);
+}
+
 // Given nothing on the bus, when the receiver waits, then it returns 0 after about the
 // time asked, and at once when asked not to wait.
 TEST_F(UdpmReceiverTest, WaitsNoLongerThanAsked) {
