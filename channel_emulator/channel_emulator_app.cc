@@ -591,6 +591,12 @@ int ChannelEmulatorApp::RunRealtime() {
   const std::int64_t end_ns =
       t0_ns_ + (final_tick_ * period_us_ + static_cast<Micros>(max_delay * 1e6) + 100000) * 1000;
   std::int64_t next_health_ns = t0_ns_;
+  // What the uplink brings goes on to the recorder once per control period (HandleBus's
+  // bundle nests in this one): the states of a period's burst reach it as one or two
+  // datagrams, not one per batch the emulator happened to wake for.
+  const std::int64_t period_ns = period_us_ * 1000;
+  std::int64_t relayed_ns = MonotonicNs();
+  if (uplink_ != nullptr) bus_->BeginBundle(/*recordable=*/true);
   while (!StopRequested()) {
     const std::int64_t now_ns = MonotonicNs();
     if (now_ns >= end_ns) break;
@@ -600,6 +606,12 @@ int ChannelEmulatorApp::RunRealtime() {
     if (due >= 0 && due <= now_us) {
       ReleaseDue(due);
       continue;
+    }
+    // After the releases due: they are the delays the run is about.
+    if (uplink_ != nullptr && now_ns - relayed_ns >= period_ns) {
+      bus_->EndBundle();
+      bus_->BeginBundle(/*recordable=*/true);
+      relayed_ns = now_ns;
     }
     // Decisions go out about once per control period, as one SHOAL_CHANNEL message.
     if (!events_.empty() && now_ns - events_since_ns_ >= period_us_ * 1000) PublishEvents();
@@ -619,6 +631,7 @@ int ChannelEmulatorApp::RunRealtime() {
       if (channel_.NextDue() == due) SleepUntilNs(wake_ns);
     }
   }
+  if (uplink_ != nullptr) bus_->EndBundle();
   PublishEvents();
   PublishHealth((MonotonicNs() - t0_ns_) / 1000);
   PublishStatus(StopRequested() ? RunState::kInterrupted : RunState::kFinished, "");

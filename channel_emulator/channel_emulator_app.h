@@ -61,9 +61,10 @@ class ChannelEmulatorApp {
   /// The processes publish on `uplink`, where only this process listens (before Init):
   /// their messages are received there, and each that verified is passed on, unchanged,
   /// to the run's bus for the recorder, packed as recordable bundles (runtime/lcm_bus.h)
-  /// per batch received; so the recorder is woken by a few datagrams a window instead of
-  /// one per process. Lockstep without restarts: what is in flight to a dead emulator is
-  /// never passed on.
+  /// per batch received in lockstep (before the window it completes is released), per
+  /// control period in real time; so the recorder is woken by a few datagrams a window or
+  /// period instead of one per process. Not with restarts: what is in flight to a dead
+  /// emulator is never passed on.
   void SetUplink(Bus* uplink) { uplink_ = uplink; }
   /// The run's bus is not authenticated (--insecure): every status says so.
   void SetInsecure() { insecure_ = true; }
