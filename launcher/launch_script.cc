@@ -172,12 +172,15 @@ void WriteHeader(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::os
     << "#   leader            publishes the leader's path state (SHOAL_STATE_0)\n"
     << "#   vehicle 1.." << plan.processes.size() - 3
     << "      one per follower: publishes SHOAL_STATE_<id>, hears only SHOAL_RX_<id>\n"
-    << "# How they find each other: all publish on the run's shared bus (--lcm-url, an LCM\n"
-    << "# URL udpm://GROUP:PORT?ttl=0: a multicast group and port that never leave the host),\n"
-    << "# which the logger records. Where a process has --rx-url it receives there, on a bus\n"
-    << "# of its own (group 239.255.<77+id/200>.<20+id%200>, port <run port> + 1 + id); the\n"
-    << "# emulator delivers to each on it (--vehicle-urls, leader first). The URLs were\n"
-    << "# drawn when this was printed: print it again for a run beside this one.\n";
+    << "# How they find each other: each publishes on its --lcm-url (an LCM URL\n"
+    << "# udpm://GROUP:PORT?ttl=0: a multicast group and port that never leave the host).\n"
+    << "# The logger records the run's shared bus. Where the emulator has --uplink-url, the\n"
+    << "# others publish there instead (group 239.255.76.68, the block's last port) and the\n"
+    << "# emulator passes what they send on to the shared bus. Where a process has --rx-url\n"
+    << "# it receives there, on a bus of its own (group 239.255.<77+id/200>.<20+id%200>,\n"
+    << "# port <run port> + 1 + id); the emulator delivers to each on it (--vehicle-urls,\n"
+    << "# leader first). The URLs were drawn when this was printed: print it again for a\n"
+    << "# run beside this one.\n";
   if (plan.insecure) {
     o << "# --insecure: the bus is not authenticated (no key).\n";
   } else {
