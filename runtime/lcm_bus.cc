@@ -222,6 +222,16 @@ void LcmBus::OnBundleBytes(std::string_view channel, const unsigned char* p, int
     // Verified above; the trailer goes only to those who pass the part on as it came.
     const int payload = recordable && auth_ ? n - bus_auth::kTrailerBytes : n;
     for (Sub* sub : SubsFor(ch)) {
+      if (sub->as_received && auth_ && !recordable) {
+        // A part of a bundle signed whole has no trailer of its own: it is handed on as
+        // it would have come alone, signed (the same bytes its sender's bus would sign).
+        static thread_local std::vector<unsigned char> alone;
+        alone.assign(d, d + n);
+        alone.resize(static_cast<std::size_t>(n) + bus_auth::kTrailerBytes);
+        auth_->Sign(ch, d, n, alone.data() + n);
+        sub->handler(std::string(ch), alone.data(), static_cast<int>(alone.size()));
+        continue;
+      }
       const int size = sub->as_received ? n : payload;
       sub->handler(std::string(ch), size > 0 ? d : nullptr, size);
     }

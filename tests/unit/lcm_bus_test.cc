@@ -110,6 +110,44 @@ TEST(LcmBus, ABundleReachesEachSubscriberAsItsPartsInOrder) {
   EXPECT_EQ(clock[2].bytes, "after");
 }
 
+// Given a subscriber that passes messages on as they came (the channel emulator's uplink),
+// when plain messages, a recordable bundle and a bundle signed whole arrive, then it gets
+// every message, bundled or not, with the trailer it would have had alone: what it passes
+// on verifies for any reader with the run's key, byte for byte as the sender's bus signs.
+TEST(LcmBus, AsReceivedSubscribersGetEachMessageWithItsOwnTrailer) {
+  const bus_auth::Key key = TestKey(9);
+  LcmBus bus("memq://", key);
+  std::vector<Received> got;
+  bus.SubscribeAsReceived("SHOAL_.*", [&](const std::string& ch, const void* d, int n) {
+    got.push_back({ch, std::string(static_cast<const char*>(d), static_cast<std::size_t>(n))});
+  });
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_STATUS", "alone", 5));
+  bus.BeginBundle(/*recordable=*/true);
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_STATE_1", "r1", 2));
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_STATE_2", "r2", 2));
+  ASSERT_TRUE(bus.EndBundle());
+  bus.BeginBundle();
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_RX_1", "w1", 2));
+  ASSERT_TRUE(bus.PublishRaw("SHOAL_CLOCK", "w2", 2));
+  ASSERT_TRUE(bus.EndBundle());
+  while (bus.Handle(0) > 0) {
+  }
+  ASSERT_EQ(got.size(), 5u);
+  const std::vector<std::pair<std::string, std::string>> want = {
+      {"SHOAL_STATUS", "alone"}, {"SHOAL_STATE_1", "r1"}, {"SHOAL_STATE_2", "r2"},
+      {"SHOAL_RX_1", "w1"}, {"SHOAL_CLOCK", "w2"}};
+  for (std::size_t k = 0; k < want.size(); ++k) {
+    EXPECT_EQ(got[k].channel, want[k].first);
+    const std::string& b = got[k].bytes;
+    ASSERT_EQ(b.size(), want[k].second.size() + bus_auth::kTrailerBytes) << k;
+    EXPECT_EQ(bus_auth::Verify(key, got[k].channel, b.data(), static_cast<int>(b.size())),
+              static_cast<int>(want[k].second.size()))
+        << k;
+    EXPECT_EQ(b.substr(0, want[k].second.size()), want[k].second);
+  }
+  EXPECT_EQ(bus.rejected(), 0);
+}
+
 // Given a bundle larger than one datagram should carry, when it is sent, then it goes out
 // as several bundles, cut between parts, and every part arrives once, in order.
 TEST(LcmBus, ALargeBundleIsCutBetweenPartsAndLosesNone) {
