@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzing of every entry point that takes bytes from outside (tests/fuzz): a bus message
-# (fuzz_decode: runtime/lcm_bus.h's Decode of each type), a log file (fuzz_log_reader:
+# (fuzz_decode: runtime/lcm_bus.h's Decode of each type, and the datagrams a process's own
+# socket reader takes, runtime/udpm_receiver.h), a log file (fuzz_log_reader:
 # runtime/log_reader.h and analysis' LoadRunLog), a scenario file (fuzz_scenario:
 # ParseScenario) and a campaign file (fuzz_campaign: ParseCampaign). libFuzzer with ASan +
 # UBSan + LeakSanitizer, clang++ (Debian: clang, libclang-rt-14-dev).

@@ -56,6 +56,11 @@ class UdpmReceiver {
   /// rest stays in the socket. Returns the number handed on, or -1 if the socket failed.
   int Receive(int timeout_ms, int max_messages, const Handler& handler);
 
+  /// One datagram as it came from `from`, without a socket (what Receive does with each;
+  /// also the fuzz target's entry): hands on the message it completes, if any, and says
+  /// whether it did.
+  bool OnDatagram(const unsigned char* p, int size, const sockaddr_in& from, const Handler& handler);
+
   /// Datagrams that were not LCM's (a bad magic, too short, a channel without its NUL or
   /// longer than LCM allows, a fragment that does not fit its message).
   std::int64_t malformed() const { return malformed_; }
@@ -80,8 +85,6 @@ class UdpmReceiver {
   static constexpr std::size_t kMaxPartialBytes = std::size_t{1} << 24;
   static constexpr std::size_t kMaxPartials = 1000;
 
-  /// One datagram: hands on a message if it completes one; returns whether it did.
-  bool OnDatagram(const unsigned char* p, int size, const sockaddr_in& from, const Handler& handler);
   bool OnFragment(const unsigned char* p, int size, const sockaddr_in& from, const Handler& handler);
   void DropPartial(std::map<std::uint64_t, Partial>::iterator it);
 

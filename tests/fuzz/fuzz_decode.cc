@@ -5,7 +5,8 @@
 // unless a string holds a NUL byte: LCM's decoder keeps the string's bytes as they are,
 // its encoder writes them up to the first NUL (strlen), so such a message re-encodes
 // shorter (and encode() returns less than getEncodedSize()). The same bytes are also read
-// as a bundle (BundleParts).
+// as a bundle (BundleParts), and as LCM udpm datagrams as a process's own socket reader
+// takes them (runtime/udpm_receiver.h: short messages and fragments, Datagrams).
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -23,6 +24,7 @@
 #include <shoal/vehicle_state_t.hpp>
 
 #include "runtime/lcm_bus.h"
+#include "runtime/udpm_receiver.h"
 
 namespace {
 
@@ -77,6 +79,30 @@ void BundleParts(const std::uint8_t* p, int size) {
   if (ok && covered != size) std::abort();
 }
 
+// The bytes as datagrams to one receiver: cut at each "|||" (so that fragments of one
+// message can follow each other), the odd pieces from a second sender. What it hands on must
+// lie inside the message it assembled, with a channel of at most 63 characters; what it
+// cannot read is counted, never handed on.
+void Datagrams(const std::uint8_t* data, int size) {
+  shoal::UdpmAddress address;
+  shoal::UdpmReceiver rx(address);
+  sockaddr_in from[2] = {};
+  from[1].sin_port = 1;
+  const std::string_view all(reinterpret_cast<const char*>(data), static_cast<std::size_t>(size));
+  std::size_t start = 0;
+  for (int k = 0; start <= all.size(); ++k) {
+    std::size_t end = all.find("|||", start);
+    if (end == std::string_view::npos) end = all.size();
+    rx.OnDatagram(data + start, static_cast<int>(end - start), from[k % 2],
+                  [](std::string_view ch, const unsigned char* d, int n) {
+                    if (ch.size() > 63 || n < 0 || (n > 0 && d == nullptr)) std::abort();
+                    volatile unsigned char sink = 0;
+                    for (int i = 0; i < n; ++i) sink = sink ^ d[i];  // every byte readable
+                  });
+    start = end + 3;
+  }
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -96,5 +122,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     case 6: DecodeOne<shoal::channel_event_t>(msg, n); break;
   }
   BundleParts(msg, n);
+  Datagrams(msg, n);
   return 0;
 }
