@@ -10,6 +10,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <iterator>
 
 namespace shoal {
 
@@ -208,7 +209,7 @@ bool UdpmReceiver::OnDatagram(const unsigned char* p, int size, const sockaddr_i
 }
 
 void UdpmReceiver::DropPartial(std::map<std::uint64_t, Partial>::iterator it) {
-  partial_bytes_ -= it->second.data.size();
+  partial_bytes_ -= it->second.charged;
   partials_.erase(it);
 }
 
@@ -236,39 +237,74 @@ bool UdpmReceiver::OnFragment(const unsigned char* p, int size, const sockaddr_i
     data += len + 1;
     n -= len + 1;
   }
-  if (fragments == 0 || fragment >= fragments || msg_size > kMaxPartialBytes ||
+  if (fragments == 0 || fragment >= fragments || msg_size > kMaxMessageBytes ||
       offset > msg_size || static_cast<std::uint32_t>(n) > msg_size - offset) {
     ++malformed_;
     return false;
   }
   const std::uint64_t key = (std::uint64_t{ntohl(from.sin_addr.s_addr)} << 16) | ntohs(from.sin_port);
   auto it = partials_.find(key);
-  if (it != partials_.end() &&
-      (it->second.seqno != seqno || it->second.data.size() != msg_size)) {
+  if (it != partials_.end() && (it->second.seqno != seqno || it->second.size != msg_size)) {
     DropPartial(it);  // what is left of an earlier message of that sender: it lost a fragment
     it = partials_.end();
   }
   if (it == partials_.end()) {
-    while (!partials_.empty() &&
-           (partials_.size() >= kMaxPartials || partial_bytes_ + msg_size > kMaxPartialBytes)) {
-      DropPartial(partials_.begin());
-    }
+    if (partials_.size() >= kMaxPartials) DropPartial(partials_.begin());
     Partial fresh;
     fresh.seqno = seqno;
-    fresh.data.assign(msg_size, 0);
-    fresh.fragments_left = fragments;
-    partial_bytes_ += msg_size;
+    fresh.size = msg_size;
     it = partials_.emplace(key, std::move(fresh)).first;
   }
+  if (it->second.pieces.size() >= fragments ||
+      !Keep(it, offset, data, static_cast<std::uint32_t>(n))) {
+    ++malformed_;  // more fragments than it has, or over bytes another gave: not LCM's
+    return false;
+  }
   Partial& m = it->second;
-  if (fragment == 0) m.channel.assign(channel);
-  if (n > 0) std::memcpy(m.data.data() + offset, data, static_cast<std::size_t>(n));
-  if (--m.fragments_left > 0) return false;
+  if (fragment == 0) {
+    m.named = true;
+    m.channel.assign(channel);
+  }
+  if (!m.named || m.bytes < m.size) return false;
+  // The pieces do not overlap and their lengths add up to the size: they cover it.
+  whole_.clear();
+  for (const auto& piece : m.pieces) whole_.insert(whole_.end(), piece.second.begin(), piece.second.end());
   const bool named = !m.channel.empty();
-  if (named) handler(m.channel, m.data.data(), static_cast<int>(m.data.size()));
+  if (named) handler(m.channel, whole_.data(), static_cast<int>(whole_.size()));
   else ++malformed_;
   DropPartial(it);
   return named;
+}
+
+bool UdpmReceiver::Keep(std::map<std::uint64_t, Partial>::iterator it, std::uint32_t offset,
+                        const unsigned char* data, std::uint32_t n) {
+  if (n == 0) return true;
+  Partial& m = it->second;
+  const std::uint32_t end = offset + n;  // within m.size, so no overflow
+  auto next = m.pieces.lower_bound(offset);
+  if (next != m.pieces.end() && next->first < end) return false;
+  if (next != m.pieces.begin()) {
+    const auto before = std::prev(next);
+    if (before->first + before->second.size() > offset) return false;
+  }
+  // Room for it among all the messages being put together: the others give way, in the
+  // order of their senders' addresses.
+  const std::size_t charge = n + kPieceOverhead;
+  for (auto other = partials_.begin();
+       partial_bytes_ + charge > kMaxPartialBytes && other != partials_.end();) {
+    if (other == it) {
+      ++other;
+      continue;
+    }
+    const auto gone = other++;
+    DropPartial(gone);
+  }
+  if (partial_bytes_ + charge > kMaxPartialBytes) return false;
+  m.pieces.emplace_hint(next, offset, std::vector<unsigned char>(data, data + n));
+  m.bytes += n;
+  m.charged += charge;
+  partial_bytes_ += charge;
+  return true;
 }
 
 }  // namespace shoal

@@ -72,21 +72,37 @@ class UdpmReceiver {
 
  private:
   /// A long message being put together, per sender (LCM sends a message's fragments in
-  /// order, one message at a time per sender).
+  /// order, one message at a time per sender). It holds the fragments that came, not a
+  /// buffer of the size its header declares: a header may declare megabytes that never
+  /// come. The fragments may not overlap; the message is put together and handed on once
+  /// they cover every byte of it.
   struct Partial {
     std::uint32_t seqno = 0;
+    std::uint32_t size = 0;
+    bool named = false;  // fragment 0, which carries the channel, has come
     std::string channel;
-    std::vector<unsigned char> data;
-    int fragments_left = 0;
+    std::map<std::uint32_t, std::vector<unsigned char>> pieces;  // by offset
+    std::uint32_t bytes = 0;                                      // their lengths summed
+    std::size_t charged = 0;  // what they take in memory, as partial_bytes_ counts it
   };
   static constexpr int kBatch = 8;
   static constexpr int kDatagramBytes = 65536;
-  /// Bounds on messages being put together (LCM's own: 16 MB in all, 1000 messages).
-  static constexpr std::size_t kMaxPartialBytes = std::size_t{1} << 24;
+  /// Bounds on messages being put together, LCM's own: a message of at most 16 MB, 1000
+  /// messages at once, and 16 MB in all, counted here as memory taken by the fragments
+  /// received (with what keeping each one costs, so that a flood of one-byte fragments is
+  /// bounded too), not as sizes declared.
+  static constexpr std::size_t kMaxMessageBytes = std::size_t{1} << 24;
+  static constexpr std::size_t kPieceOverhead = 128;
+  static constexpr std::size_t kMaxPartialBytes = kMaxMessageBytes + 65536 * kPieceOverhead;
   static constexpr std::size_t kMaxPartials = 1000;
 
   bool OnFragment(const unsigned char* p, int size, const sockaddr_in& from, const Handler& handler);
   void DropPartial(std::map<std::uint64_t, Partial>::iterator it);
+  /// Keeps a fragment's n bytes at `offset` in the message `it` points to; false if they
+  /// overlap bytes another fragment gave, or if keeping them would pass kMaxPartialBytes
+  /// even once every other message has given way.
+  bool Keep(std::map<std::uint64_t, Partial>::iterator it, std::uint32_t offset,
+            const unsigned char* data, std::uint32_t n);
 
   UdpmAddress address_;
   int fd_ = -1;
@@ -95,6 +111,7 @@ class UdpmReceiver {
   std::vector<unsigned char> buffers_;  // kBatch datagrams of kDatagramBytes
   std::map<std::uint64_t, Partial> partials_;  // by sender address and port
   std::size_t partial_bytes_ = 0;
+  std::vector<unsigned char> whole_;  // a long message put together
 };
 
 }  // namespace shoal

@@ -127,6 +127,69 @@ TEST_F(UdpmReceiverTest, DatagramsThatAreNotLcmsAreDroppedAndCounted) {
   EXPECT_EQ(receiver_->malformed(), static_cast<std::int64_t>(bad.size()));
 }
 
+// An LC03 fragment: seqno 5, a message of `size` bytes, `n` bytes of `fill` at `offset`,
+// fragment `no` of `count`; fragment 0 carries the channel "F".
+std::vector<unsigned char> Fragment(std::uint32_t size, std::uint32_t offset, std::uint16_t no,
+                                    std::uint16_t count, std::size_t n, unsigned char fill) {
+  std::vector<unsigned char> d = {'L', 'C', '0', '3', 0, 0, 0, 5};
+  for (std::uint32_t v : {size, offset}) {
+    for (int s = 24; s >= 0; s -= 8) d.push_back(static_cast<unsigned char>(v >> s));
+  }
+  for (std::uint16_t v : {no, count}) {
+    d.push_back(static_cast<unsigned char>(v >> 8));
+    d.push_back(static_cast<unsigned char>(v));
+  }
+  if (no == 0) d.insert(d.end(), {'F', 0});
+  d.insert(d.end(), n, fill);
+  return d;
+}
+
+// Given the fragments of a message arriving out of order, then it is put together whole;
+// given a fragment over bytes another fragment gave, then it is counted and the message,
+// short of the bytes no fragment gave, is never handed on; given a header that declares
+// 16 MB and nothing after it, then nothing is handed on; given more fragments than the
+// header says the message has, then the extra ones are counted.
+TEST_F(UdpmReceiverTest, FragmentsCompleteAMessageOnlyWhenTheyCoverEveryByteOnce) {
+  sockaddr_in from{};
+  from.sin_family = AF_INET;
+  from.sin_port = htons(4000);
+  std::vector<Message> got;
+  const auto keep = [&](std::string_view ch, const unsigned char* d, int n) {
+    got.push_back({std::string(ch), std::vector<unsigned char>(d, d + n)});
+  };
+  const auto feed = [&](const std::vector<unsigned char>& d) {
+    return receiver_->OnDatagram(d.data(), static_cast<int>(d.size()), from, keep);
+  };
+  EXPECT_FALSE(feed(Fragment(30, 20, 2, 3, 10, 'c')));
+  EXPECT_FALSE(feed(Fragment(30, 0, 0, 3, 10, 'a')));
+  EXPECT_TRUE(feed(Fragment(30, 10, 1, 3, 10, 'b')));
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].channel, "F");
+  EXPECT_EQ(std::string(got[0].bytes.begin(), got[0].bytes.end()),
+            std::string(10, 'a') + std::string(10, 'b') + std::string(10, 'c'));
+  EXPECT_EQ(receiver_->malformed(), 0);
+
+  got.clear();
+  EXPECT_FALSE(feed(Fragment(30, 0, 0, 3, 10, 'a')));
+  EXPECT_FALSE(feed(Fragment(30, 5, 1, 3, 20, 'b')));   // over bytes 5..9 of fragment 0
+  EXPECT_EQ(receiver_->malformed(), 1);
+  EXPECT_FALSE(feed(Fragment(30, 20, 2, 3, 10, 'c')));  // bytes 10..19 never came
+  EXPECT_FALSE(feed(Fragment(30, 20, 2, 3, 10, 'c')));  // nor does a repeat stand for them
+  EXPECT_EQ(receiver_->malformed(), 2);
+  EXPECT_FALSE(feed(Fragment(std::uint32_t{1} << 24, 0, 0, 300, 100, 'z')));
+  EXPECT_TRUE(got.empty());
+
+  // More pieces than the message has fragments: each one-byte fragment would cost far
+  // more to keep than it brings.
+  EXPECT_FALSE(feed(Fragment(100, 0, 0, 3, 1, 'a')));
+  EXPECT_FALSE(feed(Fragment(100, 1, 1, 3, 1, 'b')));
+  EXPECT_FALSE(feed(Fragment(100, 2, 2, 3, 1, 'c')));
+  EXPECT_EQ(receiver_->malformed(), 2);
+  EXPECT_FALSE(feed(Fragment(100, 3, 2, 3, 1, 'd')));
+  EXPECT_EQ(receiver_->malformed(), 3);
+  EXPECT_TRUE(got.empty());
+}
+
 // Given 50 messages waiting in the socket, when one call may hand on 10, then it hands on
 // the first 10 and the next calls the rest, in order: nothing is read and then dropped.
 TEST_F(UdpmReceiverTest, ACallHandsOnABoundedNumberAndTheRestFollowsInOrder) {
