@@ -770,6 +770,10 @@ void Launch::PlanNodes() {
     if (mode_ == Mode::kLockstep && !logger_queue_shim_.empty()) {
       more.push_back("--bundle-publishes");
     }
+    const Micros phase_us = ClockedNode::StaggerPhaseUs(s_, id);
+    if (mode_ == Mode::kRealtime && opt_.stagger && phase_us > 0) {
+      more.insert(more.end(), {"--phase-us", std::to_string(phase_us)});
+    }
     p.argv = ProcessArgs(id == 0 ? leader_exe_ : vehicle_exe_, more, uplink_url_);
     p.nice_inc = run_nice;
     plan_.processes.push_back(p);

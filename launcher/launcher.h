@@ -30,6 +30,9 @@ struct LaunchOptions {
   long long max_lookahead = 50;   // lockstep: most ticks the clock master releases at once
   bool allow_large = false;  // run even when the estimate exceeds 1 h or 4 GiB (core/swarm.h)
   bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
+  /// Real time: spread the followers' loop phases over half the control period
+  /// (ClockedNode::StaggerPhaseUs, --phase-us), so that N loops do not wake at one instant.
+  bool stagger = false;
   /// A vehicle or the leader that dies or is stopped (SIGSTOP) does not stop the run: it
   /// is reported and the others go on (the verdict fails all the same). Without it, any
   /// process that dies, fails or is stopped stops the whole run at once.

@@ -28,6 +28,11 @@ std::int64_t LockstepTicksAhead(const Scenario& s) {
 }
 }  // namespace
 
+Micros ClockedNode::StaggerPhaseUs(const Scenario& s, int id) {
+  if (id <= 0 || LockstepTicksAhead(s) < 2) return 0;
+  return static_cast<Micros>(id) * (s.period_us() / 2) / (s.followers + 1);
+}
+
 ClockedNode::ClockedNode(const Scenario& s, int id, Mode mode, std::int64_t t0_ns,
                          double duration_s, Bus* bus, Bus* rx_bus)
     : s_(s),
@@ -279,7 +284,7 @@ int ClockedNode::RunRealtime() {
   const std::int64_t period_ns = period_us_ * 1000;
   const std::int64_t first = resumed_ ? CatchUp() : 0;
   for (std::int64_t k = first; k <= final_tick_ && !StopRequested(); ++k) {
-    const std::int64_t deadline = t0_ns_ + k * period_ns;
+    const std::int64_t deadline = t0_ns_ + k * period_ns + phase_ns_;
     SleepUntilNs(deadline);
     if (StopRequested()) break;
     lateness_.Add(static_cast<double>(MonotonicNs() - deadline) * 1e-9);
@@ -287,6 +292,7 @@ int ClockedNode::RunRealtime() {
     Step(k);
     if (MonotonicNs() > deadline + period_ns) ++counters_.overruns;
   }
+  LeaveRealtimeScheduling();
   const bool finished = next_tick_ > final_tick_;
   std::fprintf(stderr,
                "vehicle %d: %lld ticks, lateness p50 %.3f ms p99 %.3f ms max %.3f ms, "
@@ -391,6 +397,12 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
   app->add_flag("--stop-before-resets", stop_before_resets,
                 "With --checkpoint: stop (SIGSTOP) after the tick before each controller "
                 "reset of this vehicle, for shoal run to restart the process there");
+  Micros phase_us = 0;
+  app->add_option("--phase-us", phase_us,
+                  "Real time: run each tick this many microseconds after its period begins "
+                  "(0 to the control period; shoal run --stagger spreads the vehicles' "
+                  "phases so that their loops do not all wake at once)")
+      ->check(CLI::NonNegativeNumber);
   bool bundle_publishes = false;
   app->add_flag("--bundle-publishes", bundle_publishes,
                 "Lockstep: publish a window's states and health on the shared bus as one "
@@ -400,6 +412,11 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
   const int started = StartProcess(app, argc, argv, name, &opt, &s);
   if (started >= 0) return started;
   if (!valid(s)) return 2;
+  if (phase_us >= s.period_us()) {
+    std::cerr << name << ": --phase-us " << phase_us << " is not within the control period ("
+              << s.period_us() << " us)\n";
+    return 2;
+  }
   bus_auth::Setting auth;
   if (!bus_auth::SettingOrReport(opt.insecure, name, &auth)) return 2;
   // Before LCM starts its receive thread, so that the thread inherits the policy.
@@ -426,6 +443,7 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
     }
     if (stop_before_resets) node->StopBeforeResets();
     if (bundle_publishes) node->BundlePublishes();
+    node->SetPhase(phase_us);
     node->Init();
     const int status = node->Run();
     // A lockstep run that stalls on a lost datagram says where it was lost. Before the

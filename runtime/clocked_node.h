@@ -77,6 +77,15 @@ class ClockedNode {
   /// with --bundle-publishes). Not with checkpoints: a checkpoint must follow its state's
   /// publication.
   void BundlePublishes() { bundle_publishes_ = true; }
+  /// Real time: run each tick `phase_us` after its period begins instead of at its start
+  /// (0 <= phase_us < the control period). The state is still that of the tick's time:
+  /// the loop samples later in the period, as a vehicle with a clock of its own would.
+  void SetPhase(Micros phase_us) { phase_ns_ = phase_us * 1000; }
+  /// shoal run --stagger: the phase of process `id` (0 the leader, 1..n the followers),
+  /// spread evenly over half the control period so that the run's loops do not all wake
+  /// at one instant. 0 for every process when the channel's smallest delay is not more
+  /// than a period: a state must go out before the earliest moment it can be due.
+  static Micros StaggerPhaseUs(const Scenario& s, int id);
   /// The ticks at which the scenario resets follower `id`'s controller and a process can
   /// stop before (1..final_tick: a reset at tick 0 has no tick before it).
   static std::vector<std::int64_t> ResetTicks(const Scenario& s, int id, std::int64_t final_tick);
@@ -183,6 +192,7 @@ class ClockedNode {
   bool done_ = false;
   bool stepped_ = false;  // a tick was stepped by this process
   bool bundle_publishes_ = false;  // BundlePublishes()
+  std::int64_t phase_ns_ = 0;      // SetPhase()
   // Restart: where checkpoints go, and (resumed) from where and why.
   std::unique_ptr<CheckpointFile> checkpoint_;
   CheckpointPayload checkpoint_payload_;

@@ -5,6 +5,7 @@
 #include <signal.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -198,6 +199,13 @@ std::string EnableRealtimeScheduling(int priority) {
   }
   return std::string("SCHED_OTHER (SCHED_FIFO refused: ") + std::strerror(errno) +
          "), timer slack 1 ns";
+}
+
+void LeaveRealtimeScheduling() {
+  sched_param sp = {};
+  sp.sched_priority = 0;
+  sched_setscheduler(0, SCHED_OTHER, &sp);
+  setpriority(PRIO_PROCESS, 0, 10);
 }
 
 std::string EnableBatchScheduling() {

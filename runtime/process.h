@@ -88,6 +88,10 @@ bool StopRequested();
 /// thread, so that the thread inherits the policy. Returns what was set, for the log.
 std::string EnableBatchScheduling();
 std::string EnableRealtimeScheduling(int priority);
+/// After a real-time loop's last tick: SCHED_OTHER at nice 10, so that what a process does
+/// on its way out (its last messages, freeing its locked memory) never delays the loops of
+/// the processes still running.
+void LeaveRealtimeScheduling();
 
 /// Locks the process's pages in memory (mlockall, current and future) when permitted (root,
 /// or RLIMIT_MEMLOCK large enough). A locked process takes no page fault in its loop, and

@@ -8,6 +8,7 @@
 #include "analysis/verdict.h"
 #include "launcher/launch_script.h"
 #include "launcher/run_report.h"
+#include "runtime/clocked_node.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
 
@@ -51,6 +52,17 @@ int RunRun(const RunOptions& opt) {
       std::cerr << "shoal run: " << misplaced << "\n";
       return kExitBadInput;
     }
+  }
+  if (launch_options.stagger && launch_options.mode != ModeName(Mode::kRealtime)) {
+    std::cerr << "shoal run: --stagger spreads the loops of a real-time run; lockstep has "
+                 "none (add --mode realtime, or leave --stagger out)\n";
+    return kExitBadInput;
+  }
+  if (launch_options.stagger && ClockedNode::StaggerPhaseUs(s, s.followers) == 0) {
+    std::cerr << "shoal run: --stagger needs the channel's smallest delay to be above one "
+                 "control period (a state must go out before it can be due); this "
+                 "scenario's is not\n";
+    return kExitBadInput;
   }
   if (opt.print_launch) return PrintLaunch(s, opt, launch_options);
   const bool show = !opt.quiet && !opt.json && isatty(2);

@@ -246,6 +246,50 @@ TEST(Sil, RealtimeRunFollowsTheLockstepRun) {
       << "a real-time run cannot be bit-identical to lockstep; the modes were not both run";
 }
 
+// shoal run --stagger: each follower's loop runs at a phase of its own within the first
+// half of the period, the printed launch script gives each its --phase-us, and the run
+// still logs every state and follows the lockstep run as closely as an unstaggered one.
+// A phase outside the period, or --stagger in lockstep, is refused (exit 2).
+TEST(Sil, StaggeredRealtimeRunLogsEveryStateAndFollowsTheLockstepRun) {
+  const auto script = RunShoal("run " + kExample2 + " --mode realtime --stagger --print-launch",
+                               "sil_stagger_script");
+  ASSERT_EQ(script.status, 0) << script.err;
+  for (const char* phase : {"--phase-us 1666", "--phase-us 8333"}) {
+    EXPECT_NE(script.out.find(phase), std::string::npos) << phase << "\n" << script.out;
+  }
+  const auto lockstep = RunShoal("run " + kExample2 + " --stagger --duration 1", "sil_stagger_ls");
+  EXPECT_EQ(lockstep.status, 2) << lockstep.err;
+  EXPECT_NE(lockstep.err.find("--stagger"), std::string::npos) << lockstep.err;
+  const std::string bad_out = TmpPath("sil_stagger_phase.out");
+  const std::string cmd = std::string(SHOAL_BINARY_DIR) +
+                          "/vehicle/shoal_vehicle --id 1 --insecure --scenario " + kExample2 +
+                          " --lcm-url 'udpm://239.255.76.67:31590?ttl=0' --mode realtime "
+                          "--t0-ns 1 --phase-us 20000 >" + bad_out + " 2>&1";
+  const int raw = std::system(cmd.c_str());
+  EXPECT_EQ(WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, 2) << ReadFile(bad_out);
+  EXPECT_NE(ReadFile(bad_out).find("--phase-us 20000 is not within the control period"),
+            std::string::npos)
+      << ReadFile(bad_out);
+
+  const std::string rt_log = TmpPath("sil_stagger.lcmlog"), ls_log = TmpPath("sil_stagger_ls.lcmlog");
+  const auto rt = RunShoal("run " + kExample2 + " --mode realtime --stagger --duration 4 --json --out " +
+                               rt_log, "sil_stagger_rt");
+  ASSERT_EQ(rt.status, 1) << rt.out << rt.err;  // not converged within 4 s
+  const auto rj = ParseJson(rt.out);
+  EXPECT_EQ(rj["all_processes_ok"], true) << rt.out;
+  EXPECT_EQ(rj["log_complete"], true) << rt.out;
+  EXPECT_EQ(rj["log_states"], rj["log_states_expected"]) << rt.out;
+  EXPECT_LT(rj["loop"]["lateness_p99_s"].get<double>(), 0.02) << rt.out;
+  ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 4 --quiet --out " + ls_log, "sil_stagger_ls2").status, 1);
+  const auto cmp = RunShoal("compare " + rt_log + " " + ls_log + " --allow-missing" +
+                                " --position-tol-m 0.1 --velocity-tol-mps 1e9 --json",
+                            "sil_stagger_cmp");
+  ASSERT_EQ(cmp.status, 0) << cmp.out << cmp.err;
+  const auto cj = ParseJson(cmp.out);
+  EXPECT_EQ(cj["within_tolerance"], true) << cmp.out;
+  EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * 201) << cmp.out;
+}
+
 TEST(Sil, SigintStopsEverythingWithinTwoSecondsWithAReadableLog) {
   const int port = 31121;
   const std::string log = TmpPath("sil_sigint.lcmlog"), out = TmpPath("sil_sigint.out");

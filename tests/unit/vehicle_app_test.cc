@@ -347,3 +347,32 @@ TEST(VehicleAppLockstep, AMalformedWindowIsRefused) {
 
 }  // namespace
 }  // namespace shoal
+
+namespace shoal {
+namespace {
+
+// shoal run --stagger: the leader keeps the period's start, the followers' loops are
+// spread evenly over its first half, each at a phase of its own; with a channel whose
+// smallest delay is not above one period (a state could be due before it went out), no
+// process gets a phase.
+TEST(ClockedNodeStagger, FollowersSpreadOverHalfAPeriodOnlyWhenTheDelayLeavesRoom) {
+  Scenario s = Example2();
+  ASSERT_EQ(s.period_us(), 20000);
+  EXPECT_EQ(ClockedNode::StaggerPhaseUs(s, 0), 0);
+  std::vector<Micros> phases;
+  for (int id = 1; id <= s.followers; ++id) phases.push_back(ClockedNode::StaggerPhaseUs(s, id));
+  ASSERT_EQ(phases.size(), 5u);
+  EXPECT_EQ(phases.front(), 10000 / 6);
+  EXPECT_EQ(phases.back(), 5 * 10000 / 6);
+  for (std::size_t k = 1; k < phases.size(); ++k) {
+    EXPECT_GE(phases[k] - phases[k - 1], 10000 / 6) << k;
+    EXPECT_LE(phases[k] - phases[k - 1], 10000 / 6 + 1) << k;
+  }
+  EXPECT_LT(phases.back(), s.period_us() / 2);
+
+  s.delay = DelayConfig(DelayKind::kConstant, 0.015, 0.0, 0.0);  // less than a period
+  for (int id = 0; id <= s.followers; ++id) EXPECT_EQ(ClockedNode::StaggerPhaseUs(s, id), 0) << id;
+}
+
+}  // namespace
+}  // namespace shoal
