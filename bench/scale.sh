@@ -10,6 +10,7 @@
 # the run (/proc/net/snmp RcvbufErrors), and in real time the loop lateness p99, the
 # release (delay) error p99, overruns and states logged. Runs are interleaved N by N.
 # Usage: bench/scale.sh [BUILD_DIRS] [RUNS] [LOCKSTEP_S] [REALTIME_S] [NS] [OUT_CSV] [EXTRA_ARGS]
+#   RT_ARGS: arguments of the real-time runs only (e.g. RT_ARGS=--stagger)
 #   e.g. bench/scale.sh build 3 20 20 "5 16 64 128" scale.csv
 # BUILD_DIRS: one build directory, or several separated by commas (A/B: their runs are
 # interleaved, and each row names its build). Writes OUT_CSV (one row per run) and
@@ -25,6 +26,7 @@ ns=${5:-"5 16 64 128"}
 out=${6:-scale.csv}
 extra=${7:-}
 modes=${MODES:-lockstep realtime}  # e.g. MODES=lockstep bench/scale.sh ...
+rt_extra=${RT_ARGS:-}  # real-time runs only, e.g. RT_ARGS=--stagger
 IFS=, read -r -a build_list <<< "$builds"
 for b in "${build_list[@]}"; do
   [ -x "$b/tools/shoal" ] || { echo "bench: $b/tools/shoal not built" >&2; exit 2; }
@@ -64,7 +66,7 @@ one_run() {
   before=$(rcvbuf_errors)
   # shellcheck disable=SC2086
   "$shoal" run "$scen" --mode "$mode" --duration "$dur" --out "$log" --json \
-    --resource-interval 1 $extra > "$json" 2> "$dir/err" &
+    --resource-interval 1 $extra $([ "$mode" = realtime ] && echo "$rt_extra") > "$json" 2> "$dir/err" &
   local pid=$!
   sample_ctx "$pid" "$ctx" &
   local sampler=$!
@@ -99,6 +101,13 @@ one_run() {
 }
 
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), load $(cut -d' ' -f1-3 /proc/loadavg)" >&2
+# What the machine alone does to a loop: a bare 1 kHz loop at SCHED_FIFO for 10 s. Its
+# wake-ups later than a period are stalls of the whole machine (on a VM, the hypervisor),
+# which no process of a run can avoid.
+jitter="${build_list[0]}/bench/loop_jitter"
+if [ -x "$jitter" ]; then
+  echo "bare loop: $(chrt -f 90 "$jitter" 1000 10 2> /dev/null || "$jitter" 1000 10)" >&2
+fi
 echo "build,mode,followers,run,realtime_factor,log_states,log_states_expected,vehicle_cpu_us_per_tick,emulator_cpu_us_per_tick,logger_cpu_us_per_tick,vehicle_ctxsw_per_tick,emulator_ctxsw_per_tick,logger_ctxsw_per_tick,rcvbuf_errors,lateness_p99_s,delay_error_p99_s,overruns,load1" > "$out"
 for n in $ns; do "$here/scale_scenario.sh" "$n" "$ls_dur" > "$dir/scale_$n.toml"; done
 for ((r = 1; r <= runs; r++)); do

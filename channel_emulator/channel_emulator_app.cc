@@ -573,6 +573,40 @@ void ChannelEmulatorApp::ReleaseDue(Micros due) {
   }
 }
 
+std::pair<double, double> ChannelEmulatorApp::DelayBounds() const {
+  double lo = MinDelaySeconds(s_.delay), hi = MaxDelaySeconds(s_.delay);
+  const auto widen = [&](const DelayConfig& d) {
+    lo = std::min(lo, MinDelaySeconds(d));
+    hi = std::max(hi, MaxDelaySeconds(d));
+  };
+  for (const LinkOverride& o : s_.links) {
+    if (o.delay) widen(*o.delay);
+  }
+  for (const ScenarioEvent& e : s_.events) {  // a channel event's delays too
+    if (e.delay) widen(*e.delay);
+  }
+  return {lo, hi};
+}
+
+void ChannelEmulatorApp::AwaitRealtime(std::int64_t wake_ns, Micros due, std::int64_t drain_ns,
+                                       std::int64_t* drained_ns) {
+  if (drain_ns > 0) {
+    SleepUntilNs(std::min(wake_ns, *drained_ns + drain_ns));
+    while (HandleBus(0) >= Bus::kMaxMessagesPerHandle) {
+    }
+    *drained_ns = MonotonicNs();
+    return;
+  }
+  // Wait for input until shortly before the next release, then sleep to it exactly.
+  const std::int64_t wait_ns = wake_ns - MonotonicNs();
+  if (wait_ns > 2000000) {
+    HandleBus(static_cast<int>(std::min<std::int64_t>((wait_ns - 1000000) / 1000000, 20)));
+  } else if (wait_ns > 0) {
+    HandleBus(0);
+    if (channel_.NextDue() == due) SleepUntilNs(wake_ns);
+  }
+}
+
 int ChannelEmulatorApp::RunRealtime() {
   // Restarted: the clock goes on as before; what the emulator that died held is lost.
   if (restarted_) {
@@ -581,13 +615,16 @@ int ChannelEmulatorApp::RunRealtime() {
   } else {
     PublishStatus(RunState::kRunning, "");
   }
-  double max_delay = MaxDelaySeconds(s_.delay);
-  for (const LinkOverride& o : s_.links) {
-    if (o.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*o.delay));
-  }
-  for (const ScenarioEvent& e : s_.events) {  // a channel event's delays too
-    if (e.delay) max_delay = std::max(max_delay, MaxDelaySeconds(*e.delay));
-  }
+  const auto [min_delay, max_delay] = DelayBounds();
+  // A state is due no sooner than min_delay after its tick; a follower sends it within
+  // half a period of the tick (--phase-us), so reading the socket every quarter of
+  // min(period, min_delay) is in time for its release, in one wake-up for many senders.
+  // With a smallest delay of a period or less, every arrival wakes the emulator.
+  const std::int64_t drain_ns =
+      min_delay * 1e6 > static_cast<double>(period_us_)
+          ? std::min<std::int64_t>(period_us_, static_cast<std::int64_t>(min_delay * 1e6)) * 250
+          : 0;
+  std::int64_t drained_ns = MonotonicNs();
   const std::int64_t end_ns =
       t0_ns_ + (final_tick_ * period_us_ + static_cast<Micros>(max_delay * 1e6) + 100000) * 1000;
   std::int64_t next_health_ns = t0_ns_;
@@ -620,16 +657,9 @@ int ChannelEmulatorApp::RunRealtime() {
       PublishHealth(now_us);
       next_health_ns += 1000000000LL;
     }
-    // Wait for input until shortly before the next release, then sleep to it exactly.
     std::int64_t wake_ns = std::min(end_ns, next_health_ns);
     if (due >= 0) wake_ns = std::min(wake_ns, t0_ns_ + due * 1000);
-    const std::int64_t wait_ns = wake_ns - MonotonicNs();
-    if (wait_ns > 2000000) {
-      HandleBus(static_cast<int>(std::min<std::int64_t>((wait_ns - 1000000) / 1000000, 20)));
-    } else if (wait_ns > 0) {
-      HandleBus(0);
-      if (channel_.NextDue() == due) SleepUntilNs(wake_ns);
-    }
+    AwaitRealtime(wake_ns, due, drain_ns, &drained_ns);
   }
   if (uplink_ != nullptr) bus_->EndBundle();
   PublishEvents();

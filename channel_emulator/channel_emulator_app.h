@@ -132,6 +132,14 @@ class ChannelEmulatorApp {
   /// Lockstep: the window's states enter the channel (tick by tick, in id order).
   void SubmitWindow();
   int RunRealtime();
+  /// Real time: the smallest and the largest delay the scenario's channel can give (its
+  /// default, its links' and its events' delay models), seconds.
+  std::pair<double, double> DelayBounds() const;
+  /// Real time: waits for what comes next, until at most `wake_ns`. With `drain_ns` > 0
+  /// the states wait in the socket and are read every drain_ns (one wake-up for many
+  /// senders); otherwise the emulator wakes for each arrival.
+  void AwaitRealtime(std::int64_t wake_ns, Micros due, std::int64_t drain_ns,
+                     std::int64_t* drained_ns);
   /// Real time: releases every message due at `due` (mission time, us).
   void ReleaseDue(Micros due);
 
