@@ -77,6 +77,8 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       group->push_back(id);
     }
     shared_has_vehicles_ = shared_has_vehicles_ || vbus_[id] == bus_;
+    // What goes to the vehicles' own buses at one instant leaves in one system call.
+    if (vbus_[id] != bus_) vbus_[id]->SendThrough(&batch_);
   }
   if (mode == Mode::kLockstep) {
     // Every state goes to the logger's bus; so does every delivery to a vehicle that
@@ -275,6 +277,7 @@ void ChannelEmulatorApp::ReleaseWindow() {
   // each message) the burst goes out as one bundle: one datagram, and one wake-up of the
   // vehicle, per window rather than one per message.
   std::vector<std::size_t> next(static_cast<std::size_t>(n_ + 1));
+  batch_.Begin();
   for (const std::vector<int>& group : bus_groups_) {
     Bus* b = vbus_[group[0]];
     if (b != bus_) b->BeginBundle();
@@ -298,6 +301,7 @@ void ChannelEmulatorApp::ReleaseWindow() {
     b->Publish(channels::Clock(), c);
     if (b != bus_) b->EndBundle();
   }
+  batch_.Flush();
   // The logger's copy when no vehicle shares its bus: the window, without the lists.
   if (!shared_has_vehicles_) bus_->Publish(channels::Clock(), WindowClock());
   ++clock_seq_;
@@ -549,10 +553,12 @@ void ChannelEmulatorApp::SubmitWindow() {
 void ChannelEmulatorApp::ReleaseDue(Micros due) {
   // What is due at one instant goes out bus by bus: on a vehicle's own bus as one bundle
   // (one datagram and one wake-up for the messages of all its in-links that fall due
-  // together), each message's release error taken when its bundle has gone out.
+  // together), all the bundles in one system call; each message's release error is taken
+  // when they have gone out.
   const std::int64_t due_ns = t0_ns_ + due * 1000;
   for (int id : released_to_) bundled_[id] = 0;
   released_to_.clear();
+  batch_.Begin();
   channel_.DeliverDue(due, [&](int receiver, const Datagram& d) {
     Bus* b = vbus_[receiver];
     if (b == bus_) {
@@ -566,9 +572,10 @@ void ChannelEmulatorApp::ReleaseDue(Micros due) {
     }
     b->PublishRaw(rx_channels_[receiver], d.raw.data(), static_cast<int>(d.raw.size()));
   });
+  for (int id : released_to_) vbus_[id]->EndBundle();
+  batch_.Flush();
+  const double error = static_cast<double>(MonotonicNs() - due_ns) * 1e-9;
   for (int id : released_to_) {
-    vbus_[id]->EndBundle();
-    const double error = static_cast<double>(MonotonicNs() - due_ns) * 1e-9;
     for (int k = 0; k < bundled_[id]; ++k) release_error_.Add(error);
   }
 }

@@ -16,6 +16,7 @@
 #include "core/scenario.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/udpm_sender.h"
 #include "runtime/lcm_queue_shim.h"
 #include "runtime/messages.h"
 #include "runtime/process.h"
@@ -154,6 +155,7 @@ class ChannelEmulatorApp {
   Bus* bus_;
   Bus* uplink_ = nullptr;  // SetUplink
   std::vector<Bus*> vbus_;
+  UdpmBatch batch_;  // the vehicles' own buses send through it at a release
   Channel<Datagram> channel_;
   std::vector<ChannelDecision> decisions_;
   std::vector<std::string> rx_channels_;

@@ -45,7 +45,16 @@ bool LcmBus::PublishAsReceived(const std::string& channel, const void* data, int
       channel.size() <= static_cast<std::size_t>(bundle_wire::kMaxChannel)) {
     return AppendPart(channel, data, size, 0);
   }
+  return Send(channel, data, size);
+}
+
+bool LcmBus::Send(const std::string& channel, const void* data, int size) {
+  if (batch_ != nullptr && batch_->Add(address_, channel, data, size)) return true;
   return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+}
+
+void LcmBus::SendThrough(UdpmBatch* batch) {
+  batch_ = ParseUdpmUrl(url_, &address_) ? batch : nullptr;
 }
 
 bool LcmBus::AppendPart(const std::string& channel, const void* data, int size, int trailer) {
@@ -105,12 +114,10 @@ bool LcmBus::FlushBundle() {
                              [&](std::string_view ch, const unsigned char* d, int n) {
                                const std::string name(ch);
                                // A recordable part is signed already.
-                               ok = recordable_ ? lcm_.publish(name, d, static_cast<unsigned>(n)) == 0
-                                                : PublishSigned(name, d, n);
+                               ok = recordable_ ? Send(name, d, n) : PublishSigned(name, d, n);
                              });
   } else if (bundle_parts_ > 1 && recordable_) {
-    ok = lcm_.publish(bundle_wire::kChannel, bundle_.data(),
-                      static_cast<unsigned int>(bundle_.size())) == 0;
+    ok = Send(bundle_wire::kChannel, bundle_.data(), static_cast<int>(bundle_.size()));
   } else if (bundle_parts_ > 1) {
     ok = PublishSigned(bundle_wire::kChannel, bundle_.data(), static_cast<int>(bundle_.size()));
   }
@@ -120,12 +127,12 @@ bool LcmBus::FlushBundle() {
 }
 
 bool LcmBus::PublishSigned(const std::string& channel, const void* data, int size) {
-  if (!auth_) return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  if (!auth_) return Send(channel, data, size);
   if (size < 0 || (size > 0 && data == nullptr)) return false;
   signed_.resize(static_cast<std::size_t>(size) + bus_auth::kTrailerBytes);
   if (size > 0) std::memcpy(signed_.data(), data, static_cast<std::size_t>(size));
   auth_->Sign(channel, data, size, signed_.data() + size);
-  return lcm_.publish(channel, signed_.data(), static_cast<unsigned int>(signed_.size())) == 0;
+  return Send(channel, signed_.data(), static_cast<int>(signed_.size()));
 }
 
 void LcmBus::Sub::On(const lcm::ReceiveBuffer* rb, const std::string& channel) {

@@ -26,6 +26,7 @@
 #include "lcmtypes/wire.h"
 #include "runtime/bus_auth.h"
 #include "runtime/udpm_receiver.h"
+#include "runtime/udpm_sender.h"
 
 namespace shoal {
 
@@ -75,6 +76,10 @@ class Bus {
   virtual void BeginBundle(bool recordable = false) { (void)recordable; }
   /// Sends what BeginBundle kept (a single message as it is). False if a publish failed.
   virtual bool EndBundle() { return true; }
+  /// While `batch` is active (runtime/udpm_sender.h), what this bus sends goes into it, to
+  /// leave with the batch's other datagrams in one system call. Only a udpm LcmBus does
+  /// this; any other bus sends as before.
+  virtual void SendThrough(UdpmBatch* batch) { (void)batch; }
 
   template <typename Msg>
   bool Publish(const std::string& channel, const Msg& msg) {
@@ -118,6 +123,7 @@ class LcmBus : public Bus {
   std::int64_t overflowed() const { return receiver_ ? receiver_->overflowed() : 0; }
   void BeginBundle(bool recordable = false) override;
   bool EndBundle() override;
+  void SendThrough(UdpmBatch* batch) override;
   int fileno() { return receiver_ ? receiver_->fd() : lcm_.getFileno(); }
   const std::string& url() const { return url_; }
   bool authenticated() const { return auth_.has_value(); }
@@ -151,8 +157,12 @@ class LcmBus : public Bus {
   /// channel: a regular expression is matched once per channel, not once per part.
   const std::vector<Sub*>& SubsFor(std::string_view channel);
   bool FlushBundle();
+  /// Sends one datagram's worth: into the batch while it is active, else through LCM.
+  bool Send(const std::string& channel, const void* data, int size);
   std::string url_;
   lcm::LCM lcm_;
+  UdpmBatch* batch_ = nullptr;  // SendThrough
+  UdpmAddress address_;         // this bus's group, port and TTL (udpm only)
   std::unique_ptr<UdpmReceiver> receiver_;  // receiving in the caller; null: LCM's thread
   std::optional<bus_auth::Authenticator> auth_;
   std::int64_t rejected_ = 0;

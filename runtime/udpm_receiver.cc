@@ -77,6 +77,10 @@ bool ParseUdpmUrl(const std::string& url, UdpmAddress* out) {
         !ParseInt(item.substr(eq + 1), 0, 1L << 30, &a.recv_buf_size)) {
       return false;
     }
+    if (eq != std::string::npos && item.compare(0, eq, "ttl") == 0 &&
+        !ParseInt(item.substr(eq + 1), 0, 255, &a.ttl)) {
+      return false;
+    }
     pos = amp + 1;
   }
   *out = a;

@@ -27,6 +27,7 @@ namespace shoal {
 struct UdpmAddress {
   in_addr group{};
   int port = 0;
+  int ttl = 0;            // LCM's default: the host only
   int recv_buf_size = 0;  // 0: not given
 };
 

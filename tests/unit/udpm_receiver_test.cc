@@ -1,7 +1,8 @@
-// Tests of runtime/udpm_receiver: what LCM 1.3.1 publishes over udpm (a short message, a
-// message of many fragments) arrives whole, in order, on the caller's thread; what is not
-// an LCM datagram is dropped and counted, never handed on; one call hands on a bounded
-// number of messages and leaves the rest in the socket.
+// Tests of runtime/udpm_receiver and udpm_sender: what LCM 1.3.1 publishes over udpm (a
+// short message, a message of many fragments) arrives whole, in order, on the caller's
+// thread; what is not an LCM datagram is dropped and counted, never handed on; one call
+// hands on a bounded number of messages and leaves the rest in the socket; a batch sent in
+// one system call reaches LCM's readers and this one as LCM's own messages.
 #include "runtime/udpm_receiver.h"
 
 #include <arpa/inet.h>
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "runtime/lcm_bus.h"
+#include "runtime/udpm_sender.h"
 
 namespace shoal {
 namespace {
@@ -32,7 +34,7 @@ class UdpmReceiverTest : public ::testing::Test {
   void SetUp() override {
     std::string err;
     ASSERT_TRUE(EnsureLoopbackMulticast(&err)) << err;
-    port_ = RandomPrivatePort(1);
+    port_ = RandomPrivatePort(2);  // the second for the batch test's other group
     url_ = PrivateLcmUrl(port_);
     ASSERT_TRUE(ParseUdpmUrl(url_, &address_));
     receiver_ = std::make_unique<UdpmReceiver>(address_);
@@ -92,6 +94,56 @@ TEST_F(UdpmReceiverTest, ShortAndFragmentedMessagesOfLcmArriveWholeInOrder) {
   EXPECT_TRUE(got[2].bytes.empty());
   EXPECT_EQ(receiver_->malformed(), 0);
   EXPECT_GE(receiver_->recv_buf_bytes(), UdpmReceiver::kDefaultRecvBufBytes / 2);
+}
+
+// Given a batch holding messages for two groups — this test's, read by the receiver, and
+// another read by LCM's own reader — when it is flushed, then each arrives on its group
+// whole and in the order added, as LCM's readers take it. A message the batch cannot
+// hold (too long for one datagram, or added while it is not active) is refused, for the
+// caller to send itself.
+TEST_F(UdpmReceiverTest, ABatchReachesEachGroupAsLcmMessagesInOrder) {
+  const int other_port = port_ + 1;
+  const std::string other_url = PrivateLcmUrl(other_port);
+  UdpmAddress other;
+  ASSERT_TRUE(ParseUdpmUrl(other_url, &other));
+  lcm::LCM reader(other_url);
+  ASSERT_TRUE(reader.good());
+  std::vector<Message> by_lcm;
+  struct Keep {
+    std::vector<Message>* into;
+    void On(const lcm::ReceiveBuffer* rb, const std::string& ch) {
+      const auto* d = static_cast<const unsigned char*>(rb->data);
+      into->push_back({ch, std::vector<unsigned char>(d, d + rb->data_size)});
+    }
+  } keep{&by_lcm};
+  reader.subscribe("OTHER_.*", &Keep::On, &keep);
+
+  UdpmBatch batch;
+  const auto a = Pattern(600, 1), b = Pattern(60000, 2), c = Pattern(0, 3);
+  EXPECT_FALSE(batch.Add(address_, "EARLY", a.data(), 600));  // not active
+  batch.Begin();
+  ASSERT_TRUE(batch.Add(address_, "MINE_A", a.data(), static_cast<int>(a.size())));
+  ASSERT_TRUE(batch.Add(other, "OTHER_B", b.data(), static_cast<int>(b.size())));
+  ASSERT_TRUE(batch.Add(address_, "MINE_C", c.data(), 0));
+  ASSERT_TRUE(batch.Add(other, "OTHER_A", a.data(), static_cast<int>(a.size())));
+  const auto huge = Pattern(UdpmBatch::kMaxDatagramBytes, 4);
+  EXPECT_FALSE(batch.Add(address_, "HUGE", huge.data(), static_cast<int>(huge.size())));
+  ASSERT_TRUE(batch.Flush());
+  EXPECT_FALSE(batch.active());
+
+  const std::vector<Message> mine = ReceiveAll();
+  ASSERT_EQ(mine.size(), 2u);
+  EXPECT_EQ(mine[0].channel, "MINE_A");
+  EXPECT_EQ(mine[0].bytes, a);
+  EXPECT_EQ(mine[1].channel, "MINE_C");
+  EXPECT_TRUE(mine[1].bytes.empty());
+  EXPECT_EQ(receiver_->malformed(), 0);
+  for (int i = 0; i < 20 && by_lcm.size() < 2; ++i) reader.handleTimeout(100);
+  ASSERT_EQ(by_lcm.size(), 2u);
+  EXPECT_EQ(by_lcm[0].channel, "OTHER_B");
+  EXPECT_EQ(by_lcm[0].bytes, b);
+  EXPECT_EQ(by_lcm[1].channel, "OTHER_A");
+  EXPECT_EQ(by_lcm[1].bytes, a);
 }
 
 // Given datagrams that are not LCM's (too short, a wrong magic, a channel without its NUL
@@ -255,7 +307,10 @@ TEST(UdpmUrl, ParsedAsLcmReadsIt) {
   ASSERT_TRUE(ParseUdpmUrl("udpm://", &a));
   EXPECT_EQ(a.port, 7667);
   EXPECT_EQ(a.recv_buf_size, 0);
+  EXPECT_EQ(a.ttl, 0);
   ASSERT_TRUE(ParseUdpmUrl("udpm://239.255.76.67:7667?ttl=1", &a));
+  EXPECT_EQ(a.ttl, 1);
+  EXPECT_FALSE(ParseUdpmUrl("udpm://239.255.76.67:7667?ttl=256", &a));
   EXPECT_FALSE(ParseUdpmUrl("memq://", &a));
   EXPECT_FALSE(ParseUdpmUrl("udpm://239.255.76.67:notaport", &a));
   EXPECT_FALSE(ParseUdpmUrl("udpm://239.255.76.67:70000", &a));
