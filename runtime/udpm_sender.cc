@@ -9,6 +9,15 @@
 
 namespace shoal {
 
+UdpmBatch::UdpmBatch() {
+  // Touched now, so that its pages are resident from the start, locked or not.
+  bytes_.resize(kMaxBatchBytes + kMaxDatagramBytes);
+  bytes_.clear();
+  kept_.reserve(kMaxBatchDatagrams);
+  iov_.reserve(kMaxBatchDatagrams);
+  msgs_.reserve(kMaxBatchDatagrams);
+}
+
 UdpmBatch::~UdpmBatch() {
   for (const auto& [ttl, fd] : fds_) close(fd);
 }
@@ -33,6 +42,9 @@ bool UdpmBatch::Add(const UdpmAddress& to, std::string_view channel, const void*
   if (bytes > static_cast<std::size_t>(kMaxDatagramBytes)) return false;
   const int fd = SocketFor(to.ttl);
   if (fd < 0) return false;
+  if (kept_.size() >= kMaxBatchDatagrams || bytes_.size() + bytes > kMaxBatchBytes) {
+    failed_ = !SendKept() || failed_;
+  }
   Kept k{};
   k.to.sin_family = AF_INET;
   k.to.sin_addr = to.group;
@@ -56,6 +68,12 @@ bool UdpmBatch::Add(const UdpmAddress& to, std::string_view channel, const void*
 
 bool UdpmBatch::Flush() {
   active_ = false;
+  const bool ok = SendKept() && !failed_;
+  failed_ = false;
+  return ok;
+}
+
+bool UdpmBatch::SendKept() {
   bool ok = true;
   iov_.resize(kept_.size());
   msgs_.resize(kept_.size());

@@ -24,8 +24,12 @@ class UdpmBatch {
  public:
   /// The longest datagram kept (LCM sends a longer message in fragments).
   static constexpr int kMaxDatagramBytes = 65000;
+  /// What a batch holds before it sends what it has and goes on: its memory is taken once,
+  /// when it is made, and never grows (a soak judges a process's memory by its growth).
+  static constexpr std::size_t kMaxBatchBytes = 256 * 1024;
+  static constexpr std::size_t kMaxBatchDatagrams = 256;
 
-  UdpmBatch() = default;
+  UdpmBatch();
   ~UdpmBatch();
   UdpmBatch(const UdpmBatch&) = delete;
   UdpmBatch& operator=(const UdpmBatch&) = delete;
@@ -38,7 +42,7 @@ class UdpmBatch {
   /// socket could be opened: the caller then sends it itself.
   bool Add(const UdpmAddress& to, std::string_view channel, const void* data, int size);
   /// Sends what was kept, in the order it was added, and ends the batch. False if a
-  /// datagram could not be sent (each is tried).
+  /// datagram of the batch could not be sent (each is tried).
   bool Flush();
 
  private:
@@ -48,8 +52,11 @@ class UdpmBatch {
     std::size_t offset, size;
   };
   int SocketFor(int ttl);
+  /// Sends what is kept (the batch stays active); false if a datagram could not go.
+  bool SendKept();
 
   bool active_ = false;
+  bool failed_ = false;  // a datagram of this batch could not be sent
   std::uint32_t seqno_ = 0;
   std::vector<unsigned char> bytes_;  // the datagrams kept, back to back
   std::vector<Kept> kept_;
