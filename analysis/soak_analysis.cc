@@ -111,8 +111,9 @@ bool ReadResources(const std::string& path,
   }
   for (int n = 2; std::getline(in, line); ++n) {
     const std::vector<std::string> f = SplitCsv(line);
-    if (f.size() != 6) {
-      *error = path + ":" + std::to_string(n) + ": expected 6 columns";
+    // Eight columns; six in files written before the context switches were sampled.
+    if (f.size() != 6 && f.size() != 8) {
+      *error = path + ":" + std::to_string(n) + ": expected 8 columns";
       return false;
     }
     ResourceRow r;

@@ -5,8 +5,9 @@
 # states logged of expected, each role's CPU per tick (from the run's resources.csv:
 # the difference between the 2 s sample and the last one, so start-up is not counted;
 # lockstep runs of fewer than 64 followers are longer, LOCKSTEP_S * 64 / N, for enough samples),
-# context switches per tick (sampled from /proc/PID/status while the run goes, so the
-# last fraction of a second is missed), UDP receive-buffer overflows on the host during
+# context switches per tick (the same way, from the columns shoal run samples: the
+# benchmark starts no process while a run goes, which on two CPUs would slow the run it
+# measures), UDP receive-buffer overflows on the host during
 # the run (/proc/net/snmp RcvbufErrors), and in real time the loop lateness p99, the
 # release (delay) error p99, overruns and states logged. Runs are interleaved N by N.
 # Usage: bench/scale.sh [BUILD_DIRS] [RUNS] [LOCKSTEP_S] [REALTIME_S] [NS] [OUT_CSV] [EXTRA_ARGS]
@@ -37,20 +38,6 @@ trap 'rm -rf "$dir"' EXIT
 num() { grep -o "\"$1\":[0-9.e+-]*" "$2" | head -1 | cut -d: -f2; }
 rcvbuf_errors() { awk '/^Udp:/ {getline; print $6; exit}' /proc/net/snmp; }
 
-# Samples every child of shoal run (pid $1) until it exits: the newest voluntary and
-# involuntary context switch counts of each (all its threads), into $2 (name,pid,vol,nonvol).
-sample_ctx() {
-  local parent=$1 file=$2
-  while kill -0 "$parent" 2>/dev/null; do
-    # Every thread: LCM's receive thread and lcm-logger's writer are threads of their own.
-    for p in $(pgrep -P "$parent"); do
-      awk -v pid="$p" '/^Name:/ && n == "" {n=$2} /^voluntary_ctxt/ {v+=$2} /^nonvoluntary_ctxt/ {i+=$2}
-        END {if (n != "") print n "," pid "," v "," i}' /proc/"$p"/task/*/status 2>/dev/null || true
-    done >> "$file"
-    sleep 0.3
-  done
-}
-
 # One run: build, mode, N, run index. Appends a CSV row.
 one_run() {
   local build=$1 mode=$2 n=$3 r=$4 dur
@@ -60,39 +47,34 @@ one_run() {
   # so that every run lasts seconds of wall time and has enough resource samples.
   dur=$([ "$mode" = lockstep ] && awk -v d="$ls_dur" -v n="$n" 'BEGIN {print (n < 64) ? int(d * 64 / n) : d}' || echo "$rt_dur")
   local scen="$dir/scale_$n.toml" log="$dir/${tag}_${mode}_${n}_$r.lcmlog"
-  local json="$dir/${tag}_${mode}_${n}_$r.json" ctx="$dir/ctx_${tag}_${mode}_${n}_$r.csv"
-  : > "$ctx"
+  local json="$dir/${tag}_${mode}_${n}_$r.json"
   local before after
   before=$(rcvbuf_errors)
   # shellcheck disable=SC2086
   "$shoal" run "$scen" --mode "$mode" --duration "$dur" --out "$log" --json \
     --resource-interval 1 $extra $([ "$mode" = realtime ] && echo "$rt_extra") > "$json" 2> "$dir/err" &
-  local pid=$!
-  sample_ctx "$pid" "$ctx" &
-  local sampler=$!
-  wait "$pid" || true
-  wait "$sampler" || true
+  wait $! || true
   after=$(rcvbuf_errors)
-  local ticks
-  ticks=$(awk -v d="$dur" 'BEGIN {printf "%d", d * 50 + 1}')
-  # CPU per tick per role: (cpu at the last sample - cpu at 2 s) / ticks between.
-  local cpu
-  cpu=$(awk -F, 'NR > 1 {
+  # CPU and context switches per tick per role, from the run's resources.csv: (the last
+  # sample - the sample at 2 s) / ticks between, per process, averaged over the vehicles.
+  # shoal run samples them itself (its threads' counts from /proc/<pid>/task/*/status), so
+  # the benchmark starts no process of its own while a run goes.
+  local cpu cs
+  read -r cpu cs < <(awk -F, 'NR > 1 {
       role = ($3 ~ /^vehicle/) ? "vehicle" : $3
-      if ($1 + 0 >= 2 && !(($4) in first)) {first[$4] = $6; t0[$4] = $1; r[$4] = role}
-      if (($4) in first) {last[$4] = $6; t1[$4] = $1}
+      if ($1 + 0 >= 2 && !(($4) in first)) {first[$4] = $6; f_cs[$4] = $7 + $8; t0[$4] = $1; r[$4] = role}
+      if (($4) in first) {last[$4] = $6; l_cs[$4] = $7 + $8; t1[$4] = $1}
     }
     END {
       for (p in first) if (t1[p] > t0[p]) {
-        s[r[p]] += (last[p] - first[p]) / ((t1[p] - t0[p]) * 50); c[r[p]]++
+        ticks = (t1[p] - t0[p]) * 50
+        s[r[p]] += (last[p] - first[p]) / ticks; w[r[p]] += (l_cs[p] - f_cs[p]) / ticks; c[r[p]]++
       }
-      printf "%.1f,%.1f,%.1f", c["vehicle"] ? 1e6 * s["vehicle"] / c["vehicle"] : -1,
-        1e6 * s["channel emulator"], 1e6 * s["lcm-logger"]
+      printf "%.1f,%.1f,%.1f %.2f,%.1f,%.1f\n",
+        c["vehicle"] ? 1e6 * s["vehicle"] / c["vehicle"] : -1,
+        1e6 * s["channel emulator"], 1e6 * s["lcm-logger"],
+        c["vehicle"] ? w["vehicle"] / c["vehicle"] : -1, w["channel emulator"], w["lcm-logger"]
     }' "$log.d/resources.csv")
-  local cs
-  cs=$(awk -F, -v t="$ticks" '{k = $2; v[k] = $3 + $4; role[k] = ($1 ~ /vehicle/) ? "v" : ($1 ~ /shoal_channel/ ? "e" : ($1 ~ /lcm-logger/ ? "l" : "o"))}
-    END {for (k in v) {s[role[k]] += v[k]; if (role[k] == "v") nv++}
-      printf "%.2f,%.1f,%.1f", nv ? s["v"] / nv / t : -1, s["e"] / t, s["l"] / t}' "$ctx")
   printf '%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n' "$tag" "$mode" "$n" "$r" \
     "$(num realtime_factor "$json")" "$(num log_states "$json")" \
     "$(num log_states_expected "$json")" "$cpu" "$cs" "$((after - before))" \

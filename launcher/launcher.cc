@@ -280,6 +280,29 @@ class ProgressTracker {
   std::vector<double> follower_error_;
 };
 
+/// The context switches of a process's threads that are alive, summed from
+/// /proc/<pid>/task/<tid>/status (each thread's own counts: the process's status file
+/// shows its main thread's only, and lcm-logger does its work in three threads).
+void ReadContextSwitches(pid_t pid, long long* voluntary, long long* involuntary) {
+  *voluntary = *involuntary = 0;
+  const std::string dir = "/proc/" + std::to_string(pid) + "/task";
+  DIR* d = opendir(dir.c_str());
+  if (d == nullptr) return;
+  while (const dirent* e = readdir(d)) {
+    if (e->d_name[0] < '0' || e->d_name[0] > '9') continue;
+    FILE* f = std::fopen((dir + "/" + e->d_name + "/status").c_str(), "r");
+    if (f == nullptr) continue;  // the thread ended meanwhile
+    char line[256];
+    long long v = 0;
+    while (std::fgets(line, sizeof(line), f) != nullptr) {
+      if (std::sscanf(line, "voluntary_ctxt_switches: %lld", &v) == 1) *voluntary += v;
+      if (std::sscanf(line, "nonvoluntary_ctxt_switches: %lld", &v) == 1) *involuntary += v;
+    }
+    std::fclose(f);
+  }
+  closedir(d);
+}
+
 /// One process's resource use, read from /proc: false if it is gone.
 bool ReadProcessResources(pid_t pid, long long* rss_kib, double* cpu_s) {
   char path[64];
@@ -318,7 +341,10 @@ class ResourceLog {
  public:
   ResourceLog(const std::string& path, double interval_s) : interval_s_(interval_s) {
     if (interval_s_ > 0) f_ = std::fopen(path.c_str(), "w");
-    if (f_ != nullptr) std::fprintf(f_, "sim_time_s,wall_time_s,process,pid,rss_kib,cpu_s\n");
+    if (f_ != nullptr) {
+      std::fprintf(f_, "sim_time_s,wall_time_s,process,pid,rss_kib,cpu_s,voluntary_ctxsw,"
+                       "involuntary_ctxsw\n");
+    }
   }
   ~ResourceLog() {
     if (f_ != nullptr) std::fclose(f_);
@@ -336,8 +362,10 @@ class ResourceLog {
       long long rss = 0;
       double cpu = 0.0;
       if (!c.running || c.pid <= 0 || !ReadProcessResources(c.pid, &rss, &cpu)) continue;
-      std::fprintf(f_, "%.3f,%.3f,%s,%d,%lld,%.2f\n", sim_s, wall_s, c.name.c_str(),
-                   static_cast<int>(c.pid), rss, cpu);
+      long long voluntary = 0, involuntary = 0;
+      ReadContextSwitches(c.pid, &voluntary, &involuntary);
+      std::fprintf(f_, "%.3f,%.3f,%s,%d,%lld,%.2f,%lld,%lld\n", sim_s, wall_s, c.name.c_str(),
+                   static_cast<int>(c.pid), rss, cpu, voluntary, involuntary);
     }
     std::fflush(f_);
     next_k_ = std::max(next_k_ + 1, static_cast<long long>(std::floor(sim_s / interval_s_)) + 1);

@@ -123,20 +123,26 @@ TEST(Soak, ResourcesSampleEveryProcessWithAPlausibleRss) {
   std::ifstream in(r.log + ".d/resources.csv");
   std::string line;
   std::getline(in, line);
-  EXPECT_EQ(line, "sim_time_s,wall_time_s,process,pid,rss_kib,cpu_s");
+  EXPECT_EQ(line,
+            "sim_time_s,wall_time_s,process,pid,rss_kib,cpu_s,voluntary_ctxsw,involuntary_ctxsw");
   std::map<std::string, int> rows;
   std::map<std::string, double> last_sim;
+  std::map<std::string, long long> last_switches;
   while (std::getline(in, line)) {
     std::stringstream ss(line);
-    std::string sim, wall, name, pid, rss, cpu;
+    std::string sim, wall, name, pid, rss, cpu, voluntary, involuntary;
     std::getline(ss, sim, ',');
     std::getline(ss, wall, ',');
     std::getline(ss, name, ',');
     std::getline(ss, pid, ',');
     std::getline(ss, rss, ',');
     std::getline(ss, cpu, ',');
+    std::getline(ss, voluntary, ',');
+    std::getline(ss, involuntary, ',');
     ++rows[name];
     last_sim[name] = std::stod(sim);
+    last_switches[name] = std::stoll(voluntary);
+    EXPECT_GE(std::stoll(involuntary), 0) << line;
     EXPECT_GT(std::stod(rss), 500.0) << line;      // KiB: a process, not nothing
     EXPECT_LT(std::stod(rss), 2000000.0) << line;  // and not 2 GiB
     EXPECT_GE(std::stod(cpu), 0.0) << line;
@@ -152,6 +158,9 @@ TEST(Soak, ResourcesSampleEveryProcessWithAPlausibleRss) {
   // The run's processes end with its final tick, before the end's sample; lcm-logger,
   // stopped last, is in it.
   for (const std::string& name : expected) EXPECT_GE(last_sim[name], 330.0) << name;
+  // Every process sleeps between its messages or ticks, so its threads have switched out
+  // of their own accord many times by the end.
+  for (const std::string& name : expected) EXPECT_GT(last_switches[name], 100) << name;
   EXPECT_GE(last_sim["lcm-logger"], 359.0);
   ASSERT_EQ(r.result.processes.size(), expected.size());
   for (const SoakProcessGrowth& g : r.result.processes) {
