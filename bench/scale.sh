@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Benchmark: how shoal run scales with the number of followers, at a fixed two in-links
 # per follower (bench/scale_scenario.sh). For each N and run: a lockstep run and a
-# real-time run of the same scenario. Per run it records the lockstep real-time factor,
+# real-time run of the same scenario. Per run it records the lockstep real-time factor
+# (overall, and once the run is going: steady_factor),
 # states logged of expected, each role's CPU per tick (from the run's resources.csv:
 # the difference between the 2 s sample and the last one, so start-up is not counted;
 # lockstep runs of fewer than 64 followers are longer, LOCKSTEP_S * 64 / N, for enough samples),
@@ -75,8 +76,15 @@ one_run() {
         1e6 * s["channel emulator"], 1e6 * s["lcm-logger"],
         c["vehicle"] ? w["vehicle"] / c["vehicle"] : -1, w["channel emulator"], w["lcm-logger"]
     }' "$log.d/resources.csv")
-  printf '%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n' "$tag" "$mode" "$n" "$r" \
-    "$(num realtime_factor "$json")" "$(num log_states "$json")" \
+  # The real-time factor once the run is going: mission time over wall time between the
+  # emulator's sample at 2 s and its last, without the start (processes, LCM's self-test,
+  # announcing) and the end, which a short lockstep run's overall factor includes.
+  local steady
+  steady=$(awk -F, 'NR > 1 && $3 == "channel emulator" && $1 + 0 >= 2 {
+      if (!seen++) {s0 = $1; w0 = $2}; s1 = $1; w1 = $2}
+    END {if (w1 > w0) printf "%.2f", (s1 - s0) / (w1 - w0)}' "$log.d/resources.csv")
+  printf '%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s\n' "$tag" "$mode" "$n" "$r" \
+    "$(num realtime_factor "$json")" "$steady" "$(num log_states "$json")" \
     "$(num log_states_expected "$json")" "$cpu" "$cs" "$((after - before))" \
     "$(num lateness_p99_s "$json")" "$(num delay_error_p99_s "$json")" \
     "$(num overruns "$json")" "$(cut -d' ' -f1 /proc/loadavg)" >> "$out"
@@ -90,7 +98,7 @@ jitter="${build_list[0]}/bench/loop_jitter"
 if [ -x "$jitter" ]; then
   echo "bare loop: $(chrt -f 90 "$jitter" 1000 10 2> /dev/null || "$jitter" 1000 10)" >&2
 fi
-echo "build,mode,followers,run,realtime_factor,log_states,log_states_expected,vehicle_cpu_us_per_tick,emulator_cpu_us_per_tick,logger_cpu_us_per_tick,vehicle_ctxsw_per_tick,emulator_ctxsw_per_tick,logger_ctxsw_per_tick,rcvbuf_errors,lateness_p99_s,delay_error_p99_s,overruns,load1" > "$out"
+echo "build,mode,followers,run,realtime_factor,steady_factor,log_states,log_states_expected,vehicle_cpu_us_per_tick,emulator_cpu_us_per_tick,logger_cpu_us_per_tick,vehicle_ctxsw_per_tick,emulator_ctxsw_per_tick,logger_ctxsw_per_tick,rcvbuf_errors,lateness_p99_s,delay_error_p99_s,overruns,load1" > "$out"
 for n in $ns; do "$here/scale_scenario.sh" "$n" "$ls_dur" > "$dir/scale_$n.toml"; done
 for ((r = 1; r <= runs; r++)); do
   for n in $ns; do

@@ -64,6 +64,7 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       resent_ns_(s.followers + 1, 0),
       next_of_(s.followers + 1, -1),
       bundled_(s.followers + 1, 0) {
+  recorder_queue_ = recorder_queue;
   // The states in transit are stored once each and reused: made now, at their encoded
   // size (fixed for vehicle_state_t), for the largest delay the run can take.
   channel_.ReservePayloads(
@@ -451,6 +452,41 @@ int ChannelEmulatorApp::Rejoin() {
   return -1;
 }
 
+void ChannelEmulatorApp::AwaitRecorder(std::int64_t released) {
+  if (progress_ && uplink_ != nullptr && progress_->Attach()) {
+    // Everything of the windows before this one, and room for the next in its queue.
+    const std::int64_t target = std::max(released, bus_->sent() - recorder_queue_ / 3);
+    progress_->WaitFor(static_cast<std::uint64_t>(std::max<std::int64_t>(target, 0)),
+                       kRecorderWaitNs);
+    return;
+  }
+  // Without the recorder's count: it first catches up with the window (its states), then
+  // the window's decisions go out in one SHOAL_CHANNEL message, then the next window.
+  if (recorder_) recorder_->Wait(kRecorderWaitNs);
+}
+
+void ChannelEmulatorApp::DrainRecorder() {
+  if (progress_ && uplink_ != nullptr && progress_->Attach()) {
+    progress_->WaitFor(static_cast<std::uint64_t>(bus_->sent()), 50 * kRecorderWaitNs);
+  }
+}
+
+void ChannelEmulatorApp::ReportRecorder() const {
+  const std::int64_t windows = (final_tick_ - start_tick_ + lookahead_) / lookahead_;
+  if (progress_ && progress_->handled() > 0) {
+    std::cerr << "shoal_channel_emulator: waited for the recorder's count "
+              << progress_->waits() << " time(s) in " << windows << " windows, "
+              << progress_->waited_ns() / 1000000 << " ms in all, " << progress_->timeouts()
+              << " gave up; it handled " << progress_->handled() << " of the "
+              << bus_->sent() << " messages sent it\n";
+  } else if (recorder_ && recorder_->active()) {
+    std::cerr << "shoal_channel_emulator: waited for the recorder before "
+              << recorder_->waits() << " of " << windows << " windows, "
+              << recorder_->waited_ns() / 1000000 << " ms in all, " << recorder_->timeouts()
+              << " gave up after " << kRecorderWaitNs / 1000000 << " ms\n";
+  }
+}
+
 int ChannelEmulatorApp::RunLockstep() {
   const int not_started = restarted_ ? Rejoin() : WaitForReady();
   if (not_started >= 0) return not_started;
@@ -473,6 +509,7 @@ int ChannelEmulatorApp::RunLockstep() {
     win_first_ = k;
     win_last_ = std::min(k + lookahead_ - 1, final_tick_);
     std::fill(got_tick_.begin(), got_tick_.end(), false);
+    const std::int64_t released = bus_->sent();
     ReleaseWindow();
     running_ = true;
     const WindowWait w = WaitForWindow();
@@ -483,18 +520,11 @@ int ChannelEmulatorApp::RunLockstep() {
     }
     if (w == WindowWait::kTimedOut) DeclareSilentLost();
     SubmitWindow();
-    // The recorder first catches up with the window (its states), then the window's
-    // decisions go out in one SHOAL_CHANNEL message, then the next window.
-    if (recorder_) recorder_->Wait(kRecorderWaitNs);
+    AwaitRecorder(released);
     PublishEvents();
   }
-  if (recorder_ && recorder_->active()) {
-    std::cerr << "shoal_channel_emulator: waited for the recorder before "
-              << recorder_->waits() << " of " << (final_tick_ + lookahead_) / lookahead_
-              << " windows, " << recorder_->waited_ns() / 1000000 << " ms in all, "
-              << recorder_->timeouts() << " gave up after "
-              << kRecorderWaitNs / 1000000 << " ms\n";
-  }
+  DrainRecorder();
+  ReportRecorder();
   // A process declared lost that came back (restarted) is not lost at the end.
   lost_any_ = std::find(alive_.begin(), alive_.end(), false) != alive_.end();
   PublishStatus(RunState::kFinished, lost_any_ ? "some vehicles were lost" : "");

@@ -56,7 +56,14 @@ class ChannelEmulatorApp {
   const EmulatorCounters& counters() const { return counters_; }
   /// Lockstep: before each window, wait (at most 100 ms) until this process -- the run's
   /// lcm-logger -- has handled what it was sent (channel_emulator/recorder_gate.h).
-  void SetRecorder(pid_t pid) { recorder_ = std::make_unique<RecorderGate>(pid); }
+  /// With an uplink, and the recorder counting what it has handled (RecorderProgress),
+  /// the wait is instead until it has handled everything sent before the window's release
+  /// and is at most a third of its queue behind: it records a window while the vehicles
+  /// step the next.
+  void SetRecorder(pid_t pid) {
+    recorder_ = std::make_unique<RecorderGate>(pid);
+    progress_ = std::make_unique<RecorderProgress>(pid);
+  }
   /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
   std::int64_t lookahead_ticks() const { return lookahead_; }
   /// The processes publish on `uplink`, where only this process listens (before Init):
@@ -192,6 +199,14 @@ class ChannelEmulatorApp {
   EmulatorCounters counters_;
   LatenessStats release_error_;  // realtime: release time - due time
   std::unique_ptr<RecorderGate> recorder_;
+  std::unique_ptr<RecorderProgress> progress_;
+  std::int64_t recorder_queue_ = 0;
+  /// Lockstep: waits until the recorder has caught up with the run's bus as SetRecorder
+  /// says; `released` is what the bus had sent when the window was released.
+  void AwaitRecorder(std::int64_t released);
+  /// After the last window: until the recorder has handled all that was sent (at most 5 s).
+  void DrainRecorder();
+  void ReportRecorder() const;
   std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
   std::size_t inbox_size_ = 0;
   bool lost_any_ = false;  // lockstep: some process stopped answering

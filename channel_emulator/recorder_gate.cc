@@ -2,6 +2,8 @@
 
 #include <dirent.h>
 #include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -10,6 +12,7 @@
 #include <string>
 
 #include "runtime/clock.h"
+#include "runtime/lcm_queue_shim.h"
 
 namespace shoal {
 
@@ -100,6 +103,61 @@ void RecorderGate::Wait(std::int64_t max_wait_ns) {
       waited_ns_ += waited;
       if (idle == 0) ++timeouts_;
       return;
+    }
+  }
+}
+
+namespace {
+const ShoalLoggerProgress* Progress(const void* map) {
+  return static_cast<const ShoalLoggerProgress*>(map);
+}
+}  // namespace
+
+RecorderProgress::~RecorderProgress() {
+  if (map_ != nullptr) munmap(const_cast<void*>(map_), sizeof(ShoalLoggerProgress));
+}
+
+bool RecorderProgress::Attach() {
+  if (map_ != nullptr) return true;
+  if (pid_ <= 0) return false;
+  char name[64];
+  std::snprintf(name, sizeof(name), SHOAL_LOGGER_PROGRESS_NAME, static_cast<long>(pid_));
+  const int fd = shm_open(name, O_RDONLY, 0);
+  if (fd < 0) return false;
+  struct stat st {};
+  void* m = MAP_FAILED;
+  if (fstat(fd, &st) == 0 && st.st_size >= static_cast<off_t>(sizeof(ShoalLoggerProgress))) {
+    m = mmap(nullptr, sizeof(ShoalLoggerProgress), PROT_READ, MAP_SHARED, fd, 0);
+  }
+  close(fd);
+  if (m == MAP_FAILED) return false;
+  if (__atomic_load_n(&Progress(m)->magic, __ATOMIC_ACQUIRE) != SHOAL_LOGGER_PROGRESS_MAGIC) {
+    munmap(m, sizeof(ShoalLoggerProgress));  // made, not yet started: look again later
+    return false;
+  }
+  map_ = m;
+  shm_unlink(name);
+  return true;
+}
+
+std::uint64_t RecorderProgress::handled() const {
+  return map_ == nullptr ? 0 : __atomic_load_n(&Progress(map_)->handled, __ATOMIC_ACQUIRE);
+}
+
+bool RecorderProgress::WaitFor(std::uint64_t target, std::int64_t max_wait_ns) {
+  if (map_ == nullptr) return false;
+  if (handled() >= target) return true;
+  ++waits_;
+  const std::int64_t t0 = MonotonicNs();
+  for (;;) {
+    const timespec nap = {0, 20000};
+    nanosleep(&nap, nullptr);
+    const bool done = handled() >= target;
+    const std::int64_t waited = MonotonicNs() - t0;
+    if (done || waited > max_wait_ns) {
+      waited_ns_ += waited;
+      if (!done) ++timeouts_;
+      return true;
     }
   }
 }

@@ -49,4 +49,39 @@ class RecorderGate {
   std::int64_t waits_ = 0, timeouts_ = 0, waited_ns_ = 0;
 };
 
+/// The recorder's own count of the messages it has handled, when lcm-logger runs with
+/// runtime/lcm_queue_shim.c and SHOAL_LOGGER_PROGRESS=1 (a shared memory object named after
+/// its pid). With it the clock master bounds how far the recorder falls behind, by what it
+/// has sent the recorder's bus, instead of waiting until the recorder is idle: the recorder
+/// then records a window while the vehicles step the next. Exact only when the clock master
+/// is the only sender on that bus (a run with an uplink); with other senders the recorder's
+/// count runs ahead and the bound is looser, never a wait that cannot end.
+class RecorderProgress {
+ public:
+  /// pid <= 0: never attached.
+  explicit RecorderProgress(pid_t pid) : pid_(pid) {}
+  ~RecorderProgress();
+  RecorderProgress(const RecorderProgress&) = delete;
+  RecorderProgress& operator=(const RecorderProgress&) = delete;
+
+  /// Whether the recorder's counter runs. Looks for it until it does (the recorder creates
+  /// it at its first subscription); once found, removes its name, so nothing is left
+  /// behind, and keeps the mapping.
+  bool Attach();
+  /// Messages the recorder has handled (0 before Attach succeeds).
+  std::uint64_t handled() const;
+  /// Returns once the recorder has handled `target` messages, or after max_wait_ns
+  /// (counted in timeouts()). False if not attached (nothing waited).
+  bool WaitFor(std::uint64_t target, std::int64_t max_wait_ns);
+
+  std::int64_t waits() const { return waits_; }
+  std::int64_t timeouts() const { return timeouts_; }
+  std::int64_t waited_ns() const { return waited_ns_; }
+
+ private:
+  pid_t pid_;
+  const void* map_ = nullptr;  // ShoalLoggerProgress
+  std::int64_t waits_ = 0, timeouts_ = 0, waited_ns_ = 0;
+};
+
 }  // namespace shoal

@@ -732,6 +732,11 @@ void Launch::BuildPlan() {
     const char* before = std::getenv("LD_PRELOAD");
     logger.env = {"LD_PRELOAD=" + logger_queue_shim_ +
                   (before != nullptr && *before != '\0' ? std::string(":") + before : "")};
+    // It counts what it has handled, for the clock master, which is then the only sender
+    // on its bus (channel_emulator/recorder_gate.h: RecorderProgress).
+    if (mode_ == Mode::kLockstep && !uplink_url_.empty() && RecorderVisible()) {
+      logger.env.push_back("SHOAL_LOGGER_PROGRESS=1");
+    }
   }
   plan_.processes.push_back(logger);
   PlanEmulator();

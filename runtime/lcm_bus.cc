@@ -49,8 +49,13 @@ bool LcmBus::PublishAsReceived(const std::string& channel, const void* data, int
 }
 
 bool LcmBus::Send(const std::string& channel, const void* data, int size) {
-  if (batch_ != nullptr && batch_->Add(address_, channel, data, size)) return true;
-  return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  if (batch_ != nullptr && batch_->Add(address_, channel, data, size)) {
+    ++sent_;
+    return true;
+  }
+  const bool ok = lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  sent_ += ok;
+  return ok;
 }
 
 void LcmBus::SendThrough(UdpmBatch* batch) {

@@ -59,6 +59,9 @@ class Bus {
   virtual int Handle(int timeout_ms) = 0;
   /// Messages dropped because they did not authenticate (runtime/bus_auth.h).
   virtual std::int64_t rejected() const { return 0; }
+  /// Messages this bus has sent: what its receivers each take off their queue (a bundle
+  /// counts once). 0 for a bus that does not count.
+  virtual std::int64_t sent() const { return 0; }
   /// From BeginBundle to EndBundle, what is published on this bus may go out as one
   /// message (a bundle: LcmBus) that the receiving LcmBus hands to its subscribers part by
   /// part, in order, each as if it had been published alone: one datagram, one wake-up of
@@ -116,6 +119,7 @@ class LcmBus : public Bus {
   bool PublishAsReceived(const std::string& channel, const void* data, int size) override;
   int Handle(int timeout_ms) override;
   /// Dropped unverified, and (received in the caller) datagrams that were not LCM's.
+  std::int64_t sent() const override { return sent_; }
   std::int64_t rejected() const override {
     return rejected_ + (receiver_ ? receiver_->malformed() : 0);
   }
@@ -166,6 +170,7 @@ class LcmBus : public Bus {
   std::unique_ptr<UdpmReceiver> receiver_;  // receiving in the caller; null: LCM's thread
   std::optional<bus_auth::Authenticator> auth_;
   std::int64_t rejected_ = 0;
+  std::int64_t sent_ = 0;
   std::vector<unsigned char> signed_;  // a message and its trailer, reused
   std::vector<std::unique_ptr<Sub>> subs_;
   bool receiving_ = false;  // subscribed, and LCM's receive socket is open

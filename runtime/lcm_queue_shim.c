@@ -29,7 +29,14 @@
       and lcm-logger's own mutex one after the other, never one inside the other, and the
       handler takes that mutex under the queue's lock, as it takes nothing else.
 
-   4. lcm-logger's memory is locked (mlockall, current and future) at its first
+   4. With SHOAL_LOGGER_PROGRESS=1 in its environment, the logger publishes how many
+      messages (datagrams, a bundle counting once) its handler has taken off LCM's queue, in
+      a shared memory object named after its pid (SHOAL_LOGGER_PROGRESS_NAME): the lockstep
+      clock master, whose messages are all the logger hears on a run with an uplink, then
+      knows how far behind the logger is, and lets it fall behind by a window instead of
+      waiting at every window until it is idle (channel_emulator/recorder_gate.h).
+
+   5. lcm-logger's memory is locked (mlockall, current and future) at its first
       subscription, when permitted (root, or a large enough RLIMIT_MEMLOCK): its resident
       size is then what it has allocated, not the pages of LCM's receive ring and of its
       heaps that a backlog on a loaded machine happens to reach first, which a soak's memory
@@ -42,9 +49,43 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
 #include <sys/mman.h>
+#include <unistd.h>
 
 #include "runtime/lcm_queue_shim.h"
+
+/* Item 4: the counter the handler thread advances, or NULL. */
+static ShoalLoggerProgress *progress;
+
+static void ShareProgress(void)
+{
+    const char *on = getenv("SHOAL_LOGGER_PROGRESS");
+    if (on == NULL || strcmp(on, "1") != 0) return;
+    char name[64];
+    snprintf(name, sizeof(name), SHOAL_LOGGER_PROGRESS_NAME, (long) getpid());
+    /* A pid is not reused while its process lives, so an object of this name is an
+       earlier process's leftover: start it anew. */
+    shm_unlink(name);
+    const int fd = shm_open(name, O_RDWR | O_CREAT | O_EXCL, 0600);
+    if (fd < 0 || ftruncate(fd, sizeof(ShoalLoggerProgress)) != 0) {
+        fprintf(stderr, "shoal lcm queue shim: no progress counter (%s: %s)\n", name,
+                strerror(errno));
+        if (fd >= 0) close(fd);
+        return;
+    }
+    void *m = mmap(NULL, sizeof(ShoalLoggerProgress), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    close(fd);
+    if (m == MAP_FAILED) return;
+    progress = (ShoalLoggerProgress *) m;
+    __atomic_store_n(&progress->handled, 0, __ATOMIC_RELAXED);
+    __atomic_store_n(&progress->magic, SHOAL_LOGGER_PROGRESS_MAGIC, __ATOMIC_RELEASE);
+}
+
+static void Advance(void)
+{
+    if (progress != NULL) __atomic_add_fetch(&progress->handled, 1, __ATOMIC_RELEASE);
+}
 
 typedef lcm_subscription_t *(*SubscribeFn)(lcm_t *, const char *, lcm_msg_handler_t, void *);
 
@@ -142,9 +183,11 @@ static void Unbundle(const lcm_recv_buf_t *rbuf, const char *channel, void *user
             queue_unlock(held);
             held = NULL;
         }
+        Advance();
         return;
     }
     t->handler(rbuf, channel, t->user);
+    Advance();
 }
 
 lcm_subscription_t *lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handler_t handler,
@@ -171,6 +214,7 @@ lcm_subscription_t *lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handl
     static int locked = 0;
     if (!locked) {
         locked = 1;
+        ShareProgress();
         if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
             fprintf(stderr, "shoal lcm queue shim: memory not locked (mlockall: %s)\n",
                     strerror(errno));

@@ -10,4 +10,17 @@
 /* The shim's file name, built next to the runtime library (build/runtime/). */
 #define SHOAL_LCM_QUEUE_SHIM_FILE "libshoal_lcm_queue.so"
 
+/* The logger's progress (the shim's item 4): a POSIX shared memory object of this name,
+   with the logger's pid. `handled` counts the messages its handler has taken; `magic` is
+   SHOAL_LOGGER_PROGRESS_MAGIC once the counter runs. */
+#define SHOAL_LOGGER_PROGRESS_NAME "/shoal-logger-%ld"
+#define SHOAL_LOGGER_PROGRESS_MAGIC 0x53484f414c50524bULL /* "SHOALPRK" */
+
+#include <stdint.h>
+
+typedef struct {
+    uint64_t magic;
+    uint64_t handled;
+} ShoalLoggerProgress;
+
 #endif

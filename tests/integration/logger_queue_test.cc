@@ -16,6 +16,7 @@
 
 #include <gtest/gtest.h>
 
+#include "channel_emulator/recorder_gate.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/log_reader.h"
 #include "tests/integration/test_util.h"
@@ -66,16 +67,26 @@ TEST(LoggerQueue, FortyFollowersInLockstepLogEveryStateInWindowsOfTheChannelsLag
   EXPECT_EQ(j["log_states"], j["log_states_expected"]) << r.out;
   // The delay's smallest value (0.05 s, 2.5 periods) alone bounds the window: 41 vehicles'
   // states per tick would cut it to 1 tick with LCM's queue of 30.
-  EXPECT_NE(ReadFile(log + ".d/emulator.txt").find("lockstep, 3 tick(s) per round trip"),
-            std::string::npos)
-      << ReadFile(log + ".d/emulator.txt");
+  const std::string emulator = ReadFile(log + ".d/emulator.txt");
+  EXPECT_NE(emulator.find("lockstep, 3 tick(s) per round trip"), std::string::npos) << emulator;
+  // The vehicles publish on the uplink, so the clock master is the logger's only sender and
+  // waits by the logger's count, which at the end covers everything it was sent.
+  const std::size_t at = emulator.find("; it handled ");
+  ASSERT_NE(at, std::string::npos) << emulator;
+  long long handled = -1, sent = -1;
+  ASSERT_EQ(std::sscanf(emulator.c_str() + at, "; it handled %lld of the %lld", &handled, &sent),
+            2)
+      << emulator;
+  EXPECT_GT(sent, 67) << emulator;  // every one of the 67 windows sends the logger states
+  EXPECT_GE(handled, sent) << emulator;
 }
 
 // Given lcm-logger with the preloaded library, when a process publishes a recordable
 // bundle (its lockstep window's states and health) and then a message alone, then the log
 // holds each part as a message of its own, on its channel, byte for byte what it would be
 // had it been published alone (trailer included), in order; a malformed recordable bundle
-// is recorded as it came, on the bundle channel.
+// is recorded as it came, on the bundle channel. With SHOAL_LOGGER_PROGRESS=1 it counts
+// each message it handled, a bundle once, where the clock master reads it.
 TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
   const std::string shim = std::string(SHOAL_BINARY_DIR) + "/runtime/libshoal_lcm_queue.so";
   const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
@@ -87,13 +98,19 @@ TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
                              const_cast<char*>(url_arg.c_str()), const_cast<char*>("-f"),
                              const_cast<char*>("-q"), const_cast<char*>("--"),
                              const_cast<char*>(log.c_str()), nullptr};
-  std::vector<char*> envp = {const_cast<char*>(preload.c_str()), nullptr};
+  std::vector<char*> envp = {const_cast<char*>(preload.c_str()),
+                             const_cast<char*>("SHOAL_LOGGER_PROGRESS=1"), nullptr};
   pid_t pid = 0;
   ASSERT_EQ(posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), envp.data()), 0);
   for (int i = 0; i < 100 && access(log.c_str(), F_OK) != 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // subscribed
+  RecorderProgress progress(pid);
+  ASSERT_TRUE(progress.Attach());  // made at its subscription
+  // LCM's own self-test message, when it came after the subscription, is counted too.
+  const std::uint64_t before = progress.handled();
+  EXPECT_LE(before, 1u);
   bus_auth::Key key;
   key.fill(4);
   LcmBus bus(url, key);
@@ -106,7 +123,11 @@ TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
   const unsigned char bad[] = {'S', 'H', 'B', '2', 3, 'A', 'B', 'C', 0, 0, 0, 9, 'x'};
   LcmBus plain(url);
   ASSERT_TRUE(plain.PublishRaw(bundle_wire::kChannel, bad, sizeof(bad)));
+  // Three messages: the bundle, the one alone and the malformed bundle.
+  EXPECT_TRUE(progress.WaitFor(before + 3, 5000000000LL));
+  EXPECT_EQ(progress.timeouts(), 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(progress.handled(), before + 3);
   kill(pid, SIGINT);
   int status = 0;
   ASSERT_EQ(waitpid(pid, &status, 0), pid);

@@ -177,7 +177,7 @@ status=0
 [ "$(json log_complete "$work/lock.json")" = true ] || fail "lockstep log incomplete: $(cat "$work/lock.json")"
 json lcm_url "$work/lock.json" | grep -q 'ttl=1' || fail "the run's URL has no ttl=1"
 # The emulator ran in h1, with lcm-logger's pid to wait for (ip netns exec runs in place).
-grep -q "waited for the recorder before" "$work/lock.lcmlog.d/emulator.txt" ||
+grep -q "waited for the recorder" "$work/lock.lcmlog.d/emulator.txt" ||
   fail "the emulator did not wait for the logger: $(cat "$work/lock.lcmlog.d/emulator.txt")"
 status=0
 "$shoal" sim "$scenario" --duration "$LOCKSTEP_S" --out "$work/sim.lcmlog" >/dev/null 2>&1 || status=$?

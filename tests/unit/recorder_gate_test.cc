@@ -1,12 +1,14 @@
 // RecorderGate: the lockstep clock master's wait for lcm-logger. Against real processes:
 // a sleeping one lets it through at once, a busy one holds it until the time limit, a
 // multithreaded one is watched thread by thread, and a vanished one opens the gate.
+// RecorderProgress: the wait by the recorder's own count of what it has handled.
 #include "channel_emulator/recorder_gate.h"
 
 #include <fcntl.h>
 
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/mman.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -18,6 +20,7 @@
 #include <thread>
 
 #include "runtime/clock.h"
+#include "runtime/lcm_queue_shim.h"
 #include "runtime/process.h"
 
 namespace shoal {
@@ -201,6 +204,86 @@ TEST(CpuLatencyRequest, HeldWhileItLivesAsRootElseSaysWhy) {
     EXPECT_EQ(CurrentCpuLatencyUs(), 0);
   }
   EXPECT_EQ(CurrentCpuLatencyUs(), before);
+}
+
+// RecorderProgress against the shared memory object the preloaded logger library makes
+// (runtime/lcm_queue_shim.c), made here as it makes it, under this process's pid.
+struct FakeRecorderCount {
+  std::string name;
+  ShoalLoggerProgress* p = nullptr;
+  FakeRecorderCount() {
+    char b[64];
+    std::snprintf(b, sizeof(b), SHOAL_LOGGER_PROGRESS_NAME, static_cast<long>(getpid()));
+    name = b;
+    shm_unlink(name.c_str());
+    const int fd = shm_open(name.c_str(), O_RDWR | O_CREAT | O_EXCL, 0600);
+    if (fd < 0 || ftruncate(fd, sizeof(ShoalLoggerProgress)) != 0) return;
+    void* m = mmap(nullptr, sizeof(ShoalLoggerProgress), PROT_READ | PROT_WRITE, MAP_SHARED,
+                   fd, 0);
+    close(fd);
+    if (m != MAP_FAILED) p = static_cast<ShoalLoggerProgress*>(m);
+  }
+  ~FakeRecorderCount() {
+    if (p != nullptr) munmap(p, sizeof(ShoalLoggerProgress));
+    shm_unlink(name.c_str());
+  }
+  bool Exists() const {
+    const int fd = shm_open(name.c_str(), O_RDONLY, 0);
+    if (fd >= 0) close(fd);
+    return fd >= 0;
+  }
+};
+
+TEST(RecorderProgress, WithoutTheRecordersCountNothingIsWaitedFor) {
+  RecorderProgress none(0);
+  EXPECT_FALSE(none.Attach());
+  EXPECT_FALSE(none.WaitFor(1, 1000000));
+  // A pid whose process made no count (this one, before the fake below exists).
+  RecorderProgress absent(getpid());
+  EXPECT_FALSE(absent.Attach());
+  EXPECT_EQ(absent.handled(), 0u);
+}
+
+TEST(RecorderProgress, ACountNotYetStartedIsLookedForAgainAndThenItsNameRemoved) {
+  FakeRecorderCount fake;
+  ASSERT_NE(fake.p, nullptr);
+  RecorderProgress progress(getpid());
+  EXPECT_FALSE(progress.Attach());  // made, no magic yet
+  EXPECT_TRUE(fake.Exists());
+  fake.p->handled = 7;
+  __atomic_store_n(&fake.p->magic, SHOAL_LOGGER_PROGRESS_MAGIC, __ATOMIC_RELEASE);
+  EXPECT_TRUE(progress.Attach());
+  EXPECT_FALSE(fake.Exists());  // nothing is left behind once it is mapped
+  EXPECT_EQ(progress.handled(), 7u);
+  __atomic_add_fetch(&fake.p->handled, 1, __ATOMIC_RELEASE);
+  EXPECT_EQ(progress.handled(), 8u);  // the mapping outlives the name
+}
+
+TEST(RecorderProgress, WaitsUntilTheRecorderHasHandledTheTargetOrTheLimit) {
+  FakeRecorderCount fake;
+  ASSERT_NE(fake.p, nullptr);
+  __atomic_store_n(&fake.p->magic, SHOAL_LOGGER_PROGRESS_MAGIC, __ATOMIC_RELEASE);
+  RecorderProgress progress(getpid());
+  ASSERT_TRUE(progress.Attach());
+  fake.p->handled = 10;
+  EXPECT_TRUE(progress.WaitFor(10, 1000000000LL));
+  EXPECT_EQ(progress.waits(), 0);  // already there: no wait at all
+  std::thread recorder([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    __atomic_store_n(&fake.p->handled, 12, __ATOMIC_RELEASE);
+  });
+  const std::int64_t t0 = MonotonicNs();
+  EXPECT_TRUE(progress.WaitFor(12, 5000000000LL));
+  const std::int64_t waited = MonotonicNs() - t0;
+  recorder.join();
+  EXPECT_GE(waited, 20000000);
+  EXPECT_LT(waited, 4000000000LL);
+  EXPECT_EQ(progress.waits(), 1);
+  EXPECT_EQ(progress.timeouts(), 0);
+  EXPECT_TRUE(progress.WaitFor(13, 30000000));  // never reached: gives up after 30 ms
+  EXPECT_EQ(progress.waits(), 2);
+  EXPECT_EQ(progress.timeouts(), 1);
+  EXPECT_GE(progress.waited_ns(), 50000000);
 }
 
 }  // namespace
