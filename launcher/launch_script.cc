@@ -248,8 +248,9 @@ void WriteStart(const PlannedProcess& p, const std::string& nice, std::ostream& 
 void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
   const PlannedProcess& logger = plan.processes.front();
   o << "\n# lcm-logger, first (as root at nice -10: its subscription queue must not wait for\n"
-    << "# the CPU; with LD_PRELOAD the queue holds more than LCM's 30 messages). The run's\n"
-    << "# processes start once its log exists.\n"
+    << "# the CPU; with LD_PRELOAD the queue holds more than LCM's 30 messages, and with\n"
+    << "# SHOAL_LOGGER_PROGRESS=1 it counts what it has handled, for the emulator's\n"
+    << "# --recorder-pid wait). The run's processes start once its log exists.\n"
     << "logger_nice=0\nif [ \"$(id -u)\" = 0 ]; then logger_nice=-10; fi\n"
     << "rm -f -- \"$log\"\n";
   WriteStart(logger, "$logger_nice", o);
