@@ -131,7 +131,7 @@ bool UdpmReceiver::Open(std::string* error) {
   socklen_t len = sizeof(recv_buf_bytes_);
   getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &recv_buf_bytes_, &len);
   fd_ = fd;
-  buffers_.assign(static_cast<std::size_t>(kBatch) * kDatagramBytes, 0);
+  buffers_.reset(new unsigned char[static_cast<std::size_t>(kBatch) * kDatagramBytes]);
   return true;
 }
 
@@ -150,7 +150,7 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
   while (handed < max_messages) {
     const int want = std::min(kBatch, max_messages - handed);
     for (int k = 0; k < want; ++k) {
-      iov[k] = {buffers_.data() + static_cast<std::size_t>(k) * kDatagramBytes, kDatagramBytes};
+      iov[k] = {buffers_.get() + static_cast<std::size_t>(k) * kDatagramBytes, kDatagramBytes};
       msgs[k].msg_hdr = {};
       msgs[k].msg_hdr.msg_name = &from[k];
       msgs[k].msg_hdr.msg_namelen = sizeof(from[k]);

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -109,7 +110,9 @@ class UdpmReceiver {
   int fd_ = -1;
   int recv_buf_bytes_ = 0;
   std::int64_t malformed_ = 0;
-  std::vector<unsigned char> buffers_;  // kBatch datagrams of kDatagramBytes
+  // kBatch datagrams of kDatagramBytes, not zero-filled: recvmmsg writes what is read, and
+  // a process touches only the pages its datagrams reach (a vehicle's bundles: the first).
+  std::unique_ptr<unsigned char[]> buffers_;
   std::map<std::uint64_t, Partial> partials_;  // by sender address and port
   std::size_t partial_bytes_ = 0;
   std::vector<unsigned char> whole_;  // a long message put together
