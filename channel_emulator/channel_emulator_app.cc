@@ -769,7 +769,7 @@ int ChannelEmulatorMain(int argc, char** argv) {
   // Before LCM starts its receive threads, so that they inherit the policy; above the
   // vehicles: releases are the delays the run is about.
   if (opt.parsed_mode() == Mode::kRealtime) {
-    std::cerr << "shoal_channel_emulator: " << EnableRealtimeScheduling(50) << "\n";
+    std::cerr << "shoal_channel_emulator: " << EnableRealtimeScheduling(50, /*clock_master=*/true) << "\n";
   } else {
     std::cerr << "shoal_channel_emulator: " << EnableBatchScheduling() << "\n";
   }

@@ -421,7 +421,7 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
   if (!bus_auth::SettingOrReport(opt.insecure, name, &auth)) return 2;
   // Before LCM starts its receive thread, so that the thread inherits the policy.
   if (opt.parsed_mode() == Mode::kRealtime) {
-    std::cerr << name << ": " << EnableRealtimeScheduling(40) << "\n";
+    std::cerr << name << ": " << EnableRealtimeScheduling(40, /*clock_master=*/false) << "\n";
   } else {
     std::cerr << name << ": " << EnableBatchScheduling() << "\n";
   }

@@ -187,11 +187,16 @@ void InstallProcessSignals() {
 
 bool StopRequested() { return StopSignals::Requested(); }
 
-std::string EnableRealtimeScheduling(int priority) {
+std::string EnableRealtimeScheduling(int priority, bool clock_master) {
   prctl(PR_SET_TIMERSLACK, 1UL);
-  // SCHED_FIFO is opt-in: under load a late FIFO process catching up starves lcm-logger
-  // and the others (docs/benchmarks.md, real time).
-  if (std::getenv("SHOAL_SCHED_FIFO") == nullptr) return "SCHED_OTHER, timer slack 1 ns";
+  // SCHED_FIFO is opt-in: under load a late FIFO loop catching up starves lcm-logger and
+  // the others (docs/benchmarks.md, real time). The emulator alone does a bounded burst of
+  // work at each release and sleeps between: "emulator" gives it the CPU at its release
+  // instants without letting the vehicles' loops take anyone's.
+  const char* fifo = std::getenv("SHOAL_SCHED_FIFO");
+  if (fifo == nullptr || (std::strcmp(fifo, "emulator") == 0 && !clock_master)) {
+    return "SCHED_OTHER, timer slack 1 ns";
+  }
   sched_param sp = {};
   sp.sched_priority = priority;
   if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {

@@ -87,7 +87,10 @@ bool StopRequested();
 /// datagram of a burst costs two context switches). Call before LCM starts its receive
 /// thread, so that the thread inherits the policy. Returns what was set, for the log.
 std::string EnableBatchScheduling();
-std::string EnableRealtimeScheduling(int priority);
+/// Real time: timer slack 1 ns, and SCHED_FIFO at `priority` when SHOAL_SCHED_FIFO asks for
+/// it: "emulator" for the channel emulator alone (`clock_master`), any other value for
+/// every real-time process. Returns what was set, for the log.
+std::string EnableRealtimeScheduling(int priority, bool clock_master);
 /// After a real-time loop's last tick: SCHED_OTHER at nice 10, so that what a process does
 /// on its way out (its last messages, freeing its locked memory) never delays the loops of
 /// the processes still running.
