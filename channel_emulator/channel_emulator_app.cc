@@ -55,6 +55,7 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       channel_(BuildAllLinks(s), mode == Mode::kLockstep ? s.period_us() : 0,
                std::size_t{1} << 20, ModemIntervals(s),
                s.events.empty() ? nullptr : std::make_shared<const Timeline>(s)),
+      lags_(channel_.links(), channel_.timeline(), s.period_us()),
       n_(s.followers),
       last_seq_(s.followers + 1, 0),
       have_seq_(s.followers + 1, false),
@@ -86,11 +87,12 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
     // receives there (at most one per link and tick).
     std::int64_t logged_deliveries = 0;
     for (const auto& link : channel_.links()) logged_deliveries += vbus_[link.to] == bus_;
-    lookahead_ = std::max<std::int64_t>(
-        1, std::min({channel_.MinLagTicks(), std::max<std::int64_t>(1, max_lookahead_ticks),
-                     LoggerBoundLookahead(n_, logged_deliveries, recorder_queue)}));
+    max_window_ = std::max<std::int64_t>(
+        1, std::min(std::max<std::int64_t>(1, max_lookahead_ticks),
+                    LoggerBoundLookahead(n_, logged_deliveries, recorder_queue)));
+    min_window_ = std::min(channel_.MinLagTicks(), max_window_);
   }
-  const auto slots = static_cast<std::size_t>(lookahead_ * (n_ + 1));
+  const auto slots = static_cast<std::size_t>(max_window_ * (n_ + 1));
   got_tick_.assign(slots, false);
   tick_state_.resize(slots);
   tick_seq_.assign(slots, 0);
@@ -172,9 +174,10 @@ void ChannelEmulatorApp::OnRestarted(int id, std::int64_t next) {
   if (resent_tick_[id] == next && now - resent_ns_[id] < 200000000LL) return;
   resent_tick_[id] = next;
   resent_ns_[id] = now;
-  for (std::int64_t first = std::max<std::int64_t>(next, 0); first <= win_last_;
-       first += lookahead_) {
-    ResendClock(id, first, std::min(first + lookahead_ - 1, win_last_));
+  for (std::int64_t first = std::max<std::int64_t>(next, 0); first <= win_last_;) {
+    const std::int64_t last = std::min(WindowLast(first), win_last_);
+    ResendClock(id, first, last);
+    first = last + 1;
   }
 }
 
@@ -427,9 +430,10 @@ int ChannelEmulatorApp::Rejoin() {
   win_last_ = std::min(next - 1, final_tick_);
   for (int id = 0; id <= n_; ++id) {
     if (!alive_[id]) continue;
-    for (std::int64_t first = std::max<std::int64_t>(next_of_[id], 0); first <= win_last_;
-         first += lookahead_) {
-      ResendClock(id, first, std::min(first + lookahead_ - 1, win_last_));
+    for (std::int64_t first = std::max<std::int64_t>(next_of_[id], 0); first <= win_last_;) {
+      const std::int64_t last = std::min(WindowLast(first), win_last_);
+      ResendClock(id, first, last);
+      first = last + 1;
     }
   }
   // The logger's copy of the last window before `next`: the emulator that died may have
@@ -437,7 +441,7 @@ int ChannelEmulatorApp::Rejoin() {
   // tick it holds twice once).
   if (!shared_has_vehicles_ && next > 0) {
     clock_window_t c = WindowClock();
-    c.tick = std::max<std::int64_t>(0, next - lookahead_);
+    c.tick = WindowBefore(next);
     c.utime = c.tick * period_us_;
     c.n_ticks = static_cast<std::int32_t>(next - c.tick);
     c.final_tick = next - 1 == final_tick_ ? 1 : 0;
@@ -472,7 +476,7 @@ void ChannelEmulatorApp::DrainRecorder() {
 }
 
 void ChannelEmulatorApp::ReportRecorder() const {
-  const std::int64_t windows = (final_tick_ - start_tick_ + lookahead_) / lookahead_;
+  const std::int64_t windows = windows_;
   if (progress_ && progress_->handled() > 0) {
     std::cerr << "shoal_channel_emulator: waited for the recorder's count "
               << progress_->waits() << " time(s) in " << windows << " windows, "
@@ -492,22 +496,24 @@ int ChannelEmulatorApp::RunLockstep() {
   if (not_started >= 0) return not_started;
   if (!restarted_) PublishStatus(RunState::kRunning, "");
 
-  // Conservative lookahead (as in conservative parallel discrete-event simulation): a
-  // state sent at tick s is delivered at tick s + lookahead_ at the earliest, so every
-  // delivery due in the window [k, k + lookahead_) comes from states already submitted.
+  // Conservative lookahead (as in conservative parallel discrete-event simulation): no
+  // state sent within the window [k, WindowLast(k)] is delivered within it (LagBound:
+  // the channel's lag at each of its ticks), so every delivery due in it comes from
+  // states already submitted.
   // The master releases the whole window -- for each tick its deliveries, then its clock
   // tick, in that order on each vehicle's bus -- and waits once for all the window's states.
   // Each vehicle still applies each tick's deliveries (those the tick lists) and steps the
   // ticks one by one in order, so every process computes exactly what it computes with one
   // round trip per tick (and what shoal sim does).
-  for (std::int64_t k = start_tick_; k <= final_tick_; k += lookahead_) {
+  for (std::int64_t k = start_tick_; k <= final_tick_; k = win_last_ + 1) {
     if (StopRequested()) {
       PublishEvents();
       PublishStatus(RunState::kInterrupted, "");
       return 1;
     }
     win_first_ = k;
-    win_last_ = std::min(k + lookahead_ - 1, final_tick_);
+    win_last_ = WindowLast(k);
+    CountWindow();
     std::fill(got_tick_.begin(), got_tick_.end(), false);
     const std::int64_t released = bus_->sent();
     ReleaseWindow();
@@ -525,10 +531,36 @@ int ChannelEmulatorApp::RunLockstep() {
   }
   DrainRecorder();
   ReportRecorder();
+  if (windows_ > 0) {
+    std::cerr << "shoal_channel_emulator: lockstep, " << windows_ << " windows of " << shortest_;
+    if (longest_ > shortest_) std::cerr << " to " << longest_;
+    std::fprintf(stderr, " tick(s), %.2f on average\n",
+                 static_cast<double>(final_tick_ - start_tick_ + 1) / static_cast<double>(windows_));
+  }
   // A process declared lost that came back (restarted) is not lost at the end.
   lost_any_ = std::find(alive_.begin(), alive_.end(), false) != alive_.end();
   PublishStatus(RunState::kFinished, lost_any_ ? "some vehicles were lost" : "");
   return lost_any_ ? 4 : 0;
+}
+
+std::int64_t ChannelEmulatorApp::WindowLast(std::int64_t first) const {
+  return std::min(first + lags_.Window(first, max_window_) - 1, final_tick_);
+}
+
+std::int64_t ChannelEmulatorApp::WindowBefore(std::int64_t next) const {
+  std::int64_t first = 0;
+  for (std::int64_t k = 0; k < next; k = WindowLast(k) + 1) first = k;
+  return first;
+}
+
+void ChannelEmulatorApp::CountWindow() {
+  const std::int64_t len = win_last_ - win_first_ + 1;
+  // The last window is cut by the run's end: it does not say what the channel allows.
+  if (win_last_ < final_tick_ || windows_ == 0) {
+    shortest_ = windows_ == 0 ? len : std::min(shortest_, len);
+    longest_ = std::max(longest_, len);
+  }
+  ++windows_;
 }
 
 ChannelEmulatorApp::WindowWait ChannelEmulatorApp::WaitForWindow() {
@@ -717,8 +749,8 @@ struct EmulatorOptions {
 
 void AddEmulatorOptions(CLI::App* app, EmulatorOptions* o) {
   app->add_option("--max-lookahead", o->max_lookahead,
-                  "lockstep: most ticks released per round trip; the channel's smallest "
-                  "delivery lag bounds it, and so does the logger's queue: a window sends "
+                  "lockstep: most ticks released per round trip; the channel's delivery "
+                  "lag at the window's ticks bounds it, and so does the logger's queue: a window sends "
                   "the logger at most two thirds of --recorder-queue (1 = wait for every "
                   "state after every tick)")
       ->check(CLI::Range(1, 100000))
@@ -802,8 +834,9 @@ int ChannelEmulatorMain(int argc, char** argv) {
     ChannelEmulatorApp app_(s, opt.parsed_mode(), opt.t0_ns, opt.duration_s, &bus, vbus,
                             eo.max_lookahead, eo.recorder_queue);
     if (opt.parsed_mode() == Mode::kLockstep) {
-      std::cerr << "shoal_channel_emulator: lockstep, " << app_.lookahead_ticks()
-                << " tick(s) per round trip\n";
+      std::cerr << "shoal_channel_emulator: lockstep, at least " << app_.min_window_ticks()
+                << " tick(s) per round trip (the channel's smallest lag), at most "
+                << app_.max_window_ticks() << " as its lag at the window's ticks allows\n";
     }
     if (opt.parsed_mode() == Mode::kLockstep && eo.recorder_pid > 0) {
       app_.SetRecorder(eo.recorder_pid);

@@ -40,8 +40,8 @@ class ChannelEmulatorApp {
   /// `vehicle_buses[id]` is where vehicle id receives (its SHOAL_RX and, in lockstep, the
   /// clock); entries may all be `bus`.
   /// `max_lookahead_ticks` (lockstep): how many ticks the clock master may release before
-  /// it waits for the states; the channel's minimum delivery lag bounds it (see Run), and
-  /// so does the logger: one window sends the logger's bus at most two thirds of
+  /// it waits for the states; the channel's delivery lag at the window's ticks bounds it
+  /// (LagBound, see RunLockstep), and so does the logger: one window sends the logger's bus at most two thirds of
   /// `recorder_queue` messages (states, deliveries it carries, clock, channel batch), the
   /// queue of lcm-logger's subscription (LCM's default 30; shoal run preloads
   /// runtime/lcm_queue_shim.c into it for SHOAL_LOGGER_QUEUE_CAPACITY).
@@ -64,8 +64,12 @@ class ChannelEmulatorApp {
     recorder_ = std::make_unique<RecorderGate>(pid);
     progress_ = std::make_unique<RecorderProgress>(pid);
   }
-  /// Ticks released per round trip in lockstep (1 = wait for the states after every tick).
-  std::int64_t lookahead_ticks() const { return lookahead_; }
+  /// Most ticks released per round trip in lockstep (1 = wait for the states after every
+  /// tick): the cap; each window is as long as the channel's lag at its ticks allows.
+  std::int64_t max_window_ticks() const { return max_window_; }
+  /// The fewest ticks a window of the run has (the last one aside): the channel's
+  /// smallest lag, or the cap.
+  std::int64_t min_window_ticks() const { return min_window_; }
   /// The processes publish on `uplink`, where only this process listens (before Init):
   /// their messages are received there, and each that verified is passed on, unchanged,
   /// to the run's bus for the recorder, packed as recordable bundles (runtime/lcm_bus.h)
@@ -164,6 +168,7 @@ class ChannelEmulatorApp {
   std::vector<Bus*> vbus_;
   UdpmBatch batch_;  // the vehicles' own buses send through it at a release
   Channel<Datagram> channel_;
+  LagBound lags_;  // lockstep: the channel's delivery lag at each tick
   std::vector<ChannelDecision> decisions_;
   std::vector<std::string> rx_channels_;
   int n_;  // followers
@@ -186,7 +191,14 @@ class ChannelEmulatorApp {
   // the current window [win_first_, win_last_], at slot (tick - win_first_) * (n + 1) + id.
   std::vector<std::int32_t> last_seq_;
   std::vector<bool> have_seq_;
-  std::int64_t lookahead_ = 1;
+  // Lockstep windows: each [first, WindowLast(first)], at most max_window_ ticks.
+  std::int64_t WindowLast(std::int64_t first) const;
+  // The first tick of the window that ends just before `next`, on the run's windows from
+  // tick 0 (the window an emulator before a restart released last).
+  std::int64_t WindowBefore(std::int64_t next) const;
+  void CountWindow();  // the window [win_first_, win_last_] is released
+  std::int64_t max_window_ = 1, min_window_ = 1;
+  std::int64_t windows_ = 0, shortest_ = 0, longest_ = 0;  // released so far
   std::int64_t win_first_ = 0, win_last_ = -1;
   std::vector<bool> got_tick_;
   std::vector<Bytes> tick_state_;

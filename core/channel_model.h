@@ -285,6 +285,75 @@ inline Micros DeliveryTime(Micros send_utime, double delay_s, Micros period_us) 
   return tick * period_us;
 }
 
+/// Lookahead that follows the delay in time: for each send tick, the fewest ticks until
+/// any message sent at that tick can be delivered (DeliveryTime's rule, period > 0). A
+/// delay model that is a function of time alone (constant, sinusoid, trace) is evaluated
+/// at the tick exactly as the channel evaluates it; a model with a draw or a range
+/// (uniform, acoustic) counts with its smallest delay. The models are those of the links
+/// and of the timeline's channel events, whichever is in force: a bound for every link at
+/// every time. With Example 2's tau(t) = 0.1 + 0.05 cos(t) the lag runs from 3 to 8 ticks
+/// where MinLagTicks gives 3 throughout.
+class LagBound {
+ public:
+  LagBound(const std::vector<Link>& links, const Timeline* timeline, Micros period_us)
+      : period_us_(period_us) {
+    if (period_us <= 0) {  // real time: no ticks
+      fixed_lag_ = 1;
+      return;
+    }
+    std::vector<DelayConfig> models;
+    for (const Link& l : links) models.push_back(l.delay);
+    if (timeline != nullptr) {
+      for (const DelayConfig& d : timeline->EventDelays()) models.push_back(d);
+    }
+    for (const DelayConfig& m : models) {
+      const bool known = std::any_of(timed_.begin(), timed_.end(),
+                                     [&](const DelayConfig& t) { return SameDelay(t, m); });
+      if (known) continue;
+      // A file with thousands of distinct per-link models would cost that many tau(t)
+      // per tick: beyond a few, a model counts with its smallest delay.
+      if (DeterministicDelay(m.kind) && timed_.size() < kMaxTimedModels) {
+        timed_.push_back(m);
+      } else {
+        fixed_lag_ = std::min(fixed_lag_, MinDeliveryLagTicks(MinDelaySeconds(m), period_us));
+      }
+    }
+  }
+
+  /// The fewest ticks between tick `tick` and the delivery of any message sent at it (at
+  /// least 1; kNoLag without links).
+  std::int64_t LagAt(std::int64_t tick) const {
+    std::int64_t lag = fixed_lag_;
+    const Micros send = tick * period_us_;
+    for (const DelayConfig& m : timed_) {
+      const Micros due = DeliveryTime(send, DelaySeconds(m, ToSeconds(send), nullptr), period_us_);
+      lag = std::min(lag, due / period_us_ - tick);
+    }
+    return lag;
+  }
+
+  /// The longest window [first, first + L) with L <= max_ticks that no message sent
+  /// within it is delivered in: everything due in it was sent before `first`.
+  std::int64_t Window(std::int64_t first, std::int64_t max_ticks) const {
+    std::int64_t reach = first + LagAt(first);  // earliest delivery from the window
+    std::int64_t len = 1;
+    while (len < max_ticks) {
+      reach = std::min(reach, first + len + LagAt(first + len));
+      if (reach < first + len + 1) break;
+      ++len;
+    }
+    return len;
+  }
+
+  static constexpr std::int64_t kNoLag = std::int64_t{1} << 40;
+
+ private:
+  static constexpr std::size_t kMaxTimedModels = 16;
+  Micros period_us_;
+  std::vector<DelayConfig> timed_;
+  std::int64_t fixed_lag_ = kNoLag;
+};
+
 /// The channel: applies each link's delay and loss and keeps pending messages in a
 /// time-ordered queue. Payload is whatever the user forwards (a decoded state in
 /// shoal sim, the raw bytes in the emulator process).
@@ -463,6 +532,8 @@ class Channel {
   }
 
   const std::vector<Link>& links() const { return links_; }
+  /// The scenario's events (null without any).
+  const Timeline* timeline() const { return timeline_.get(); }
 
  private:
   // Numbers the links' delay models: equal deterministic models get one id (so that

@@ -21,11 +21,21 @@ constexpr std::int64_t kIdleExitNs = 30000000000LL;
 constexpr std::int64_t kReadyEveryNs = 100000000LL;
 constexpr std::int64_t kNoClockExitNs = 60000000000LL;
 
-// The emulator's lookahead (its Channel's MinLagTicks): channel events included.
+// The channel's smallest delivery lag (its MinLagTicks): channel events included.
 std::int64_t LockstepTicksAhead(const Scenario& s) {
   const Timeline timeline(s);
   return MinLagTicks(BuildAllLinks(s), &timeline, s.period_us());
 }
+
+// The channel's delivery lag at each tick, which bounds the clock master's windows.
+LagBound LockstepLags(const Scenario& s) {
+  const Timeline timeline(s);
+  return LagBound(BuildAllLinks(s), &timeline, s.period_us());
+}
+
+// More ticks than any window a clock master releases (its --max-lookahead is far less):
+// bounds the work a clock message can ask of the check below.
+constexpr std::int64_t kMaxWindowTicks = 100000;
 }  // namespace
 
 Micros ClockedNode::StaggerPhaseUs(const Scenario& s, int id) {
@@ -43,7 +53,7 @@ ClockedNode::ClockedNode(const Scenario& s, int id, Mode mode, std::int64_t t0_n
       final_tick_(s.final_tick(duration_s)),
       bus_(bus),
       rx_bus_(rx_bus),
-      max_ticks_ahead_(LockstepTicksAhead(s)),
+      lags_(LockstepLags(s)),
       state_channel_(channels::State(id)),
       health_channel_(channels::Health(id)) {}
 
@@ -101,14 +111,18 @@ const ClockedNode::Delivery* ClockedNode::ApplyListed(const std::vector<Delivery
 
 bool ClockedNode::AcceptableWindow(const clock_window_t& c) const {
   // All its ticks must be ticks this process can be given now (none stepped or announced
-  // yet, none further ahead than the channel's smallest delivery lag, none past the run's
-  // end), and every delivery it lists must be for one of them. The ranges are checked
-  // before any arithmetic on the fields (a forged tick or count must not overflow).
-  bool ok = c.vehicle_id == kEmulatorId && c.n_ticks >= 1 && c.n_ticks <= max_ticks_ahead_ &&
+  // yet, none past the run's end, and none that a state this process has yet to send
+  // could be delivered at: from the next tick to step to the window's last, the channel's
+  // lag at each tick reaches beyond it), and every delivery it lists must be for one of
+  // them. The ranges are checked before any arithmetic on the fields (a forged tick or
+  // count must not overflow).
+  bool ok = c.vehicle_id == kEmulatorId && c.n_ticks >= 1 && c.n_ticks <= kMaxWindowTicks &&
             c.tick >= next_tick_ && c.tick <= final_tick_ && c.period_us == period_us_;
   const std::int64_t last = ok ? c.tick + c.n_ticks - 1 : 0;
-  ok = ok && last < next_tick_ + max_ticks_ahead_ && last <= final_tick_ &&
-       c.utime == c.tick * period_us_ && due_.lower_bound(c.tick) == due_.upper_bound(last);
+  const std::int64_t span = last - next_tick_ + 1;
+  ok = ok && last <= final_tick_ && span <= kMaxWindowTicks &&
+       lags_.Window(next_tick_, span) == span && c.utime == c.tick * period_us_ &&
+       due_.lower_bound(c.tick) == due_.upper_bound(last);
   for (std::int32_t k = 0; ok && k < c.n_deliveries; ++k) {
     ok = c.delivery_tick[k] >= c.tick && c.delivery_tick[k] <= last;
   }

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "core/channel_model.h"
 #include "core/scenario.h"
 #include "core/state_msg.h"
 #include "runtime/checkpoint.h"
@@ -178,9 +179,9 @@ class ClockedNode {
   const std::int64_t final_tick_;
   Bus* const bus_;
   Bus* const rx_bus_;
-  // Lockstep: clock windows accepted reach at most this many ticks beyond the next one to
-  // step (the channel's smallest delivery lag, which bounds the clock master's windows).
-  const std::int64_t max_ticks_ahead_;
+  // Lockstep: a clock window is accepted only as far ahead of the next tick to step as
+  // the channel's lag at those ticks allows (it bounds the clock master's windows).
+  const LagBound lags_;
   const std::string state_channel_, health_channel_;
   std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
   std::size_t inbox_size_ = 0;

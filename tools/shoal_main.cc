@@ -72,8 +72,8 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
               "Put every process on the run's one multicast group (every vehicle then "
               "receives all traffic; the log then also holds SHOAL_RX_<id>)");
   c->add_option("--max-lookahead", run->launch.max_lookahead,
-                "lockstep: most ticks released per round trip (the smallest delivery "
-                "lag of the channel bounds it; 1 = a round trip every tick)")
+                "lockstep: most ticks released per round trip (the channel's delivery "
+                "lag at the window's ticks bounds it; 1 = a round trip every tick)")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   c->add_flag("--insecure", run->launch.insecure,

@@ -956,3 +956,91 @@ TEST(ModemRateLimit, SenderTransmitsAtMostOncePerInterval) {
 
 }  // namespace
 }  // namespace shoal
+
+namespace shoal {
+namespace {
+
+// Every link of the paper's swarm with `delay`, no loss: for each send tick the fewest
+// ticks until a delivery, as the channel decides it (from every sender at every tick).
+std::vector<std::int64_t> ObservedLags(const DelayConfig& delay, std::int64_t ticks,
+                                       std::vector<Link>* links_out) {
+  Scenario s = PaperScenario(7);
+  s.delay = delay;
+  const std::vector<Link> links =
+      BuildLinks(s, Topology::Build(s.followers, s.edges, s.leader_links));
+  *links_out = links;
+  Channel<int> ch(links, kPeriod);
+  std::vector<std::int64_t> lag(static_cast<std::size_t>(ticks),
+                                std::numeric_limits<std::int64_t>::max());
+  std::vector<ChannelDecision> d;
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    ch.DeliverDue(k * kPeriod, [](int, const int&) {});
+    for (int sender = 0; sender <= s.followers; ++sender) {
+      d.clear();
+      ch.Submit(sender, static_cast<std::int32_t>(k), k * kPeriod, 0, &d, Vec3::Zero());
+      for (const ChannelDecision& c : d) {
+        if (c.status != ChannelDecision::kDelivered) continue;
+        auto& l = lag[static_cast<std::size_t>(k)];
+        l = std::min(l, c.deliver_utime / kPeriod - k);
+      }
+    }
+  }
+  return lag;
+}
+
+// A delay that is a function of time is evaluated at each tick as the channel evaluates
+// it: the bound is the channel's own lag, tick by tick (Example 2's tau(t) = 0.1 + 0.05
+// cos(t): 3 to 8 ticks). Windows cut from it hold no delivery of their own states and
+// are as long as that allows.
+TEST(LagBoundTest, FollowsATimeVaryingDelayTickByTick) {
+  std::vector<Link> links;
+  const std::int64_t ticks = 1000;  // 20 s, three periods of cos(t)
+  const std::vector<std::int64_t> lag = ObservedLags(Sinusoid(0.1, 0.05, 1.0), ticks, &links);
+  const LagBound bound(links, nullptr, kPeriod);
+  for (std::int64_t k = 0; k < ticks; ++k) {
+    ASSERT_EQ(bound.LagAt(k), lag[static_cast<std::size_t>(k)]) << "tick " << k;
+  }
+  std::int64_t shortest = 100, longest = 0;
+  for (std::int64_t first = 0; first + 50 < ticks;) {
+    const std::int64_t len = bound.Window(first, 50);
+    for (std::int64_t s = first; s < first + len; ++s) {
+      ASSERT_GE(s + lag[static_cast<std::size_t>(s)], first + len) << "window " << first;
+    }
+    // One tick more would hold a delivery of one of its own states.
+    bool reached = false;
+    for (std::int64_t s = first; s <= first + len; ++s) {
+      reached = reached || s + lag[static_cast<std::size_t>(s)] <= first + len;
+    }
+    EXPECT_TRUE(reached) << "window " << first << " could be longer than " << len;
+    shortest = std::min(shortest, len);
+    longest = std::max(longest, len);
+    first += len;
+  }
+  EXPECT_EQ(shortest, 3);
+  EXPECT_EQ(longest, 8);
+  EXPECT_EQ(MinLagTicks(links, kPeriod), 3);
+  // The cap holds: a constant 0.8 s delay allows 40 ticks.
+  std::vector<Link> slow;
+  ObservedLags(Constant(0.8), 10, &slow);
+  EXPECT_EQ(LagBound(slow, nullptr, kPeriod).Window(123, 50), 40);
+  EXPECT_EQ(LagBound(slow, nullptr, kPeriod).Window(123, 7), 7);
+}
+
+// A delay with a draw or a range counts with its smallest value; the smallest model of
+// any link, or of a timeline's channel event, bounds every tick; no links bound nothing.
+TEST(LagBoundTest, ModelsWithADrawCountWithTheirSmallestDelay) {
+  const std::vector<Link> uniform = {OneLink(0, 1, Uniform(0.2, 0.1)),
+                                     OneLink(1, 2, Sinusoid(0.3, 0.1, 1.0))};
+  const LagBound bound(uniform, nullptr, kPeriod);
+  for (std::int64_t k = 0; k < 500; ++k) {
+    ASSERT_EQ(bound.LagAt(k), MinDeliveryLagTicks(0.1, kPeriod)) << k;  // 5 ticks
+  }
+  EXPECT_EQ(LagBound({OneLink(0, 1, Acoustic(3000.0, 0.25))}, nullptr, kPeriod).LagAt(9),
+            MinLagTicks({OneLink(0, 1, Acoustic(3000.0, 0.25))}, kPeriod));
+  EXPECT_EQ(LagBound({}, nullptr, kPeriod).Window(0, 50), 50);
+  DelayConfig none;
+  EXPECT_EQ(LagBound({OneLink(0, 1, none)}, nullptr, kPeriod).Window(4, 50), 1);
+}
+
+}  // namespace
+}  // namespace shoal

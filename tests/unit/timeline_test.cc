@@ -157,6 +157,10 @@ TEST(Timeline, ChannelEventReplacesTheModelsOfItsLinksForItsWindow) {
   const Timeline t(fast);
   EXPECT_EQ(MinLagTicks(BuildAllLinks(fast), &t, fast.period_us()), 1);
   EXPECT_GT(MinLagTicks(BuildAllLinks(fast), fast.period_us()), 1);
+  // So does the lag tick by tick (the event's model, whichever time it is in force).
+  const LagBound lags(BuildAllLinks(fast), &t, fast.period_us());
+  for (std::int64_t k = 0; k < 300; ++k) ASSERT_EQ(lags.LagAt(k), 1) << k;
+  EXPECT_GT(LagBound(BuildAllLinks(fast), nullptr, fast.period_us()).LagAt(0), 1);
 }
 
 TEST(Timeline, SilentSendersTransmitNothingAndDeafReceiversGetNothing) {

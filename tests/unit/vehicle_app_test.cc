@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/channel_model.h"
 #include "core/leader.h"
 #include "core/topology.h"
 #include "runtime/channels.h"
@@ -256,22 +257,31 @@ TEST(VehicleAppLockstep, UnlistedMessagesAreCountedWhenNoTickCanListThemAnyMore)
   EXPECT_EQ(r.node.follower().state().eta, r.reference.state().eta);
 }
 
-// Clock ticks further ahead than the channel's smallest delivery lag (3 ticks in
-// Example 2) cannot come from the clock master: refused and counted.
+// The longest window from tick 0 the channel's lag allows.
+std::int64_t WindowFromZero(const Scenario& s) {
+  const Timeline timeline(s);
+  return LagBound(BuildAllLinks(s), &timeline, s.period_us()).Window(0, 1000);
+}
+
+// Clock ticks further ahead than the channel's delivery lag at the ticks between (in
+// Example 2 at tick 0, tau = 0.15 s: 8 ticks, where its smallest delay allows 3) cannot
+// come from the clock master: refused and counted.
 TEST(VehicleAppLockstep, AClockTickTooFarAheadIsRefused) {
   Rig r;
-  r.bus.Publish(channels::Clock(), Tick(r.s, 3, {}));
+  const std::int64_t ahead = WindowFromZero(r.s);
+  ASSERT_EQ(ahead, 8);
+  r.bus.Publish(channels::Clock(), Tick(r.s, ahead, {}));
   r.Pump();
   EXPECT_EQ(r.node.counters().bad_clock, 1);
-  for (int k = 0; k < 3; ++k) r.bus.Publish(channels::Clock(), Tick(r.s, k, {}));
-  r.bus.Publish(channels::Clock(), Tick(r.s, 3, {}));
+  for (int k = 0; k < ahead; ++k) r.bus.Publish(channels::Clock(), Tick(r.s, k, {}));
+  r.bus.Publish(channels::Clock(), Tick(r.s, ahead, {}));
   r.Pump();
-  EXPECT_EQ(r.ticks(), 4);
+  EXPECT_EQ(r.ticks(), ahead + 1);
   EXPECT_EQ(r.node.counters().bad_clock, 1);
 }
 
 // The clock master releases a window of ticks in one clock message (as many as the
-// channel's smallest delivery lag allows): each tick is stepped with the deliveries listed
+// channel's delivery lag allows): each tick is stepped with the deliveries listed
 // for it, in order, exactly as with one message per tick.
 clock_window_t Window(const Scenario& s, std::int64_t first, int n,
                     const std::map<std::int64_t, std::vector<StateMsg>>& deliveries) {
@@ -330,7 +340,8 @@ TEST(VehicleAppLockstep, AMalformedWindowIsRefused) {
   clock_window_t none = Window(r.s, 0, 1, {});
   none.n_ticks = 0;
   r.bus.Publish(channels::Clock(), none);
-  r.bus.Publish(channels::Clock(), Window(r.s, 0, kLag + 1, {}));  // past the lookahead
+  // Past the channel's lag.
+  r.bus.Publish(channels::Clock(), Window(r.s, 0, static_cast<int>(WindowFromZero(r.s)) + 1, {}));
   r.bus.Publish(channels::Clock(), Window(r.s, 0, 2, {{2, {r.sent[0]}}}));  // listed outside
   r.Pump();
   EXPECT_EQ(r.node.counters().bad_clock, 3);
