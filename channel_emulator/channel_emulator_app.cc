@@ -30,6 +30,23 @@ constexpr std::int64_t kRecorderWaitNs = 100000000LL;
 // window.
 constexpr std::int64_t kMasterMessagesPerWindow = 2;  // SHOAL_CLOCK + SHOAL_CHANNEL
 
+/// A recordable bundle on `bus` (none when null) from construction to destruction: every
+/// way out of a window sends what it holds.
+class WindowRecord {
+ public:
+  explicit WindowRecord(Bus* bus) : bus_(bus) {
+    if (bus_ != nullptr) bus_->BeginBundle(/*recordable=*/true);
+  }
+  ~WindowRecord() {
+    if (bus_ != nullptr) bus_->EndBundle();
+  }
+  WindowRecord(const WindowRecord&) = delete;
+  WindowRecord& operator=(const WindowRecord&) = delete;
+
+ private:
+  Bus* bus_;
+};
+
 /// Most ticks per window whose messages to the logger stay within two thirds of its queue:
 /// per tick a state of every vehicle and the deliveries the logger's bus carries.
 std::int64_t LoggerBoundLookahead(int followers, std::int64_t deliveries_per_tick,
@@ -96,6 +113,7 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
   got_tick_.assign(slots, false);
   tick_state_.resize(slots);
   tick_seq_.assign(slots, 0);
+  tick_digest_.assign(slots, 0);
   tick_pos_.assign(slots, Vec3::Zero());
   for (int id = 0; id <= n_; ++id) rx_channels_.push_back(channels::Rx(id));
   outbox_.resize(static_cast<std::size_t>(n_ + 1));
@@ -229,6 +247,9 @@ void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char
     }
     got_tick_[slot] = true;
     tick_state_[slot].assign(data, data + size);
+    // Here, while the vehicles still step the window, not when it is complete: the
+    // window's submission is the clock master's critical path.
+    tick_digest_[slot] = Digest64(data, size);
     tick_seq_[slot] = m.seq;
     tick_pos_[slot] = FromLcm(m).eta.head<3>();
   } else {
@@ -238,19 +259,24 @@ void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char
       ++counters_.states_old;
       return;
     }
-    Submit(id, Bytes(data, data + size), m.seq, m.utime, FromLcm(m).eta.head<3>());
+    Bytes raw(data, data + size);
+    Submit(id, &raw, 0, m.seq, m.utime, FromLcm(m).eta.head<3>());
   }
   have_seq_[id] = true;
   last_seq_[id] = m.seq;
   ++counters_.states_accepted;
 }
 
-void ChannelEmulatorApp::Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime,
-                                const Vec3& position) {
+void ChannelEmulatorApp::Submit(int id, Bytes* raw, std::int64_t digest, std::int32_t seq,
+                                Micros utime, const Vec3& position) {
   decisions_.clear();
-  const std::int64_t digest =
-      mode_ == Mode::kLockstep ? Digest64(raw.data(), static_cast<int>(raw.size())) : 0;
-  channel_.Submit(id, seq, utime, Datagram{id, seq, digest, raw}, &decisions_, position);
+  // The bytes are lent to the channel's copy and taken back: no allocation per state.
+  submitted_.sender = id;
+  submitted_.seq = seq;
+  submitted_.digest = digest;
+  submitted_.raw.swap(*raw);
+  channel_.Submit(id, seq, utime, submitted_, &decisions_, position);
+  submitted_.raw.swap(*raw);
   for (const ChannelDecision& d : decisions_) {
     if (d.status == ChannelDecision::kDelivered) {
       ++counters_.delivered;
@@ -306,9 +332,6 @@ void ChannelEmulatorApp::ReleaseWindow() {
     if (b != bus_) b->EndBundle();
   }
   batch_.Flush();
-  // The logger's copy when no vehicle shares its bus: the window, without the lists.
-  if (!shared_has_vehicles_) bus_->Publish(channels::Clock(), WindowClock());
-  ++clock_seq_;
   tick_ = win_last_;
 }
 
@@ -518,6 +541,15 @@ int ChannelEmulatorApp::RunLockstep() {
     const std::int64_t released = bus_->sent();
     ReleaseWindow();
     running_ = true;
+    // The window's record -- the logger's copy of its clock (when no vehicle shares the
+    // logger's bus: the window, without the lists), the states the uplink brings, the
+    // health and the channel's decisions -- goes out when the window is complete, in as
+    // few datagrams as it fills, in the order it was published: the logger is woken a few
+    // times a window, not once per batch of states the emulator received, and it records
+    // the window while the vehicles step the next. A bus a vehicle hears is never held.
+    WindowRecord record(uplink_ != nullptr && !shared_has_vehicles_ ? bus_ : nullptr);
+    if (!shared_has_vehicles_) bus_->Publish(channels::Clock(), WindowClock());
+    ++clock_seq_;
     const WindowWait w = WaitForWindow();
     if (w == WindowWait::kStopped) {
       PublishEvents();
@@ -605,7 +637,9 @@ void ChannelEmulatorApp::SubmitWindow() {
     const Micros now = j * period_us_;
     for (int id = 0; id <= n_; ++id) {
       const auto slot = static_cast<std::size_t>((j - win_first_) * (n_ + 1) + id);
-      if (got_tick_[slot]) Submit(id, tick_state_[slot], tick_seq_[slot], now, tick_pos_[slot]);
+      if (got_tick_[slot]) {
+        Submit(id, &tick_state_[slot], tick_digest_[slot], tick_seq_[slot], now, tick_pos_[slot]);
+      }
     }
     tick_ = j;
     if (now % 1000000 < period_us_ || j == final_tick_) PublishHealth(now);

@@ -120,7 +120,9 @@ class ChannelEmulatorApp {
   void ResendClock(int id, std::int64_t first, std::int64_t last);
   /// `position`: the state's (eta x, y, z), which the acoustic model's range needs: the
   /// emulator knows every vehicle's position from the states it forwards.
-  void Submit(int id, const Bytes& raw, std::int32_t seq, Micros utime, const Vec3& position);
+  /// `digest`: Digest64 of the bytes (lockstep; 0 in real time, where no clock lists it).
+  void Submit(int id, Bytes* raw, std::int64_t digest, std::int32_t seq, Micros utime,
+              const Vec3& position);
   void ReleaseWindow();
   void PublishEvents();  // the decisions not yet published, on SHOAL_CHANNEL
   clock_window_t WindowClock() const;  // ticks [win_first_, win_last_], no deliveries listed
@@ -168,6 +170,7 @@ class ChannelEmulatorApp {
   std::vector<Bus*> vbus_;
   UdpmBatch batch_;  // the vehicles' own buses send through it at a release
   Channel<Datagram> channel_;
+  Datagram submitted_;  // Submit's message to the channel, its bytes lent by the caller
   LagBound lags_;  // lockstep: the channel's delivery lag at each tick
   std::vector<ChannelDecision> decisions_;
   std::vector<std::string> rx_channels_;
@@ -203,6 +206,7 @@ class ChannelEmulatorApp {
   std::vector<bool> got_tick_;
   std::vector<Bytes> tick_state_;
   std::vector<std::int32_t> tick_seq_;
+  std::vector<std::int64_t> tick_digest_;
   std::vector<Vec3> tick_pos_;
   std::vector<bool> alive_;
   std::vector<bool> ready_;

@@ -766,6 +766,8 @@ void Launch::BuildPlan() {
     if (mode_ == Mode::kLockstep && !uplink_url_.empty() && RecorderVisible()) {
       logger.env.push_back("SHOAL_LOGGER_PROGRESS=1");
     }
+    // Lockstep: its wake-ups do not preempt the clock master finishing a window.
+    if (mode_ == Mode::kLockstep) logger.env.push_back("SHOAL_LOGGER_BATCH=1");
   }
   plan_.processes.push_back(logger);
   PlanEmulator();

@@ -40,7 +40,15 @@
       subscription, when permitted (root, or a large enough RLIMIT_MEMLOCK): its resident
       size is then what it has allocated, not the pages of LCM's receive ring and of its
       heaps that a backlog on a loaded machine happens to reach first, which a soak's memory
-      verdict would read as growth; and the logger takes no page fault mid-run. */
+      verdict would read as growth; and the logger takes no page fault mid-run.
+
+   6. With SHOAL_LOGGER_BATCH=1 in its environment (shoal run sets it in lockstep), the
+      logger runs under SCHED_BATCH, set before main() so that every thread it starts
+      inherits it. Its nice value is kept, so it gets the same share of the CPU; what
+      changes is that a woken logger thread no longer preempts the process running on its
+      CPU. In lockstep that process is often the clock master finishing a window, the
+      critical path of the run: the logger's three threads woken per datagram preempted it
+      several times a window (docs/benchmarks.md). */
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <errno.h>
@@ -50,10 +58,23 @@
 #include <stdlib.h>
 #include <string.h>
 #include <fcntl.h>
+#include <sched.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
 #include "runtime/lcm_queue_shim.h"
+
+/* Item 6. */
+__attribute__((constructor)) static void BatchScheduling(void)
+{
+    const char *on = getenv("SHOAL_LOGGER_BATCH");
+    if (on == NULL || strcmp(on, "1") != 0) return;
+    struct sched_param sp;
+    memset(&sp, 0, sizeof(sp));
+    if (sched_setscheduler(0, SCHED_BATCH, &sp) != 0) {
+        fprintf(stderr, "shoal lcm queue shim: not SCHED_BATCH (%s)\n", strerror(errno));
+    }
+}
 
 /* Item 4: the counter the handler thread advances, or NULL. */
 static ShoalLoggerProgress *progress;
