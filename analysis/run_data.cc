@@ -437,9 +437,10 @@ int LogVerifier::Check(std::string_view channel, const std::uint8_t* data, int s
   // Other channels (LCM's own LCM_SELF_TEST, foreign tools) are not read: not checked.
   if (channels::Parse(channel).kind == channels::Kind::kOther) return size;
   if (!auth_) {
-    if (!bus_auth::HasTrailer(data, size)) return size;
+    const int trailer = bus_auth::TrailerBytes(data, size);
+    if (trailer == 0) return size;
     ++d_->unverified;
-    return size - bus_auth::kTrailerBytes;
+    return size - trailer;
   }
   const int payload = auth_->Verify(channel, data, size);
   if (payload < 0) {

@@ -20,12 +20,15 @@ python/, next to a build directory named build). Each names the directory that h
 package `shoal/`.
 
 Authentication (runtime/bus_auth.h, docs/run.md): every message of a run is followed by a
-40-byte trailer, the magic b"SHOALMAC" and HMAC-SHA-512/256 (libsodium's
-crypto_auth_hmacsha512256: HMAC-SHA-512 under the run's 32-byte key, its first 32 bytes)
-over the channel name, a NUL and the message's bytes. With the run's key (`<log>.key`
-next to the log, or key_file) every message on a Shoal channel must verify: what does
-not is dropped and counted, as shoal analyze does. Without a key, trailers are stripped
-unchecked and the messages counted as unverified.
+24-byte trailer, the magic b"SHOALSIP" and a 16-byte SipHash-2-4 tag (its 128-bit output)
+over the channel name, a NUL and the message's bytes, keyed with 16 bytes derived from the
+run's 32-byte key (libsodium's crypto_kdf_derive_from_key, subkey 1, context "SHOALSIP":
+BLAKE2b with that salt and personalisation). Logs written by earlier versions carry 40
+bytes instead: b"SHOALMAC" and HMAC-SHA-512/256 under the key (its first 32 bytes); both
+verify. With the run's key (`<log>.key` next to the log, or key_file) every message on a
+Shoal channel must verify: what does not is dropped and counted, as shoal analyze does.
+Without a key, trailers are stripped unchecked and the messages counted as unverified.
+SipHash is computed by libsodium (ctypes) where it is installed, in Python otherwise.
 """
 
 from __future__ import annotations
@@ -54,9 +57,12 @@ MAX_DATA = 256 << 20
 START_SCAN_BYTES = 1 << 20  # a damaged start: the first event is looked for this far
 MAX_WARNINGS = 20
 
-MAGIC = b"SHOALMAC"
-MAC_BYTES = 32
+MAGIC = b"SHOALSIP"          # what a run writes now: SipHash-2-4, 128-bit tag
+MAC_BYTES = 16
 TRAILER_BYTES = len(MAGIC) + MAC_BYTES
+HMAC_MAGIC = b"SHOALMAC"     # logs of earlier versions: HMAC-SHA-512/256
+HMAC_MAC_BYTES = 32
+HMAC_TRAILER_BYTES = len(HMAC_MAGIC) + HMAC_MAC_BYTES
 KEY_BYTES = 32
 
 TYPES_ENV = "SHOAL_PYTHON_TYPES"
@@ -410,35 +416,117 @@ def read_key_file(path: str) -> bytes:
     return bytes.fromhex(text.decode("ascii"))
 
 
+_MASK = (1 << 64) - 1
+
+
+def _rotl(x: int, b: int) -> int:
+    return ((x << b) | (x >> (64 - b))) & _MASK
+
+
+def _sip_rounds(v: List[int], n: int) -> None:
+    v0, v1, v2, v3 = v
+    for _ in range(n):
+        v0 = (v0 + v1) & _MASK
+        v1 = _rotl(v1, 13) ^ v0
+        v0 = _rotl(v0, 32)
+        v2 = (v2 + v3) & _MASK
+        v3 = _rotl(v3, 16) ^ v2
+        v0 = (v0 + v3) & _MASK
+        v3 = _rotl(v3, 21) ^ v0
+        v2 = (v2 + v1) & _MASK
+        v1 = _rotl(v1, 17) ^ v2
+        v2 = _rotl(v2, 32)
+    v[:] = [v0, v1, v2, v3]
+
+
+def siphash128_python(key: bytes, data: bytes) -> bytes:
+    """SipHash-2-4 with its 128-bit output (libsodium's crypto_shorthash_siphashx24)."""
+    k0, k1 = struct.unpack("<QQ", key)
+    v = [0x736F6D6570736575 ^ k0, 0x646F72616E646F6D ^ k1 ^ 0xEE,
+         0x6C7967656E657261 ^ k0, 0x7465646279746573 ^ k1]
+    full = len(data) // 8 * 8
+    last = int.from_bytes(data[full:], "little") | ((len(data) & 0xFF) << 56)
+    for m in list(struct.unpack_from("<%dQ" % (full // 8), data)) + [last]:
+        v[3] ^= m
+        _sip_rounds(v, 2)
+        v[0] ^= m
+    v[2] ^= 0xEE
+    _sip_rounds(v, 4)
+    out = struct.pack("<Q", v[0] ^ v[1] ^ v[2] ^ v[3])
+    v[1] ^= 0xDD
+    _sip_rounds(v, 4)
+    return out + struct.pack("<Q", v[0] ^ v[1] ^ v[2] ^ v[3])
+
+
+def _libsodium_siphash128():
+    """libsodium's crypto_shorthash_siphashx24 through ctypes, or None."""
+    try:
+        import ctypes
+        import ctypes.util
+        name = ctypes.util.find_library("sodium")
+        lib = ctypes.CDLL(name or "libsodium.so.23")
+        if lib.sodium_init() < 0:
+            return None
+        fn = lib.crypto_shorthash_siphashx24
+        fn.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_ulonglong, ctypes.c_char_p]
+    except (OSError, AttributeError):
+        return None
+
+    def siphash(key: bytes, data: bytes) -> bytes:
+        out = ctypes.create_string_buffer(16)
+        fn(out, bytes(data), len(data), key)
+        return out.raw
+    return siphash
+
+
+siphash128 = _libsodium_siphash128() or siphash128_python
+
+
 class Verifier:
-    """HMAC-SHA-512/256 of runtime/bus_auth.cc: libsodium's crypto_auth_hmacsha512256 is
-    HMAC with SHA-512 under the key, truncated to its first 32 bytes."""
+    """The trailers of runtime/bus_auth.cc: SipHash-2-4 (128-bit) under a key derived from
+    the run's; HMAC-SHA-512/256 under the run's key for logs of earlier versions."""
 
     def __init__(self, key: bytes):
         if len(key) != KEY_BYTES:
             raise ShoalLogError("a run's key is %d bytes, not %d" % (KEY_BYTES, len(key)))
+        self.sip_key = hashlib.blake2b(b"", digest_size=16, key=key,
+                                       salt=struct.pack("<Q", 1) + bytes(8),
+                                       person=b"SHOALSIP" + bytes(8)).digest()
         self.keyed = hmac.new(key, digestmod=hashlib.sha512)  # after the key's pads
 
     def mac(self, channel: str, payload: bytes) -> bytes:
+        return siphash128(self.sip_key, channel.encode("ascii") + b"\0" + bytes(payload))
+
+    def hmac_mac(self, channel: str, payload: bytes) -> bytes:
         h = self.keyed.copy()
         h.update(channel.encode("ascii") + b"\0")
         h.update(payload)
-        return h.digest()[:MAC_BYTES]
+        return h.digest()[:HMAC_MAC_BYTES]
 
     def sign(self, channel: str, payload: bytes) -> bytes:
         return bytes(payload) + MAGIC + self.mac(channel, payload)
 
     def verify(self, channel: str, data: bytes) -> Optional[bytes]:
         """The message without its trailer if the trailer verifies for channel, else None."""
-        if not has_trailer(data):
+        n = trailer_bytes(data)
+        if n == 0:
             return None
-        payload = data[:-TRAILER_BYTES]
-        return payload if hmac.compare_digest(self.mac(channel, payload),
-                                              data[-MAC_BYTES:]) else None
+        payload = data[:-n]
+        mac = self.mac(channel, payload) if n == TRAILER_BYTES else self.hmac_mac(channel, payload)
+        return payload if hmac.compare_digest(mac, data[-(n - len(MAGIC)):]) else None
+
+
+def trailer_bytes(data: bytes) -> int:
+    """The size of the trailer data ends with, by its magic (unverified), or 0."""
+    if len(data) >= TRAILER_BYTES and data[-TRAILER_BYTES:-MAC_BYTES] == MAGIC:
+        return TRAILER_BYTES
+    if len(data) >= HMAC_TRAILER_BYTES and data[-HMAC_TRAILER_BYTES:-HMAC_MAC_BYTES] == HMAC_MAGIC:
+        return HMAC_TRAILER_BYTES
+    return 0
 
 
 def has_trailer(data: bytes) -> bool:
-    return len(data) >= TRAILER_BYTES and data[-TRAILER_BYTES:-MAC_BYTES] == MAGIC
+    return trailer_bytes(data) > 0
 
 
 # ------------------------------------------------------------------------- channels
@@ -588,9 +676,10 @@ def _authenticate(log: ShoalLog, verifier: Optional[Verifier], kind: str, channe
     if not kind:
         return data  # not a Shoal channel: not read, not checked
     if verifier is None:
-        if has_trailer(data):
+        n = trailer_bytes(data)
+        if n:
             log.unverified += 1
-            return data[:-TRAILER_BYTES]
+            return data[:-n]
         return data
     payload = verifier.verify(channel, data)
     if payload is None:

@@ -13,10 +13,30 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "runtime/siphash.h"
+
 namespace shoal::bus_auth {
 namespace {
 
-constexpr unsigned char kMagic[kMagicBytes] = {'S', 'H', 'O', 'A', 'L', 'M', 'A', 'C'};
+constexpr unsigned char kMagic[kMagicBytes] = {'S', 'H', 'O', 'A', 'L', 'S', 'I', 'P'};
+constexpr unsigned char kHmacMagic[kMagicBytes] = {'S', 'H', 'O', 'A', 'L', 'M', 'A', 'C'};
+constexpr char kSipContext[crypto_kdf_CONTEXTBYTES] = {'S', 'H', 'O', 'A', 'L', 'S', 'I', 'P'};
+constexpr std::uint64_t kSipSubkey = 1;
+
+bool EndsWith(const void* data, int size, int trailer, const unsigned char* magic) {
+  return data != nullptr && size >= trailer &&
+         std::memcmp(static_cast<const unsigned char*>(data) + size - trailer, magic,
+                     kMagicBytes) == 0;
+}
+
+/// The channel, a NUL and the message, as every tag covers them.
+template <typename Update>
+void Covered(std::string_view channel, const void* data, int size, Update update) {
+  update(reinterpret_cast<const unsigned char*>(channel.data()), channel.size());
+  const unsigned char separator = 0;  // channel names hold no NUL: no two inputs collide
+  update(&separator, 1);
+  update(static_cast<const unsigned char*>(data), static_cast<std::size_t>(size > 0 ? size : 0));
+}
 
 void EnsureSodium() {
   static const int ok = sodium_init();  // thread-safe, idempotent; < 0 only if unusable
@@ -29,18 +49,23 @@ using State = crypto_auth_hmacsha512256_state;
 
 Authenticator::Authenticator(const Key& key) {
   EnsureSodium();
+  crypto_kdf_derive_from_key(sip_key_, sizeof(sip_key_), kSipSubkey, kSipContext, key.data());
   crypto_auth_hmacsha512256_init(&keyed_, key.data(), key.size());
 }
 
 void Authenticator::Mac(std::string_view channel, const void* data, int size,
                         unsigned char* out) const {
+  SipHash128 h(sip_key_);
+  Covered(channel, data, size, [&](const unsigned char* p, std::size_t n) { h.Update(p, n); });
+  h.Final(out);
+}
+
+void Authenticator::HmacMac(std::string_view channel, const void* data, int size,
+                            unsigned char* out) const {
   State st = keyed_;
-  crypto_auth_hmacsha512256_update(&st, reinterpret_cast<const unsigned char*>(channel.data()),
-                                   channel.size());
-  const unsigned char separator = 0;  // channel names hold no NUL: no two inputs collide
-  crypto_auth_hmacsha512256_update(&st, &separator, 1);
-  crypto_auth_hmacsha512256_update(&st, static_cast<const unsigned char*>(data),
-                                   static_cast<unsigned long long>(size > 0 ? size : 0));
+  Covered(channel, data, size, [&](const unsigned char* p, std::size_t n) {
+    crypto_auth_hmacsha512256_update(&st, p, n);
+  });
   crypto_auth_hmacsha512256_final(&st, out);
 }
 
@@ -51,12 +76,18 @@ void Authenticator::Sign(std::string_view channel, const void* data, int size,
 }
 
 int Authenticator::Verify(std::string_view channel, const void* data, int size) const {
-  if (!HasTrailer(data, size)) return -1;
-  const int payload = size - kTrailerBytes;
-  unsigned char mac[kMacBytes];
-  Mac(channel, data, payload, mac);
+  const int trailer = TrailerBytes(data, size);
+  if (trailer == 0) return -1;
+  const int payload = size - trailer;
+  unsigned char mac[kHmacMacBytes];
+  if (trailer == kTrailerBytes) {
+    Mac(channel, data, payload, mac);
+  } else {
+    HmacMac(channel, data, payload, mac);
+  }
   const auto* got = static_cast<const unsigned char*>(data) + payload + kMagicBytes;
-  return sodium_memcmp(mac, got, kMacBytes) == 0 ? payload : -1;
+  return sodium_memcmp(mac, got, static_cast<std::size_t>(trailer - kMagicBytes)) == 0 ? payload
+                                                                                      : -1;
 }
 
 Key NewKey() {
@@ -155,10 +186,10 @@ int Verify(const Key& key, std::string_view channel, const void* data, int size)
   return Authenticator(key).Verify(channel, data, size);
 }
 
-bool HasTrailer(const void* data, int size) {
-  return data != nullptr && size >= kTrailerBytes &&
-         std::memcmp(static_cast<const unsigned char*>(data) + size - kTrailerBytes, kMagic,
-                     kMagicBytes) == 0;
+int TrailerBytes(const void* data, int size) {
+  if (EndsWith(data, size, kTrailerBytes, kMagic)) return kTrailerBytes;
+  if (EndsWith(data, size, kHmacTrailerBytes, kHmacMagic)) return kHmacTrailerBytes;
+  return 0;
 }
 
 bool SettingFromEnvironment(bool insecure, Setting* setting, std::string* error) {

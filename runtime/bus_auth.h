@@ -3,14 +3,24 @@
 // outside their command lines (SHOAL_BUS_KEY, docs/run.md), lets every receiver drop what
 // was not sent by a process of the run.
 //
-// Wire format: the message's bytes, then a trailer of kTrailerBytes: an 8-byte magic and
-// HMAC-SHA-512/256 (libsodium's crypto_auth_hmacsha512256) over the channel name, a NUL
-// and the message's bytes. The channel is covered so that a message cannot be moved to
-// another channel; the trailer is appended after the LCM encoding so that the LCM types
-// stay as they are, and it is stripped before anything decodes. The magic lets a reader
-// without the key tell an authenticated message from one written without a trailer
-// (shoal sim, older logs): 8 bytes, so that a plain message's tail matches by chance with
-// probability 2^-64.
+// Wire format: the message's bytes, then a trailer: an 8-byte magic and a tag over the
+// channel name, a NUL and the message's bytes, under the run's key. The channel is covered
+// so that a message cannot be moved to another channel; the trailer is appended after the
+// LCM encoding so that the LCM types stay as they are, and it is stripped before anything
+// decodes. The magic lets a reader without the key tell an authenticated message from one
+// written without a trailer (shoal sim, older logs): 8 bytes, so that a plain message's
+// tail matches by chance with probability 2^-64. Two trailers:
+//  - "SHOALSIP" and a 16-byte SipHash-2-4 tag (its 128-bit output, runtime/siphash.h),
+//    keyed with 16 bytes derived from the run's key (libsodium's crypto_kdf_derive_from_key,
+//    subkey 1, context "SHOALSIP"): what Sign writes, kTrailerBytes in all.
+//  - "SHOALMAC" and HMAC-SHA-512/256 (libsodium's crypto_auth_hmacsha512256) under the
+//    run's key: what Shoal wrote before; Verify still accepts it, so that the logs recorded
+//    then verify with their keys.
+// SipHash is a keyed pseudorandom function designed to authenticate short messages: without
+// the key a forged message passes with probability 2^-128 per try, and every try is a
+// datagram that receivers check as it comes. It costs a tenth of HMAC-SHA-512/256 for a
+// state; in a 64-vehicle lockstep run HMAC was half of the channel emulator's CPU, which is
+// every window's critical path (docs/benchmarks.md).
 #pragma once
 
 #include <sodium/crypto_auth_hmacsha512256.h>
@@ -25,8 +35,12 @@ namespace shoal::bus_auth {
 
 constexpr int kKeyBytes = 32;
 constexpr int kMagicBytes = 8;
-constexpr int kMacBytes = 32;
+constexpr int kMacBytes = 16;
+/// What Sign writes: "SHOALSIP" and the SipHash tag.
 constexpr int kTrailerBytes = kMagicBytes + kMacBytes;
+/// The trailer of older logs: "SHOALMAC" and HMAC-SHA-512/256.
+constexpr int kHmacMacBytes = 32;
+constexpr int kHmacTrailerBytes = kMagicBytes + kHmacMacBytes;
 /// The environment variable through which shoal run hands the key to its processes:
 /// 64 hex digits. /proc/PID/environ is readable by the same user only; a command line
 /// is readable by everyone.
@@ -46,21 +60,22 @@ bool ReadKeyFile(const std::string& path, Key* key, std::string* error);
 /// new one, never written through: a link planted there is not followed).
 bool WriteKeyFile(const std::string& path, const Key& key, std::string* error);
 
-/// Signs and verifies under one key. Holds HMAC's state after the key's inner and outer
-/// pads, so that a message costs two SHA-512 blocks fewer than keying HMAC anew (the
-/// pads are a third of the work for a 228-byte state; docs/benchmarks.md).
+/// Signs and verifies under one key. Holds the SipHash key derived from it, and HMAC's
+/// state after the key's inner and outer pads for the trailers of older logs.
 class Authenticator {
  public:
   explicit Authenticator(const Key& key);
   /// Writes the trailer for `data` sent on `channel` to out[0, kTrailerBytes).
   void Sign(std::string_view channel, const void* data, int size, unsigned char* out) const;
-  /// The size of the message without its trailer if `data` ends with a trailer that
-  /// verifies for `channel`; -1 otherwise (no trailer, another key, another channel, any
-  /// changed bit).
+  /// The size of the message without its trailer if `data` ends with a trailer (either
+  /// kind) that verifies for `channel`; -1 otherwise (no trailer, another key, another
+  /// channel, any changed bit).
   int Verify(std::string_view channel, const void* data, int size) const;
 
  private:
   void Mac(std::string_view channel, const void* data, int size, unsigned char* out) const;
+  void HmacMac(std::string_view channel, const void* data, int size, unsigned char* out) const;
+  unsigned char sip_key_[16];
   crypto_auth_hmacsha512256_state keyed_;  // after the key's pads
 };
 
@@ -68,8 +83,11 @@ class Authenticator {
 void Sign(const Key& key, std::string_view channel, const void* data, int size,
           unsigned char* out);
 int Verify(const Key& key, std::string_view channel, const void* data, int size);
-/// Whether `data` ends with a trailer's magic (unverified: for readers without the key).
-bool HasTrailer(const void* data, int size);
+/// The size of the trailer `data` ends with, by its magic (unverified: for readers without
+/// the key): kTrailerBytes, kHmacTrailerBytes, or 0 for none.
+int TrailerBytes(const void* data, int size);
+/// Whether `data` ends with a trailer's magic.
+inline bool HasTrailer(const void* data, int size) { return TrailerBytes(data, size) > 0; }
 
 /// What an unauthenticated run's status messages say (the analysis of a log looks for it).
 constexpr const char* kInsecureNote = "bus not authenticated (--insecure)";

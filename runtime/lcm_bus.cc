@@ -232,7 +232,7 @@ void LcmBus::OnBundleBytes(std::string_view channel, const unsigned char* p, int
   }
   ok = ok && bundle_wire::ForEachPart(p, size, [&](std::string_view ch, const unsigned char* d, int n) {
     // Verified above; the trailer goes only to those who pass the part on as it came.
-    const int payload = recordable && auth_ ? n - bus_auth::kTrailerBytes : n;
+    const int payload = recordable && auth_ ? n - bus_auth::TrailerBytes(d, n) : n;
     for (Sub* sub : SubsFor(ch)) {
       if (sub->as_received && auth_ && !recordable) {
         // A part of a bundle signed whole has no trailer of its own: it is handed on as

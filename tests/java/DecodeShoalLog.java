@@ -25,7 +25,7 @@ import lcm.spy.LCMTypeDatabase;
  * Prints one line per fact, its keyword first (tests/java/java_decode_test.cc reads them):
  * <pre>
  * log PATH events N undecoded N
- * channel NAME type CLASS events N reencoded_equal N trailer_shoalmac N trailer_none N trailer_other N
+ * channel NAME type CLASS events N reencoded_equal N trailer_auth N trailer_none N trailer_other N
  * vehicle ID states N
  * state ID first|last utime U seq S x X y Y z Z bits XBITS YBITS ZBITS
  * decisions batches N events N status0 N ... status8 N status_other N
@@ -33,19 +33,22 @@ import lcm.spy.LCMTypeDatabase;
  * status reports N first STATE scenario NAME followers N
  * type CLASS fingerprint HEX found CLASS|none
  * </pre>
- * A message of a secured run carries a 40-byte trailer after its LCM encoding (the magic
- * SHOALMAC and an HMAC, docs/run.md "Authentication"): the generated decoders read their
- * fields from the stream and leave the trailer unread. reencoded_equal counts the messages
+ * A message of a secured run carries a trailer after its LCM encoding (docs/run.md
+ * "Authentication"): 24 bytes, the magic SHOALSIP and a SipHash tag; 40 bytes in logs written
+ * before, SHOALMAC and an HMAC. The generated decoders read their fields from the stream and
+ * leave the trailer unread. reencoded_equal counts the messages
  * whose decoded object encodes again to exactly the bytes before the trailer.
  */
 public final class DecodeShoalLog {
-  private static final byte[] TRAILER_MAGIC = "SHOALMAC".getBytes(StandardCharsets.US_ASCII);
-  private static final int TRAILER_BYTES = 40;
+  private static final byte[] TRAILER_MAGIC = "SHOALSIP".getBytes(StandardCharsets.US_ASCII);
+  private static final int TRAILER_BYTES = 24;
+  private static final byte[] HMAC_TRAILER_MAGIC = "SHOALMAC".getBytes(StandardCharsets.US_ASCII);
+  private static final int HMAC_TRAILER_BYTES = 40;
   private static final int STATUS_VALUES = 9;
 
   private static final class ChannelCounts {
     String type = "none";
-    long events, reencodedEqual, trailerShoalmac, trailerNone, trailerOther;
+    long events, reencodedEqual, trailerAuth, trailerNone, trailerOther;
   }
 
   private static final class VehicleStates {
@@ -131,9 +134,12 @@ public final class DecodeShoalLog {
     int rest = data.length - n;
     if (rest == 0) {
       ++c.trailerNone;
-    } else if (rest == TRAILER_BYTES
-               && Arrays.equals(Arrays.copyOfRange(data, n, n + TRAILER_MAGIC.length), TRAILER_MAGIC)) {
-      ++c.trailerShoalmac;
+    } else if ((rest == TRAILER_BYTES
+                && Arrays.equals(Arrays.copyOfRange(data, n, n + TRAILER_MAGIC.length), TRAILER_MAGIC))
+               || (rest == HMAC_TRAILER_BYTES
+                   && Arrays.equals(Arrays.copyOfRange(data, n, n + HMAC_TRAILER_MAGIC.length),
+                                    HMAC_TRAILER_MAGIC))) {
+      ++c.trailerAuth;
     } else {
       ++c.trailerOther;
     }
@@ -171,9 +177,9 @@ public final class DecodeShoalLog {
     System.out.printf("log %s events %d undecoded %d%n", path, events, undecoded);
     for (Map.Entry<String, ChannelCounts> e : channels.entrySet()) {
       ChannelCounts c = e.getValue();
-      System.out.printf("channel %s type %s events %d reencoded_equal %d trailer_shoalmac %d"
+      System.out.printf("channel %s type %s events %d reencoded_equal %d trailer_auth %d"
                         + " trailer_none %d trailer_other %d%n", e.getKey(), c.type, c.events,
-                        c.reencodedEqual, c.trailerShoalmac, c.trailerNone, c.trailerOther);
+                        c.reencodedEqual, c.trailerAuth, c.trailerNone, c.trailerOther);
     }
     for (Map.Entry<Integer, VehicleStates> e : vehicles.entrySet()) {
       System.out.printf("vehicle %d states %d%n", e.getKey(), e.getValue().count);

@@ -145,7 +145,7 @@ void CheckChannels(const std::string& decoded, const nlohmann::ordered_json& ana
     EXPECT_EQ(Word(c, "type"), ClassOf(c[1])) << c[1];
     EXPECT_EQ(Num(c, "reencoded_equal"), n) << c[1];
     EXPECT_EQ(Num(c, "trailer_other"), 0) << c[1];
-    EXPECT_EQ(Num(c, trailer == Trailer::kNone ? "trailer_none" : "trailer_shoalmac"), n) << c[1];
+    EXPECT_EQ(Num(c, trailer == Trailer::kNone ? "trailer_none" : "trailer_auth"), n) << c[1];
   }
   EXPECT_EQ(events, analyze["log_events"].get<long long>());
 }
@@ -280,8 +280,8 @@ TEST(JavaDecode, ShoalSimLogDecodesAsShoalAnalyzeReadsIt) {
   }
 }
 
-// A lockstep run authenticates every message: each carries the 40-byte trailer (SHOALMAC
-// and an HMAC) after its LCM encoding, which the Java decoders leave unread.
+// A lockstep run authenticates every message: each carries the 24-byte trailer (SHOALSIP
+// and a SipHash tag) after its LCM encoding, which the Java decoders leave unread.
 TEST(JavaDecode, SecuredLockstepRunDecodesDespiteItsAuthenticationTrailers) {
   const std::string log = TmpPath("java_decode_sil_" + std::to_string(getpid()) + ".lcmlog");
   const auto run = RunShoal("run " + SourcePath("scenarios/paper_example2.toml") +

@@ -202,6 +202,17 @@ class Logs(unittest.TestCase):
         p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), forged])
         self.assertIn("1 did not verify (dropped): SHOAL_STATE_2 1", p.stdout)
 
+    def test_siphash_in_python_verifies_the_run_as_libsodium_does(self):
+        fast = shoal_log.siphash128
+        try:
+            shoal_log.siphash128 = shoal_log.siphash128_python
+            log = shoal_log.read_log(self.run_log)
+        finally:
+            shoal_log.siphash128 = fast
+        want = shoal_log.read_log(self.run_log)
+        self.assertGreater(log.verified, 0)
+        self.assertEqual((log.verified, log.unauthenticated), (want.verified, 0))
+
     def test_a_message_longer_than_its_type_does_not_decode(self):
         # The generated decoder reads what the fields ask for and ignores the rest: a state
         # with one byte more must be refused (shoal analyze's decoder needs every byte used).
@@ -356,6 +367,37 @@ class Logs(unittest.TestCase):
             self.assertIn("the generated Python message types", p.stderr)
             self.assertIn("are not in " + (TMP if extra else alone), p.stderr)
             self.assertNotIn("Traceback", p.stderr)
+
+
+class Trailers(unittest.TestCase):
+    def test_python_siphash_equals_the_reference_and_libsodium(self):
+        self.assertEqual(shoal_log.siphash128_python(bytes(range(16)), b"").hex(),
+                         "a3817f04ba25a8e66df67214c7550293")
+        if shoal_log.siphash128 is shoal_log.siphash128_python:
+            self.skipTest("libsodium is not loadable here: nothing to compare with")
+        rng = random.Random(5)
+        for n in list(range(0, 80)) + [255, 256, 1000, 4093]:
+            key = bytes(rng.randrange(256) for _ in range(16))
+            data = bytes(rng.randrange(256) for _ in range(n))
+            self.assertEqual(shoal_log.siphash128_python(key, data),
+                             shoal_log.siphash128(key, data), n)
+
+    def test_the_hmac_trailer_of_older_logs_still_verifies(self):
+        import hashlib
+        import hmac
+        key = bytes(range(32))
+        v = shoal_log.Verifier(key)
+        payload = b"a state of an older log"
+        tag = hmac.new(key, b"SHOAL_STATE_3\0" + payload, hashlib.sha512).digest()[:32]
+        old = payload + b"SHOALMAC" + tag
+        self.assertEqual(shoal_log.trailer_bytes(old), 40)
+        self.assertEqual(v.verify("SHOAL_STATE_3", old), payload)
+        self.assertIsNone(v.verify("SHOAL_STATE_4", old))
+        self.assertIsNone(v.verify("SHOAL_STATE_3", old[:-1] + bytes([old[-1] ^ 1])))
+        new = v.sign("SHOAL_STATE_3", payload)
+        self.assertEqual(new[-24:-16], b"SHOALSIP")
+        self.assertEqual(v.verify("SHOAL_STATE_3", new), payload)
+        self.assertIsNone(shoal_log.Verifier(bytes(32)).verify("SHOAL_STATE_3", new))
 
 
 if __name__ == "__main__":

@@ -3,15 +3,19 @@
 #include "runtime/bus_auth.h"
 
 #include <gtest/gtest.h>
+#include <sodium.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "runtime/lcm_bus.h"
+#include "runtime/siphash.h"
 
 namespace shoal::bus_auth {
 namespace {
@@ -62,6 +66,75 @@ TEST(BusAuth, AnyChangedBitOrTruncationFails) {
   const std::string plain(100, 'x');
   EXPECT_EQ(Verify(k, "SHOAL_CLOCK", plain.data(), 100), -1);
   EXPECT_FALSE(HasTrailer(plain.data(), 100));
+}
+
+// SipHash-2-4-128 computed in pieces equals libsodium's crypto_shorthash_siphashx24 of the
+// whole, for every length up to 300 bytes and a few long ones, split anywhere.
+TEST(SipHash128, EqualsLibsodiumForAnyLengthAndAnySplit) {
+  ASSERT_GE(sodium_init(), 0);
+  std::mt19937_64 rng(7);
+  auto bytes = [&](std::size_t n) {
+    std::vector<unsigned char> b(n);
+    for (unsigned char& c : b) c = static_cast<unsigned char>(rng());
+    return b;
+  };
+  // The reference vector of the empty message under the key 00 01 ... 0f.
+  std::vector<unsigned char> key(16);
+  for (int k = 0; k < 16; ++k) key[static_cast<std::size_t>(k)] = static_cast<unsigned char>(k);
+  unsigned char got[16], want[16];
+  SipHash128 empty(key.data());
+  empty.Final(got);
+  const unsigned char reference[16] = {0xa3, 0x81, 0x7f, 0x04, 0xba, 0x25, 0xa8, 0xe6,
+                                       0x6d, 0xf6, 0x72, 0x14, 0xc7, 0x55, 0x02, 0x93};
+  EXPECT_EQ(std::memcmp(got, reference, 16), 0);
+  std::vector<std::size_t> lengths;
+  for (std::size_t n = 0; n <= 300; ++n) lengths.push_back(n);
+  for (std::size_t n : {1000, 4093, 60000}) lengths.push_back(n);
+  for (std::size_t n : lengths) {
+    key = bytes(16);
+    const std::vector<unsigned char> m = bytes(n);
+    crypto_shorthash_siphashx24(want, m.data(), m.size(), key.data());
+    for (int trial = 0; trial < 4; ++trial) {
+      SipHash128 h(key.data());
+      std::size_t at = 0;
+      while (at < n) {  // pieces of 0 to 19 bytes, then the rest
+        const std::size_t piece = trial == 0 ? n : std::min<std::size_t>(rng() % 20, n - at);
+        h.Update(m.data() + at, piece);
+        at += piece;
+      }
+      h.Final(got);
+      ASSERT_EQ(std::memcmp(got, want, 16), 0) << "length " << n << ", trial " << trial;
+    }
+  }
+}
+
+// A message of a log written before SipHash (trailer "SHOALMAC" and HMAC-SHA-512/256 under
+// the run's key, 40 bytes) still verifies with that key, and only unchanged.
+TEST(BusAuth, OlderHmacTrailerStillVerifies) {
+  const Key k = NewKey();
+  const std::string channel = "SHOAL_STATE_3", payload = "a state of an older log";
+  std::vector<unsigned char> b(payload.begin(), payload.end());
+  const std::string magic = "SHOALMAC";
+  b.insert(b.end(), magic.begin(), magic.end());
+  std::string covered = channel + std::string(1, '\0') + payload;
+  unsigned char mac[crypto_auth_hmacsha512256_BYTES];
+  crypto_auth_hmacsha512256(mac, reinterpret_cast<const unsigned char*>(covered.data()),
+                            covered.size(), k.data());
+  b.insert(b.end(), mac, mac + kHmacMacBytes);
+  ASSERT_EQ(static_cast<int>(b.size()), static_cast<int>(payload.size()) + kHmacTrailerBytes);
+  EXPECT_EQ(TrailerBytes(b.data(), static_cast<int>(b.size())), kHmacTrailerBytes);
+  EXPECT_EQ(VerifyBytes(k, channel, b), static_cast<int>(payload.size()));
+  EXPECT_EQ(VerifyBytes(k, "SHOAL_STATE_4", b), -1);
+  EXPECT_EQ(VerifyBytes(NewKey(), channel, b), -1);
+  for (std::size_t byte = 0; byte < b.size(); ++byte) {
+    auto f = b;
+    f[byte] ^= 0x10;
+    ASSERT_EQ(VerifyBytes(k, channel, f), -1) << byte;
+  }
+  // What Sign writes now is the shorter trailer.
+  const auto now = Signed(k, channel, payload);
+  EXPECT_EQ(TrailerBytes(now.data(), static_cast<int>(now.size())), kTrailerBytes);
+  EXPECT_EQ(std::string(now.end() - kTrailerBytes, now.end() - kMacBytes), "SHOALSIP");
 }
 
 TEST(BusAuth, KeysParseFromHexOnly) {
