@@ -495,6 +495,13 @@ void ChannelEmulatorApp::AwaitRecorder(std::int64_t released) {
 void ChannelEmulatorApp::DrainRecorder() {
   if (progress_ && uplink_ != nullptr && progress_->Attach()) {
     progress_->WaitFor(static_cast<std::uint64_t>(bus_->sent()), 50 * kRecorderWaitNs);
+    // The last window's record comes in when the window is complete, just before the end:
+    // written too, not only handled, before the run's end lets anyone stop the logger.
+    if (!progress_->WaitForWritten(50 * kRecorderWaitNs)) {
+      std::cerr << "shoal_channel_emulator: the recorder had written " << progress_->written()
+                << " of the " << progress_->queued() << " events handed to its writer 5 s "
+                << "after the last window\n";
+    }
   }
 }
 

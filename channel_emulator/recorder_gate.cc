@@ -144,6 +144,26 @@ std::uint64_t RecorderProgress::handled() const {
   return map_ == nullptr ? 0 : __atomic_load_n(&Progress(map_)->handled, __ATOMIC_ACQUIRE);
 }
 
+std::uint64_t RecorderProgress::queued() const {
+  return map_ == nullptr ? 0 : __atomic_load_n(&Progress(map_)->queued, __ATOMIC_ACQUIRE);
+}
+
+std::uint64_t RecorderProgress::written() const {
+  return map_ == nullptr ? 0 : __atomic_load_n(&Progress(map_)->written, __ATOMIC_ACQUIRE);
+}
+
+bool RecorderProgress::WaitForWritten(std::int64_t max_wait_ns) {
+  if (map_ == nullptr) return false;
+  const std::int64_t t0 = MonotonicNs();
+  for (;;) {
+    const std::uint64_t q = queued();  // before `written`: it only grows
+    if (written() >= q) return true;
+    if (MonotonicNs() - t0 > max_wait_ns) return false;
+    const timespec nap = {0, 50000};
+    nanosleep(&nap, nullptr);
+  }
+}
+
 bool RecorderProgress::WaitFor(std::uint64_t target, std::int64_t max_wait_ns) {
   if (map_ == nullptr) return false;
   if (handled() >= target) return true;

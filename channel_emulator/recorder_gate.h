@@ -30,6 +30,14 @@ class RecorderGate {
   void Wait(std::int64_t max_wait_ns);
 
   bool active() const { return pid_ > 0; }
+  /// Returns once the recorder's writer has written every event handed to it (nothing is
+  /// pending, which lcm-logger stopped by SIGINT would drop), or after max_wait_ns. False
+  /// if not attached or if it timed out.
+  bool WaitForWritten(std::int64_t max_wait_ns);
+  /// Events handed to the writer, and written (0 before Attach succeeds).
+  std::uint64_t queued() const;
+  std::uint64_t written() const;
+
   std::int64_t waits() const { return waits_; }        // calls that had to wait
   std::int64_t timeouts() const { return timeouts_; }  // calls that gave up
   std::int64_t waited_ns() const { return waited_ns_; }
@@ -73,6 +81,14 @@ class RecorderProgress {
   /// Returns once the recorder has handled `target` messages, or after max_wait_ns
   /// (counted in timeouts()). False if not attached (nothing waited).
   bool WaitFor(std::uint64_t target, std::int64_t max_wait_ns);
+
+  /// Returns once the recorder's writer has written every event handed to it (nothing is
+  /// pending, which lcm-logger stopped by SIGINT would drop), or after max_wait_ns. False
+  /// if not attached or if it timed out.
+  bool WaitForWritten(std::int64_t max_wait_ns);
+  /// Events handed to the writer, and written (0 before Attach succeeds).
+  std::uint64_t queued() const;
+  std::uint64_t written() const;
 
   std::int64_t waits() const { return waits_; }
   std::int64_t timeouts() const { return timeouts_; }

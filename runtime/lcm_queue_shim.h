@@ -11,8 +11,11 @@
 #define SHOAL_LCM_QUEUE_SHIM_FILE "libshoal_lcm_queue.so"
 
 /* The logger's progress (the shim's item 4): a POSIX shared memory object of this name,
-   with the logger's pid. `handled` counts the messages its handler has taken; `magic` is
-   SHOAL_LOGGER_PROGRESS_MAGIC once the counter runs. */
+   with the logger's pid. `handled` counts the messages its handler has taken; `queued` the
+   events it handed its writer thread (a bundle's parts each); `written` those the writer
+   has written (lcm_eventlog_write_event returned). lcm-logger's writer, stopped by SIGINT,
+   drops what it has not written yet: queued == written says nothing is pending. `magic` is
+   SHOAL_LOGGER_PROGRESS_MAGIC once the counters run. */
 #define SHOAL_LOGGER_PROGRESS_NAME "/shoal-logger-%ld"
 #define SHOAL_LOGGER_PROGRESS_MAGIC 0x53484f414c50524bULL /* "SHOALPRK" */
 
@@ -21,6 +24,8 @@
 typedef struct {
     uint64_t magic;
     uint64_t handled;
+    uint64_t queued;
+    uint64_t written;
 } ShoalLoggerProgress;
 
 #endif

@@ -286,5 +286,30 @@ TEST(RecorderProgress, WaitsUntilTheRecorderHasHandledTheTargetOrTheLimit) {
   EXPECT_GE(progress.waited_ns(), 50000000);
 }
 
+// lcm-logger stopped by SIGINT drops what its writer has not written: the end of a run
+// waits until every event handed to the writer is written.
+TEST(RecorderProgress, WaitsUntilEveryQueuedEventIsWritten) {
+  FakeRecorderCount fake;
+  ASSERT_NE(fake.p, nullptr);
+  __atomic_store_n(&fake.p->magic, SHOAL_LOGGER_PROGRESS_MAGIC, __ATOMIC_RELEASE);
+  RecorderProgress progress(getpid());
+  ASSERT_TRUE(progress.Attach());
+  fake.p->queued = 40;
+  fake.p->written = 37;
+  EXPECT_FALSE(progress.WaitForWritten(30000000));  // three pending: gives up after 30 ms
+  EXPECT_EQ(progress.queued(), 40u);
+  EXPECT_EQ(progress.written(), 37u);
+  std::thread writer([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    __atomic_store_n(&fake.p->written, 40, __ATOMIC_RELEASE);
+  });
+  const std::int64_t t0 = MonotonicNs();
+  EXPECT_TRUE(progress.WaitForWritten(5000000000LL));
+  writer.join();
+  EXPECT_GE(MonotonicNs() - t0, 20000000);
+  RecorderProgress none(0);
+  EXPECT_FALSE(none.WaitForWritten(1000000));  // not attached: nothing to wait for
+}
+
 }  // namespace
 }  // namespace shoal

@@ -1,0 +1,138 @@
+// What one wake-up costs this machine as the number of processes taking turns on its CPUs
+// grows: N processes in a ring of pipes pass a token around, each blocking in read() until
+// its turn, as N vehicles each block until their lockstep window comes (docs/benchmarks.md,
+// "shoal run at scale"). Each process touches `touch_kb` of its own memory per turn (a
+// vehicle's working set per window), so that the caches and TLBs see what a run's
+// processes do. Prints, per N, the CPU time (user + system of all N) per hop and the wall
+// time per hop, medians over `rounds` measurements.
+// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS], e.g. wakeup_ring "2 8 32 64 128" 200000 16 5
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+struct Result {
+  double cpu_us_per_hop;
+  double wall_us_per_hop;
+};
+
+// One process of the ring: reads the token from `in`, touches its memory, passes it on,
+// until the token says stop (a negative count).
+[[noreturn]] void Member(int in, int out, std::size_t touch) {
+  std::vector<unsigned char> mine(std::max<std::size_t>(touch, 1));
+  long token = 0;
+  for (;;) {
+    if (read(in, &token, sizeof(token)) != sizeof(token)) _exit(1);
+    for (std::size_t k = 0; k < touch; k += 64) mine[k] = static_cast<unsigned char>(mine[k] + 1);
+    if (token < 0) {
+      (void)!write(out, &token, sizeof(token));
+      _exit(0);
+    }
+    ++token;
+    if (write(out, &token, sizeof(token)) != sizeof(token)) _exit(1);
+  }
+}
+
+double ChildrenCpuSeconds() {
+  rusage ru{};
+  getrusage(RUSAGE_CHILDREN, &ru);
+  return static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+         static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
+}
+
+Result Ring(int n, long hops, std::size_t touch) {
+  std::vector<int> rd(static_cast<std::size_t>(n)), wr(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    int p[2];
+    if (pipe(p) != 0) std::exit(2);
+    rd[static_cast<std::size_t>(i)] = p[0];
+    wr[static_cast<std::size_t>(i)] = p[1];
+  }
+  // Member i reads pipe i and writes pipe (i + 1) % n. This process is member 0 (it reads
+  // pipe 0, writes pipe 1 and counts the rounds).
+  for (int i = 1; i < n; ++i) {
+    if (fork() == 0) Member(rd[static_cast<std::size_t>(i)], wr[static_cast<std::size_t>((i + 1) % n)], touch);
+  }
+  const double cpu0 = ChildrenCpuSeconds();
+  rusage self0{};
+  getrusage(RUSAGE_SELF, &self0);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<unsigned char> mine(std::max<std::size_t>(touch, 1));
+  long token = 0;
+  const int out = wr[static_cast<std::size_t>(1 % n)], in = rd[0];
+  for (long h = 0; h < hops; h += n) {
+    if (write(out, &token, sizeof(token)) != sizeof(token)) std::exit(2);
+    if (read(in, &token, sizeof(token)) != sizeof(token)) std::exit(2);
+    for (std::size_t k = 0; k < touch; k += 64) mine[k] = static_cast<unsigned char>(mine[k] + 1);
+  }
+  const auto t1 = std::chrono::steady_clock::now();
+  rusage self1{};
+  getrusage(RUSAGE_SELF, &self1);
+  token = -1;
+  if (write(out, &token, sizeof(token)) != sizeof(token)) std::exit(2);
+  (void)!read(in, &token, sizeof(token));
+  while (wait(nullptr) > 0) {
+  }
+  for (int i = 0; i < n; ++i) {
+    close(rd[static_cast<std::size_t>(i)]);
+    close(wr[static_cast<std::size_t>(i)]);
+  }
+  auto secs = [](const timeval& a) { return static_cast<double>(a.tv_sec) + a.tv_usec * 1e-6; };
+  const double self_cpu = secs(self1.ru_utime) - secs(self0.ru_utime) + secs(self1.ru_stime) -
+                          secs(self0.ru_stime);
+  // The children's CPU includes their last hop and exit: small against `hops`.
+  const double cpu = ChildrenCpuSeconds() - cpu0 + self_cpu;
+  const long done = (hops + n - 1) / n * n;
+  return {cpu / static_cast<double>(done) * 1e6,
+          std::chrono::duration<double, std::micro>(t1 - t0).count() / static_cast<double>(done)};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc > 1 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
+    std::printf("usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS]\n"
+                "  e.g. wakeup_ring \"2 8 32 64 128\" 200000 16 5\n");
+    return 0;
+  }
+  std::vector<int> ns;
+  std::istringstream list(argc > 1 ? argv[1] : "2 8 32 64 128");
+  for (int n; list >> n;) {
+    if (n < 2 || n > 4096) {
+      std::fprintf(stderr, "wakeup_ring: N must be 2 to 4096, got %d\n", n);
+      return 2;
+    }
+    ns.push_back(n);
+  }
+  const long hops = argc > 2 ? std::atol(argv[2]) : 200000;
+  const std::size_t touch = static_cast<std::size_t>(argc > 3 ? std::atol(argv[3]) : 16) * 1024;
+  const int rounds = argc > 4 ? std::atoi(argv[4]) : 5;
+  if (hops < 1 || rounds < 1) {
+    std::fprintf(stderr, "wakeup_ring: HOPS and ROUNDS must be positive\n");
+    return 2;
+  }
+  std::printf("processes,cpu_us_per_hop,wall_us_per_hop\n");
+  for (int n : ns) {
+    std::vector<double> cpu, wall;
+    for (int r = 0; r < rounds; ++r) {
+      const Result res = Ring(n, hops, touch);
+      cpu.push_back(res.cpu_us_per_hop);
+      wall.push_back(res.wall_us_per_hop);
+    }
+    std::sort(cpu.begin(), cpu.end());
+    std::sort(wall.begin(), wall.end());
+    std::printf("%d,%.3f,%.3f\n", n, cpu[cpu.size() / 2], wall[wall.size() / 2]);
+    std::fflush(stdout);
+  }
+  return 0;
+}
