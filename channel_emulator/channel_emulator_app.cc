@@ -249,7 +249,7 @@ void ChannelEmulatorApp::OnState(const std::string& channel, const unsigned char
     tick_state_[slot].assign(data, data + size);
     // Here, while the vehicles still step the window, not when it is complete: the
     // window's submission is the clock master's critical path.
-    tick_digest_[slot] = Digest64(data, size);
+    tick_digest_[slot] = DeliveryDigest(data, size);
     tick_seq_[slot] = m.seq;
     tick_pos_[slot] = FromLcm(m).eta.head<3>();
   } else {

@@ -96,7 +96,7 @@ class ChannelEmulatorApp {
   struct Datagram {
     std::int32_t sender = 0;
     std::int32_t seq = 0;
-    std::int64_t digest = 0;  // Digest64(raw)
+    std::int64_t digest = 0;  // DeliveryDigest(raw)
     Bytes raw;
   };
   /// A message as its handler copied it: SHOAL_STATUS, or a state on `channel`.
@@ -120,7 +120,7 @@ class ChannelEmulatorApp {
   void ResendClock(int id, std::int64_t first, std::int64_t last);
   /// `position`: the state's (eta x, y, z), which the acoustic model's range needs: the
   /// emulator knows every vehicle's position from the states it forwards.
-  /// `digest`: Digest64 of the bytes (lockstep; 0 in real time, where no clock lists it).
+  /// `digest`: DeliveryDigest of the bytes (lockstep; 0 in real time, where no clock lists it).
   void Submit(int id, Bytes* raw, std::int64_t digest, std::int32_t seq, Micros utime,
               const Vec3& position);
   void ReleaseWindow();

@@ -96,7 +96,7 @@ class ClockedNode {
   struct Delivery {
     std::int32_t sender;
     std::int32_t seq;
-    std::int64_t digest;  // Digest64 of the delivered bytes
+    std::int64_t digest;  // DeliveryDigest of the delivered bytes
   };
   /// Inbox kinds: the clock, and the derived app's own (from kFirstInputKind on).
   static constexpr int kClockKind = 0;

@@ -309,11 +309,36 @@ bool Decode(const void* data, int size, Msg* out) {
   }
 }
 
-/// FNV-1a, 64 bits, of a message's bytes: identifies a delivery in a lockstep clock tick.
+/// FNV-1a, 64 bits, of a message's bytes (a checkpoint's checksum).
 inline std::int64_t Digest64(const void* data, int size) {
   std::uint64_t h = 14695981039346656037ULL;
   const auto* p = static_cast<const unsigned char*>(data);
   for (int k = 0; k < size; ++k) h = (h ^ p[k]) * 1099511628211ULL;
+  return static_cast<std::int64_t>(h);
+}
+
+/// Identifies a delivery in a lockstep clock window: FNV-1a's step over the message's
+/// 64-bit little-endian words (the last one zero-padded), then its length. Each step is a
+/// bijection of the running value, so any one changed word changes the digest; the
+/// messages are authenticated already, and this only ties each to the clock that lists
+/// it. A byte at a time (Digest64) cost a vehicle 7 % of its CPU at 64 followers.
+inline std::int64_t DeliveryDigest(const void* data, int size) {
+  constexpr std::uint64_t kPrime = 1099511628211ULL;
+  std::uint64_t h = 14695981039346656037ULL;
+  const auto* p = static_cast<const unsigned char*>(data);
+  int k = 0;
+  for (; k + 8 <= size; k += 8) {
+    std::uint64_t w;
+    std::memcpy(&w, p + k, sizeof(w));
+#if __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    w = __builtin_bswap64(w);
+#endif
+    h = (h ^ w) * kPrime;
+  }
+  std::uint64_t tail = 0;
+  for (int j = 0; k + j < size; ++j) tail |= static_cast<std::uint64_t>(p[k + j]) << (8 * j);
+  h = (h ^ tail) * kPrime;
+  h = (h ^ static_cast<std::uint64_t>(size > 0 ? size : 0)) * kPrime;
   return static_cast<std::int64_t>(h);
 }
 

@@ -61,7 +61,7 @@ bool VehicleApp::OnInput(int /*kind*/, const unsigned char* data, int size) {
     return false;
   }
   if (held_.size() >= kMaxHeldDeliveries) DropHeld(0);
-  held_.push_back(Held{msg, Digest64(data, size)});
+  held_.push_back(Held{msg, DeliveryDigest(data, size)});
   return true;
 }
 

@@ -30,7 +30,7 @@ class VehicleApp : public ClockedNode {
   static constexpr int kRxKind = kFirstInputKind;
   struct Held {
     StateMsg msg;
-    std::int64_t digest = 0;  // Digest64 of the bytes received
+    std::int64_t digest = 0;  // DeliveryDigest of the bytes received
   };
 
   void SubscribeInputs() override;

@@ -337,3 +337,30 @@ TEST(LcmBus, ARecordableBundleWithOneForgedPartDeliversNothing) {
 
 }  // namespace
 }  // namespace shoal
+
+namespace shoal {
+namespace {
+
+// A delivery's digest changes with any one changed byte, and with the length (a message
+// and the same bytes with a zero appended differ).
+TEST(DeliveryDigest, AnyChangedByteOrLengthChangesIt) {
+  std::vector<unsigned char> m(228);
+  for (std::size_t k = 0; k < m.size(); ++k) m[k] = static_cast<unsigned char>(k * 7 + 1);
+  const std::int64_t d = DeliveryDigest(m.data(), static_cast<int>(m.size()));
+  EXPECT_EQ(d, DeliveryDigest(m.data(), static_cast<int>(m.size())));
+  for (std::size_t k = 0; k < m.size(); ++k) {
+    for (int bit = 0; bit < 8; ++bit) {
+      auto f = m;
+      f[k] ^= static_cast<unsigned char>(1 << bit);
+      ASSERT_NE(DeliveryDigest(f.data(), static_cast<int>(f.size())), d) << k << ":" << bit;
+    }
+  }
+  auto longer = m;
+  longer.push_back(0);
+  EXPECT_NE(DeliveryDigest(longer.data(), static_cast<int>(longer.size())), d);
+  EXPECT_NE(DeliveryDigest(m.data(), 227), d);
+  EXPECT_NE(DeliveryDigest(nullptr, 0), DeliveryDigest(m.data(), 1));
+}
+
+}  // namespace
+}  // namespace shoal

@@ -52,7 +52,7 @@ clock_window_t Tick(const Scenario& s, std::int64_t k, const std::vector<StateMs
     c.delivery_receiver.push_back(kId);
     c.delivery_sender.push_back(m.vehicle_id);
     c.delivery_seq.push_back(m.seq);
-    c.delivery_digest.push_back(Digest64(b.data(), static_cast<int>(b.size())));
+    c.delivery_digest.push_back(DeliveryDigest(b.data(), static_cast<int>(b.size())));
   }
   c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
   return c;
