@@ -249,8 +249,9 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
   const PlannedProcess& logger = plan.processes.front();
   o << "\n# lcm-logger, first (as root at nice -10: its subscription queue must not wait for\n"
     << "# the CPU; with LD_PRELOAD the queue holds more than LCM's 30 messages, and with\n"
-    << "# SHOAL_LOGGER_PROGRESS=1 it counts what it has handled, for the emulator's\n"
-    << "# --recorder-pid wait). The run's processes start once its log exists.\n"
+    << "# SHOAL_LOGGER_PROGRESS=1 it counts what it has handled and written, for the\n"
+    << "# emulator's --recorder-pid wait; with SHOAL_LOGGER_BATCH=1, in lockstep, it runs\n"
+    << "# under SCHED_BATCH). The run's processes start once its log exists.\n"
     << "logger_nice=0\nif [ \"$(id -u)\" = 0 ]; then logger_nice=-10; fi\n"
     << "rm -f -- \"$log\"\n";
   WriteStart(logger, "$logger_nice", o);
