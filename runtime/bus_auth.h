@@ -18,7 +18,7 @@
 //    then verify with their keys.
 // SipHash is a keyed pseudorandom function designed to authenticate short messages: without
 // the key a forged message passes with probability 2^-128 per try, and every try is a
-// datagram that receivers check as it comes. It costs a tenth of HMAC-SHA-512/256 for a
+// datagram that receivers check as it comes. It costs an eighth of HMAC-SHA-512/256 for a
 // state; in a 64-vehicle lockstep run HMAC was half of the channel emulator's CPU, which is
 // every window's critical path (docs/benchmarks.md).
 #pragma once
