@@ -219,7 +219,8 @@ class ChannelEmulatorApp {
   std::int64_t recorder_queue_ = 0;
   /// Lockstep: waits until the recorder has caught up with the run's bus as SetRecorder
   /// says; `released` is what the bus had sent when the window was released.
-  void AwaitRecorder(std::int64_t released);
+  /// `queued`: the events the recorder had handed its writer then; they must be written.
+  void AwaitRecorder(std::int64_t released, std::uint64_t queued);
   /// After the last window: until the recorder has handled all that was sent (at most 5 s).
   void DrainRecorder();
   void ReportRecorder() const;

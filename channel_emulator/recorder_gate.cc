@@ -164,6 +164,24 @@ bool RecorderProgress::WaitForWritten(std::int64_t max_wait_ns) {
   }
 }
 
+bool RecorderProgress::WaitForWrittenUpTo(std::uint64_t target, std::int64_t max_wait_ns) {
+  if (map_ == nullptr) return false;
+  if (written() >= target) return true;
+  ++waits_;
+  const std::int64_t t0 = MonotonicNs();
+  for (;;) {
+    const timespec nap = {0, 20000};
+    nanosleep(&nap, nullptr);
+    const bool done = written() >= target;
+    const std::int64_t waited = MonotonicNs() - t0;
+    if (done || waited > max_wait_ns) {
+      waited_ns_ += waited;
+      if (!done) ++timeouts_;
+      return true;
+    }
+  }
+}
+
 bool RecorderProgress::WaitFor(std::uint64_t target, std::int64_t max_wait_ns) {
   if (map_ == nullptr) return false;
   if (handled() >= target) return true;

@@ -34,6 +34,9 @@ class RecorderGate {
   /// pending, which lcm-logger stopped by SIGINT would drop), or after max_wait_ns. False
   /// if not attached or if it timed out.
   bool WaitForWritten(std::int64_t max_wait_ns);
+  /// Returns once the recorder's writer has written `target` events, or after
+  /// max_wait_ns; counted with WaitFor's waits and timeouts. False if not attached.
+  bool WaitForWrittenUpTo(std::uint64_t target, std::int64_t max_wait_ns);
   /// Events handed to the writer, and written (0 before Attach succeeds).
   std::uint64_t queued() const;
   std::uint64_t written() const;
@@ -86,6 +89,9 @@ class RecorderProgress {
   /// pending, which lcm-logger stopped by SIGINT would drop), or after max_wait_ns. False
   /// if not attached or if it timed out.
   bool WaitForWritten(std::int64_t max_wait_ns);
+  /// Returns once the recorder's writer has written `target` events, or after
+  /// max_wait_ns; counted with WaitFor's waits and timeouts. False if not attached.
+  bool WaitForWrittenUpTo(std::uint64_t target, std::int64_t max_wait_ns);
   /// Events handed to the writer, and written (0 before Attach succeeds).
   std::uint64_t queued() const;
   std::uint64_t written() const;

@@ -309,6 +309,14 @@ TEST(RecorderProgress, WaitsUntilEveryQueuedEventIsWritten) {
   EXPECT_GE(MonotonicNs() - t0, 20000000);
   RecorderProgress none(0);
   EXPECT_FALSE(none.WaitForWritten(1000000));  // not attached: nothing to wait for
+  EXPECT_FALSE(none.WaitForWrittenUpTo(1, 1000000));
+  // Before a window: what was handed to the writer when the last window was released.
+  EXPECT_TRUE(progress.WaitForWrittenUpTo(40, 1000000000LL));
+  const std::int64_t waits = progress.waits();
+  EXPECT_EQ(waits, 0);  // written already: no wait
+  EXPECT_TRUE(progress.WaitForWrittenUpTo(41, 30000000));  // never written: gives up
+  EXPECT_EQ(progress.waits(), 1);
+  EXPECT_EQ(progress.timeouts(), 1);
 }
 
 }  // namespace
