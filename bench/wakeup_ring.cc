@@ -3,9 +3,13 @@
 // its turn, as N vehicles each block until their lockstep window comes (docs/benchmarks.md,
 // "shoal run at scale"). Each process touches `touch_kb` of its own memory per turn (a
 // vehicle's working set per window), so that the caches and TLBs see what a run's
-// processes do. Prints, per N, the CPU time (user + system of all N) per hop and the wall
-// time per hop, medians over `rounds` measurements.
-// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS], e.g. wakeup_ring "2 8 32 64 128" 200000 16 5
+// processes do. Each touched byte is one per STRIDE bytes: 64 touches every cache line of
+// TOUCH_KB; 4096 touches one line in each of its pages, so that a turn costs TLB misses
+// (a page walk each, after every switch on a CPU without PCID) rather than cache misses.
+// Prints, per N, the CPU time (user + system of all N) per hop and the wall time per hop,
+// medians over `rounds` measurements.
+// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE],
+//   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -28,12 +32,13 @@ struct Result {
 
 // One process of the ring: reads the token from `in`, touches its memory, passes it on,
 // until the token says stop (a negative count).
-[[noreturn]] void Member(int in, int out, std::size_t touch) {
+[[noreturn]] void Member(int in, int out, std::size_t touch, std::size_t stride) {
   std::vector<unsigned char> mine(std::max<std::size_t>(touch, 1));
   long token = 0;
   for (;;) {
     if (read(in, &token, sizeof(token)) != sizeof(token)) _exit(1);
-    for (std::size_t k = 0; k < touch; k += 64) mine[k] = static_cast<unsigned char>(mine[k] + 1);
+    for (std::size_t k = 0; k < touch; k += stride)
+      mine[k] = static_cast<unsigned char>(mine[k] + 1);
     if (token < 0) {
       (void)!write(out, &token, sizeof(token));
       _exit(0);
@@ -50,7 +55,7 @@ double ChildrenCpuSeconds() {
          static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
 }
 
-Result Ring(int n, long hops, std::size_t touch) {
+Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
   std::vector<int> rd(static_cast<std::size_t>(n)), wr(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
     int p[2];
@@ -61,7 +66,9 @@ Result Ring(int n, long hops, std::size_t touch) {
   // Member i reads pipe i and writes pipe (i + 1) % n. This process is member 0 (it reads
   // pipe 0, writes pipe 1 and counts the rounds).
   for (int i = 1; i < n; ++i) {
-    if (fork() == 0) Member(rd[static_cast<std::size_t>(i)], wr[static_cast<std::size_t>((i + 1) % n)], touch);
+    if (fork() == 0)
+      Member(rd[static_cast<std::size_t>(i)], wr[static_cast<std::size_t>((i + 1) % n)], touch,
+             stride);
   }
   const double cpu0 = ChildrenCpuSeconds();
   rusage self0{};
@@ -73,7 +80,8 @@ Result Ring(int n, long hops, std::size_t touch) {
   for (long h = 0; h < hops; h += n) {
     if (write(out, &token, sizeof(token)) != sizeof(token)) std::exit(2);
     if (read(in, &token, sizeof(token)) != sizeof(token)) std::exit(2);
-    for (std::size_t k = 0; k < touch; k += 64) mine[k] = static_cast<unsigned char>(mine[k] + 1);
+    for (std::size_t k = 0; k < touch; k += stride)
+      mine[k] = static_cast<unsigned char>(mine[k] + 1);
   }
   const auto t1 = std::chrono::steady_clock::now();
   rusage self1{};
@@ -88,8 +96,8 @@ Result Ring(int n, long hops, std::size_t touch) {
     close(wr[static_cast<std::size_t>(i)]);
   }
   auto secs = [](const timeval& a) { return static_cast<double>(a.tv_sec) + a.tv_usec * 1e-6; };
-  const double self_cpu = secs(self1.ru_utime) - secs(self0.ru_utime) + secs(self1.ru_stime) -
-                          secs(self0.ru_stime);
+  const double self_cpu =
+      secs(self1.ru_utime) - secs(self0.ru_utime) + secs(self1.ru_stime) - secs(self0.ru_stime);
   // The children's CPU includes their last hop and exit: small against `hops`.
   const double cpu = ChildrenCpuSeconds() - cpu0 + self_cpu;
   const long done = (hops + n - 1) / n * n;
@@ -101,8 +109,10 @@ Result Ring(int n, long hops, std::size_t touch) {
 
 int main(int argc, char** argv) {
   if (argc > 1 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
-    std::printf("usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS]\n"
-                "  e.g. wakeup_ring \"2 8 32 64 128\" 200000 16 5\n");
+    std::printf(
+        "usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE]\n"
+        "  e.g. wakeup_ring \"2 8 32 64 128\" 200000 16 5\n"
+        "  STRIDE: bytes between touched bytes (64: every cache line, 4096: one line a page)\n");
     return 0;
   }
   std::vector<int> ns;
@@ -117,15 +127,16 @@ int main(int argc, char** argv) {
   const long hops = argc > 2 ? std::atol(argv[2]) : 200000;
   const std::size_t touch = static_cast<std::size_t>(argc > 3 ? std::atol(argv[3]) : 16) * 1024;
   const int rounds = argc > 4 ? std::atoi(argv[4]) : 5;
-  if (hops < 1 || rounds < 1) {
-    std::fprintf(stderr, "wakeup_ring: HOPS and ROUNDS must be positive\n");
+  const long stride = argc > 5 ? std::atol(argv[5]) : 64;
+  if (hops < 1 || rounds < 1 || stride < 1) {
+    std::fprintf(stderr, "wakeup_ring: HOPS, ROUNDS and STRIDE must be positive\n");
     return 2;
   }
   std::printf("processes,cpu_us_per_hop,wall_us_per_hop\n");
   for (int n : ns) {
     std::vector<double> cpu, wall;
     for (int r = 0; r < rounds; ++r) {
-      const Result res = Ring(n, hops, touch);
+      const Result res = Ring(n, hops, touch, static_cast<std::size_t>(stride));
       cpu.push_back(res.cpu_us_per_hop);
       wall.push_back(res.wall_us_per_hop);
     }
