@@ -21,24 +21,25 @@ std::string ProcessName(int id) {
 }
 
 /// Real time: each process's last health report (its figures since it started).
-void JudgeTiming(const RunAnalysis& a, RunReport* r) {
+void JudgeTiming(const RunAnalysis& a, double period_s, RunReport* r) {
   for (const ProcessAnalysis& p : a.processes) {
     const HealthRecord& h = p.last;
+    if (p.id != kEmulatorId && h.lateness_p99_s > kSlowLoopFraction * period_s) ++r->slow_loops;
     if (h.overruns == 0 && h.lateness_p99_s <= kMaxLatenessP99S) continue;
     char text[256];
     std::snprintf(text, sizeof(text),
                   "%s: %lld overruns, %s p99 %.1f ms (limits: 0 overruns, p99 %.0f ms)",
                   ProcessName(p.id).c_str(), static_cast<long long>(h.overruns),
-                  p.id == kEmulatorId ? "release error" : "loop lateness",
-                  h.lateness_p99_s * 1e3, kMaxLatenessP99S * 1e3);
+                  p.id == kEmulatorId ? "release error" : "loop lateness", h.lateness_p99_s * 1e3,
+                  kMaxLatenessP99S * 1e3);
     r->timing_problems.push_back(text);
   }
   r->timing_ok = r->timing_problems.empty();
 }
 
 std::string Lost(std::int64_t have, std::int64_t expected, const std::string& what) {
-  return "the log holds " + std::to_string(have) + " of " + std::to_string(expected) + " " +
-         what + ": " + std::to_string(expected - have) + " lost (" +
+  return "the log holds " + std::to_string(have) + " of " + std::to_string(expected) + " " + what +
+         ": " + std::to_string(expected - have) + " lost (" +
          std::to_string((expected - have) * 100 / std::max<std::int64_t>(1, expected)) + " %)";
 }
 
@@ -62,11 +63,14 @@ void JudgeLog(std::int64_t clock_ticks, std::int64_t expected_ticks, RunReport* 
 /// it (its own group included); processes that dropped nothing are not named.
 void PrintAuthentication(const RunReport& r, std::FILE* out) {
   if (!r.launch.key) {
-    std::fprintf(out, "  bus NOT authenticated (--insecure): anyone on the host could publish into the run\n");
+    std::fprintf(
+        out,
+        "  bus NOT authenticated (--insecure): anyone on the host could publish into the run\n");
     return;
   }
   if (r.unauthenticated > 0) {
-    std::fprintf(out, "  authentication: %lld messages on the bus did not authenticate "
+    std::fprintf(out,
+                 "  authentication: %lld messages on the bus did not authenticate "
                  "(forged or another run's): dropped, never used\n",
                  static_cast<long long>(r.unauthenticated));
   }
@@ -79,8 +83,10 @@ void PrintAuthentication(const RunReport& r, std::FILE* out) {
     named += (named.empty() ? "" : ", ") + name + " " + std::to_string(n);
   }
   if (total > 0) {
-    std::fprintf(out, "  authentication: the processes dropped %lld messages that did not "
-                 "authenticate (%s)\n", static_cast<long long>(total), named.c_str());
+    std::fprintf(out,
+                 "  authentication: the processes dropped %lld messages that did not "
+                 "authenticate (%s)\n",
+                 static_cast<long long>(total), named.c_str());
   }
   if (!silent.empty()) {
     std::fprintf(out, "  authentication: not known what %s dropped (no exit line)\n",
@@ -140,7 +146,7 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     r.bus_authenticated = run.bus_authenticated();
     r.unauthenticated = run.unauthenticated;
     r.unauthenticated_by_channel = run.unauthenticated_by_channel;
-    if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, &r);
+    if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, 1.0 / s.control_rate_hz, &r);
     if (r.launch.mode == ModeName(Mode::kLockstep)) {
       clock_ticks = ClockTicks(run);
     }
@@ -175,8 +181,11 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["stopped_by"] = l.stopped_by;
   nlohmann::ordered_json restarts = nlohmann::ordered_json::array();
   for (const ProcessRestart& p : l.restarts) {
-    restarts.push_back({{"process", p.process}, {"pid", p.pid}, {"new_pid", p.new_pid},
-                        {"reason", p.reason}, {"mission_s", p.mission_s}});
+    restarts.push_back({{"process", p.process},
+                        {"pid", p.pid},
+                        {"new_pid", p.new_pid},
+                        {"reason", p.reason},
+                        {"mission_s", p.mission_s}});
   }
   j["restarts"] = restarts;
   j["states_missing_in_restarts"] = r.states_missing_in_restarts;
@@ -189,6 +198,7 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["log_problems"] = r.log_problems;
   j["timing_ok"] = r.timing_ok;
   j["timing_problems"] = r.timing_problems;
+  j["hints"] = r.hints;
   j["lcm_url"] = l.lcm_url;
   j["bus_authenticated"] = r.bus_authenticated;
   j["key_file"] = l.key_file;
@@ -202,6 +212,21 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["unauthenticated_by_process"] = by_process;
   j["cpu_latency_request"] = l.cpu_latency_request;
   return j;
+}
+
+std::string StaggerHint(const RunReport& r, const LoopPlacement& p) {
+  const long loops = r.followers + 2;
+  // One late process is that process's trouble (a stall, a fault); loops that queue for
+  // the CPUs make several late.
+  const bool queued = r.timing_problems.size() >= 2 || r.slow_loops >= 2;
+  if (r.launch.mode != ModeName(Mode::kRealtime) || !queued || r.launch.interrupted ||
+      p.staggered || !p.one_host || !p.stagger_allowed || loops <= p.cpus) {
+    return "";
+  }
+  return "the " + std::to_string(loops) + " loops woke at the start of each period on " +
+         std::to_string(p.cpus) + " CPU" + (p.cpus == 1 ? "" : "s") +
+         ", and the last waited for the others; --stagger spreads the followers over half "
+         "a period (docs/run.md, \"Many vehicles on few CPUs\")";
 }
 
 void PrintRunReport(const RunReport& r, std::FILE* out) {
@@ -230,8 +255,8 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   if (realtime) std::fprintf(out, ", release error p99 %.3f ms", sum.release_error_p99_s * 1e3);
   std::fprintf(out, "\n");
   if (realtime) {
-    std::fprintf(out, "  loops: lateness p99 %.3f ms, %lld overruns\n",
-                 sum.lateness_p99_s * 1e3, static_cast<long long>(sum.overruns));
+    std::fprintf(out, "  loops: lateness p99 %.3f ms, %lld overruns\n", sum.lateness_p99_s * 1e3,
+                 static_cast<long long>(sum.overruns));
   }
   for (const std::string& p : r.problems) std::fprintf(out, "  PROBLEM: %s\n", p.c_str());
   std::fprintf(out, "  log: %s (URL %s), %lld of %lld vehicle states recorded\n", l.log.c_str(),
@@ -245,6 +270,7 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
     std::fprintf(out, "  LATE (real time): %s\n", p.c_str());
   }
   PrintAuthentication(r, out);
+  for (const std::string& h : r.hints) std::fprintf(out, "  hint: %s\n", h.c_str());
   std::fprintf(out, "  output of each process: %s/\n", l.process_output_dir.c_str());
 }
 

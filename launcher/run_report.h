@@ -6,9 +6,9 @@
 #include <cstdint>
 #include <cstdio>
 #include <map>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "analysis/analysis.h"
 #include "launcher/launcher.h"
@@ -20,10 +20,10 @@ struct RunReport {
   int followers = 0;
   double control_rate_hz = 0.0;
   LaunchResult launch;
-  bool log_readable = false;  // false: the log could not be opened (a problem)
-  RunSummary summary;         // from the log; all zero without Shoal data in it
-  int diverged_follower = 0;  // first follower that diverged, 0 if none
-  bool converged = false;     // FormationConverged (analysis/verdict.h)
+  bool log_readable = false;             // false: the log could not be opened (a problem)
+  RunSummary summary;                    // from the log; all zero without Shoal data in it
+  int diverged_follower = 0;             // first follower that diverged, 0 if none
+  bool converged = false;                // FormationConverged (analysis/verdict.h)
   std::int64_t log_states_expected = 0;  // (final tick + 1) * (followers + 1)
   std::vector<std::string> problems;     // the launch's, and an unreadable log
   /// Every expected vehicle state is in the log (log_states >= log_states_expected);
@@ -45,12 +45,38 @@ struct RunReport {
   bool bus_authenticated = false;
   std::int64_t unauthenticated = 0;
   std::map<std::string, std::int64_t> unauthenticated_by_channel;
+  /// Real time: the leader and vehicles whose loop lateness p99 was above
+  /// kSlowLoopFraction of a period (within the verdict's limits or not).
+  int slow_loops = 0;
+  /// What the user can do about what went wrong, where shoal run knows a lever
+  /// (StaggerHint); printed after the summary, "hints" in --json.
+  std::vector<std::string> hints;
   bool all_processes_ok() const { return problems.empty() && !launch.interrupted; }
 };
 
 /// Real-time verdict: a loop lateness (or release error) p99 beyond one 50 Hz control
 /// period fails the run, and so does any overrun (docs/run.md).
 constexpr double kMaxLatenessP99S = 0.02;
+/// A loop whose lateness p99 is above this fraction of its period is slow (RunReport::
+/// slow_loops): 2 ms at 50 Hz, the loop lateness p99 shoal run is measured against at
+/// scale (docs/benchmarks.md).
+constexpr double kSlowLoopFraction = 0.1;
+
+/// How a real-time run was placed, for StaggerHint.
+struct LoopPlacement {
+  bool staggered = false;        // --stagger was given
+  bool one_host = true;          // no --hosts: every loop on this machine
+  bool stagger_allowed = false;  // the scenario's smallest delay is above one period
+  long cpus = 1;                 // this machine's online CPUs
+};
+/// A real-time run in which several processes failed the timing verdict or were slow
+/// loops, unstaggered, on
+/// one machine with more loops (followers, leader, channel emulator) than CPUs, in a
+/// scenario that allows --stagger: says that every loop woke at the start of each period
+/// and that --stagger spreads them (docs/run.md). Empty otherwise: with --stagger, over
+/// several hosts, or where the loops had a CPU each, staggering is not what the run lacked;
+/// one late process is that process's trouble (a stall, a fault).
+std::string StaggerHint(const RunReport& r, const LoopPlacement& p);
 
 /// Reads the run's log (launch.log) and builds the report.
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch);

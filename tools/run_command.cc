@@ -36,7 +36,8 @@ int PrintLaunch(const Scenario& s, const RunOptions& opt, const LaunchOptions& l
 
 int RunRun(const RunOptions& opt) {
   Scenario s;
-  if (!LoadScenarioWithSetsOrReport("shoal run", opt.launch.scenario, opt.launch.set, &s)) return kExitBadInput;
+  if (!LoadScenarioWithSetsOrReport("shoal run", opt.launch.scenario, opt.launch.set, &s))
+    return kExitBadInput;
   LaunchOptions launch_options = opt.launch;
   launch_options.restart_on_failure = opt.restart == "on-failure";
   launch_options.wall_clock_t0 = opt.t0_clock == "wall";
@@ -72,8 +73,8 @@ int RunRun(const RunOptions& opt) {
       std::fprintf(stderr,
                    "\r  t = %7.1f / %.0f s  (%.1fx real time)  worst position error %.2f m  "
                    "processes alive %d/%d   ",
-                   p.sim_time_s, p.duration_s, p.realtime_factor, p.worst_position_error_m,
-                   p.alive, p.processes);
+                   p.sim_time_s, p.duration_s, p.realtime_factor, p.worst_position_error_m, p.alive,
+                   p.processes);
     };
   }
   if (!opt.json) {
@@ -94,7 +95,15 @@ int RunRun(const RunOptions& opt) {
     return kExitBadInput;
   }
   if (show) std::fprintf(stderr, "\r%110s\r", "");
-  const RunReport report = MakeRunReport(s, std::move(launch));
+  RunReport report = MakeRunReport(s, std::move(launch));
+  LoopPlacement placement;
+  placement.staggered = launch_options.stagger;
+  placement.one_host = !launch_options.hosts.has_value();
+  placement.stagger_allowed = ClockedNode::StaggerPhaseUs(s, s.followers) > 0;
+  placement.cpus = sysconf(_SC_NPROCESSORS_ONLN);
+  if (const std::string hint = StaggerHint(report, placement); !hint.empty()) {
+    report.hints.push_back(hint);
+  }
   if (opt.json) {
     std::cout << JsonText(RunReportJson(report)) << "\n";
   } else {

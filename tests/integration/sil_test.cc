@@ -280,6 +280,7 @@ TEST(Sil, StaggeredRealtimeRunLogsEveryStateAndFollowsTheLockstepRun) {
   EXPECT_EQ(rj["log_complete"], true) << rt.out;
   EXPECT_EQ(rj["log_states"], rj["log_states_expected"]) << rt.out;
   EXPECT_LT(rj["loop"]["lateness_p99_s"].get<double>(), 0.02) << rt.out;
+  EXPECT_EQ(rj["hints"], nlohmann::ordered_json::array()) << rt.out;  // already staggered
   ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 4 --quiet --out " + ls_log, "sil_stagger_ls2").status, 1);
   const auto cmp = RunShoal("compare " + rt_log + " " + ls_log + " --allow-missing" +
                                 " --position-tol-m 0.1 --velocity-tol-mps 1e9 --json",
