@@ -483,6 +483,7 @@ void ChannelEmulatorApp::AwaitRecorder(std::int64_t released, std::uint64_t queu
   if (progress_ && uplink_ != nullptr && progress_->Attach()) {
     // Everything of the windows before this one, and room for the next in its queue.
     const std::int64_t target = std::max(released, bus_->sent() - recorder_queue_ / 3);
+    progress_->lost(static_cast<std::uint64_t>(bus_->sent()));  // takes back what came after all
     progress_->WaitFor(static_cast<std::uint64_t>(std::max<std::int64_t>(target, 0)),
                        kRecorderWaitNs);
     // And written what its writer had been handed when the window was released: a writer
@@ -516,7 +517,12 @@ void ChannelEmulatorApp::ReportRecorder() const {
               << progress_->waits() << " time(s) in " << windows << " windows, "
               << progress_->waited_ns() / 1000000 << " ms in all, " << progress_->timeouts()
               << " gave up; it handled " << progress_->handled() << " of the "
-              << bus_->sent() << " messages sent it\n";
+              << bus_->sent() << " messages sent it";
+    if (const std::uint64_t lost = progress_->lost(static_cast<std::uint64_t>(bus_->sent()))) {
+      std::cerr << ", " << lost << " taken as lost on the way (it did nothing for "
+                << kRecorderWaitNs / 1000000 << " ms while they were due)";
+    }
+    std::cerr << "\n";
   } else if (recorder_ && recorder_->active()) {
     std::cerr << "shoal_channel_emulator: waited for the recorder before "
               << recorder_->waits() << " of " << windows << " windows, "

@@ -6,6 +6,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -184,20 +185,31 @@ bool RecorderProgress::WaitForWrittenUpTo(std::uint64_t target, std::int64_t max
 
 bool RecorderProgress::WaitFor(std::uint64_t target, std::int64_t max_wait_ns) {
   if (map_ == nullptr) return false;
-  if (handled() >= target) return true;
+  target = target > lost_ ? target - lost_ : 0;
+  const std::uint64_t before = handled();
+  if (before >= target) return true;
   ++waits_;
   const std::int64_t t0 = MonotonicNs();
   for (;;) {
     const timespec nap = {0, 20000};
     nanosleep(&nap, nullptr);
-    const bool done = handled() >= target;
+    const std::uint64_t now = handled();
     const std::int64_t waited = MonotonicNs() - t0;
-    if (done || waited > max_wait_ns) {
+    if (now >= target || waited > max_wait_ns) {
       waited_ns_ += waited;
-      if (!done) ++timeouts_;
+      if (now >= target) return true;
+      ++timeouts_;
+      const std::uint64_t pending = queued();  // before `written`: it only grows
+      if (now == before && written() >= pending) lost_ += target - now;
       return true;
     }
   }
+}
+
+std::uint64_t RecorderProgress::lost(std::uint64_t sent) {
+  const std::uint64_t h = handled();
+  lost_ = std::min(lost_, sent > h ? sent - h : 0);
+  return lost_;
 }
 
 }  // namespace shoal

@@ -81,9 +81,17 @@ class RecorderProgress {
   bool Attach();
   /// Messages the recorder has handled (0 before Attach succeeds).
   std::uint64_t handled() const;
-  /// Returns once the recorder has handled `target` messages, or after max_wait_ns
-  /// (counted in timeouts()). False if not attached (nothing waited).
+  /// Returns once the recorder has handled `target` messages, less those taken as lost, or
+  /// after max_wait_ns (counted in timeouts()). False if not attached (nothing waited).
+  /// A wait that gives up while the recorder did nothing at all -- not one message handled,
+  /// its writer idle -- takes what it still lacks as lost on the way (a datagram the
+  /// recorder's socket never got: sent before it joined the group, or dropped by the
+  /// kernel), so that later waits do not each wait the limit for messages that will never
+  /// come; what the log lacks is judged from the log itself.
   bool WaitFor(std::uint64_t target, std::int64_t max_wait_ns);
+  /// Messages taken as lost on the way to the recorder, at most what of `sent` it has not
+  /// handled: a recorder that handles one after all takes it back from the loss.
+  std::uint64_t lost(std::uint64_t sent);
 
   /// Returns once the recorder's writer has written every event handed to it (nothing is
   /// pending, which lcm-logger stopped by SIGINT would drop), or after max_wait_ns. False
@@ -104,6 +112,7 @@ class RecorderProgress {
   pid_t pid_;
   const void* map_ = nullptr;  // ShoalLoggerProgress
   std::int64_t waits_ = 0, timeouts_ = 0, waited_ns_ = 0;
+  std::uint64_t lost_ = 0;
 };
 
 }  // namespace shoal

@@ -1,9 +1,11 @@
 #include "launcher/launch_script.h"
 
+#include <algorithm>
 #include <sstream>
 
 #include "runtime/bus_auth.h"
 #include "runtime/channels.h"
+#include "runtime/lcm_queue_shim.h"
 
 namespace shoal {
 namespace {
@@ -251,7 +253,8 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
     << "# the CPU; with LD_PRELOAD the queue holds more than LCM's 30 messages, and with\n"
     << "# SHOAL_LOGGER_PROGRESS=1 it counts what it has handled and written, for the\n"
     << "# emulator's --recorder-pid wait; with SHOAL_LOGGER_BATCH=1, in lockstep, it runs\n"
-    << "# under SCHED_BATCH). The run's processes start once its log exists.\n"
+    << "# under SCHED_BATCH). The run's processes start once its log exists (and, counting,\n"
+    << "# once it has subscribed).\n"
     << "logger_nice=0\nif [ \"$(id -u)\" = 0 ]; then logger_nice=-10; fi\n"
     << "rm -f -- \"$log\"\n";
   WriteStart(logger, "$logger_nice", o);
@@ -260,6 +263,16 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
     << "if [ ! -e \"$log\" ]; then\n"
     << "  echo \"$0: lcm-logger did not create $log within 5 s ($out_dir/logger.txt)\" >&2\n"
     << "  exit 1\nfi\n";
+  if (std::find(logger.env.begin(), logger.env.end(), "SHOAL_LOGGER_PROGRESS=1") !=
+      logger.env.end()) {
+    o << "# It creates the log before it subscribes, and its count once subscribed: what the\n"
+      << "# processes sent before then would never reach it.\n";
+    std::string name = "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME;
+    name.replace(name.find("%ld"), 3, "$logger_pid");
+    o << "for ((i = 0; i < 500; i++)); do\n"
+      << "  if [ -e \"" << name << "\" ]; then break; fi; sleep 0.02\n"
+      << "done\n";
+  }
   if (!plan.insecure) o << "export " << bus_auth::kKeyEnv << "\n";
   o << "# Tick 0 on the wall clock, 4 s from now (ns since 1970).\n"
     << "t0=$(( $(date +%s%N) + 4000000000 ))\n";

@@ -853,6 +853,19 @@ void Launch::StartAll() {
   for (int i = 0; i < 100 && !before.OpenedAnew(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+  // lcm-logger creates its log before it subscribes: what the run sent it in between (the
+  // processes' ready statuses) would never reach it, and the clock master would wait for
+  // it. Counting, it makes its count's name once subscribed (runtime/lcm_queue_shim.c).
+  const auto& env = plan_.processes.front().env;
+  if (logger_pid > 0 &&
+      std::find(env.begin(), env.end(), "SHOAL_LOGGER_PROGRESS=1") != env.end()) {
+    char name[64];
+    std::snprintf(name, sizeof(name), "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME,
+                  static_cast<long>(logger_pid));
+    for (int i = 0; i < 500 && access(name, F_OK) != 0; ++i) {  // 10 s at most
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
   // Real time: a start margin, longer by the logins the starts wait for (--hosts). On the
   // wall clock, it is converted to the monotonic clock as each process does (process.h).
   std::map<std::string, int> placed;  // processes by host

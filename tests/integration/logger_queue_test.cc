@@ -170,5 +170,29 @@ TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
   EXPECT_EQ(events.back().second, std::string(reinterpret_cast<const char*>(bad), sizeof(bad)));
 }
 
+// lcm-logger creates its log before it subscribes. A run that started its processes once
+// the log existed lost what they sent before the subscription: with the logger 600 ms
+// late, every message of a short lockstep run; with it a little late, the processes'
+// ready statuses, after which the clock master waited its limit for them at every window
+// (a run at 1x real time). shoal run starts the processes once the logger has subscribed.
+TEST(LoggerQueue, ALoggerSlowToSubscribeStillRecordsTheWholeRunWithoutWaits) {
+  const std::string lib = std::string(SHOAL_BINARY_DIR) + "/tests/libslow_logger_subscribe.so";
+  ASSERT_EQ(access(lib.c_str(), R_OK), 0) << lib;
+  const std::string log = TmpPath("slow_subscribe.lcmlog");
+  setenv("LD_PRELOAD", lib.c_str(), 1);
+  setenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS", "600", 1);
+  const auto r = RunShoal("run " + SourcePath("scenarios/paper_example2.toml") +
+                              " --mode lockstep --duration 20 --json --out " + log,
+                          "slow_subscribe");
+  unsetenv("LD_PRELOAD");
+  unsetenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS");
+  const auto j = ParseJson(r.out);
+  EXPECT_EQ(j["log_complete"], true) << r.out << r.err;
+  EXPECT_EQ(j["log_states"], j["log_states_expected"]) << r.out;
+  EXPECT_GT(j["log_states"].get<double>(), 0) << r.out;
+  const std::string emulator = ReadFile(log + ".d/emulator.txt");
+  EXPECT_NE(emulator.find(" 0 gave up; it handled "), std::string::npos) << emulator;
+}
+
 }  // namespace
 }  // namespace shoal

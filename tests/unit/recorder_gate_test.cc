@@ -319,5 +319,41 @@ TEST(RecorderProgress, WaitsUntilEveryQueuedEventIsWritten) {
   EXPECT_EQ(progress.timeouts(), 1);
 }
 
+// A message that never reaches the recorder (sent before it joined the group, dropped by
+// the kernel) must not make every later window wait the limit: a wait that gives up while
+// the recorder did nothing takes the rest as lost; one while it worked does not.
+TEST(RecorderProgress, AWaitThatGivesUpWhileTheRecorderDidNothingTakesTheRestAsLost) {
+  FakeRecorderCount fake;
+  ASSERT_NE(fake.p, nullptr);
+  __atomic_store_n(&fake.p->magic, SHOAL_LOGGER_PROGRESS_MAGIC, __ATOMIC_RELEASE);
+  RecorderProgress progress(getpid());
+  ASSERT_TRUE(progress.Attach());
+  fake.p->handled = 10;
+  fake.p->queued = 10;
+  fake.p->written = 9;  // its writer still busy: not idle, nothing taken as lost
+  EXPECT_TRUE(progress.WaitFor(13, 30000000));
+  EXPECT_EQ(progress.lost(13), 0u);
+  fake.p->written = 10;
+  EXPECT_TRUE(progress.WaitFor(13, 30000000));  // idle throughout: three lost
+  EXPECT_EQ(progress.timeouts(), 2);
+  EXPECT_EQ(progress.lost(13), 3u);
+  const std::int64_t t0 = MonotonicNs();
+  EXPECT_TRUE(progress.WaitFor(13, 1000000000LL));  // nothing more to wait for
+  EXPECT_LT(MonotonicNs() - t0, 500000000);
+  EXPECT_EQ(progress.waits(), 2);
+  // Working but not there when the limit passes: slow, not lost.
+  std::thread recorder([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    __atomic_store_n(&fake.p->handled, 11, __ATOMIC_RELEASE);
+  });
+  EXPECT_TRUE(progress.WaitFor(16, 60000000));
+  recorder.join();
+  EXPECT_EQ(progress.timeouts(), 3);
+  EXPECT_EQ(progress.lost(16), 3u);
+  // One of the lost comes after all: the loss is at most what it has not handled.
+  fake.p->handled = 14;
+  EXPECT_EQ(progress.lost(16), 2u);
+}
+
 }  // namespace
 }  // namespace shoal
