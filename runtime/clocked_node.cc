@@ -121,28 +121,59 @@ bool ClockedNode::AcceptableWindow(const clock_window_t& c) const {
   const std::int64_t last = ok ? c.tick + c.n_ticks - 1 : 0;
   const std::int64_t span = last - next_tick_ + 1;
   ok = ok && last <= final_tick_ && span <= kMaxWindowTicks &&
-       lags_.Window(next_tick_, span) == span && c.utime == c.tick * period_us_ &&
-       due_.lower_bound(c.tick) == due_.upper_bound(last);
+       lags_.Window(next_tick_, span) == span && c.utime == c.tick * period_us_;
+  for (std::int64_t j = c.tick; ok && j <= last; ++j) ok = !Announced(j);
   for (std::int32_t k = 0; ok && k < c.n_deliveries; ++k) {
     ok = c.delivery_tick[k] >= c.tick && c.delivery_tick[k] <= last;
   }
   return ok;
 }
 
+ClockedNode::DueTick* ClockedNode::DueAt(std::int64_t tick) {
+  return Announced(tick) ? &due_[static_cast<std::size_t>(tick) & (due_.size() - 1)] : nullptr;
+}
+
+bool ClockedNode::Announced(std::int64_t tick) const {
+  return !due_.empty() && tick >= 0 &&
+         due_[static_cast<std::size_t>(tick) & (due_.size() - 1)].tick == tick;
+}
+
+void ClockedNode::ReserveDue(std::int64_t last) {
+  const auto needed = static_cast<std::size_t>(last - next_tick_ + 1);
+  if (needed <= due_.size()) return;
+  std::size_t size = due_.empty() ? 16 : due_.size();
+  while (size < needed) size *= 2;
+  std::vector<DueTick> ring(size);
+  for (DueTick& d : due_) {
+    if (d.tick >= 0) std::swap(ring[static_cast<std::size_t>(d.tick) & (size - 1)], d);
+  }
+  due_.swap(ring);
+}
+
+ClockedNode::DueTick& ClockedNode::Announce(std::int64_t tick) {
+  DueTick& d = due_[static_cast<std::size_t>(tick) & (due_.size() - 1)];
+  d.tick = tick;
+  d.final_tick = false;
+  d.deliveries.clear();
+  ++due_count_;
+  return d;
+}
+
 void ClockedNode::OnClock(const unsigned char* data, int size) {
-  clock_window_t c;
+  clock_window_t& c = window_;
   if (!Decode(data, size, &c) || !AcceptableWindow(c)) {
     ++counters_.bad_clock;
     return;
   }
   const std::int64_t last = c.tick + c.n_ticks - 1;
+  ReserveDue(last);
   for (std::int64_t j = c.tick; j <= last; ++j) {
-    due_[j].final_tick = j == last && c.final_tick != 0;
+    Announce(j).final_tick = j == last && c.final_tick != 0;
   }
   for (std::int32_t k = 0; k < c.n_deliveries; ++k) {
     if (c.delivery_receiver[k] == id_) {
-      due_[c.delivery_tick[k]].deliveries.push_back(
-          {c.delivery_sender[k], c.delivery_seq[k], c.delivery_digest[k]});
+      DueAt(c.delivery_tick[k])
+          ->deliveries.push_back({c.delivery_sender[k], c.delivery_seq[k], c.delivery_digest[k]});
     }
   }
   StepWhatIsDue();
@@ -157,15 +188,16 @@ void ClockedNode::OnStatus(const unsigned char* data, int size) {
 }
 
 void ClockedNode::StepWhatIsDue() {
-  for (auto it = due_.find(next_tick_); it != due_.end(); it = due_.find(next_tick_)) {
-    const Delivery* missing = ApplyListed(it->second.deliveries);
+  for (DueTick* due = DueAt(next_tick_); due != nullptr; due = DueAt(next_tick_)) {
+    const Delivery* missing = ApplyListed(due->deliveries);
     if (missing != nullptr) {
       NoteWaiting(*missing);
       return;
     }
-    const bool final_tick = it->second.final_tick;
-    const std::int64_t tick = it->first;
-    due_.erase(it);
+    const bool final_tick = due->final_tick;
+    const std::int64_t tick = due->tick;
+    due->tick = -1;  // the slot is free again; its list keeps its capacity
+    --due_count_;
     waiting_since_ns_ = 0;
     warned_waiting_ = false;
     Step(tick);
@@ -281,7 +313,7 @@ int ClockedNode::RunLockstep() {
     const std::int64_t stepped_before = next_tick_;
     const int handled = HandleBus(50);
     if (handled < 0) return 1;
-    if (handled == 0 && !due_.empty()) StepWhatIsDue();  // to say what it waits for
+    if (handled == 0 && due_count_ > 0) StepWhatIsDue();  // to say what it waits for
     if (next_tick_ != stepped_before) last_step_ns_ = MonotonicNs();
     if (stepped_ && MonotonicNs() - last_step_ns_ > kIdleExitNs) {
       std::cerr << "vehicle " << id_ << ": no tick could be stepped for "

@@ -134,7 +134,13 @@ class ClockedNode {
   Mode mode() const { return mode_; }
 
  private:
+  // Lockstep: an announced tick. The ticks announced and not yet stepped lie within one
+  // lag window of the next tick, so a ring indexed by tick holds them without collisions;
+  // its slots, and their delivery lists, are reused: a window allocates nothing, which
+  // matters when a hundred processes take turns on two CPUs and every line a turn touches
+  // is cold again.
   struct DueTick {
+    std::int64_t tick = -1;  // -1: a free slot
     bool final_tick = false;
     std::vector<Delivery> deliveries;
   };
@@ -150,6 +156,13 @@ class ClockedNode {
   /// Lockstep with restarts: a restarted clock master asks every process for the tick it
   /// needs next; the answer is a "ready" status at that tick.
   void OnStatus(const unsigned char* data, int size);
+  /// Lockstep: the slot of announced tick `tick`, or nullptr.
+  DueTick* DueAt(std::int64_t tick);
+  bool Announced(std::int64_t tick) const;
+  /// Lockstep: a cleared slot for tick `tick` (the ring grows to hold up to it).
+  DueTick& Announce(std::int64_t tick);
+  /// Lockstep: the ring holds every tick from next_tick_ up to `last`.
+  void ReserveDue(std::int64_t last);
   /// Lockstep: steps every tick whose clock tick and listed deliveries are all here.
   void StepWhatIsDue();
   /// Lockstep: says (once per tick, after a while) what the tick waits for.
@@ -186,7 +199,9 @@ class ClockedNode {
   std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
   std::size_t inbox_size_ = 0;
   std::int64_t next_tick_ = 0;           // the tick to step next
-  std::map<std::int64_t, DueTick> due_;  // lockstep: ticks announced, not yet stepped
+  std::vector<DueTick> due_;    // lockstep: ticks announced, not yet stepped (a ring)
+  std::size_t due_count_ = 0;   // of them
+  clock_window_t window_;       // the clock window being applied (its arrays reused)
   std::int64_t waiting_since_ns_ = 0;    // when the tick expected next started to wait
   bool warned_waiting_ = false;
   std::int64_t last_step_ns_ = 0;  // lockstep: when a tick was last stepped

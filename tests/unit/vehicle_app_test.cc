@@ -356,6 +356,59 @@ TEST(VehicleAppLockstep, AMalformedWindowIsRefused) {
   EXPECT_EQ(r.ticks(), 2);
 }
 
+// A slow channel (a constant delay of 1 s: 50 ticks of lag) whose windows of 25 ticks
+// arrive in pairs out of order, each before its deliveries: the ticks announced ahead are
+// held (in a ring indexed by tick, which grows for windows this long) and stepped in
+// order with their own deliveries, as shoal sim steps them.
+TEST(VehicleAppLockstep, LongWindowsArrivingOutOfOrderStepAsShoalSim) {
+  Scenario s = Example2();
+  s.delay = DelayConfig(DelayKind::kConstant, 1.0, 0.0, 0.0);
+  LcmBus bus{"memq://"};
+  VehicleApp node{s, kId, Mode::kLockstep, 0, 10.0, &bus, &bus};
+  node.Init();
+  Follower reference{s, Topology::Build(s.followers, s.edges, s.leader_links), kId};
+  Leader leader{s};
+  const Timeline timeline(s);
+  const int lag = static_cast<int>(LagBound(BuildAllLinks(s), &timeline, s.period_us()).Window(0, 1000));
+  ASSERT_EQ(lag, 50);
+  const int w = lag / 2;
+  const int n = 8 * w;
+  std::vector<StateMsg> sent;
+  for (int k = 0; k < n; ++k) sent.push_back(leader.Tick(k * s.period_us()));
+  auto window = [&](int first) {
+    std::map<std::int64_t, std::vector<StateMsg>> list;
+    for (int k = first; k < first + w; ++k) {
+      if (k >= lag) list[k] = {sent[k - lag]};
+    }
+    return Window(s, first, w, list);
+  };
+  auto pump = [&] {
+    while (node.HandleBus(0) > 0) {
+    }
+  };
+  for (int pair = 0; pair < n; pair += 2 * w) {
+    bus.Publish(channels::Clock(), window(pair + w));  // the later window first
+    bus.Publish(channels::Clock(), window(pair));
+    pump();
+    // Before the deliveries only the ticks that list none are stepped (the first 50).
+    EXPECT_EQ(node.follower().counters().ticks, std::max(pair, std::min(pair + 2 * w, lag)))
+        << "windows " << pair;
+    for (int k = pair; k < pair + 2 * w; ++k) {
+      if (k >= lag) bus.Publish(channels::Rx(kId), ToLcm(sent[k - lag]));
+    }
+    pump();
+    ASSERT_EQ(node.follower().counters().ticks, pair + 2 * w) << "windows " << pair;
+    for (int k = pair; k < pair + 2 * w; ++k) {
+      if (k >= lag) reference.Receive(sent[k - lag]);
+      reference.Tick(k * s.period_us());
+    }
+    ASSERT_EQ(node.follower().state().eta, reference.state().eta) << "windows " << pair;
+    ASSERT_EQ(node.follower().state().nu, reference.state().nu) << "windows " << pair;
+  }
+  EXPECT_EQ(node.follower().counters().msgs_received, n - lag);
+  EXPECT_EQ(node.counters().bad_clock, 0);
+}
+
 }  // namespace
 }  // namespace shoal
 
