@@ -4,6 +4,7 @@
 #include <linux/sock_diag.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -135,13 +136,31 @@ bool UdpmReceiver::Open(std::string* error) {
   return true;
 }
 
+bool UdpmReceiver::SetWait(int timeout_ms) {
+  if (timeout_ms == wait_ms_) return true;
+  timeval tv{};
+  if (timeout_ms > 0) {
+    tv.tv_sec = timeout_ms / 1000;
+    tv.tv_usec = static_cast<suseconds_t>(timeout_ms % 1000) * 1000;
+  }
+  if (setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv)) != 0) return false;
+  wait_ms_ = timeout_ms < 0 ? -1 : timeout_ms;
+  return true;
+}
+
 int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handler) {
   if (fd_ < 0) return -1;
-  if (timeout_ms != 0) {
-    pollfd pfd{fd_, POLLIN, 0};
+  // The wait for the first datagram is recvmmsg's own (MSG_WAITFORONE, bounded by
+  // SO_RCVTIMEO): one system call per wake-up where poll and then recvmmsg took two. A
+  // lockstep vehicle wakes once a window, and on a machine with page-table isolation and
+  // no PCID every system call also empties the TLB.
+  bool wait = timeout_ms != 0;
+  if (wait && !SetWait(timeout_ms)) {
+    pollfd pfd{fd_, POLLIN, 0};  // as the kernel would not bound the wait, poll does
     const int r = poll(&pfd, 1, timeout_ms);
     if (r < 0) return errno == EINTR ? 0 : -1;  // a signal: the caller looks why
     if (r == 0) return 0;
+    wait = false;
   }
   mmsghdr msgs[kBatch];
   iovec iov[kBatch];
@@ -158,10 +177,13 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
       msgs[k].msg_hdr.msg_iovlen = 1;
       msgs[k].msg_len = 0;
     }
-    const int n = recvmmsg(fd_, msgs, static_cast<unsigned>(want), MSG_DONTWAIT, nullptr);
+    const int n = recvmmsg(fd_, msgs, static_cast<unsigned>(want),
+                           wait ? MSG_WAITFORONE : MSG_DONTWAIT, nullptr);
+    if (n < 0 && wait && errno == EINTR) return handed;  // a signal: the caller looks why
+    wait = false;
     if (n < 0) {
       if (errno == EINTR) continue;
-      if (errno == EAGAIN || errno == EWOULDBLOCK) break;
+      if (errno == EAGAIN || errno == EWOULDBLOCK) break;  // nothing (more), or timed out
       return handed > 0 ? handed : -1;
     }
     for (int k = 0; k < n; ++k) {

@@ -107,7 +107,12 @@ class UdpmReceiver {
             const unsigned char* data, std::uint32_t n);
 
   UdpmAddress address_;
+  /// Bounds recvmmsg's wait for a first datagram (SO_RCVTIMEO) to timeout_ms; false if
+  /// the socket refused.
+  bool SetWait(int timeout_ms);
+
   int fd_ = -1;
+  int wait_ms_ = -1;  // the socket's SO_RCVTIMEO (-1: without limit, as opened)
   int recv_buf_bytes_ = 0;
   std::int64_t malformed_ = 0;
   // kBatch datagrams of kDatagramBytes, not zero-filled: recvmmsg writes what is read, and

@@ -8,14 +8,18 @@
 #include <arpa/inet.h>
 #include <lcm/lcm-cpp.hpp>
 #include <netinet/in.h>
+#include <pthread.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <csignal>
 #include <cstdint>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "runtime/lcm_bus.h"
@@ -293,6 +297,46 @@ TEST_F(UdpmReceiverTest, WaitsNoLongerThanAsked) {
   auto none = [](std::string_view, const unsigned char*, int) { FAIL(); };
   EXPECT_EQ(receiver_->Receive(0, 10, none), 0);
   EXPECT_EQ(receiver_->Receive(50, 10, none), 0);
+}
+
+// Given a receiver waiting for the bus, when a datagram arrives during the wait, then the
+// wait ends with it (recvmmsg waits itself: no poll before it); and when a signal comes
+// (Ctrl-C, without SA_RESTART, as StopSignals installs it), then the wait ends with
+// nothing handed on, for the caller to look why.
+TEST_F(UdpmReceiverTest, AWaitEndsWithTheFirstDatagramOrASignal) {
+  using Clock = std::chrono::steady_clock;
+  std::thread sender([this] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    lcm::LCM lcm(url_);
+    const int v = 7;
+    lcm.publish("W", &v, sizeof(v));
+  });
+  int got = 0;
+  auto start = Clock::now();
+  EXPECT_EQ(receiver_->Receive(10000, 10, [&](std::string_view ch, const unsigned char*, int n) {
+    EXPECT_EQ(ch, "W");
+    EXPECT_EQ(n, static_cast<int>(sizeof(int)));
+    ++got;
+  }), 1);
+  sender.join();
+  EXPECT_EQ(got, 1);
+  EXPECT_LT(Clock::now() - start, std::chrono::seconds(5));
+
+  struct sigaction sa = {}, old = {};
+  sa.sa_handler = [](int) {};
+  ASSERT_EQ(sigaction(SIGUSR1, &sa, &old), 0);
+  const pthread_t waiting = pthread_self();
+  std::thread signaller([waiting] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    pthread_kill(waiting, SIGUSR1);
+  });
+  start = Clock::now();
+  EXPECT_EQ(receiver_->Receive(10000, 10, [](std::string_view, const unsigned char*, int) {
+    FAIL();
+  }), 0);
+  EXPECT_LT(Clock::now() - start, std::chrono::seconds(5));
+  signaller.join();
+  sigaction(SIGUSR1, &old, nullptr);
 }
 
 // Given the URLs Shoal and LCM users write, when parsed, then group, port and receive
