@@ -5,11 +5,15 @@
 // vehicle's working set per window), so that the caches and TLBs see what a run's
 // processes do. Each touched byte is one per STRIDE bytes: 64 touches every cache line of
 // TOUCH_KB; 4096 touches one line in each of its pages, so that a turn costs TLB misses
-// (a page walk each, after every switch on a CPU without PCID) rather than cache misses.
+// (a page walk each, after every switch on a CPU without PCID) rather than cache misses;
+// 2097152 touches one line in each of TOUCH_KB / 2048 pages that lie 2 MiB apart, each
+// with a page-table page of its own, as the pages of a process's code, libraries, heap
+// and stack lie apart.
 // Prints, per N, the CPU time (user + system of all N) per hop and the wall time per hop,
 // medians over `rounds` measurements.
 // Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE],
-//   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096
+//   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096;
+//   wakeup_ring "8 131" 100000 204800 3 2097152 (100 pages 2 MiB apart)
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -20,6 +24,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <sstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -30,10 +35,21 @@ struct Result {
   double wall_us_per_hop;
 };
 
+// A process's memory: calloc takes a large block straight from the kernel, whose pages
+// read as zero and cost nothing until touched, so that a sparse STRIDE (one byte every
+// 2 MiB: a page-table page of its own for each touched page) holds only the pages it
+// touches.
+using Memory = std::unique_ptr<unsigned char[], void (*)(void*)>;
+Memory Zeroed(std::size_t bytes) {
+  auto* p = static_cast<unsigned char*>(std::calloc(std::max<std::size_t>(bytes, 1), 1));
+  if (p == nullptr) std::exit(2);
+  return Memory(p, &std::free);
+}
+
 // One process of the ring: reads the token from `in`, touches its memory, passes it on,
 // until the token says stop (a negative count).
 [[noreturn]] void Member(int in, int out, std::size_t touch, std::size_t stride) {
-  std::vector<unsigned char> mine(std::max<std::size_t>(touch, 1));
+  const Memory mine = Zeroed(touch);
   long token = 0;
   for (;;) {
     if (read(in, &token, sizeof(token)) != sizeof(token)) _exit(1);
@@ -74,7 +90,7 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
   rusage self0{};
   getrusage(RUSAGE_SELF, &self0);
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<unsigned char> mine(std::max<std::size_t>(touch, 1));
+  const Memory mine = Zeroed(touch);
   long token = 0;
   const int out = wr[static_cast<std::size_t>(1 % n)], in = rd[0];
   for (long h = 0; h < hops; h += n) {
