@@ -5,8 +5,10 @@
 namespace shoal {
 
 std::vector<Link> BuildLinks(const Scenario& s, const Topology& topo) {
+  const std::vector<std::pair<int, int>> pairs = topo.Links();
   std::vector<Link> links;
-  for (const auto& [from, to] : topo.Links()) {
+  links.reserve(pairs.size());  // a dense swarm has 10^5 links: no copies while it grows
+  for (const auto& [from, to] : pairs) {
     Link l;
     l.from = from;
     l.to = to;
