@@ -352,8 +352,10 @@ std::string CheckCriterion(const SoakCriterion& c, const nlohmann::ordered_json&
 
 /// Real time: a phase's loop and channel timing against the targets.
 void PhaseTargets(const SoakTargets& t, const Window& w, std::vector<std::string>* why) {
-  if (w.overruns > 0) {
-    why->push_back(std::to_string(w.overruns) + " control ticks overran their period");
+  if (w.overruns > t.overruns_max) {
+    why->push_back(std::to_string(w.overruns) + " control ticks overran their period" +
+                   (t.overruns_max > 0 ? " (at most " + std::to_string(t.overruns_max) + ")"
+                                       : std::string()));
   }
   if (w.lateness_p99_s > t.lateness_p99_max_s) {
     why->push_back("loop lateness p99 " + Num(w.lateness_p99_s * 1e3) + " ms > target " +

@@ -38,10 +38,10 @@
 // The verdict fails on: a process that failed, was stopped, restarted or an interrupted
 // run (the report's all_processes_ok, restarts); lost states (log_complete false, or a
 // minute with fewer states than expected); RSS growth beyond targets.memory_growth_max;
-// real time only: a phase with an overrun, a phase's lateness p99 beyond targets.lateness_p99_max_s, or its
-// delay error p99 or release error p99 beyond targets.delay_error_p99_max_s (shoal run
-// reports the release error as channel.delay_error_p99_s); a phase that does not
-// re-converge or misses a criterion.
+// real time only: a phase with more overruns than targets.overruns_max, a phase's lateness
+// p99 beyond targets.lateness_p99_max_s, or its delay error p99 or release error p99 beyond
+// targets.delay_error_p99_max_s (shoal run reports the release error as
+// channel.delay_error_p99_s); a phase that does not re-converge or misses a criterion.
 #pragma once
 
 #include <optional>
@@ -76,6 +76,7 @@ struct SoakTargets {
   double lateness_p99_max_s = 0.002;     // real time only
   double delay_error_p99_max_s = 0.001;  // real time only
   double memory_growth_max = 0.01;       // relative RSS growth after the first phase
+  long long overruns_max = 0;            // real time only: overrun ticks a phase may have
 };
 
 struct SoakInput {

@@ -30,8 +30,9 @@ constexpr std::array<std::string_view, 7> kAxisKeys = {"key", "values", "from", 
                                                           "steps", "log", "range"};
 constexpr std::array<std::string_view, 2> kBoundKeys = {"min", "max"};
 constexpr std::array<std::string_view, 2> kMapKeys = {"x", "y"};
-constexpr std::array<std::string_view, 5> kSoakKeys = {
-    "phase_s", "settle_s", "lateness_p99_max_s", "delay_error_p99_max_s", "memory_growth_max"};
+constexpr std::array<std::string_view, 6> kSoakKeys = {
+    "phase_s",           "settle_s",          "lateness_p99_max_s", "delay_error_p99_max_s",
+    "memory_growth_max", "overruns_max"};
 constexpr std::size_t kMaxShownChars = 80;
 constexpr double kMaxSeconds = 1e9;
 // An axis value is a scenario value: a few numbers, a table of a model. A longer text is
@@ -590,6 +591,11 @@ void ReadMapAndSoak(const Reader& r, const toml::table& root, Campaign* c) {
           r.FailAt(*n, std::string("soak.") + name, positive, "");
         }
       }
+    }
+    if (const toml::node* n = t.get("overruns_max")) {
+      s.overruns_max = r.Integer(*n, "soak.overruns_max", 0, 1000000000,
+                                 "must be an integer in 0..1e9 (control ticks per phase)",
+                                 "e.g. 0");
     }
     if (s.settle_s >= s.phase_s) {
       r.Fail(LineOf(t), "soak.settle_s", "must be shorter than phase_s", "", "");

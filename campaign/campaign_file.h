@@ -67,6 +67,7 @@ struct CampaignSoak {
   double phase_s = 600, settle_s = 300;
   double lateness_p99_max_s = 0.002, delay_error_p99_max_s = 0.001;
   double memory_growth_max = 0.01;
+  long long overruns_max = 0;  // realtime: control ticks a phase may overrun
 };
 
 struct Campaign {

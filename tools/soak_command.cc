@@ -229,6 +229,7 @@ SoakInput InputOf(const Planned& p, const LaunchResult& launch, nlohmann::json r
   in.targets.lateness_p99_max_s = p.campaign.soak.lateness_p99_max_s;
   in.targets.delay_error_p99_max_s = p.campaign.soak.delay_error_p99_max_s;
   in.targets.memory_growth_max = p.campaign.soak.memory_growth_max;
+  in.targets.overruns_max = p.campaign.soak.overruns_max;
   in.engine = EngineName(p.campaign.engine);
   return in;
 }

@@ -92,6 +92,9 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
       {head + "engine = \"lockstep\"\n" + delay_axis + "[pass]\nsettled = true\n" + soak,
        "pass.settled: not a phase metric of a soak"},
       {Steps("0.1, -1", "120", "90"), ":5: axis channel.delay.base_s: channel.delay.base_s: must be"},
+      {Steps("0.1", "120", "90") + "overruns_max = -1\n",
+       "soak.overruns_max: must be an integer in 0..1e9"},
+      {Steps("0.1", "120", "90") + "overruns_max = 1.5\n", "soak.overruns_max: must be an integer"},
       {Steps("0.1", "120", "90", "duration_s = 600\n"),
        "campaign.duration_s (the run lasts phases x soak.phase_s): not used by shoal soak"},
   };

@@ -52,9 +52,12 @@ constexpr int kVehicles = 3;  // leader and two followers
 constexpr int kRateHz = 20;
 
 // Three phases of `phase_s`. The lateness and delay targets are 20 ms (shoal run's own
-// real-time limit), not the product's 2 ms and 1 ms: this machine runs the suite beside
-// other builds on two cores, where a loop a few ms late now and then is the machine's, not
-// the code's; a held loop (below) is late by hundreds of ms. The position tolerance is
+// real-time limit), not the product's 2 ms and 1 ms, and a phase may overrun 5 ticks:
+// this machine runs the suite beside other builds on two cores, often as a VM among
+// others, where a loop a few ms late now and then, and a stall of the whole machine for
+// more than a period now and then (2 overruns in one phase, once in many runs), are the
+// machine's, not the code's; a held loop (below) is late by hundreds of ms and overruns
+// about 20 ticks. The position tolerance is
 // wide because the run is short: the formation takes longer than a phase to converge from
 // its initial conditions, and re-convergence is the lockstep soaks' test.
 std::string WriteCampaign(const std::string& name, int phase_s, int settle_s) {
@@ -66,7 +69,7 @@ std::string WriteCampaign(const std::string& name, int phase_s, int settle_s) {
          "set = ['metrics.position_tol_m=1000']\n"
          "[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [0.1, 0.2, 0.1]\n"
          "[soak]\nphase_s = " << phase_s << "\nsettle_s = " << settle_s << "\n"
-         "lateness_p99_max_s = 0.02\ndelay_error_p99_max_s = 0.02\n"
+         "lateness_p99_max_s = 0.02\ndelay_error_p99_max_s = 0.02\noverruns_max = 5\n"
          "memory_growth_max = 0.5\n";
   return dir;
 }
@@ -103,7 +106,7 @@ TEST(SoakRealtime, AShortSoakPassesWithEveryRealTimePartOfItsVerdict) {
     EXPECT_LE(pm["lateness_p99_s"].get<double>(), 0.02) << p.dump();
     EXPECT_GT(pm["release_error_p99_s"].get<double>(), 0.0) << p.dump();
     EXPECT_LE(pm["release_error_p99_s"].get<double>(), 0.02) << p.dump();
-    EXPECT_EQ(pm["overruns"].get<long long>(), 0) << p.dump();
+    EXPECT_LE(pm["overruns"].get<long long>(), 5) << p.dump();
     EXPECT_EQ(pm["states"].get<long long>(), pm["states_expected"].get<long long>());
     states += pm["states"].get<long long>();
   }
@@ -189,6 +192,8 @@ TEST(SoakRealtime, ALoopHeldInTheLastPhaseFailsThatPhaseOnly) {
   const ojson& late = s["phases"][2];
   EXPECT_FALSE(late["pass"].get<bool>());
   EXPECT_TRUE(Mentions(late["why"], "loop lateness p99")) << late.dump();
+  EXPECT_TRUE(Mentions(late["why"], "control ticks overran their period (at most 5)"))
+      << late.dump();
   EXPECT_GT(late["metrics"]["lateness_p99_s"].get<double>(), 0.1) << late.dump();
   bool named = false;
   for (const auto& reason : s["reasons"]) {

@@ -188,6 +188,75 @@ TEST(SoakWindow, ALateSpikeAfterALongQuietHistoryFailsItsPhase) {
   EXPECT_LE(r.minutes[8].lateness_p99_s, 200e-6 * kBinRatio);
 }
 
+// Two quiet phases of 60 s at 50 Hz; vehicle 1 overruns 3 ticks at 90 s, in the second.
+std::string WriteOverrunLog() {
+  const std::string path = Tmp("overruns.lcmlog");
+  LogWriter log(path);
+  run_status_t st;
+  st.utime = 0;
+  st.vehicle_id = kLauncherId;
+  st.state = "running";
+  st.scenario_name = "soak_window";
+  st.scenario_toml = kScenario;
+  st.followers = 2;
+  log.Write(channels::Status(), 0, st);
+  std::vector<Process> procs = {{0, {}}, {1, {}}, {2, {}}, {kEmulatorId, {}}};
+  for (int s = 1; s <= 120; ++s) {
+    for (Process& p : procs) {
+      for (int k = 0; k < 50; ++k) p.stats.Add(200e-6);
+      health2_t h = p.Report(s * 1000000LL);
+      h.overruns = (p.id == 1 && s >= 90) ? 3 : 0;  // since the process started
+      log.Write(channels::Health(p.id), s * 1000000LL, h);
+    }
+  }
+  return path;
+}
+
+TEST(SoakWindow, APhaseFailsOnMoreOverrunsThanItsTargetAllows) {
+  SoakInput in;
+  in.log = WriteOverrunLog();
+  in.phases = {{0.0, 60.0, "first"}, {60.0, 120.0, "second"}};
+  in.settle_s = 10.0;
+  in.engine = "realtime";
+  in.report = nlohmann::json::object();
+  auto judge = [&](long long overruns_max) {
+    in.targets.overruns_max = overruns_max;
+    SoakResult r;
+    std::string error;
+    EXPECT_TRUE(AnalyseSoak(in, &r, &error)) << error;
+    return r;
+  };
+  // The log holds no vehicle state, so a phase fails on re-convergence too: only the
+  // overrun reasons are judged here.
+  auto overran = [](const std::vector<std::string>& why) {
+    std::vector<std::string> out;
+    for (const std::string& w : why) {
+      if (w.find("overran") != std::string::npos) out.push_back(w);
+    }
+    return out;
+  };
+  for (long long allowed : {0LL, 2LL, 3LL}) {
+    const SoakResult r = judge(allowed);
+    ASSERT_EQ(r.phases.size(), 2u);
+    EXPECT_EQ(r.phases[0].metrics["overruns"].get<long long>(), 0);
+    EXPECT_EQ(r.phases[1].metrics["overruns"].get<long long>(), 3);
+    EXPECT_TRUE(overran(r.phases[0].why).empty()) << allowed;
+    const std::vector<std::string> second = overran(r.phases[1].why);
+    const std::string expected =
+        allowed == 0 ? "3 control ticks overran their period"
+                     : "3 control ticks overran their period (at most 2)";
+    if (allowed < 3) {
+      ASSERT_EQ(second.size(), 1u) << allowed;
+      EXPECT_EQ(second[0], expected);
+      EXPECT_TRUE(std::any_of(r.reasons.begin(), r.reasons.end(), [&](const std::string& s) {
+        return s == "phase 2 (second, 60-120 s): " + expected;
+      })) << ::testing::PrintToString(r.reasons);
+    } else {
+      EXPECT_TRUE(second.empty()) << ::testing::PrintToString(second);
+    }
+  }
+}
+
 TEST(SoakWindow, ReportsKeepTheirWindowAndADamagedHistogramIsRejected) {
   const std::string path = Tmp("damaged.lcmlog");
   {
