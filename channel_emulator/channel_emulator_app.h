@@ -126,6 +126,7 @@ class ChannelEmulatorApp {
   void ReleaseWindow();
   void PublishEvents();  // the decisions not yet published, on SHOAL_CHANNEL
   clock_window_t WindowClock() const;  // ticks [win_first_, win_last_], no deliveries listed
+  void SetWindowClock(clock_window_t* c) const;  // the same into *c, its vectors kept
   void PublishHealth(Micros utime);
   /// On the shared bus; `to_vehicles`: also on every vehicle bus (the processes hear it).
   void PublishStatus(RunState state, const std::string& message, bool to_vehicles = false);
@@ -187,6 +188,8 @@ class ChannelEmulatorApp {
     const Datagram* d;
   };
   std::vector<std::vector<Outgoing>> outbox_;  // lockstep window, per receiving vehicle
+  std::vector<std::size_t> next_delivery_;     // ReleaseWindow: each outbox's next entry
+  clock_window_t window_clock_;                // ReleaseWindow: a bus's clock message
   ChannelEventBatch events_;  // decided, not yet published
   std::int64_t events_since_ns_ = 0;  // real time: when the oldest unpublished one was added
 

@@ -488,7 +488,11 @@ TEST(Sil, ReceivePortTakenByAnotherProgramIsAClearError) {
 TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
   const int port = 31151;
   const std::string log = TmpPath("sil_bad.lcmlog"), out = TmpPath("sil_bad.out");
-  const pid_t pid = StartShoal("run " + kExample2 + " --insecure --duration 40 --out " + log +
+  // Long enough that the junk below (0.7 s of wall time from the first state) reaches a
+  // run still going: in lockstep 40 s of Example 2 take about half a second on one URL.
+  const int duration_s = 150;
+  const pid_t pid = StartShoal("run " + kExample2 + " --insecure --duration " +
+                                   std::to_string(duration_s) + " --out " + log +
                                    " --lcm-url '" + Url(port) + "'", out);
   lcm::LCM bus(Url(port));
   ASSERT_TRUE(bus.good());
@@ -582,9 +586,15 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+  // Every piece of junk was sent while the run went on: otherwise the counters below
+  // could not have seen it.
+  int early = 0;
+  ASSERT_EQ(waitpid(pid, &early, WNOHANG), 0)
+      << "the run ended before the junk was sent: lengthen it\n" << ReadFile(out);
   // The same exit status as shoal sim's of the same run (every process ran to the end).
   const std::string sim_log = TmpPath("sil_bad_sim.lcmlog");
-  const int sim_status = RunShoal("sim " + kExample2 + " --duration 40 --out " + sim_log,
+  const int sim_status = RunShoal("sim " + kExample2 + " --duration " +
+                                      std::to_string(duration_s) + " --out " + sim_log,
                                   "sil_bad_sim").status;
   EXPECT_EQ(WaitExit(pid, 120, nullptr), sim_status) << ReadFile(out);
   const auto cmp = RunShoal("compare " + log + " " + sim_log + " --allow-missing --json",
@@ -592,7 +602,7 @@ TEST(Sil, BadInputOnTheBusIsDroppedCountedAndNeverUsed) {
   EXPECT_EQ(cmp.status, 0) << cmp.out << cmp.err;
   const auto cj = ParseJson(cmp.out);
   EXPECT_EQ(cj["max_position_diff_m"].get<double>(), 0.0) << cmp.out;
-  EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * (40 * 50 + 1)) << cmp.out;
+  EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * (duration_s * 50 + 1)) << cmp.out;
   // The counters saw them.
   lcm::LogFile lf(log, "r");
   ASSERT_TRUE(lf.good());
