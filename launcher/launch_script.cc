@@ -230,8 +230,10 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
   o << kHelpers;
 }
 
-/// One `start` line: argv broken before each option.
-void WriteStart(const PlannedProcess& p, const std::string& nice, std::ostream& o) {
+/// One `start` line: argv broken before each option. The logger's log is the script's
+/// $log, so that editing the one `log=` line moves the whole run's output.
+void WriteStart(const PlannedProcess& p, const std::string& nice, const std::string& log,
+                std::ostream& o) {
   o << "start " << ShellWord(p.name) << " " << p.tag << " " << nice << " \\\n  ";
   std::vector<std::string> words = p.prefix;
   // Shoal's processes ask for SIGTERM when their parent dies; lcm-logger cannot, so even
@@ -242,7 +244,8 @@ void WriteStart(const PlannedProcess& p, const std::string& nice, std::ostream& 
   words.insert(words.end(), p.argv.begin(), p.argv.end());
   for (std::size_t i = 0; i < words.size(); ++i) {
     if (i > 0) o << (words[i].rfind("--", 0) == 0 ? " \\\n    " : " ");
-    o << ShellWord(words[i]);
+    o << (p.id == kLoggerId && i + 1 == words.size() && words[i] == log ? "\"$log\""
+                                                                         : ShellWord(words[i]));
   }
   o << "\n";
 }
@@ -257,7 +260,7 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
     << "# once it has subscribed).\n"
     << "logger_nice=0\nif [ \"$(id -u)\" = 0 ]; then logger_nice=-10; fi\n"
     << "rm -f -- \"$log\"\n";
-  WriteStart(logger, "$logger_nice", o);
+  WriteStart(logger, "$logger_nice", plan.log, o);
   o << "logger_pid=$started_pid\n"
     << "for ((i = 0; i < 250; i++)); do if [ -e \"$log\" ]; then break; fi; sleep 0.02; done\n"
     << "if [ ! -e \"$log\" ]; then\n"
@@ -292,7 +295,7 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
     } else {
       o << "# " << p.name << ": its state on the shared bus; its neighbours' via the emulator.\n";
     }
-    WriteStart(p, std::to_string(p.nice_inc), o);
+    WriteStart(p, std::to_string(p.nice_inc), plan.log, o);
     o << "run_pids+=(\"$started_pid\")\n";
     if (p.id == kEmulatorId) o << "emulator_pid=$started_pid\n";
   }

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <regex>
 #include <sstream>
@@ -240,6 +241,10 @@ TEST(LaunchScript, HoldsShoalRunsCommands) {
   EXPECT_EQ(count(" " + std::string(SHOAL_BINARY_DIR) + "/tools/../vehicle/shoal_vehicle \\\n"), 5)
       << s.text;  // by absolute path, as shoal run finds it
   EXPECT_EQ(count("/usr/bin/lcm-logger"), 1) << s.text;
+  // The log is named on the `log=` and `out_dir=` lines only; the logger records to $log.
+  EXPECT_EQ(count(log), 2) << s.text;
+  EXPECT_EQ(count("log=" + log + "\n"), 1) << s.text;
+  EXPECT_EQ(count("\n    -- \"$log\"\n"), 1) << s.text;
   // What a script cannot do is refused.
   const auto restart = RunShoal("run --print-launch " + kExample2 + " --restart on-failure",
                                 "ls_restart");
@@ -249,9 +254,27 @@ TEST(LaunchScript, HoldsShoalRunsCommands) {
 
 TEST(LaunchScript, LockstepScriptLogsWhatShoalRunLogs) {
   const std::string script_log = TmpPath("ls_script.lcmlog"), run_log = TmpPath("ls_run.lcmlog");
-  const Script s = Print(kExample2 + " --duration 10 --out " + script_log, "ls_lockstep");
+  const std::string printed_log = TmpPath("ls_printed.lcmlog");
+  Script s = Print(kExample2 + " --duration 10 --out " + printed_log, "ls_lockstep");
+  // A user who edits the one `log=` line moves the log, its key and the processes' output.
+  const std::string printed_line = "\nlog=" + printed_log + "\n";
+  const std::size_t at = s.text.find(printed_line);
+  ASSERT_NE(at, std::string::npos) << s.text;
+  s.text.replace(at, printed_line.size(), "\nlog=" + script_log + "\n");
+  const std::string out_line = "\nout_dir=" + printed_log + ".d ";
+  const std::size_t out_at = s.text.find(out_line);
+  ASSERT_NE(out_at, std::string::npos) << s.text;
+  s.text.replace(out_at, out_line.size(), "\nout_dir=" + script_log + ".d ");
+  {
+    std::ofstream f(s.path);
+    f << s.text;
+  }
+  std::remove(printed_log.c_str());
   const auto [status, err] = RunBash(s.path, "ls_lockstep");
   ASSERT_EQ(status, 0) << err << s.text;
+  EXPECT_FALSE(std::ifstream(printed_log).good()) << "the log went to the printed path";
+  EXPECT_TRUE(std::ifstream(script_log + ".key").good());
+  EXPECT_TRUE(std::ifstream(script_log + ".d/vehicle1.txt").good());
   const auto run = RunShoal("run " + kExample2 + " --duration 10 --json --out " + run_log,
                             "ls_lockstep_run");
   ASSERT_TRUE(ParseJson(run.out)["all_processes_ok"].get<bool>()) << run.out << run.err;
