@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Benchmark: the user-space cache lines a vehicle touches in one lockstep window, counted
+# exactly (valgrind lackey, bench/window_lines.cc), not timed: the same on any machine.
+# Runs a lockstep run of bench/scale_scenario.sh N from a script of shoal run
+# --print-launch, with vehicle 1 under valgrind --tool=lackey --trace-mem=yes (lockstep
+# waits for it), and counts, per call of its ClockedNode::HandleBus (one window), the
+# distinct 64-byte data lines, code lines and data pages. A window's lines must come back
+# from L3 or memory when the processes that ran on its CPU since its last turn have pushed
+# them out of that CPU's L2: the count times the followers per CPU, against the L2's size,
+# says when that begins. Kernel lines (socket, task, page tables) are not counted.
+# Usage: bench/window_footprint.sh [BUILD_DIR] [N] [DURATION_S]
+#   e.g. bench/window_footprint.sh build 16 10
+set -euo pipefail
+build=${1:-build}
+n=${2:-16}
+dur=${3:-10}
+here=$(cd "$(dirname "$0")" && pwd)
+shoal="$build/tools/shoal"
+vehicle="$build/vehicle/shoal_vehicle"
+counter="$build/bench/window_lines"
+for f in "$shoal" "$vehicle" "$counter"; do
+  [ -x "$f" ] || { echo "bench: $f not built" >&2; exit 2; }
+done
+command -v valgrind > /dev/null || { echo "bench: valgrind not installed" >&2; exit 2; }
+vehicle=$(cd "$(dirname "$vehicle")" && pwd)/$(basename "$vehicle")
+dir=$(mktemp -d)
+trap 'rm -rf "$dir"' EXIT
+
+# valgrind loads a position-independent program at 0x108000 (amd64): the window's mark is
+# HandleBus's entry there.
+offset=$(nm "$vehicle" | awk '/ _ZN5shoal11ClockedNode9HandleBusEi$/ {print $1}')
+[ -n "$offset" ] || { echo "bench: ClockedNode::HandleBus not found in $vehicle" >&2; exit 2; }
+mark=$(printf '%x' $((0x108000 + 0x$offset)))
+
+"$here/scale_scenario.sh" "$n" "$dur" > "$dir/scale.toml"
+"$shoal" run "$dir/scale.toml" --mode lockstep --duration "$dur" --out "$dir/run.lcmlog" \
+  --print-launch > "$dir/printed.sh"
+mkfifo "$dir/trace"
+awk -v vg="valgrind --tool=lackey --trace-mem=yes --log-file=$dir/trace " '
+  lead { sub(/^  /, "  " vg); lead = 0 }
+  /^start .vehicle 1. / { lead = 1 }
+  { print }' "$dir/printed.sh" > "$dir/run.sh"
+grep -q "tool=lackey" "$dir/run.sh" || { echo "bench: vehicle 1 not found in the script" >&2; exit 2; }
+
+echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'); $(valgrind --version)"
+echo "command: $shoal run (scale_scenario.sh $n $dur) --mode lockstep --print-launch, vehicle 1 under lackey"
+"$counter" "$mark" 20 < "$dir/trace" > "$dir/windows.txt" 2> "$dir/summary.txt" &
+counter_pid=$!
+status=0
+bash "$dir/run.sh" > "$dir/run.out" 2>&1 || status=$?
+wait "$counter_pid" || { cat "$dir/summary.txt" >&2; exit 1; }
+[ "$status" = 0 ] || { echo "bench: the run failed ($status):" >&2; tail -5 "$dir/run.out" >&2; exit 1; }
+echo "followers $n: $(cat "$dir/summary.txt")"

@@ -1,0 +1,69 @@
+// Counts the distinct 64-byte cache lines one process touches between two executions of
+// one instruction, from a valgrind lackey trace (--trace-mem=yes) on stdin: with the
+// instruction at the entry of a vehicle's ClockedNode::HandleBus, the user-space data and
+// code lines of each lockstep window. These are what the window must fetch again when a
+// hundred other processes have run on its CPU since its last turn and its lines have left
+// that CPU's L2; the count does not depend on the machine or on what else runs.
+// Usage: window_lines MARK_HEX [SKIP] < trace
+//   prints one row per window: window, data lines, code lines, data pages
+//   (SKIP first windows, default 20: the start-up's), then the medians on stderr.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <unordered_set>
+#include <vector>
+
+namespace {
+std::size_t Median(std::vector<std::size_t> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: window_lines MARK_HEX [SKIP] < lackey-trace\n");
+    return 2;
+  }
+  const unsigned long mark = std::strtoul(argv[1], nullptr, 16);
+  const long skip = argc > 2 ? std::atol(argv[2]) : 20;
+  std::unordered_set<unsigned long> data, code, pages;
+  std::vector<std::size_t> data_n, code_n, pages_n;
+  char line[256];
+  long window = -1;
+  while (std::fgets(line, sizeof line, stdin) != nullptr) {
+    char* end = nullptr;
+    if (line[0] == 'I' && line[1] == ' ') {
+      const unsigned long ip = std::strtoul(line + 3, &end, 16);
+      if (ip == mark) {
+        if (window >= skip) {
+          std::printf("%ld %zu %zu %zu\n", window, data.size(), code.size(), pages.size());
+          data_n.push_back(data.size());
+          code_n.push_back(code.size());
+          pages_n.push_back(pages.size());
+        }
+        ++window;
+        data.clear();
+        code.clear();
+        pages.clear();
+      }
+      code.insert(ip >> 6);
+    } else if (line[0] == ' ' && (line[1] == 'L' || line[1] == 'S' || line[1] == 'M')) {
+      const unsigned long a = std::strtoul(line + 3, &end, 16);
+      const long size = end != nullptr && *end == ',' ? std::strtol(end + 1, nullptr, 10) : 1;
+      for (unsigned long l = a >> 6; l <= (a + static_cast<unsigned long>(size) - 1) >> 6; ++l) {
+        data.insert(l);
+        pages.insert(l >> 6);
+      }
+    }
+  }
+  if (data_n.empty()) {
+    std::fprintf(stderr, "window_lines: no window: instruction %lx was executed %ld time(s)\n",
+                 mark, window + 1);
+    return 1;
+  }
+  std::fprintf(stderr, "windows %zu  median per window: data lines %zu, code lines %zu, data pages %zu\n",
+               data_n.size(), Median(data_n), Median(code_n), Median(pages_n));
+  return 0;
+}
