@@ -26,11 +26,13 @@ vehicle=$(cd "$(dirname "$vehicle")" && pwd)/$(basename "$vehicle")
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 
-# valgrind loads a position-independent program at 0x108000 (amd64): the window's mark is
-# HandleBus's entry there.
+# valgrind loads a position-independent program at 0x108000 (amd64), any other where it
+# was linked: the window's mark is HandleBus's entry there.
 offset=$(nm "$vehicle" | awk '/ _ZN5shoal11ClockedNode9HandleBusEi$/ {print $1}')
 [ -n "$offset" ] || { echo "bench: ClockedNode::HandleBus not found in $vehicle" >&2; exit 2; }
-mark=$(printf '%x' $((0x108000 + 0x$offset)))
+base=0
+if readelf -h "$vehicle" | grep -q 'Type:.*DYN'; then base=0x108000; fi
+mark=$(printf '%x' $((base + 0x$offset)))
 
 "$here/scale_scenario.sh" "$n" "$dur" > "$dir/scale.toml"
 "$shoal" run "$dir/scale.toml" --mode lockstep --duration "$dur" --out "$dir/run.lcmlog" \
