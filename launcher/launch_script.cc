@@ -128,7 +128,7 @@ for pid in "${run_pids[@]}"; do
     status=1
   fi
 done
-echo "$0: the run ended ($([ $status = 0 ] && echo "every process ran to the end" || echo "FAILED")); log: $log (shoal analyze $log)" >&2
+echo "$0: the run ended ($([ $status = 0 ] && echo "every process ran to the end" || echo "FAILED")); log: $log (shoal analyze $(printf %q "$log"))" >&2
 exit $status
 )sh";
 
