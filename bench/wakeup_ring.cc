@@ -8,12 +8,16 @@
 // (a page walk each, after every switch on a CPU without PCID) rather than cache misses;
 // 2097152 touches one line in each of TOUCH_KB / 2048 pages that lie 2 MiB apart, each
 // with a page-table page of its own, as the pages of a process's code, libraries, heap
-// and stack lie apart.
+// and stack lie apart. STRIDE "chase" reads every line of TOUCH_KB in a random order, each
+// read's address taken from the line before (as a process follows its pointers from one
+// heap structure to the next), so that no prefetcher can fetch a line ahead: a vehicle's
+// window, whose lines lie scattered over its heap, against the same lines read in order.
 // Prints, per N, the CPU time (user + system of all N) per hop and the wall time per hop,
 // medians over `rounds` measurements.
-// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE],
+// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB],
 //   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096;
-//   wakeup_ring "8 131" 100000 204800 3 2097152 (100 pages 2 MiB apart)
+//   wakeup_ring "8 131" 100000 204800 3 2097152 (100 pages 2 MiB apart);
+//   wakeup_ring "8 131" 100000 21 5 chase (336 lines in a random order)
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -46,15 +50,67 @@ Memory Zeroed(std::size_t bytes) {
   return Memory(p, &std::free);
 }
 
+// SHARED_KB: memory every process of the ring reads, one byte per line, on every turn, as
+// every vehicle runs the same code (its pages shared): allocated and written before the
+// ring forks, so its pages are the same physical pages in every process.
+const unsigned char* g_shared = nullptr;
+std::size_t g_shared_bytes = 0;
+unsigned g_sink = 0;
+
+void ReadShared() {
+  unsigned sum = 0;
+  for (std::size_t k = 0; k < g_shared_bytes; k += 64) sum += g_shared[k];
+  g_sink += sum;
+}
+
+constexpr std::size_t kChase = 0;  // STRIDE "chase"
+constexpr std::size_t kLine = 64;
+
+// A process's memory and what it touches of it per turn.
+class Working {
+ public:
+  Working(std::size_t touch, std::size_t stride)
+      : mem_(Zeroed(touch)), touch_(touch), stride_(stride) {
+    if (stride_ != kChase || touch_ < kLine) return;
+    // Each line holds the offset of the next in one random cycle through all of them.
+    std::vector<std::size_t> order(touch_ / kLine);
+    for (std::size_t k = 0; k < order.size(); ++k) order[k] = k * kLine;
+    std::srand(static_cast<unsigned>(getpid()));
+    for (std::size_t k = order.size() - 1; k > 0; --k) {
+      std::swap(order[k], order[static_cast<std::size_t>(std::rand()) % (k + 1)]);
+    }
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      const std::size_t next = order[(k + 1) % order.size()];
+      std::memcpy(&mem_[order[k]], &next, sizeof(next));
+    }
+  }
+  void Turn() {
+    if (stride_ != kChase) {
+      for (std::size_t k = 0; k < touch_; k += stride_)
+        mem_[k] = static_cast<unsigned char>(mem_[k] + 1);
+      return;
+    }
+    std::size_t at = 0;
+    for (std::size_t k = 0; k < touch_ / kLine; ++k) {
+      mem_[at + sizeof(at)] = static_cast<unsigned char>(mem_[at + sizeof(at)] + 1);
+      std::memcpy(&at, &mem_[at], sizeof(at));
+    }
+  }
+
+ private:
+  Memory mem_;
+  std::size_t touch_, stride_;
+};
+
 // One process of the ring: reads the token from `in`, touches its memory, passes it on,
 // until the token says stop (a negative count).
 [[noreturn]] void Member(int in, int out, std::size_t touch, std::size_t stride) {
-  const Memory mine = Zeroed(touch);
+  Working mine(touch, stride);
   long token = 0;
   for (;;) {
     if (read(in, &token, sizeof(token)) != sizeof(token)) _exit(1);
-    for (std::size_t k = 0; k < touch; k += stride)
-      mine[k] = static_cast<unsigned char>(mine[k] + 1);
+    mine.Turn();
+    ReadShared();
     if (token < 0) {
       (void)!write(out, &token, sizeof(token));
       _exit(0);
@@ -90,14 +146,14 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
   rusage self0{};
   getrusage(RUSAGE_SELF, &self0);
   const auto t0 = std::chrono::steady_clock::now();
-  const Memory mine = Zeroed(touch);
+  Working mine(touch, stride);
   long token = 0;
   const int out = wr[static_cast<std::size_t>(1 % n)], in = rd[0];
   for (long h = 0; h < hops; h += n) {
     if (write(out, &token, sizeof(token)) != sizeof(token)) std::exit(2);
     if (read(in, &token, sizeof(token)) != sizeof(token)) std::exit(2);
-    for (std::size_t k = 0; k < touch; k += stride)
-      mine[k] = static_cast<unsigned char>(mine[k] + 1);
+    mine.Turn();
+    ReadShared();
   }
   const auto t1 = std::chrono::steady_clock::now();
   rusage self1{};
@@ -126,9 +182,11 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
 int main(int argc, char** argv) {
   if (argc > 1 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
     std::printf(
-        "usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE]\n"
+        "usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB]\n"
         "  e.g. wakeup_ring \"2 8 32 64 128\" 200000 16 5\n"
-        "  STRIDE: bytes between touched bytes (64: every cache line, 4096: one line a page)\n");
+        "  STRIDE: bytes between touched bytes (64: every cache line, 4096: one line a page),\n"
+        "  or chase: every line of TOUCH_KB in a random order, each address read from the last\n"
+        "  SHARED_KB: memory all processes share and read a line of each turn (as their code)\n");
     return 0;
   }
   std::vector<int> ns;
@@ -143,11 +201,20 @@ int main(int argc, char** argv) {
   const long hops = argc > 2 ? std::atol(argv[2]) : 200000;
   const std::size_t touch = static_cast<std::size_t>(argc > 3 ? std::atol(argv[3]) : 16) * 1024;
   const int rounds = argc > 4 ? std::atoi(argv[4]) : 5;
-  const long stride = argc > 5 ? std::atol(argv[5]) : 64;
-  if (hops < 1 || rounds < 1 || stride < 1) {
-    std::fprintf(stderr, "wakeup_ring: HOPS, ROUNDS and STRIDE must be positive\n");
+  const bool chase = argc > 5 && std::strcmp(argv[5], "chase") == 0;
+  const long stride = chase ? 0 : argc > 5 ? std::atol(argv[5]) : 64;
+  if (hops < 1 || rounds < 1 || (stride < 1 && !chase)) {
+    std::fprintf(stderr, "wakeup_ring: HOPS, ROUNDS and STRIDE must be positive (or STRIDE chase)\n");
     return 2;
   }
+  const long shared_kb = argc > 6 ? std::atol(argv[6]) : 0;
+  if (shared_kb < 0) {
+    std::fprintf(stderr, "wakeup_ring: SHARED_KB must not be negative\n");
+    return 2;
+  }
+  g_shared_bytes = static_cast<std::size_t>(shared_kb) * 1024;
+  std::vector<unsigned char> shared(g_shared_bytes, 1);
+  g_shared = shared.data();
   std::printf("processes,cpu_us_per_hop,wall_us_per_hop\n");
   for (int n : ns) {
     std::vector<double> cpu, wall;
