@@ -83,6 +83,32 @@ TEST(RenderCli, EveryFigureOfASimLogAtTheRequestedSizeAndNotBlank) {
   EXPECT_TRUE(Load(dir + "/trajectory.png").has_colour(render::VehicleColor(0)));
 }
 
+// Loading libOSMesa (and llvmpipe's LLVM) costs about 20 ms at every start of a program that
+// links it, paid by every point of a campaign. shoal loads it when it first draws: the
+// dynamic loader's trace of `shoal sim` must not name it, that of `shoal render` must.
+TEST(RenderCli, OnlyCommandsThatDrawLoadOsMesa) {
+  const std::string log = TmpPath("render_load.lcmlog");
+  const std::string dir = TmpPath("render_load_figures");
+  const std::string sim_trace = TmpPath("render_load_sim.ld");
+  const std::string render_trace = TmpPath("render_load_render.ld");
+  std::filesystem::remove_all(dir);
+  // The loader writes its trace to stderr; the commands print nothing there when they work.
+  const auto traced = [](const std::string& args, const std::string& trace) {
+    const std::string cmd = "LD_DEBUG=files " + shoal::testing::ShoalBinary() + " " + args +
+                            " >/dev/null 2>" + trace + " </dev/null";
+    return std::system(cmd.c_str());
+  };
+  ASSERT_EQ(traced("sim " + SourcePath("scenarios/paper_example2.toml") +
+                       " --duration 60 --quiet --out " + log, sim_trace), 0);
+  ASSERT_EQ(traced("render " + log + " --out " + dir + " --size 400x300", render_trace), 0);
+  const std::string sim = shoal::testing::ReadFile(sim_trace);
+  const std::string render = shoal::testing::ReadFile(render_trace);
+  EXPECT_NE(sim.find("libstdc++"), std::string::npos) << "no loader trace: " << sim;
+  EXPECT_EQ(sim.find("libOSMesa"), std::string::npos) << sim;
+  EXPECT_NE(render.find("libOSMesa"), std::string::npos) << render;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/trajectory.png"));
+}
+
 std::string Bytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::stringstream ss;

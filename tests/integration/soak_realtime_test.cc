@@ -87,32 +87,33 @@ TEST(SoakRealtime, AShortSoakPassesWithEveryRealTimePartOfItsVerdict) {
   EXPECT_EQ(r.status, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("verdict PASS"), std::string::npos) << r.out;
   const ojson soak = ParseJson(ReadFile(dir + "/out/soak.json"));
-  EXPECT_EQ(soak["verdict"], "pass") << soak["reasons"].dump();
+  ASSERT_TRUE(soak.contains("verdict") && soak.contains("phases")) << r.out << r.err;
+  EXPECT_EQ(soak.at("verdict"), "pass") << soak.at("reasons").dump();
   // One minute row: 30 s of ticks and the final one, every vehicle; the soak's 30 s, not
   // the scenario's 600 s.
-  ASSERT_EQ(soak["minutes"].size(), 1u);
-  const ojson& m = soak["minutes"][0];
-  EXPECT_EQ(m["states_expected"].get<long long>(), kVehicles * (30 * kRateHz + 1));
-  EXPECT_EQ(m["states"].get<long long>(), m["states_expected"].get<long long>());
-  EXPECT_GT(m["lateness_p99_s"].get<double>(), 0.0);
-  EXPECT_GT(m["release_error_p99_s"].get<double>(), 0.0);
-  EXPECT_EQ(m["processes"].size(), 5u);  // 2 vehicles, leader, emulator, logger
-  ASSERT_EQ(soak["phases"].size(), 3u);
+  ASSERT_EQ(soak.at("minutes").size(), 1u);
+  const ojson& m = soak.at("minutes").at(0);
+  EXPECT_EQ(m.at("states_expected").get<long long>(), kVehicles * (30 * kRateHz + 1));
+  EXPECT_EQ(m.at("states").get<long long>(), m.at("states_expected").get<long long>());
+  EXPECT_GT(m.at("lateness_p99_s").get<double>(), 0.0);
+  EXPECT_GT(m.at("release_error_p99_s").get<double>(), 0.0);
+  EXPECT_EQ(m.at("processes").size(), 5u);  // 2 vehicles, leader, emulator, logger
+  ASSERT_EQ(soak.at("phases").size(), 3u);
   long long states = 0;
-  for (const auto& p : soak["phases"]) {
-    const ojson& pm = p["metrics"];
-    EXPECT_TRUE(p["pass"].get<bool>()) << p.dump();
-    EXPECT_GT(pm["lateness_p99_s"].get<double>(), 0.0) << p.dump();
-    EXPECT_LE(pm["lateness_p99_s"].get<double>(), 0.02) << p.dump();
-    EXPECT_GT(pm["release_error_p99_s"].get<double>(), 0.0) << p.dump();
-    EXPECT_LE(pm["release_error_p99_s"].get<double>(), 0.02) << p.dump();
-    EXPECT_LE(pm["overruns"].get<long long>(), 5) << p.dump();
-    EXPECT_EQ(pm["states"].get<long long>(), pm["states_expected"].get<long long>());
-    states += pm["states"].get<long long>();
+  for (const auto& p : soak.at("phases")) {
+    const ojson& pm = p.at("metrics");
+    EXPECT_TRUE(p.at("pass").get<bool>()) << p.dump();
+    EXPECT_GT(pm.at("lateness_p99_s").get<double>(), 0.0) << p.dump();
+    EXPECT_LE(pm.at("lateness_p99_s").get<double>(), 0.02) << p.dump();
+    EXPECT_GT(pm.at("release_error_p99_s").get<double>(), 0.0) << p.dump();
+    EXPECT_LE(pm.at("release_error_p99_s").get<double>(), 0.02) << p.dump();
+    EXPECT_LE(pm.at("overruns").get<long long>(), 5) << p.dump();
+    EXPECT_EQ(pm.at("states").get<long long>(), pm.at("states_expected").get<long long>());
+    states += pm.at("states").get<long long>();
   }
   EXPECT_EQ(states, kVehicles * (30 * kRateHz + 1));
-  EXPECT_EQ(soak["run"]["mode"], "realtime");
-  EXPECT_EQ(soak["processes"].size(), 5u);  // every process's memory judged
+  EXPECT_EQ(soak.at("run").at("mode"), "realtime");
+  EXPECT_EQ(soak.at("processes").size(), 5u);  // every process's memory judged
 }
 
 /// The pid of `process` ("vehicle 2") in a run's resources.csv, or -1.
@@ -180,28 +181,29 @@ TEST(SoakRealtime, ALoopHeldInTheLastPhaseFailsThatPhaseOnly) {
   EXPECT_TRUE(HoldThread(victim, 1.0, &error)) << error;
   EXPECT_EQ(WaitExit(soak, 60, nullptr), 1) << ReadFile(out);
   const ojson s = ParseJson(ReadFile(dir + "/out/soak.json"));
-  EXPECT_EQ(s["verdict"], "fail");
-  ASSERT_EQ(s["phases"].size(), 3u);
+  ASSERT_TRUE(s.contains("verdict") && s.contains("phases")) << ReadFile(out);
+  EXPECT_EQ(s.at("verdict"), "fail");
+  ASSERT_EQ(s.at("phases").size(), 3u);
   for (int k : {0, 1}) {
-    const ojson& p = s["phases"][k];
-    EXPECT_FALSE(Mentions(p["why"], "loop lateness")) << p.dump();
-    EXPECT_LE(p["metrics"]["lateness_p99_s"].get<double>(), 0.02) << p.dump();
+    const ojson& p = s.at("phases").at(k);
+    EXPECT_FALSE(Mentions(p.at("why"), "loop lateness")) << p.dump();
+    EXPECT_LE(p.at("metrics").at("lateness_p99_s").get<double>(), 0.02) << p.dump();
   }
   // 20 ticks of vehicle 2 run late by up to a second: more than 1 % of the phase's
   // 7 s x 20 Hz x 3 loops (420), so its p99 is one of them.
-  const ojson& late = s["phases"][2];
-  EXPECT_FALSE(late["pass"].get<bool>());
-  EXPECT_TRUE(Mentions(late["why"], "loop lateness p99")) << late.dump();
-  EXPECT_TRUE(Mentions(late["why"], "control ticks overran their period (at most 5)"))
+  const ojson& late = s.at("phases").at(2);
+  EXPECT_FALSE(late.at("pass").get<bool>());
+  EXPECT_TRUE(Mentions(late.at("why"), "loop lateness p99")) << late.dump();
+  EXPECT_TRUE(Mentions(late.at("why"), "control ticks overran their period (at most 5)"))
       << late.dump();
-  EXPECT_GT(late["metrics"]["lateness_p99_s"].get<double>(), 0.1) << late.dump();
+  EXPECT_GT(late.at("metrics").at("lateness_p99_s").get<double>(), 0.1) << late.dump();
   bool named = false;
-  for (const auto& reason : s["reasons"]) {
+  for (const auto& reason : s.at("reasons")) {
     const std::string text = reason.get<std::string>();
     named = named || (text.rfind("phase 3 (channel.delay.base_s = 0.1, 14-21 s)", 0) == 0 &&
                       text.find("loop lateness p99") != std::string::npos);
   }
-  EXPECT_TRUE(named) << s["reasons"].dump();
+  EXPECT_TRUE(named) << s.at("reasons").dump();
 }
 
 }  // namespace
