@@ -26,8 +26,17 @@ struct StateMsg {
 
   /// True if every numeric field is finite (NaN/Inf never reach the control law).
   bool AllFinite() const {
-    return eta.allFinite() && nu.allFinite() && eta_dot.allFinite() && accel_cmd.allFinite() &&
-           tau.allFinite();
+    // x * 0 is +-0 for a finite x and NaN for +-Inf and NaN, and NaN survives every sum:
+    // one comparison for the 25 numbers of every message a follower receives, where
+    // Eigen's allFinite() tests each vector with a branch and costs twice the instructions.
+    return ZeroIfFinite(eta) + ZeroIfFinite(nu) + ZeroIfFinite(eta_dot) +
+               ZeroIfFinite(accel_cmd) + ZeroIfFinite(tau) ==
+           0.0;
+  }
+
+ private:
+  static double ZeroIfFinite(const Vec5& v) {
+    return (v(0) * 0.0 + v(1) * 0.0) + (v(2) * 0.0 + v(3) * 0.0) + v(4) * 0.0;
   }
 };
 

@@ -75,6 +75,35 @@ TEST(Follower, RejectsBadInputAndCountsIt) {
   EXPECT_EQ(f.counters().msgs_dropped_invalid, 5);
 }
 
+// Every one of a message's 25 numbers, each non-finite value, and the extreme finite ones.
+TEST(StateMsg, AllFiniteFindsANonFiniteValueInAnyField) {
+  const double kNonFinite[] = {std::numeric_limits<double>::quiet_NaN(),
+                               -std::numeric_limits<double>::quiet_NaN(),
+                               std::numeric_limits<double>::signaling_NaN(),
+                               std::numeric_limits<double>::infinity(),
+                               -std::numeric_limits<double>::infinity()};
+  const double kFinite[] = {std::numeric_limits<double>::max(),
+                            -std::numeric_limits<double>::max(),
+                            std::numeric_limits<double>::denorm_min(), -0.0, 1e300, -1.5};
+  for (int field = 0; field < 5; ++field) {
+    for (int i = 0; i < 5; ++i) {
+      const auto with = [&](double x) {
+        StateMsg m;
+        Vec5* vectors[] = {&m.eta, &m.nu, &m.eta_dot, &m.accel_cmd, &m.tau};
+        for (Vec5* v : vectors) v->setConstant(std::numeric_limits<double>::max());
+        (*vectors[field])(i) = x;
+        return m;
+      };
+      for (const double x : kNonFinite) {
+        EXPECT_FALSE(with(x).AllFinite()) << "field " << field << " index " << i << " " << x;
+      }
+      for (const double x : kFinite) {
+        EXPECT_TRUE(with(x).AllFinite()) << "field " << field << " index " << i << " " << x;
+      }
+    }
+  }
+}
+
 TEST(Follower, NoNeighbourDataMeansZeroCommand) {
   const Scenario s = TwoFollowers();
   const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);
