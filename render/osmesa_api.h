@@ -38,7 +38,8 @@ struct OsMesaApi {
 #undef SHOAL_OSMESA_POINTER
 };
 
-/// The library's file name, as the dynamic loader looks it up (its SONAME).
+/// The library loaded: SHOAL_OSMESA_LIBRARY if set (a path, or a name the dynamic loader
+/// looks up), else the SONAME of the libOSMesa the program was built against.
 const char* OsMesaLibraryName();
 
 /// Loads libOSMesa and every function above, once per process (thread-safe); the library

@@ -1,5 +1,7 @@
 // `shoal render` as a user runs it: every figure of a shoal sim log at the requested size,
 // not blank, in the vehicles' colours; bad input exits 2 with a message.
+#include <sys/wait.h>
+
 #include <gtest/gtest.h>
 #include <stb_image.h>
 
@@ -107,6 +109,38 @@ TEST(RenderCli, OnlyCommandsThatDrawLoadOsMesa) {
   EXPECT_EQ(sim.find("libOSMesa"), std::string::npos) << sim;
   EXPECT_NE(render.find("libOSMesa"), std::string::npos) << render;
   EXPECT_TRUE(std::filesystem::exists(dir + "/trajectory.png"));
+}
+
+// A machine without libOSMesa, or SHOAL_OSMESA_LIBRARY naming something else: every figure
+// fails with what to install, exit 1, and nothing else is lost (the log is only read).
+TEST(RenderCli, AMissingOrWrongOsMesaIsAClearError) {
+  const std::string log = TmpPath("render_noosmesa.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +
+                         " --duration 60 --quiet --out " + log, "rn_sim").status, 0);
+  const std::string before = shoal::testing::ReadFile(log);
+  struct Case {
+    std::string library, expected;
+  };
+  const Case cases[] = {
+      {"/nonexistent/libOSMesa.so.8",
+       "cannot load /nonexistent/libOSMesa.so.8 for off-screen figures (install libosmesa6"},
+      {"libz.so.1", "libz.so.1 has no OSMesaCreateContextAttribs"},
+  };
+  for (const Case& c : cases) {
+    const std::string dir = TmpPath("render_noosmesa_figures");
+    const std::string err = TmpPath("render_noosmesa.err");
+    std::filesystem::remove_all(dir);
+    const std::string cmd = "SHOAL_OSMESA_LIBRARY=" + c.library + " " +
+                            shoal::testing::ShoalBinary() + " render " + log + " --out " + dir +
+                            " >/dev/null 2>" + err + " </dev/null";
+    const int raw = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(raw)) << c.library;
+    EXPECT_EQ(WEXITSTATUS(raw), 1) << c.library;
+    const std::string text = shoal::testing::ReadFile(err);
+    EXPECT_NE(text.find(c.expected), std::string::npos) << text;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/trajectory.png")) << c.library;
+  }
+  EXPECT_EQ(shoal::testing::ReadFile(log), before);
 }
 
 std::string Bytes(const std::string& path) {
