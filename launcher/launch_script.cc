@@ -272,9 +272,17 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
       << "# processes sent before then would never reach it.\n";
     std::string name = "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME;
     name.replace(name.find("%ld"), 3, "$logger_pid");
-    o << "for ((i = 0; i < 500; i++)); do\n"
+    o << "for ((i = 0; i < 1500; i++)); do\n"
       << "  if [ -e \"" << name << "\" ]; then break; fi; sleep 0.02\n"
-      << "done\n";
+      << "done\n"
+      << "if [ ! -e \"" << name << "\" ]; then\n"
+      << "  echo \"$0: warning: lcm-logger had not subscribed after 30 s: what the run\" \\\n"
+      << "       \"sends before it does is not in the log\" >&2\n";
+    if (plan.mode == Mode::kRealtime) {
+      o << "else\n"
+        << "  rm -f -- \"" << name << "\"  # read by no one in real time\n";
+    }
+    o << "fi\n";
   }
   if (!plan.insecure) o << "export " << bus_auth::kKeyEnv << "\n";
   o << "# Tick 0 on the wall clock, 4 s from now (ns since 1970).\n"

@@ -444,6 +444,8 @@ class Launch {
   static void CloseStdin(Child& c);
   /// Whether the emulator can watch the logger's pid (--recorder-pid).
   bool RecorderVisible() const;
+  /// Whether the logger's pid and /dev/shm are this process's (it runs on this host).
+  bool LoggerVisible() const;
   /// `url`: where the process publishes (empty: the run's bus).
   std::vector<std::string> ProcessArgs(const std::string& exe,
                                        const std::vector<std::string>& more,
@@ -452,6 +454,8 @@ class Launch {
   /// Returns true if all did.
   bool WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit);
   void Stop(bool logger, std::chrono::milliseconds grace);
+  /// Until the logger has subscribed (its progress count's name exists), or 30 s.
+  void WaitForSubscription(pid_t logger_pid);
   double WallSeconds(std::chrono::steady_clock::time_point wall0) const;
   /// When a fault is seen: mission time and wall time, as the report says it.
   std::string When();
@@ -646,6 +650,12 @@ bool Launch::RecorderVisible() const {
          logger->second.same_process && emulator->second.same_process;
 }
 
+bool Launch::LoggerVisible() const {
+  if (!opt_.hosts) return true;
+  const auto logger = host_checks_.find(HostFor(kLoggerId)->name);
+  return logger != host_checks_.end() && logger->second.same_process;
+}
+
 const Host* Launch::HostFor(int id) const {
   if (!opt_.hosts) return nullptr;
   if (id == kLoggerId) return &opt_.hosts->HostOf(HostRole::kLogger);
@@ -762,8 +772,9 @@ void Launch::BuildPlan() {
     logger.env = {"LD_PRELOAD=" + logger_queue_shim_ +
                   (before != nullptr && *before != '\0' ? std::string(":") + before : "")};
     // It counts what it has handled, for the clock master, which is then the only sender
-    // on its bus (channel_emulator/recorder_gate.h: RecorderProgress).
-    if (mode_ == Mode::kLockstep && !uplink_url_.empty() && RecorderVisible()) {
+    // on its bus (channel_emulator/recorder_gate.h: RecorderProgress). In real time nothing
+    // reads the count: its name says when the logger has subscribed (StartAll).
+    if (mode_ == Mode::kLockstep ? !uplink_url_.empty() && RecorderVisible() : LoggerVisible()) {
       logger.env.push_back("SHOAL_LOGGER_PROGRESS=1");
     }
     // Lockstep: its wake-ups do not preempt the clock master finishing a window.
@@ -846,6 +857,41 @@ void Launch::PlanNodes() {
   }
 }
 
+/// False once `pid` has exited (a zombie until shoal run reaps it, which kill(pid, 0) does
+/// not tell).
+bool Running(pid_t pid) {
+  char path[64];
+  std::snprintf(path, sizeof(path), "/proc/%ld/stat", static_cast<long>(pid));
+  std::FILE* f = std::fopen(path, "r");
+  if (f == nullptr) return false;
+  char buf[512] = {};
+  const std::size_t n = std::fread(buf, 1, sizeof(buf) - 1, f);
+  std::fclose(f);
+  const char* paren = std::strrchr(buf, ')');  // the name may hold spaces and parentheses
+  return n > 0 && paren != nullptr && paren[1] == ' ' && paren[2] != 'Z' && paren[2] != 'X';
+}
+
+void Launch::WaitForSubscription(pid_t logger_pid) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME,
+                static_cast<long>(logger_pid));
+  constexpr int kLimitS = 30;
+  const auto start = std::chrono::steady_clock::now();
+  while (access(name, F_OK) != 0) {
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(kLimitS) ||
+        !Running(logger_pid) || StopSignals::Requested()) {
+      std::fprintf(stderr,
+                   "shoal run: warning: lcm-logger had not subscribed %d s after it started: "
+                   "what the run sends before it does is not in the log\n", kLimitS);
+      return;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  // In lockstep the clock master takes the name over and removes it; in real time no one
+  // reads the count, and the name would outlive the run.
+  if (mode_ == Mode::kRealtime) unlink(name);
+}
+
 void Launch::StartAll() {
   const LogFileBefore before(r_->log);
   Start(plan_.processes.front(), {});  // lcm-logger
@@ -853,18 +899,14 @@ void Launch::StartAll() {
   for (int i = 0; i < 100 && !before.OpenedAnew(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  // lcm-logger creates its log before it subscribes: what the run sent it in between (the
-  // processes' ready statuses) would never reach it, and the clock master would wait for
-  // it. Counting, it makes its count's name once subscribed (runtime/lcm_queue_shim.c).
+  // lcm-logger creates its log before it subscribes: what the run sent it in between would
+  // never reach it: in lockstep the processes' ready statuses, for which the clock master
+  // would then wait; in real time the emulator's first status, the one with the scenario's
+  // text. Counting, it makes its count's name once subscribed (runtime/lcm_queue_shim.c).
   const auto& env = plan_.processes.front().env;
   if (logger_pid > 0 &&
       std::find(env.begin(), env.end(), "SHOAL_LOGGER_PROGRESS=1") != env.end()) {
-    char name[64];
-    std::snprintf(name, sizeof(name), "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME,
-                  static_cast<long>(logger_pid));
-    for (int i = 0; i < 500 && access(name, F_OK) != 0; ++i) {  // 10 s at most
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
+    WaitForSubscription(logger_pid);
   }
   // Real time: a start margin, longer by the logins the starts wait for (--hosts). On the
   // wall clock, it is converted to the monotonic clock as each process does (process.h).

@@ -150,6 +150,13 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     if (r.launch.mode == ModeName(Mode::kLockstep)) {
       clock_ticks = ClockTicks(run);
     }
+    // The emulator's first status carries it; without it shoal analyze, render and soak
+    // cannot judge the formation from the log alone.
+    if (run.scenario_text.empty()) {
+      r.log_problems.push_back(
+          "the log holds no scenario text (the channel emulator's first status): "
+          "shoal analyze and shoal render need --scenario FILE");
+    }
   }
   if (!r.launch.logger_exited_early.empty()) {
     char text[64];

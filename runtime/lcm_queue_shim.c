@@ -270,13 +270,20 @@ lcm_subscription_t *lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handl
     if (t == NULL) return real(lcm, channel, handler, userdata);
     t->handler = handler;
     t->user = userdata;
+    /* The first subscription to a UDP multicast bus joins the group and then runs LCM's
+       self test, which subscribes to LCM_SELF_TEST from inside this call and, until its
+       own message comes back, discards every other message received. The logger has
+       subscribed, for what the run sends, only once the outermost call returns. */
+    static __thread int depth = 0;
+    ++depth;
     lcm_subscription_t *s = real(lcm, channel, Unbundle, t);
+    --depth;
     if (s == NULL) {
         free(t);
         return NULL;
     }
     static int locked = 0;
-    if (!locked) {
+    if (!locked && depth == 0) {
         locked = 1;
         ShareProgress();
         if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {

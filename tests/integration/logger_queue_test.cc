@@ -198,5 +198,28 @@ TEST(LoggerQueue, ALoggerSlowToSubscribeStillRecordsTheWholeRunWithoutWaits) {
   EXPECT_LT(std::stoi(emulator.substr(from, at - from)), 5) << emulator;
 }
 
+// Real time has no ready handshake: the channel emulator sends its first status, the one
+// that carries the scenario's text, as soon as it starts. A logger subscribing after that
+// left a log that no analysis could judge ("the log holds no scenario"). shoal run starts
+// the processes once the logger has subscribed, in real time as in lockstep.
+TEST(LoggerQueue, ALoggerSlowToSubscribeInRealTimeStillRecordsTheScenario) {
+  const std::string lib = std::string(SHOAL_BINARY_DIR) + "/tests/libslow_logger_subscribe.so";
+  ASSERT_EQ(access(lib.c_str(), R_OK), 0) << lib;
+  const std::string log = TmpPath("slow_subscribe_rt.lcmlog");
+  setenv("LD_PRELOAD", lib.c_str(), 1);
+  setenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS", "1500", 1);
+  const auto r = RunShoal("run " + SourcePath("scenarios/paper_example2.toml") +
+                              " --mode realtime --duration 3 --json --out " + log,
+                          "slow_subscribe_rt");
+  unsetenv("LD_PRELOAD");
+  unsetenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS");
+  const auto j = ParseJson(r.out);
+  EXPECT_EQ(j["log_complete"], true) << r.out << r.err;
+  EXPECT_GT(j["log_states"].get<double>(), 0) << r.out;
+  const auto a = RunShoal("analyze " + log + " --json", "slow_subscribe_rt_analyze");
+  const auto aj = ParseJson(a.out);
+  EXPECT_EQ(aj["scenario_source"], "log") << a.err;
+}
+
 }  // namespace
 }  // namespace shoal
