@@ -7,6 +7,7 @@
 #include <set>
 
 #include "campaign/plan.h"
+#include "design/module.h"
 #include "design/theory_curve.h"
 #include "render/campaign_figures.h"
 #include "scenario/loader.h"
@@ -77,7 +78,10 @@ ojson TheoryJson(const design::TheoryPoint& t, const ojson& at) {
 design::TheoryPoint TheoryAt(const Campaign& c, const std::string& text,
                              const std::vector<ScenarioOverride>& overrides) {
   try {
-    return design::ComputeTheoryPoint(ParseScenario(text, c.scenario, overrides));
+    std::string error;
+    const DesignModule* m = LoadDesignModule(&error);
+    if (m == nullptr) throw CampaignError("the stability map's theory: " + error);
+    return m->theory_point(ParseScenario(text, c.scenario, overrides));
   } catch (const ScenarioError& e) {
     throw CampaignError(e.what());
   }

@@ -72,12 +72,6 @@ void SetTheorem3(const DesignReport& r, TheoryPoint* p) {
 
 }  // namespace
 
-bool DelayAxisOfKey(const std::string& key, DelayAxis* axis) {
-  if (key != "channel.delay.base_s") return false;
-  if (axis) *axis = DelayAxis::kBase;
-  return true;
-}
-
 TheoryPoint ComputeTheoryPoint(const Scenario& s, const TheoryCurveOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   TheoryPoint p;

@@ -42,7 +42,11 @@ enum class DelayAxis {
 
 /// The delay axis a scenario key sets: true (with *axis) for "channel.delay.base_s";
 /// false for every other key (no theory curve is defined along it).
-bool DelayAxisOfKey(const std::string& key, DelayAxis* axis);
+inline bool DelayAxisOfKey(const std::string& key, DelayAxis* axis) {
+  if (key != "channel.delay.base_s") return false;
+  if (axis) *axis = DelayAxis::kBase;
+  return true;
+}
 
 struct TheoryCurveOptions {
   DelayAxis axis = DelayAxis::kBase;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "analysis/verdict.h"
+#include "design/module.h"
 #include "runtime/process.h"
 #include "tools/analyze_command.h"
 #include "tools/compare_command.h"
@@ -351,7 +352,15 @@ int main(int argc, char** argv) {
   }
   if (cmp_cmd->parsed()) return shoal::RunCompare(cmp);
   if (ana_cmd->parsed()) return shoal::RunAnalyze(ana);
-  if (design_cmd->parsed()) return shoal::RunDesign(design);
+  if (design_cmd->parsed()) {
+    std::string error;
+    const shoal::DesignModule* m = shoal::LoadDesignModule(&error);
+    if (m == nullptr) {
+      std::cerr << "shoal design: " << error << "\n";
+      return 2;
+    }
+    return m->run_design(design);
+  }
   if (ren_cmd->parsed()) return shoal::RunRender(ren);
   if (retime_cmd->parsed()) return shoal::RunRetime(retime);
   if (soak_cmd->parsed()) return shoal::RunSoak(soak);

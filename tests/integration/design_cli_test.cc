@@ -2,6 +2,7 @@
 // the paper's numbers, the verdict and its exit status, and advice that really works (--advise,
 // --write-scenario and the scenario it writes).
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <algorithm>
 #include <chrono>
@@ -384,6 +385,53 @@ TEST(DesignCli, TheSizeGuardOnlyStopsTheSdp) {
   EXPECT_EQ(a.status, 1) << a.err;  // not certified: Example 2's factor
   EXPECT_EQ(b.status, 1) << b.err;
   EXPECT_EQ(ParseJson(a.out)["verdict"], ParseJson(b.out)["verdict"]);
+}
+
+// CSDP and Ceres, with the 21 libraries they bring, are in a module that only shoal
+// design (and a stability map's theory) loads: every other command, the campaign's points
+// above all, starts without mapping them.
+TEST(DesignCli, OnlyTheDesignToolsLoadTheDesignModule) {
+  const std::string sim_trace = shoal::testing::TmpPath("design_load_sim.ld");
+  const std::string design_trace = shoal::testing::TmpPath("design_load_design.ld");
+  const auto traced = [](const std::string& args, const std::string& trace) {
+    const std::string cmd = "LD_DEBUG=files " + shoal::testing::ShoalBinary() + " " + args +
+                            " >/dev/null 2>" + trace + " </dev/null";
+    const int status = std::system(cmd.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  ASSERT_EQ(traced("sim " + Example(2) + " --duration 10 --quiet", sim_trace), 1);  // not converged
+  ASSERT_EQ(traced("design " + Example(2), design_trace), 1);  // not certified
+  const std::string sim = shoal::testing::ReadFile(sim_trace);
+  const std::string design = shoal::testing::ReadFile(design_trace);
+  EXPECT_NE(sim.find("libstdc++"), std::string::npos) << "no loader trace: " << sim;
+  for (const char* lib : {"libshoal_design_module", "libsdp", "libcholmod", "libgfortran",
+                          "libglog", "liblapack"}) {
+    EXPECT_EQ(sim.find(lib), std::string::npos) << lib;
+  }
+  for (const char* lib : {"libshoal_design_module", "libsdp", "libcholmod", "libglog"}) {
+    EXPECT_NE(design.find(lib), std::string::npos) << lib;
+  }
+}
+
+// A module that is missing, or not Shoal's: shoal design says which and what to do, exit 2.
+TEST(DesignCli, AMissingOrWrongDesignModuleIsAClearError) {
+  struct Case {
+    std::string module, expected;
+  };
+  const Case cases[] = {
+      {"/nonexistent/libshoal_design_module.so",
+       "shoal design: cannot load the design module: /nonexistent/libshoal_design_module.so: "
+       "cannot open shared object file"},
+      {"libz.so.1", "shoal design: libz.so.1 is not Shoal's design module"},
+  };
+  for (const Case& c : cases) {
+    setenv("SHOAL_DESIGN_MODULE", c.module.c_str(), 1);
+    const auto r = RunShoal("design " + Example(2), "d_nomodule");
+    unsetenv("SHOAL_DESIGN_MODULE");
+    EXPECT_EQ(r.status, 2) << c.module << r.err;
+    EXPECT_EQ(r.err.rfind(c.expected, 0), 0u) << r.err;
+    EXPECT_EQ(r.out, "") << r.out;
+  }
 }
 
 }  // namespace

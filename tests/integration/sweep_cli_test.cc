@@ -116,6 +116,23 @@ TEST(SweepCli, BadAxisValueNamesTheAxisLineAndRunsNothing) {
   EXPECT_NE(unknown.err.find("--set nosuch.key=1"), std::string::npos) << unknown.err;
 }
 
+// The map's theory comes from the design module, computed before any point runs: without
+// the module the sweep says so and runs nothing, rather than losing a finished campaign's map.
+TEST(SweepCli, WithoutTheDesignModuleTheSweepSaysSoAndRunsNothing) {
+  const std::string dir = WriteCampaign(
+      "nomodule", Head() + "\n[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [0.1, 0.2]\n");
+  setenv("SHOAL_DESIGN_MODULE", "/nonexistent/libshoal_design_module.so", 1);
+  const RunResult r =
+      RunShoal("sweep " + dir + "/nomodule.toml --out " + dir + "/out", "sweep_nomodule");
+  unsetenv("SHOAL_DESIGN_MODULE");
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("the stability map's theory: cannot load the design module: "
+                       "/nonexistent/libshoal_design_module.so"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::ifstream(dir + "/out/results.jsonl").good());
+}
+
 TEST(SweepCli, KeyNestedTooDeepIsASyntaxErrorNotACrash) {
   // A 400 KB key of 200000 components: toml++ alone recursed once per component and
   // the process died of SIGSEGV.
