@@ -878,8 +878,9 @@ void Launch::WaitForSubscription(pid_t logger_pid) {
   constexpr int kLimitS = 30;
   const auto start = std::chrono::steady_clock::now();
   while (access(name, F_OK) != 0) {
-    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(kLimitS) ||
-        !Running(logger_pid) || StopSignals::Requested()) {
+    // A logger that exited is reported by the supervision that follows, with its status.
+    if (!Running(logger_pid) || StopSignals::Requested()) return;
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(kLimitS)) {
       std::fprintf(stderr,
                    "shoal run: warning: lcm-logger had not subscribed %d s after it started: "
                    "what the run sends before it does is not in the log\n", kLimitS);
