@@ -232,8 +232,8 @@ std::string StaggerHint(const RunReport& r, const LoopPlacement& p) {
   }
   return "the " + std::to_string(loops) + " loops woke at the start of each period on " +
          std::to_string(p.cpus) + " CPU" + (p.cpus == 1 ? "" : "s") +
-         ", and the last waited for the others; --stagger spreads the followers over half "
-         "a period (docs/run.md, \"Many vehicles on few CPUs\")";
+         ", and the last waited for the others; without --no-stagger the followers are "
+         "spread over half a period (docs/run.md, \"Many vehicles on few CPUs\")";
 }
 
 void PrintRunReport(const RunReport& r, std::FILE* out) {

@@ -64,18 +64,18 @@ constexpr double kSlowLoopFraction = 0.1;
 
 /// How a real-time run was placed, for StaggerHint.
 struct LoopPlacement {
-  bool staggered = false;        // --stagger was given
+  bool staggered = false;        // the followers' loops were staggered (not --no-stagger)
   bool one_host = true;          // no --hosts: every loop on this machine
   bool stagger_allowed = false;  // the scenario's smallest delay is above one period
   long cpus = 1;                 // this machine's online CPUs
 };
 /// A real-time run in which several processes failed the timing verdict or were slow
-/// loops, unstaggered, on
-/// one machine with more loops (followers, leader, channel emulator) than CPUs, in a
-/// scenario that allows --stagger: says that every loop woke at the start of each period
-/// and that --stagger spreads them (docs/run.md). Empty otherwise: with --stagger, over
-/// several hosts, or where the loops had a CPU each, staggering is not what the run lacked;
-/// one late process is that process's trouble (a stall, a fault).
+/// loops, unstaggered (--no-stagger), on one machine with more loops (followers, leader,
+/// channel emulator) than CPUs, in a scenario that allows staggering: says that every loop
+/// woke at the start of each period and that without --no-stagger they are spread
+/// (docs/run.md). Empty otherwise: staggered, over several hosts, or where the loops had a
+/// CPU each, staggering is not what the run lacked; one late process is that process's
+/// trouble (a stall, a fault).
 std::string StaggerHint(const RunReport& r, const LoopPlacement& p);
 
 /// Reads the run's log (launch.log) and builds the report.

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <iostream>
 #include <shoal/run_status_t.hpp>
+#include <utility>
 
 #include "core/channel_model.h"
 #include "core/timeline.h"
@@ -58,6 +59,10 @@ ClockedNode::ClockedNode(const Scenario& s, int id, Mode mode, std::int64_t t0_n
       health_channel_(channels::Health(id)) {}
 
 void ClockedNode::Init() {
+  // A real-time tick reads what reached the host by its time, wherever in its period the
+  // loop runs (a phase, a late wake-up): what came later waits for the next tick, as it
+  // would for a loop that ran at the tick's very instant.
+  if (mode_ == Mode::kRealtime) rx_bus_->RecordArrivals();
   SubscribeInputs();
   if (mode_ == Mode::kLockstep) SubscribeInput(channels::Clock(), kClockKind);
   if (mode_ == Mode::kLockstep && checkpoint_) SubscribeInput(channels::Status(), kStatusKind);
@@ -72,19 +77,27 @@ void ClockedNode::Enqueue(int kind, const void* data, int size) {
   if (inbox_size_ == inbox_.size()) inbox_.emplace_back();
   Inbound& in = inbox_[inbox_size_++];
   in.kind = kind;
+  in.arrival_ns = rx_bus_->ArrivalNs();
   const auto* p = static_cast<const unsigned char*>(data);
   in.bytes.assign(p, p + (size > 0 && p != nullptr ? size : 0));
 }
 
-int ClockedNode::HandleBus(int timeout_ms) {
+int ClockedNode::HandleBus(int timeout_ms, std::int64_t arrived_by_ns) {
   const int handled = rx_bus_->Handle(timeout_ms);
   // What the inbox's ticks publish goes out together after it (BundlePublishes).
   const bool bundle = bundle_publishes_ && mode_ == Mode::kLockstep && !checkpoint_ &&
                       inbox_size_ > 0;
   if (bundle) bus_->BeginBundle(/*recordable=*/true);
   // Applied in arrival order, each as its handler would have done it: entries stay in
-  // place (their buffers are reused) and the inbox is empty again at the end.
+  // place (their buffers are reused); what arrived too late moves to the front, in order,
+  // and is all that is left at the end.
+  std::size_t kept = 0;
   for (std::size_t k = 0; k < inbox_size_; ++k) {
+    if (inbox_[k].kind >= kFirstInputKind && inbox_[k].arrival_ns > arrived_by_ns) {
+      if (kept != k) std::swap(inbox_[kept], inbox_[k]);
+      ++kept;
+      continue;
+    }
     const Inbound& in = inbox_[k];
     const auto* data = in.bytes.empty() ? nullptr : in.bytes.data();
     const int size = static_cast<int>(in.bytes.size());
@@ -96,7 +109,8 @@ int ClockedNode::HandleBus(int timeout_ms) {
       StepWhatIsDue();
     }
   }
-  inbox_size_ = 0;
+  counters_.held_to_next_tick += static_cast<std::int64_t>(kept);
+  inbox_size_ = kept;
   if (bundle) bus_->EndBundle();  // a failed publish is not fatal here, as in Step
   return handled;
 }
@@ -334,7 +348,7 @@ int ClockedNode::RunRealtime() {
     SleepUntilNs(deadline);
     if (StopRequested()) break;
     lateness_.Add(static_cast<double>(MonotonicNs() - deadline) * 1e-9);
-    HandleBus(0);  // everything delivered so far
+    HandleBus(0, deadline - phase_ns_);  // everything delivered by the tick's time
     Step(k);
     if (MonotonicNs() > deadline + period_ns) ++counters_.overruns;
   }

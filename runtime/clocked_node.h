@@ -32,6 +32,9 @@ namespace shoal {
 struct ClockCounters {
   std::int64_t bad_clock = 0;  // undecodable, duplicate, out-of-order or foreign clock windows
   std::int64_t overruns = 0;   // realtime: ticks whose work outlasted their period
+  // realtime: messages that reached the host after the time of the tick that read them,
+  // kept for the next tick
+  std::int64_t held_to_next_tick = 0;
 };
 
 class ClockedNode {
@@ -51,8 +54,11 @@ class ClockedNode {
   int Run();
   /// Dispatches what the receive bus has (waiting at most timeout_ms for the first
   /// message), then applies it in arrival order, stepping (lockstep) what became due after
-  /// each message. Returns the number of messages handled, -1 on a bus error.
-  int HandleBus(int timeout_ms);
+  /// each message. An input that reached the host after `arrived_by_ns` (CLOCK_MONOTONIC;
+  /// known when the bus records arrivals) is not applied but kept, in order, for the next
+  /// call. Returns the number of messages handled, -1 on a bus error.
+  static constexpr std::int64_t kAnyArrival = INT64_MAX;
+  int HandleBus(int timeout_ms, std::int64_t arrived_by_ns = kAnyArrival);
 
   const ClockCounters& counters() const { return counters_; }
   int id() const { return id_; }
@@ -146,6 +152,7 @@ class ClockedNode {
   };
   struct Inbound {
     int kind = 0;
+    std::int64_t arrival_ns = -1;  // Bus::ArrivalNs
     std::vector<unsigned char> bytes;
   };
   void Enqueue(int kind, const void* data, int size);

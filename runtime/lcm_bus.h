@@ -59,6 +59,12 @@ class Bus {
   virtual int Handle(int timeout_ms) = 0;
   /// Messages dropped because they did not authenticate (runtime/bus_auth.h).
   virtual std::int64_t rejected() const { return 0; }
+  /// From now on, notes when each message reached this host (the kernel's receive time),
+  /// for ArrivalNs. False if this bus cannot; then ArrivalNs stays -1.
+  virtual bool RecordArrivals() { return false; }
+  /// While a handler runs: when its message reached this host, on CLOCK_MONOTONIC in ns;
+  /// -1 if not known.
+  virtual std::int64_t ArrivalNs() const { return -1; }
   /// Messages this bus has sent: what its receivers each take off their queue (a bundle
   /// counts once). 0 for a bus that does not count.
   virtual std::int64_t sent() const { return 0; }
@@ -123,6 +129,10 @@ class LcmBus : public Bus {
   std::int64_t rejected() const override {
     return rejected_ + (receiver_ ? receiver_->malformed() : 0);
   }
+  /// Received in the caller only (the kernel's time of each datagram; LCM's own thread
+  /// gives none).
+  bool RecordArrivals() override { return receiver_ && receiver_->RecordArrivals(); }
+  std::int64_t ArrivalNs() const override { return receiver_ ? receiver_->arrival_ns() : -1; }
   /// Datagrams the kernel dropped for a full socket buffer (received in the caller only).
   std::int64_t overflowed() const { return receiver_ ? receiver_->overflowed() : 0; }
   void BeginBundle(bool recordable = false) override;

@@ -5,6 +5,7 @@
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/time.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -48,6 +49,32 @@ bool ParseInt(const std::string& text, long lo, long hi, int* out) {
   if (errno != 0 || *end != '\0' || v < lo || v > hi) return false;
   *out = static_cast<int>(v);
   return true;
+}
+
+std::int64_t NsOf(const timespec& t) {
+  return static_cast<std::int64_t>(t.tv_sec) * 1000000000 + t.tv_nsec;
+}
+
+std::int64_t WallMinusMonotonicNs() {
+  timespec wall{}, mono{};
+  clock_gettime(CLOCK_REALTIME, &wall);
+  clock_gettime(CLOCK_MONOTONIC, &mono);
+  return NsOf(wall) - NsOf(mono);
+}
+
+// The datagram's SCM_TIMESTAMPNS on the monotonic clock, or -1 if it has none.
+std::int64_t ArrivalOf(const msghdr& h, std::int64_t wall_minus_mono) {
+  if ((h.msg_flags & MSG_CTRUNC) != 0) return -1;
+  for (const cmsghdr* c = CMSG_FIRSTHDR(&h); c != nullptr;
+       c = CMSG_NXTHDR(const_cast<msghdr*>(&h), const_cast<cmsghdr*>(c))) {
+    if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMPNS &&
+        c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
+      timespec t{};
+      std::memcpy(&t, CMSG_DATA(c), sizeof(t));
+      return NsOf(t) - wall_minus_mono;
+    }
+  }
+  return -1;
 }
 
 }  // namespace
@@ -132,8 +159,18 @@ bool UdpmReceiver::Open(std::string* error) {
   socklen_t len = sizeof(recv_buf_bytes_);
   getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &recv_buf_bytes_, &len);
   fd_ = fd;
+  if (record_arrivals_ && !RecordArrivals()) record_arrivals_ = false;
   buffers_.reset(new unsigned char[static_cast<std::size_t>(kBatch) * kDatagramBytes]);
   return true;
+}
+
+bool UdpmReceiver::RecordArrivals() {
+  record_arrivals_ = true;
+  if (fd_ < 0) return true;  // Open asks the kernel
+  const int one = 1;
+  if (setsockopt(fd_, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof(one)) == 0) return true;
+  record_arrivals_ = false;
+  return false;
 }
 
 bool UdpmReceiver::SetWait(int timeout_ms) {
@@ -165,6 +202,8 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
   mmsghdr msgs[kBatch];
   iovec iov[kBatch];
   sockaddr_in from[kBatch];
+  // The kernel's receive times (CLOCK_REALTIME), with record_arrivals_.
+  alignas(cmsghdr) unsigned char control[kBatch][CMSG_SPACE(sizeof(timespec))];
   int handed = 0;
   while (handed < max_messages) {
     const int want = std::min(kBatch, max_messages - handed);
@@ -175,6 +214,10 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
       msgs[k].msg_hdr.msg_namelen = sizeof(from[k]);
       msgs[k].msg_hdr.msg_iov = &iov[k];
       msgs[k].msg_hdr.msg_iovlen = 1;
+      if (record_arrivals_) {
+        msgs[k].msg_hdr.msg_control = control[k];
+        msgs[k].msg_hdr.msg_controllen = sizeof(control[k]);
+      }
       msgs[k].msg_len = 0;
     }
     const int n = recvmmsg(fd_, msgs, static_cast<unsigned>(want),
@@ -186,7 +229,12 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
       if (errno == EAGAIN || errno == EWOULDBLOCK) break;  // nothing (more), or timed out
       return handed > 0 ? handed : -1;
     }
+    // The stamps are on the wall clock, the loops' deadlines on the monotonic one: the
+    // offset between them now converts them (off by a clock step between the datagram's
+    // arrival and this read, if one happened).
+    const std::int64_t wall_minus_mono = record_arrivals_ ? WallMinusMonotonicNs() : 0;
     for (int k = 0; k < n; ++k) {
+      arrival_ns_ = record_arrivals_ ? ArrivalOf(msgs[k].msg_hdr, wall_minus_mono) : -1;
       if ((msgs[k].msg_hdr.msg_flags & MSG_TRUNC) != 0) {  // larger than a datagram can be: not LCM's
         ++malformed_;
         continue;
@@ -196,6 +244,7 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
     }
     if (n < want) break;
   }
+  arrival_ns_ = -1;
   return handed;
 }
 

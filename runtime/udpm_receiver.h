@@ -63,6 +63,16 @@ class UdpmReceiver {
   /// whether it did.
   bool OnDatagram(const unsigned char* p, int size, const sockaddr_in& from, const Handler& handler);
 
+  /// From now on, notes when each datagram reached the socket (the kernel's receive time,
+  /// SO_TIMESTAMPNS), for arrival_ns. False if the socket refuses; may come before Open.
+  /// The kernel starts stamping a moment later (datagrams read before then carry the time
+  /// they were read): ask at start, before the run's traffic.
+  bool RecordArrivals();
+  /// While `handler` runs: when the datagram that completed its message reached the
+  /// socket, on CLOCK_MONOTONIC in ns; -1 if arrivals are not recorded or the kernel gave
+  /// no time.
+  std::int64_t arrival_ns() const { return arrival_ns_; }
+
   /// Datagrams that were not LCM's (a bad magic, too short, a channel without its NUL or
   /// longer than LCM allows, a fragment that does not fit its message).
   std::int64_t malformed() const { return malformed_; }
@@ -114,6 +124,8 @@ class UdpmReceiver {
   int fd_ = -1;
   int wait_ms_ = -1;  // the socket's SO_RCVTIMEO (-1: without limit, as opened)
   int recv_buf_bytes_ = 0;
+  bool record_arrivals_ = false;
+  std::int64_t arrival_ns_ = -1;
   std::int64_t malformed_ = 0;
   // kBatch datagrams of kDatagramBytes, not zero-filled: recvmmsg writes what is read, and
   // a process touches only the pages its datagrams reach (a vehicle's bundles: the first).

@@ -59,11 +59,17 @@ int RunRun(const RunOptions& opt) {
                  "none (add --mode realtime, or leave --stagger out)\n";
     return kExitBadInput;
   }
-  if (launch_options.stagger && ClockedNode::StaggerPhaseUs(s, s.followers) == 0) {
+  const bool stagger_allowed = ClockedNode::StaggerPhaseUs(s, s.followers) > 0;
+  if (launch_options.stagger && !stagger_allowed) {
     std::cerr << "shoal run: --stagger needs the channel's smallest delay to be above one "
                  "control period (a state must go out before it can be due); this "
                  "scenario's is not\n";
     return kExitBadInput;
+  }
+  // Staggering changes when a loop runs, not what its tick reads (only what reached the
+  // host by the tick's time, runtime/clocked_node.h): the default wherever it is allowed.
+  if (launch_options.mode == ModeName(Mode::kRealtime) && stagger_allowed && !opt.no_stagger) {
+    launch_options.stagger = true;
   }
   if (opt.print_launch) return PrintLaunch(s, opt, launch_options);
   const bool show = !opt.quiet && !opt.json && isatty(2);
@@ -99,7 +105,7 @@ int RunRun(const RunOptions& opt) {
   LoopPlacement placement;
   placement.staggered = launch_options.stagger;
   placement.one_host = !launch_options.hosts.has_value();
-  placement.stagger_allowed = ClockedNode::StaggerPhaseUs(s, s.followers) > 0;
+  placement.stagger_allowed = stagger_allowed;
   placement.cpus = sysconf(_SC_NPROCESSORS_ONLN);
   if (const std::string hint = StaggerHint(report, placement); !hint.empty()) {
     report.hints.push_back(hint);

@@ -15,6 +15,10 @@ struct RunOptions {
   bool print_launch = false;
   std::vector<std::string> command;  // shoal's command line, for the script's header
   std::string hosts_file;  // --hosts: read into launch.hosts (docs/run.md)
+  /// --no-stagger: every real-time loop wakes at the start of its period. Otherwise a
+  /// real-time run staggers its followers whenever its channel leaves room (launch.stagger
+  /// is then set; given as --stagger, a scenario without room is an error).
+  bool no_stagger = false;
 };
 
 /// `shoal run`: launches lcm-logger, the channel emulator, the leader and every vehicle

@@ -85,11 +85,15 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
   c->add_flag("--deep-idle", run->launch.deep_idle,
               "Let idle CPUs halt during the run (by default, as root, shoal run holds "
               "a 0 us CPU latency request: idle CPUs poll, wake-ups are cheaper)");
-  c->add_flag("--stagger", run->launch.stagger,
-              "Real time: spread the followers' loops over half the control period "
-              "(vehicle i runs its ticks i/(N+1) of half a period late) instead of waking "
-              "them all at its start; for many vehicles on few CPUs. Needs the channel's "
-              "smallest delay above one period");
+  auto* stagger = c->add_flag(
+      "--stagger", run->launch.stagger,
+      "Real time: spread the followers' loops over half the control period (vehicle i "
+      "runs its ticks i/(N+1) of half a period late; each tick still reads only what "
+      "reached the host by its time). The default whenever the channel's smallest delay "
+      "is above one period; given, such a scenario is required");
+  c->add_flag("--no-stagger", run->no_stagger,
+              "Real time: wake every loop at the start of its period, all at one instant")
+      ->excludes(stagger);
   c->add_flag("--keep-going", run->launch.keep_going,
               "A vehicle or the leader that dies or is stopped does not stop the run "
               "(it is reported, and the run fails); by default any such fault stops it");

@@ -19,6 +19,7 @@
 #include "campaign/plan.h"
 #include "campaign/soak_plan.h"
 #include "launcher/run_report.h"
+#include "runtime/clocked_node.h"
 #include "render/campaign_figures.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
@@ -214,6 +215,9 @@ LaunchOptions LaunchOptionsOf(const SoakOptions& opt, const Planned& p) {
   launch.out = opt.out + "/soak.lcmlog";
   for (const ScenarioOverride& o : p.plan.overrides) launch.set.push_back(o.key + "=" + o.value);
   launch.resource_interval_s = 60.0;
+  // As shoal run: real-time followers are staggered wherever the channel leaves room.
+  launch.stagger = launch.mode == ModeName(Mode::kRealtime) &&
+                   ClockedNode::StaggerPhaseUs(p.plan.scenario, p.plan.scenario.followers) > 0;
   return launch;
 }
 

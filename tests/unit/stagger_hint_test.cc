@@ -1,4 +1,4 @@
-// shoal run's hint towards --stagger: given exactly when a real-time run's loops queued for
+// shoal run's hint about --no-stagger: given exactly when a real-time run's loops queued for
 // the CPUs (several late, more loops than CPUs, unstaggered, one host, a scenario that
 // allows it), and never otherwise.
 #include <gtest/gtest.h>
@@ -29,7 +29,7 @@ TEST(StaggerHint, NamesTheLoopsTheCpusAndTheOption) {
   const std::string hint = StaggerHint(l.report, l.placement);
   EXPECT_NE(hint.find("the 66 loops woke at the start of each period on 2 CPUs"), std::string::npos)
       << hint;
-  EXPECT_NE(hint.find("--stagger"), std::string::npos) << hint;
+  EXPECT_NE(hint.find("without --no-stagger"), std::string::npos) << hint;
 }
 
 TEST(StaggerHint, AlsoForSeveralSlowLoopsWithinTheVerdict) {

@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
 #include "runtime/udpm_sender.h"
 
@@ -342,6 +343,49 @@ TEST_F(UdpmReceiverTest, AWaitEndsWithTheFirstDatagramOrASignal) {
 // Given the URLs Shoal and LCM users write, when parsed, then group, port and receive
 // buffer are LCM's reading of them (its defaults where left out); other providers and
 // malformed URLs are refused.
+// A real-time tick reads only what reached the host by its time: the receiver gives each
+// message the kernel's receive time, on the clock the loops' deadlines use, and -1 when it
+// was not asked to record them.
+TEST_F(UdpmReceiverTest, RecordsWhenEachMessageReachedTheSocketOnTheMonotonicClock) {
+  lcm::LCM lcm(url_);
+  const int v = 7;
+  ASSERT_EQ(lcm.publish("UNSTAMPED", &v, sizeof(v)), 0);
+  std::vector<std::int64_t> unstamped;
+  while (receiver_->Receive(500, 1000, [&](std::string_view, const unsigned char*, int) {
+    unstamped.push_back(receiver_->arrival_ns());
+  }) > 0) {
+  }
+  ASSERT_EQ(unstamped, std::vector<std::int64_t>{-1});
+
+  ASSERT_TRUE(receiver_->RecordArrivals());
+  // The kernel turns its receive stamps on a moment later (a deferred work item); until
+  // then a datagram is stamped when read. A process asks at start, long before its run.
+  usleep(100000);
+  const std::int64_t before = MonotonicNs();
+  ASSERT_EQ(lcm.publish("FIRST", &v, sizeof(v)), 0);
+  const std::int64_t between0 = MonotonicNs();
+  usleep(30000);
+  const std::int64_t between1 = MonotonicNs();
+  ASSERT_EQ(lcm.publish("SECOND", &v, sizeof(v)), 0);
+  const std::int64_t after = MonotonicNs();
+  usleep(30000);  // read well after both arrived: the times are the arrivals, not the read
+  std::vector<std::pair<std::string, std::int64_t>> got;
+  while (receiver_->Receive(500, 1000, [&](std::string_view ch, const unsigned char*, int) {
+    got.emplace_back(std::string(ch), receiver_->arrival_ns());
+  }) > 0) {
+  }
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[0].first, "FIRST");
+  EXPECT_EQ(got[1].first, "SECOND");
+  // A margin for the wall and monotonic clocks read one after the other.
+  constexpr std::int64_t kSlackNs = 200000;
+  EXPECT_GE(got[0].second, before - kSlackNs);
+  EXPECT_LE(got[0].second, between0 + kSlackNs);
+  EXPECT_GE(got[1].second, between1 - kSlackNs);
+  EXPECT_LE(got[1].second, after + kSlackNs);
+  EXPECT_EQ(receiver_->arrival_ns(), -1);  // outside a handler
+}
+
 TEST(UdpmUrl, ParsedAsLcmReadsIt) {
   UdpmAddress a;
   ASSERT_TRUE(ParseUdpmUrl("udpm://239.255.77.20:10001?ttl=0&recv_buf_size=4194304", &a));
