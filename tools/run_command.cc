@@ -32,6 +32,28 @@ int PrintLaunch(const Scenario& s, const RunOptions& opt, const LaunchOptions& l
   return std::cout ? kExitOk : kExitFailed;
 }
 
+// --stagger, --no-stagger or neither: sets launch->stagger; false (said why) if --stagger
+// cannot be.
+bool ResolveStagger(const Scenario& s, const RunOptions& opt, LaunchOptions* launch) {
+  const bool realtime = launch->mode == ModeName(Mode::kRealtime);
+  if (launch->stagger && !realtime) {
+    std::cerr << "shoal run: --stagger spreads the loops of a real-time run; lockstep has "
+                 "none (add --mode realtime, or leave --stagger out)\n";
+    return false;
+  }
+  const bool allowed = ClockedNode::StaggerPhaseUs(s, s.followers) > 0;
+  if (launch->stagger && !allowed) {
+    std::cerr << "shoal run: --stagger needs the channel's smallest delay to be above one "
+                 "control period (a state must go out before it can be due); this "
+                 "scenario's is not\n";
+    return false;
+  }
+  // Staggering changes when a loop runs, not what its tick reads (only what reached the
+  // host by the tick's time, runtime/clocked_node.h): the default wherever it is allowed.
+  if (realtime && allowed && !opt.no_stagger) launch->stagger = true;
+  return true;
+}
+
 }  // namespace
 
 int RunRun(const RunOptions& opt) {
@@ -54,23 +76,8 @@ int RunRun(const RunOptions& opt) {
       return kExitBadInput;
     }
   }
-  if (launch_options.stagger && launch_options.mode != ModeName(Mode::kRealtime)) {
-    std::cerr << "shoal run: --stagger spreads the loops of a real-time run; lockstep has "
-                 "none (add --mode realtime, or leave --stagger out)\n";
-    return kExitBadInput;
-  }
+  if (!ResolveStagger(s, opt, &launch_options)) return kExitBadInput;
   const bool stagger_allowed = ClockedNode::StaggerPhaseUs(s, s.followers) > 0;
-  if (launch_options.stagger && !stagger_allowed) {
-    std::cerr << "shoal run: --stagger needs the channel's smallest delay to be above one "
-                 "control period (a state must go out before it can be due); this "
-                 "scenario's is not\n";
-    return kExitBadInput;
-  }
-  // Staggering changes when a loop runs, not what its tick reads (only what reached the
-  // host by the tick's time, runtime/clocked_node.h): the default wherever it is allowed.
-  if (launch_options.mode == ModeName(Mode::kRealtime) && stagger_allowed && !opt.no_stagger) {
-    launch_options.stagger = true;
-  }
   if (opt.print_launch) return PrintLaunch(s, opt, launch_options);
   const bool show = !opt.quiet && !opt.json && isatty(2);
   LaunchCallbacks cb;

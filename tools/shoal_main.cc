@@ -47,6 +47,26 @@ CLI::App* AddSim(CLI::App* app, shoal::SimOptions* sim) {
   return c;
 }
 
+// shoal run's options for the real-time loops: their start time and their phases.
+void AddRunLoopOptions(CLI::App* c, shoal::RunOptions* run) {
+  auto* stagger = c->add_flag(
+      "--stagger", run->launch.stagger,
+      "Real time: spread the followers' loops over half the control period (vehicle i "
+      "runs its ticks i/(N+1) of half a period late; each tick still reads only what "
+      "reached the host by its time). The default whenever the channel's smallest delay "
+      "is above one period; given, such a scenario is required");
+  c->add_flag("--no-stagger", run->no_stagger,
+              "Real time: wake every loop at the start of its period, all at one instant")
+      ->excludes(stagger);
+  c->add_option("--t0-clock", run->t0_clock,
+                "realtime: the clock on which the processes are given tick 0: monotonic "
+                "(--t0-ns, this host's CLOCK_MONOTONIC) or wall (--t0-unix-ns, "
+                "CLOCK_REALTIME, for processes on hosts whose wall clocks agree: NTP "
+                "~1-10 ms, PTP us, which bounds how well their ticks line up)")
+      ->check(CLI::IsMember({"monotonic", "wall"}))
+      ->capture_default_str();
+}
+
 CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
   CLI::App* c = app->add_subcommand(
       "run",
@@ -85,15 +105,6 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
   c->add_flag("--deep-idle", run->launch.deep_idle,
               "Let idle CPUs halt during the run (by default, as root, shoal run holds "
               "a 0 us CPU latency request: idle CPUs poll, wake-ups are cheaper)");
-  auto* stagger = c->add_flag(
-      "--stagger", run->launch.stagger,
-      "Real time: spread the followers' loops over half the control period (vehicle i "
-      "runs its ticks i/(N+1) of half a period late; each tick still reads only what "
-      "reached the host by its time). The default whenever the channel's smallest delay "
-      "is above one period; given, such a scenario is required");
-  c->add_flag("--no-stagger", run->no_stagger,
-              "Real time: wake every loop at the start of its period, all at one instant")
-      ->excludes(stagger);
   c->add_flag("--keep-going", run->launch.keep_going,
               "A vehicle or the leader that dies or is stopped does not stop the run "
               "(it is reported, and the run fails); by default any such fault stops it");
@@ -113,13 +124,7 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
                 "mission seconds, and at the end, into <log>.d/resources.csv (0: never)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  c->add_option("--t0-clock", run->t0_clock,
-                "realtime: the clock on which the processes are given tick 0: monotonic "
-                "(--t0-ns, this host's CLOCK_MONOTONIC) or wall (--t0-unix-ns, "
-                "CLOCK_REALTIME, for processes on hosts whose wall clocks agree: NTP "
-                "~1-10 ms, PTP us, which bounds how well their ticks line up)")
-      ->check(CLI::IsMember({"monotonic", "wall"}))
-      ->capture_default_str();
+  AddRunLoopOptions(c, run);
   c->add_flag("--print-launch", run->print_launch,
               "Start nothing: print to stdout a bash script that starts lcm-logger, the "
               "emulator, the leader and the vehicles with the commands shoal run would use "

@@ -250,8 +250,9 @@ TEST(Sil, RealtimeRunFollowsTheLockstepRun) {
 // follower's loop runs at a phase of its own within the first half of the period, the
 // printed launch script gives each its --phase-us (none with --no-stagger), and the run
 // logs every state and follows the lockstep run as closely as an unstaggered one, since a
-// tick reads only what reached the host by its time (before, a staggered loop read what
-// came during its phase a tick early: 88 mm from the lockstep run in 20 s, against 0.7 mm).
+// tick reads only what reached the host by its time (a staggered loop that read what came
+// during its phase would use it a tick early: 77 mm from the lockstep run in 4 s, against
+// 0.7 mm).
 // A phase outside the period, or --stagger in lockstep, is refused (exit 2).
 TEST(Sil, StaggeredRealtimeRunLogsEveryStateAndFollowsTheLockstepRun) {
   const auto script = RunShoal("run " + kExample2 + " --mode realtime --print-launch",
