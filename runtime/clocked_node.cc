@@ -459,10 +459,9 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
                 "reset of this vehicle, for shoal run to restart the process there");
   Micros phase_us = 0;
   app->add_option("--phase-us", phase_us,
-                  "Real time: run each tick this many microseconds after its period begins "
-                  "(0 to the control period; the tick still reads only what reached the "
-                  "host by its time; shoal run spreads the vehicles' phases so that their "
-                  "loops do not all wake at once)")
+                  "Real time: run each tick this many us after its period begins (below "
+                  "the period; it reads only what reached the host by the tick's time; "
+                  "shoal run spreads the vehicles' phases so their loops do not wake at once)")
       ->check(CLI::NonNegativeNumber);
   bool bundle_publishes = false;
   app->add_flag("--bundle-publishes", bundle_publishes,
