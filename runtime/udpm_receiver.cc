@@ -55,15 +55,22 @@ std::int64_t NsOf(const timespec& t) {
   return static_cast<std::int64_t>(t.tv_sec) * 1000000000 + t.tv_nsec;
 }
 
-std::int64_t WallMinusMonotonicNs() {
+// The moment datagrams were read, on both clocks.
+struct ReadTime {
+  std::int64_t mono_ns = 0;
+  std::int64_t wall_minus_mono_ns = 0;
+};
+ReadTime ReadTimeNow() {
   timespec wall{}, mono{};
   clock_gettime(CLOCK_REALTIME, &wall);
   clock_gettime(CLOCK_MONOTONIC, &mono);
-  return NsOf(wall) - NsOf(mono);
+  return {NsOf(mono), NsOf(wall) - NsOf(mono)};
 }
 
-// The datagram's SCM_TIMESTAMPNS on the monotonic clock, or -1 if it has none.
-std::int64_t ArrivalOf(const msghdr& h, std::int64_t wall_minus_mono) {
+// The datagram's SCM_TIMESTAMPNS on the monotonic clock, or -1 if it has none. Never after
+// the read: a wall clock set back between arrival and read must not hold a message for
+// that long.
+std::int64_t ArrivalOf(const msghdr& h, const ReadTime& read) {
   if ((h.msg_flags & MSG_CTRUNC) != 0) return -1;
   for (const cmsghdr* c = CMSG_FIRSTHDR(&h); c != nullptr;
        c = CMSG_NXTHDR(const_cast<msghdr*>(&h), const_cast<cmsghdr*>(c))) {
@@ -71,7 +78,7 @@ std::int64_t ArrivalOf(const msghdr& h, std::int64_t wall_minus_mono) {
         c->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
       timespec t{};
       std::memcpy(&t, CMSG_DATA(c), sizeof(t));
-      return NsOf(t) - wall_minus_mono;
+      return std::min(NsOf(t) - read.wall_minus_mono_ns, read.mono_ns);
     }
   }
   return -1;
@@ -232,9 +239,9 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
     // The stamps are on the wall clock, the loops' deadlines on the monotonic one: the
     // offset between them now converts them (off by a clock step between the datagram's
     // arrival and this read, if one happened).
-    const std::int64_t wall_minus_mono = record_arrivals_ ? WallMinusMonotonicNs() : 0;
+    const ReadTime read = record_arrivals_ ? ReadTimeNow() : ReadTime{};
     for (int k = 0; k < n; ++k) {
-      arrival_ns_ = record_arrivals_ ? ArrivalOf(msgs[k].msg_hdr, wall_minus_mono) : -1;
+      arrival_ns_ = record_arrivals_ ? ArrivalOf(msgs[k].msg_hdr, read) : -1;
       if ((msgs[k].msg_hdr.msg_flags & MSG_TRUNC) != 0) {  // larger than a datagram can be: not LCM's
         ++malformed_;
         continue;
