@@ -32,7 +32,8 @@ struct LaunchOptions {
   bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
   /// Real time: spread the followers' loop phases over half the control period
   /// (ClockedNode::StaggerPhaseUs, --phase-us), so that N loops do not wake at one instant.
-  /// shoal run and shoal soak set it wherever the scenario allows, unless --no-stagger.
+  /// shoal run sets it wherever the scenario allows, unless --no-stagger; shoal soak
+  /// wherever it allows.
   bool stagger = false;
   /// A vehicle or the leader that dies or is stopped (SIGSTOP) does not stop the run: it
   /// is reported and the others go on (the verdict fails all the same). Without it, any

@@ -62,7 +62,10 @@ void ClockedNode::Init() {
   // A real-time tick reads what reached the host by its time, wherever in its period the
   // loop runs (a phase, a late wake-up): what came later waits for the next tick, as it
   // would for a loop that ran at the tick's very instant.
-  if (mode_ == Mode::kRealtime) rx_bus_->RecordArrivals();
+  if (mode_ == Mode::kRealtime && !rx_bus_->RecordArrivals()) {
+    std::cerr << "process " << id_ << ": the bus gives no arrival times; each tick reads "
+              << "what has come when its loop runs\n";
+  }
   SubscribeInputs();
   if (mode_ == Mode::kLockstep) SubscribeInput(channels::Clock(), kClockKind);
   if (mode_ == Mode::kLockstep && checkpoint_) SubscribeInput(channels::Status(), kStatusKind);
@@ -348,7 +351,7 @@ int ClockedNode::RunRealtime() {
     SleepUntilNs(deadline);
     if (StopRequested()) break;
     lateness_.Add(static_cast<double>(MonotonicNs() - deadline) * 1e-9);
-    HandleBus(0, deadline - phase_ns_);  // everything delivered by the tick's time
+    HandleBus(0, deadline - phase_ns_ + kArrivalSlackNs);  // what arrived by the tick's time
     Step(k);
     if (MonotonicNs() > deadline + period_ns) ++counters_.overruns;
   }

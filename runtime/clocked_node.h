@@ -32,8 +32,8 @@ namespace shoal {
 struct ClockCounters {
   std::int64_t bad_clock = 0;  // undecodable, duplicate, out-of-order or foreign clock windows
   std::int64_t overruns = 0;   // realtime: ticks whose work outlasted their period
-  // realtime: messages that reached the host after the time of the tick that read them,
-  // kept for the next tick
+  // realtime: inputs that reached the host after the time of the tick that read them and
+  // were kept for a later tick, counted at each tick that kept them
   std::int64_t held_to_next_tick = 0;
 };
 
@@ -58,6 +58,10 @@ class ClockedNode {
   /// known when the bus records arrivals) is not applied but kept, in order, for the next
   /// call. Returns the number of messages handled, -1 on a bus error.
   static constexpr std::int64_t kAnyArrival = INT64_MAX;
+  /// Real time: a delivery due at a tick's very time (a delay of whole periods) leaves the
+  /// emulator at that time and reaches the host just after it; what arrives within this
+  /// much of the tick's time counts as arrived by it. The emulator's release-error target.
+  static constexpr std::int64_t kArrivalSlackNs = 1000000;
   int HandleBus(int timeout_ms, std::int64_t arrived_by_ns = kAnyArrival);
 
   const ClockCounters& counters() const { return counters_; }

@@ -234,6 +234,7 @@ int UdpmReceiver::Receive(int timeout_ms, int max_messages, const Handler& handl
     if (n < 0) {
       if (errno == EINTR) continue;
       if (errno == EAGAIN || errno == EWOULDBLOCK) break;  // nothing (more), or timed out
+      arrival_ns_ = -1;
       return handed > 0 ? handed : -1;
     }
     // The stamps are on the wall clock, the loops' deadlines on the monotonic one: the

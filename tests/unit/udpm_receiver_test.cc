@@ -340,9 +340,6 @@ TEST_F(UdpmReceiverTest, AWaitEndsWithTheFirstDatagramOrASignal) {
   sigaction(SIGUSR1, &old, nullptr);
 }
 
-// Given the URLs Shoal and LCM users write, when parsed, then group, port and receive
-// buffer are LCM's reading of them (its defaults where left out); other providers and
-// malformed URLs are refused.
 // A real-time tick reads only what reached the host by its time: the receiver gives each
 // message the kernel's receive time, on the clock the loops' deadlines use, and -1 when it
 // was not asked to record them.
@@ -386,6 +383,9 @@ TEST_F(UdpmReceiverTest, RecordsWhenEachMessageReachedTheSocketOnTheMonotonicClo
   EXPECT_EQ(receiver_->arrival_ns(), -1);  // outside a handler
 }
 
+// Given the URLs Shoal and LCM users write, when parsed, then group, port and receive
+// buffer are LCM's reading of them (its defaults where left out); other providers and
+// malformed URLs are refused.
 TEST(UdpmUrl, ParsedAsLcmReadsIt) {
   UdpmAddress a;
   ASSERT_TRUE(ParseUdpmUrl("udpm://239.255.77.20:10001?ttl=0&recv_buf_size=4194304", &a));
