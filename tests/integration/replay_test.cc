@@ -127,8 +127,6 @@ class Replay : public ::testing::Test {
 
 // The same metrics from the original and from the re-recording: every recorded state
 // equal (to 1e-9; they are the same bytes), convergence within one control period.
-// lcm-logger may drop a few messages when the machine is loaded (its LCM subscription
-// queue holds 30): at least 98 % must be there.
 void ExpectSameAnalysis(const std::string& orig_text, const nlohmann::ordered_json& other) {
   const auto orig = ParseJson(orig_text);
   EXPECT_EQ(other["converged"], orig["converged"]) << other;
@@ -139,9 +137,9 @@ void ExpectSameAnalysis(const std::string& orig_text, const nlohmann::ordered_js
   EXPECT_EQ(other["scenario"], orig["scenario"]);
   EXPECT_EQ(other["scenario_source"], "log") << "the status with the scenario text";
   EXPECT_EQ(other["mode"], "sim");
-  // lcm-logger's 30-message subscription queue drops bursts when the machine is loaded
-  // (seen: 2-3 % at 4x and 8x with a parallel build, a third at 8x under heavy load): every recorded state must be equal
-  // (below), and at least 90 % must be there, as in the SIL tests.
+  // A recorder on a loaded machine may still lose a datagram (its socket's buffer): every
+  // recorded state must be equal (below), and at least 90 % must be there, as in the SIL
+  // tests.
   EXPECT_GE(other["log_states"].get<double>(), 0.9 * orig["log_states"].get<double>()) << other;
   EXPECT_GE(other["channel_delivered"].get<double>(),
             0.9 * orig["channel_delivered"].get<double>());
@@ -177,8 +175,13 @@ TEST_F(Replay, LoggerReRecordingAnalysesTheSameAtSeveralSpeeds) {
     const std::string tag = "replay_x" + std::to_string(static_cast<int>(speed));
     const std::string rec = TmpPath(tag + ".lcmlog");
     std::remove(rec.c_str());
+    // As shoal run starts it: at nice -10 as root, its subscription queue widened from
+    // LCM's 30 messages by runtime/lcm_queue_shim.c (with 30, a loaded machine made it drop
+    // 13 % of the states at 4x).
     const std::string nice = geteuid() == 0 ? "nice -n -10 " : "";
-    const pid_t logger = Spawn(nice + "lcm-logger --lcm-url='" + Url(port) + "' -f -q " + rec,
+    const std::string shim = std::string(SHOAL_BINARY_DIR) + "/runtime/libshoal_lcm_queue.so";
+    const pid_t logger = Spawn("env LD_PRELOAD=" + shim + " " + nice + "lcm-logger --lcm-url='" +
+                                   Url(port) + "' -f -q " + rec,
                                TmpPath(tag + ".logger.txt"));
     ASSERT_TRUE(WaitForUdpListener(port, 10)) << "lcm-logger did not start";
     EXPECT_EQ(Play(Url(port), speed, tag), 0);
