@@ -6,6 +6,14 @@ namespace shoal {
 
 bool StateHistory::Push(const HistorySample& s) {
   if (size_ > 0 && s.utime <= Newest().utime) return false;
+  if (size_ > 0 && run_ >= 2 && s.utime - Newest().utime == step_) {
+    ++run_;
+  } else if (size_ > 0) {
+    step_ = s.utime - Newest().utime;
+    run_ = 2;
+  } else {
+    run_ = 1;
+  }
   const int cap = capacity();
   if (size_ < cap) {
     buf_[(head_ + size_) & mask_] = s;
@@ -14,10 +22,21 @@ bool StateHistory::Push(const HistorySample& s) {
     buf_[head_] = s;
     head_ = (head_ + 1) & mask_;
   }
+  if (run_ > size_) run_ = size_;
   return true;
 }
 
 int StateHistory::FirstAtOrAfter(Micros t) const {
+  // Within the newest evenly spaced run, the j-th sample back from the newest is at
+  // Newest - j step: the first at or after t is j = floor((Newest - t) / step) back, unless
+  // t falls before the run's oldest sample (the sample before the run may be nearer).
+  if (run_ >= 2) {
+    const Micros back = Newest().utime - t;
+    const Micros j = back / step_;
+    if (j < run_ - 1 || (j == run_ - 1 && j * step_ == back)) {
+      return size_ - 1 - static_cast<int>(j);
+    }
+  }
   // Most look-ups are a few samples back (a neighbour message's delay, the uncertain
   // factor's delay): scan back from the newest, without the division of the guess below.
   if (size_ > kRecentSamples && Get(size_ - kRecentSamples).utime < t) {

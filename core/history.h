@@ -53,6 +53,7 @@ class StateHistory {
   void Clear() {
     head_ = 0;
     size_ = 0;
+    run_ = 0;
   }
 
   const HistorySample& Newest() const { return Get(size_ - 1); }
@@ -71,6 +72,10 @@ class StateHistory {
   int mask_ = 0;
   int head_ = 0;  // index of the oldest sample
   int size_ = 0;
+  // The newest run_ samples are evenly spaced, step_ apart (a vehicle pushes one sample per
+  // control period): a look-up inside that run finds its index by one division.
+  int run_ = 0;
+  Micros step_ = 0;
 };
 
 }  // namespace shoal

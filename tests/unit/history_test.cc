@@ -301,6 +301,43 @@ TEST(StateHistoryTest, EveryFillFindsEverySampleAroundTheRecentScan) {
   }
 }
 
+TEST(StateHistoryTest, EvenlySpacedRunsAfterUnevenSamplesFindEverySample) {
+  // A run of evenly spaced samples is looked up by division. Runs of several spacings
+  // follow each other, some right after a sample only 1 us older than the run's first:
+  // every sample, every time just after one and just before one is found as a search
+  // finds it, through the wrap of the buffer.
+  Rng rng(11);
+  StateHistory h(32);
+  std::vector<HistorySample> pushed;
+  Micros t = 0;
+  HistorySample out;
+  const Micros steps[] = {20000, 3, 1, 17};
+  for (int run = 0; run < 24; ++run) {
+    const Micros step = steps[run % 4];
+    const int len = 1 + static_cast<int>(rng.Uniform() * 9);
+    t += run % 3 == 0 ? 1 : step;
+    for (int k = 0; k < len; ++k, t += step) {
+      pushed.push_back(RandomSample(&rng, t));
+      ASSERT_TRUE(h.Push(pushed.back()));
+      const int n = static_cast<int>(pushed.size());
+      const int first = std::max(0, n - h.capacity());
+      for (int i = first; i < n; ++i) {
+        ASSERT_TRUE(h.At(pushed[i].utime, &out)) << run << " " << i;
+        ASSERT_TRUE(BitwiseEqual(out, pushed[i])) << run << " " << i;
+        if (i + 1 < n && pushed[i + 1].utime - pushed[i].utime > 1) {
+          for (const Micros q : {pushed[i].utime + 1, pushed[i + 1].utime - 1}) {
+            ASSERT_TRUE(h.At(q, &out)) << run << " " << i << " " << q;
+            ExpectNear(out, Lerp(pushed[i], pushed[i + 1], q), 1e-12);
+          }
+        }
+      }
+      EXPECT_FALSE(h.At(pushed[first].utime - 1, &out));
+      EXPECT_FALSE(h.At(pushed.back().utime + 1, &out));
+    }
+    t -= step;
+  }
+}
+
 // The history is sized by the neighbour timeout, the largest delay and two periods, but
 // never beyond the run's ticks (+2): a delay of 1e9 s once asked for 5e10 samples.
 TEST(StateHistoryTest, FollowerHistoryIsBoundedByTheRun) {
