@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <type_traits>
 
 #include "core/channel_model.h"
 
@@ -182,8 +184,23 @@ void Follower::Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_d
   }
 }
 
-void Follower::Advance(const AttitudeTrig<double>& trig, const Vec5& force, const Vec3& current) {
-  Integrate(model_, force, current, ToSeconds(period_us_), substeps_, &x_, &trig, &trig_);
+bool Follower::SamePlant(const Follower& o) const {
+  static_assert(std::is_trivially_copyable_v<RemusParams>);
+  return substeps_ == o.substeps_ && period_us_ == o.period_us_ &&
+         std::memcmp(&model_.params(), &o.model_.params(), sizeof(RemusParams)) == 0;
+}
+
+PlantJob Follower::plant_job() {
+  PlantJob j;
+  j.x = &x_;
+  j.tau = force_;
+  j.current_ned = current_ned_;
+  j.trig = &control_trig_;
+  j.trig_out = &trig_;
+  return j;
+}
+
+void Follower::Integrated() {
   trig_age_ = (trig_age_ + 1) % kTrigRefreshTicks;  // the heading's wrap below keeps sin, cos
   x_.eta(4) = WrapAngle(x_.eta(4));
   ++counters_.ticks;
@@ -213,9 +230,18 @@ void Follower::FollowTimeline(Micros now) {
 }
 
 const StateMsg& Follower::Tick(Micros now) {
+  const StateMsg& out = Control(now);
+  Integrate(model_, force_, current_ned_, ToSeconds(period_us_), substeps_, &x_, &control_trig_,
+            &trig_);
+  Integrated();
+  return out;
+}
+
+const StateMsg& Follower::Control(Micros now) {
   BeginTick(now);
   if (trig_age_ == 0) trig_ = AttitudeTrig<double>(x_.eta);
-  const AttitudeTrig<double> trig = trig_;
+  control_trig_ = trig_;
+  const AttitudeTrig<double>& trig = control_trig_;
   const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);
   history_.Push(HistorySample{now, x_.eta, eta_dot});
 
@@ -233,8 +259,7 @@ const StateMsg& Follower::Tick(Micros now) {
     saturated = ControlForce(trig, a, &tau);
   }
   Vec5 tau_dist;
-  Vec3 current;
-  Disturb(now, trig, &tau_dist, &current);
+  Disturb(now, trig, &tau_dist, &current_ned_);
 
   out_.seq += 1;
   out_.utime = now;
@@ -247,7 +272,7 @@ const StateMsg& Follower::Tick(Micros now) {
                (any_stale ? StateMsg::kFlagStaleNeighbour : 0) |
                (in_reset_ ? StateMsg::kFlagControllerReset : 0);
 
-  Advance(trig, tau + tau_dist, current);
+  force_ = tau + tau_dist;
   return out_;
 }
 

@@ -78,6 +78,18 @@ class Follower {
   /// neighbour data and own history at the window's first tick and commands zero force
   /// throughout (the plant and its disturbances go on). Never throws, never allocates.
   const StateMsg& Tick(Micros now);
+  /// Tick() in parts, for a caller that integrates many followers' plants at once
+  /// (IntegrateMany): Control(now) is Tick(now) up to the integration and returns the same
+  /// message; plant_job() is the integration it leaves; Integrated() ends the tick once
+  /// that job ran. Tick(now) is exactly these three.
+  const StateMsg& Control(Micros now);
+  PlantJob plant_job();
+  void Integrated();
+  /// True if this follower's plant integrates with the same model, period and substeps as
+  /// `o`'s (so that both can be stepped in one IntegrateMany call).
+  bool SamePlant(const Follower& o) const;
+  int substeps() const { return substeps_; }
+  const FossenModel& model() const { return model_; }
 
   const PlantState& state() const { return x_; }
   const FollowerCounters& counters() const { return counters_; }
@@ -126,8 +138,6 @@ class Follower {
   bool ControlForce(const AttitudeTrig<double>& trig, const Vec5& a, Vec5* tau);
   /// The uncertain factor as a force, or the ocean current, held over the period.
   void Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_dist, Vec3* current);
-  /// Integrates the plant over one period under `force` and checks for divergence.
-  void Advance(const AttitudeTrig<double>& trig, const Vec5& force, const Vec3& current);
 
   int id_;
   double k1_, k2_;
@@ -153,6 +163,11 @@ class Follower {
   static constexpr int kTrigRefreshTicks = 50;
   AttitudeTrig<double> trig_{Vec5::Zero()};
   int trig_age_ = 0;  // 0: compute afresh
+  // What Control() leaves for the integration: the trig at the tick's state, the force
+  // (control plus uncertain factor) and the ocean current, held over the period.
+  AttitudeTrig<double> control_trig_{Vec5::Zero()};
+  Vec5 force_ = Vec5::Zero();
+  Vec3 current_ned_ = Vec3::Zero();
   StateHistory history_;
   std::vector<Slot> slots_;
   std::vector<int> slot_of_;  // sender id -> slot index, -1 if not a neighbour

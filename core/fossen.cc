@@ -1,40 +1,34 @@
 #include "core/fossen.h"
 
+#include "core/fossen_lanes.h"
+
 namespace shoal {
 
 namespace {
+// RK4 in a current: nu_r = nu - nu_c, with nu_c from each stage's attitude.
 struct Deriv {
   Vec5 eta_dot;
   Vec5 nu_dot;
 };
 
-// Inlined into each RK4 stage: as a call it returned its two vectors through memory.
-// Still water (kCurrent false) leaves out the body-frame current: nu - 0 is nu to the bit,
-// so both forms give the same numbers there.
-template <bool kCurrent>
 [[gnu::always_inline]] inline Deriv F(const FossenModel& model, const AttitudeTrig<double>& c,
                                       const Vec5& nu, const Vec5& tau, const Vec3& current_ned) {
-  if constexpr (kCurrent) {
-    return {FossenModel::EtaDot(c, nu), model.NuDot(c, nu, tau, BodyCurrent(c, current_ned))};
-  } else {
-    return {FossenModel::EtaDot(c, nu), model.NuDotStill(c, nu, tau)};
-  }
+  return {FossenModel::EtaDot(c, nu), model.NuDot(c, nu, tau, BodyCurrent(c, current_ned))};
 }
 
-template <bool kCurrent>
-void Rk4StepIn(const FossenModel& model, const Vec5& tau, const Vec3& current_ned, double dt,
-               const AttitudeTrig<double>& trig, PlantState* x, AttitudeTrig<double>* trig_out) {
+void Rk4StepInCurrent(const FossenModel& model, const Vec5& tau, const Vec3& current_ned,
+                      double dt, const AttitudeTrig<double>& trig, PlantState* x,
+                      AttitudeTrig<double>* trig_out) {
   const Vec5 eta = x->eta, nu = x->nu;
-  const Deriv k1 = F<kCurrent>(model, trig, nu, tau, current_ned);
+  const Deriv k1 = F(model, trig, nu, tau, current_ned);
   const Vec5 eta2 = eta + 0.5 * dt * k1.eta_dot;
-  const Deriv k2 = F<kCurrent>(model, ShiftTrig(trig, eta, eta2), nu + 0.5 * dt * k1.nu_dot,
-                               tau, current_ned);
+  const Deriv k2 =
+      F(model, ShiftTrig(trig, eta, eta2), nu + 0.5 * dt * k1.nu_dot, tau, current_ned);
   const Vec5 eta3 = eta + 0.5 * dt * k2.eta_dot;
-  const Deriv k3 = F<kCurrent>(model, ShiftTrig(trig, eta, eta3), nu + 0.5 * dt * k2.nu_dot,
-                               tau, current_ned);
+  const Deriv k3 =
+      F(model, ShiftTrig(trig, eta, eta3), nu + 0.5 * dt * k2.nu_dot, tau, current_ned);
   const Vec5 eta4 = eta + dt * k3.eta_dot;
-  const Deriv k4 =
-      F<kCurrent>(model, ShiftTrig(trig, eta, eta4), nu + dt * k3.nu_dot, tau, current_ned);
+  const Deriv k4 = F(model, ShiftTrig(trig, eta, eta4), nu + dt * k3.nu_dot, tau, current_ned);
   x->eta = eta + dt / 6.0 * (k1.eta_dot + 2.0 * k2.eta_dot + 2.0 * k3.eta_dot + k4.eta_dot);
   x->nu = nu + dt / 6.0 * (k1.nu_dot + 2.0 * k2.nu_dot + 2.0 * k3.nu_dot + k4.nu_dot);
   if (trig_out != nullptr) *trig_out = ShiftTrig(trig, eta, x->eta);
@@ -44,9 +38,27 @@ void Rk4StepIn(const FossenModel& model, const Vec5& tau, const Vec3& current_ne
 void Rk4Step(const FossenModel& model, const Vec5& tau, const Vec3& current_ned, double dt,
              const AttitudeTrig<double>& trig, PlantState* x, AttitudeTrig<double>* trig_out) {
   if (current_ned.isZero()) {
-    Rk4StepIn<false>(model, tau, current_ned, dt, trig, x, trig_out);
+    // Still water: the lane code with one lane, which IntegrateMany runs four wide.
+    lanes::Vec5L<double> eta, nu, t;
+    for (int k = 0; k < 5; ++k) {
+      eta.v[k] = x->eta(k);
+      nu.v[k] = x->nu(k);
+      t.v[k] = tau(k);
+    }
+    lanes::TrigL<double> c{trig.ct, trig.st, trig.cp, trig.sp}, out;
+    FossenLanes(model).Rk4Still(t, dt, c, &eta, &nu, trig_out ? &out : nullptr);
+    for (int k = 0; k < 5; ++k) {
+      x->eta(k) = eta.v[k];
+      x->nu(k) = nu.v[k];
+    }
+    if (trig_out != nullptr) {
+      trig_out->ct = out.ct;
+      trig_out->st = out.st;
+      trig_out->cp = out.cp;
+      trig_out->sp = out.sp;
+    }
   } else {
-    Rk4StepIn<true>(model, tau, current_ned, dt, trig, x, trig_out);
+    Rk4StepInCurrent(model, tau, current_ned, dt, trig, x, trig_out);
   }
 }
 
@@ -62,6 +74,108 @@ void Integrate(const FossenModel& model, const Vec5& tau, const Vec3& current_ne
       Rk4Step(model, tau, current_ned, dt, AttitudeTrig<double>(x->eta), x, out);
     }
   }
+}
+
+namespace {
+using lanes::Set;
+using lanes::TrigL;
+using lanes::Vec5L;
+
+// AttitudeTrig of each lane: the given one, or afresh from the lane's eta.
+[[gnu::always_inline]] inline TrigL<Lanes4> LaneTrig(const Vec5L<Lanes4>& eta, const AttitudeTrig<double>* const* given) {
+  TrigL<Lanes4> t;
+  for (int i = 0; i < 4; ++i) {
+    AttitudeTrig<double> c = given[i] != nullptr ? *given[i] : AttitudeTrig<double>(Vec5::Zero());
+    if (given[i] == nullptr) {
+      c.ct = std::cos(eta.v[3][i]);
+      c.st = std::sin(eta.v[3][i]);
+      c.cp = std::cos(eta.v[4][i]);
+      c.sp = std::sin(eta.v[4][i]);
+    }
+    Set(&t.ct, i, c.ct);
+    Set(&t.st, i, c.st);
+    Set(&t.cp, i, c.cp);
+    Set(&t.sp, i, c.sp);
+  }
+  return t;
+}
+
+// Integrate() of two to four still-water jobs in the lanes of one vector (a short pack
+// repeats its first job in the spare lanes, whose results are dropped). Inlined into each
+// instruction-set variant below.
+[[gnu::always_inline]] inline void IntegratePack(const FossenModel& model, double dt, int substeps,
+                                                 PlantJob* const* pack, int count) {
+  const AttitudeTrig<double>* given[4];
+  Vec5L<Lanes4> eta, nu, tau;
+  for (int i = 0; i < 4; ++i) {
+    const PlantJob& j = *pack[i < count ? i : 0];
+    given[i] = j.trig;
+    for (int k = 0; k < 5; ++k) {
+      Set(&eta.v[k], i, j.x->eta(k));
+      Set(&nu.v[k], i, j.x->nu(k));
+      Set(&tau.v[k], i, j.tau(k));
+    }
+  }
+  const FossenLanes lanes(model);
+  TrigL<Lanes4> out;
+  for (int s = 0; s < substeps; ++s) {
+    // As in Integrate(): the given trig for the first substep, afresh for the others.
+    const TrigL<Lanes4> t = LaneTrig(eta, given);
+    given[0] = given[1] = given[2] = given[3] = nullptr;
+    lanes.Rk4Still(tau, dt, t, &eta, &nu, s + 1 == substeps ? &out : nullptr);
+  }
+  for (int i = 0; i < count; ++i) {
+    for (int k = 0; k < 5; ++k) {
+      pack[i]->x->eta(k) = eta.v[k][i];
+      pack[i]->x->nu(k) = nu.v[k][i];
+    }
+    if (pack[i]->trig_out != nullptr) {
+      pack[i]->trig_out->ct = out.ct[i];
+      pack[i]->trig_out->st = out.st[i];
+      pack[i]->trig_out->cp = out.cp[i];
+      pack[i]->trig_out->sp = out.sp[i];
+    }
+  }
+}
+
+__attribute__((target("avx2"))) void IntegratePackAvx2(const FossenModel& model, double dt,
+                                                       int substeps, PlantJob* const* pack,
+                                                       int count) {
+  IntegratePack(model, dt, substeps, pack, count);
+}
+
+void IntegratePackBase(const FossenModel& model, double dt, int substeps, PlantJob* const* pack,
+                       int count) {
+  IntegratePack(model, dt, substeps, pack, count);
+}
+}  // namespace
+
+void IntegrateMany(const FossenModel& model, double period_s, int substeps, PlantJob* jobs,
+                   int count, LaneCode code) {
+  static const bool have_avx2 = __builtin_cpu_supports("avx2");
+  const bool avx2 = code == LaneCode::kAvx2 || (code == LaneCode::kBest && have_avx2);
+  const double dt = period_s / substeps;
+  PlantJob* pack[4];
+  int filled = 0;
+  auto flush = [&] {
+    if (filled == 1) {
+      PlantJob& j = *pack[0];
+      Integrate(model, j.tau, j.current_ned, period_s, substeps, j.x, j.trig, j.trig_out);
+    } else if (filled > 1) {
+      (avx2 ? IntegratePackAvx2 : IntegratePackBase)(model, dt, substeps, pack, filled);
+    }
+    filled = 0;
+  };
+  for (int i = 0; i < count; ++i) {
+    PlantJob& j = jobs[i];
+    if (!j.current_ned.isZero()) {
+      Integrate(model, j.tau, j.current_ned, period_s, substeps, j.x, j.trig, j.trig_out);
+      continue;
+    }
+    pack[filled++] = &j;
+    if (filled == 4) flush();
+  }
+  flush();
 }
 
 }  // namespace shoal

@@ -305,12 +305,6 @@ class FossenModel {
     rhs(3) -= T(wzg_) * c.st;  // g(eta)
     return SolveM(rhs);
   }
-  /// NuDot in still water (nu_c = 0).
-  Vec5 NuDotStill(const AttitudeTrig<double>& c, const Vec5& nu, const Vec5& tau) const {
-    Vec5 rhs = tau - CoriolisForce(nu) - DampingForce(nu);
-    rhs(3) -= wzg_ * c.st;  // g(eta)
-    return SolveM(rhs);
-  }
   template <typename T>
   Vec5T<T> NuDot(const Vec5T<T>& eta, const Vec5T<T>& nu, const Vec5T<T>& tau,
                  const Vec5T<T>& nu_c) const {
@@ -323,6 +317,7 @@ class FossenModel {
   }
 
  private:
+  friend class FossenLanes;  // the same arithmetic in vector lanes (core/fossen_lanes.h)
   RemusParams p_;
   Mat5 M_;
   Mat5 M_inv_;
@@ -360,5 +355,23 @@ void Integrate(const FossenModel& model, const Vec5& tau, const Vec3& current_ne
                double period_s, int substeps, PlantState* x,
                const AttitudeTrig<double>* trig = nullptr,
                AttitudeTrig<double>* trig_out = nullptr);
+
+/// One vehicle's Integrate() call, for IntegrateMany.
+struct PlantJob {
+  PlantState* x = nullptr;
+  Vec5 tau = Vec5::Zero();
+  Vec3 current_ned = Vec3::Zero();
+  const AttitudeTrig<double>* trig = nullptr;  // AttitudeTrig(x->eta), or null
+  AttitudeTrig<double>* trig_out = nullptr;
+};
+
+/// Integrate() for every job, all with the same model, period and substeps. Vehicles in
+/// still water are stepped four at a time in vector lanes (core/fossen_lanes.h); every
+/// result has the bits Integrate() gives it alone.
+/// `lanes`: which vector code steps the lanes (kBest: AVX2 where the CPU has it, else SSE2
+/// pairs); every choice gives the same bits (tests/unit: all of them against Integrate()).
+enum class LaneCode { kBest, kAvx2, kBase };
+void IntegrateMany(const FossenModel& model, double period_s, int substeps, PlantJob* jobs,
+                   int count, LaneCode lanes = LaneCode::kBest);
 
 }  // namespace shoal

@@ -93,6 +93,9 @@ Swarm::Swarm(const Scenario& s, double duration_s)
     followers_.push_back(std::make_unique<Follower>(s, topo_, i, env_, duration_s, timeline_));
   }
   published_.resize(followers_.size());
+  jobs_.resize(followers_.size());
+  together_ = true;
+  for (const auto& f : followers_) together_ = together_ && f->SamePlant(*followers_.front());
   decisions_.reserve(topo_.Links().size());
 }
 
@@ -114,8 +117,20 @@ bool Swarm::Step(SwarmObserver* obs) {
 
   if (warm_env_) env_->Warm(now);
   const StateMsg& lm = leader_.Tick(now);
-  for (std::size_t i = 0; i < followers_.size(); ++i) {
-    published_[i] = &followers_[i]->Tick(now);
+  if (together_) {
+    // The plants are integrated together (in vector lanes), to the bits of Tick().
+    for (std::size_t i = 0; i < followers_.size(); ++i) {
+      published_[i] = &followers_[i]->Control(now);
+      jobs_[i] = followers_[i]->plant_job();
+    }
+    const Follower& first = *followers_.front();
+    IntegrateMany(first.model(), ToSeconds(period_us_), first.substeps(), jobs_.data(),
+                  static_cast<int>(jobs_.size()));
+    for (const auto& f : followers_) f->Integrated();
+  } else {
+    for (std::size_t i = 0; i < followers_.size(); ++i) {
+      published_[i] = &followers_[i]->Tick(now);
+    }
   }
   metrics_.Add(lm, published_);
 

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include "core/rng.h"
@@ -584,6 +585,108 @@ TEST(FossenRk4Test, IntegrateSplitsThePeriodIntoEqualSteps) {
   Integrate(model, tau, Vec3(0.2, 0.1, 0.0), 0.02, 2, &d);
   EXPECT_EQ(c.eta, d.eta);
   EXPECT_EQ(c.nu, d.nu);
+}
+
+/// The model's RK4 in still water written with its templated functions (Eigen vectors,
+/// NuDot with a zero current): what the lane code of Rk4Step and IntegrateMany must equal.
+void ReferenceRk4(const FossenModel& model, const Vec5& tau, double dt,
+                  const AttitudeTrig<double>& trig, PlantState* x, AttitudeTrig<double>* out) {
+  const Vec5 zero = Vec5::Zero();
+  const Vec5 eta = x->eta, nu = x->nu;
+  auto f = [&](const AttitudeTrig<double>& c, const Vec5& n, Vec5* ed, Vec5* nd) {
+    *ed = FossenModel::EtaDot(c, n);
+    *nd = model.NuDot(c, n, tau, zero);
+  };
+  Vec5 e1, n1, e2, n2, e3, n3, e4, n4;
+  f(trig, nu, &e1, &n1);
+  const Vec5 eta2 = eta + 0.5 * dt * e1;
+  f(ShiftTrig(trig, eta, eta2), nu + 0.5 * dt * n1, &e2, &n2);
+  const Vec5 eta3 = eta + 0.5 * dt * e2;
+  f(ShiftTrig(trig, eta, eta3), nu + 0.5 * dt * n2, &e3, &n3);
+  const Vec5 eta4 = eta + dt * e3;
+  f(ShiftTrig(trig, eta, eta4), nu + dt * n3, &e4, &n4);
+  x->eta = eta + dt / 6.0 * (e1 + 2.0 * e2 + 2.0 * e3 + e4);
+  x->nu = nu + dt / 6.0 * (n1 + 2.0 * n2 + 2.0 * n3 + n4);
+  *out = ShiftTrig(trig, eta, x->eta);
+}
+
+bool SameBits(const PlantState& a, const PlantState& b) {
+  return std::memcmp(a.eta.data(), b.eta.data(), sizeof(double) * 5) == 0 &&
+         std::memcmp(a.nu.data(), b.nu.data(), sizeof(double) * 5) == 0;
+}
+bool SameBits(const AttitudeTrig<double>& a, const AttitudeTrig<double>& b) {
+  return std::memcmp(&a, &b, sizeof(a)) == 0;
+}
+
+/// A state whose RK4 stages turn by more than ShiftAngle's 0.05 rad in some steps (the
+/// std::sin/cos fallback) when `fast` is set, and by less otherwise.
+PlantState RandomPlant(Rng* rng, bool fast) {
+  PlantState x;
+  x.eta = RandomEta(rng, 1.2);
+  x.nu = RandomNu(rng, 3.0, fast ? 6.0 : 0.5);
+  return x;
+}
+
+Vec5 RandomTau(Rng* rng) {
+  Vec5 tau;
+  for (int k = 0; k < 5; ++k) tau(k) = U(rng, -200, 200);
+  return tau;
+}
+
+TEST(FossenRk4Test, StillWaterStepIsTheModelsRk4ToTheBit) {
+  const FossenModel model;
+  Rng rng(77);
+  for (int k = 0; k < 3000; ++k) {
+    PlantState a = RandomPlant(&rng, k % 3 == 0);
+    PlantState b = a;
+    const Vec5 tau = RandomTau(&rng);
+    const double dt = U(&rng, 0.001, 0.2);
+    const AttitudeTrig<double> trig(a.eta);
+    AttitudeTrig<double> out_a = trig, out_b = trig;
+    Rk4Step(model, tau, Vec3::Zero(), dt, trig, &a, &out_a);
+    ReferenceRk4(model, tau, dt, trig, &b, &out_b);
+    ASSERT_TRUE(SameBits(a, b)) << k;
+    ASSERT_TRUE(SameBits(out_a, out_b)) << k;
+  }
+}
+
+// IntegrateMany steps still-water vehicles four to a vector: each one must end exactly as
+// Integrate() leaves it alone, with every lane code, any count (full and short packs, a
+// single vehicle), several substeps, with and without a given trig and a trig to return,
+// vehicles in a current among them, and lanes that take the std::sin/cos fallback next to
+// lanes that do not.
+TEST(FossenRk4Test, IntegrateManyEqualsIntegrateForEveryVehicleToTheBit) {
+  const FossenModel model;
+  Rng rng(4242);
+  for (const LaneCode code : {LaneCode::kBest, LaneCode::kAvx2, LaneCode::kBase}) {
+    if (code == LaneCode::kAvx2 && !__builtin_cpu_supports("avx2")) continue;
+    for (int round = 0; round < 300; ++round) {
+      const int count = 1 + round % 11;
+      const int substeps = 1 + round % 3;
+      const double period = U(&rng, 0.005, 0.1);
+      std::vector<PlantState> many(count), alone(count);
+      std::vector<AttitudeTrig<double>> trig_many(count, AttitudeTrig<double>(Vec5::Zero()));
+      std::vector<AttitudeTrig<double>> trig_alone = trig_many, given = trig_many;
+      std::vector<PlantJob> jobs(count);
+      for (int i = 0; i < count; ++i) {
+        many[i] = alone[i] = RandomPlant(&rng, rng.Uniform() < 0.3);
+        given[i] = AttitudeTrig<double>(many[i].eta);
+        jobs[i].x = &many[i];
+        jobs[i].tau = RandomTau(&rng);
+        if (rng.Uniform() < 0.15) jobs[i].current_ned = Vec3(U(&rng, -1, 1), U(&rng, -1, 1), 0);
+        if (rng.Uniform() < 0.7) jobs[i].trig = &given[i];
+        if (rng.Uniform() < 0.7) jobs[i].trig_out = &trig_many[i];
+      }
+      IntegrateMany(model, period, substeps, jobs.data(), count, code);
+      for (int i = 0; i < count; ++i) {
+        const PlantJob& j = jobs[i];
+        Integrate(model, j.tau, j.current_ned, period, substeps, &alone[i], j.trig,
+                  j.trig_out ? &trig_alone[i] : nullptr);
+        ASSERT_TRUE(SameBits(many[i], alone[i])) << "round " << round << " vehicle " << i;
+        ASSERT_TRUE(SameBits(trig_many[i], trig_alone[i])) << "round " << round << " " << i;
+      }
+    }
+  }
 }
 
 }  // namespace
