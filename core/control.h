@@ -72,6 +72,11 @@ inline Vec5 FeedbackLinearise(const FossenModel& model, const Vec5& eta, const V
 
 inline double Clip(double v, double lim) { return v > lim ? lim : (v < -lim ? -lim : v); }
 
+/// True if the saturated force tau differs from the demand beyond rounding.
+inline bool SaturationChanged(const Vec5& tau, const Vec5& demand) {
+  return (tau - demand).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + demand.cwiseAbs().maxCoeff());
+}
+
 /// Saturated feedback linearisation. Translation saturates first and attitude keeps its
 /// authority: the forces X, Y, Z are clipped to their limits, then the moments M, N are
 /// recomputed from M's coupled 2x2 blocks (w, q) and (v, r) with the heave and sway
@@ -98,13 +103,30 @@ inline bool SaturatedFeedbackLinearise(const FossenModel& model, const AttitudeT
   const double v_dot = (t(1) - n(1) - M(1, 4) * nd(4)) / M(1, 1);
   t(4) = Clip(M(4, 1) * v_dot + M(4, 4) * nd(4) + n(4), tau_max(4));
   if (wanted) *wanted = demand;
-  return (t - demand).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + demand.cwiseAbs().maxCoeff());
+  return SaturationChanged(t, demand);
 }
 inline bool SaturatedFeedbackLinearise(const FossenModel& model, const Vec5& eta, const Vec5& nu,
                                        const Vec5& a, const Vec5& tau_max, Vec5* tau,
                                        Vec5* wanted = nullptr) {
   return SaturatedFeedbackLinearise(model, AttitudeTrig<double>(eta), nu, a, tau_max, tau, wanted);
 }
+
+/// One vehicle's SaturatedFeedbackLinearise call, for SaturatedFeedbackLineariseMany.
+struct ForceJob {
+  AttitudeTrig<double> trig{Vec5::Zero()};  // of eta
+  Vec5 nu = Vec5::Zero();
+  Vec5 a = Vec5::Zero();
+  Vec5 tau_max = Vec5::Zero();
+  Vec5 tau = Vec5::Zero();     // out: the saturated force
+  Vec5 wanted = Vec5::Zero();  // out: the unsaturated demand
+  bool saturated = false;      // out: SaturatedFeedbackLinearise's result
+};
+
+/// SaturatedFeedbackLinearise for every job, all with the same model, four at a time in
+/// vector lanes (core/fossen_lanes.h): every result has the bits the scalar function
+/// gives it (tests/unit/control_test.cc).
+void SaturatedFeedbackLineariseMany(const FossenModel& model, ForceJob* const* jobs, int count,
+                                    LaneCode lanes = LaneCode::kBest);
 
 /// Clips each channel of tau to [-tau_max, tau_max]; returns true if any was clipped.
 inline bool Saturate(const Vec5& tau_max, Vec5* tau) {

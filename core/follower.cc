@@ -93,7 +93,7 @@ RxResult Follower::Check(const StateMsg& m) const {
   }
   if (!m.AllFinite()) return RxResult::kNonFinite;
   const Slot& sl = slots_[slot_of_[m.vehicle_id]];
-  if (sl.have && (m.utime <= sl.msg.utime || m.seq <= sl.msg.seq)) return RxResult::kOld;
+  if (sl.have && (m.utime <= sl.utime || m.seq <= sl.seq)) return RxResult::kOld;
   return RxResult::kAccepted;
 }
 
@@ -116,7 +116,10 @@ RxResult Follower::Receive(const StateMsg& m) {
     return r;
   }
   Slot& sl = slots_[slot_of_[m.vehicle_id]];
-  sl.msg = m;
+  sl.utime = m.utime;
+  sl.seq = m.seq;
+  sl.eta = m.eta;
+  sl.eta_dot = m.eta_dot;
   sl.have = true;
   sl.stale = false;
   ++counters_.msgs_received;
@@ -129,7 +132,7 @@ int Follower::GatherTerms(Micros now, bool* any_stale) {
   *any_stale = false;
   for (Slot& sl : slots_) {
     if (!sl.have || !sl.active) continue;
-    if (now - sl.msg.utime > timeout_us_) {
+    if (now - sl.utime > timeout_us_) {
       if (!sl.stale) {
         sl.stale = true;
         ++counters_.neighbour_timeouts;
@@ -138,11 +141,11 @@ int Follower::GatherTerms(Micros now, bool* any_stale) {
       continue;
     }
     HistorySample own;
-    if (sl.msg.utime > now || !history_.At(sl.msg.utime, &own)) continue;
+    if (sl.utime > now || !history_.At(sl.utime, &own)) continue;
     NeighbourTerm& t = terms_[count++];
     t.weight = sl.weight;
-    t.eta_j = sl.msg.eta;
-    t.eta_dot_j = sl.msg.eta_dot;
+    t.eta_j = sl.eta;
+    t.eta_dot_j = sl.eta_dot;
     t.offset_j = sl.offset;
     t.eta_i = own.eta;
     t.eta_dot_i = own.eta_dot;
@@ -151,19 +154,25 @@ int Follower::GatherTerms(Micros now, bool* any_stale) {
   return count;
 }
 
-bool Follower::ControlForce(const AttitudeTrig<double>& trig, const Vec5& a, Vec5* tau) {
-  // Inner loop: feedback linearisation, saturated to the actuator limits.
-  Vec5 tau_wanted;
-  const bool saturated =
-      SaturatedFeedbackLinearise(model_, trig, x_.nu, a, tau_max_, tau, &tau_wanted);
-  if (saturated) {
-    ++counters_.saturated_ticks;
-    for (int k = 0; k < 5; ++k) {
-      counters_.saturated_channel[k] +=
-          std::abs((*tau)(k)) >= tau_max_(k) && (*tau)(k) != tau_wanted(k);
+ForceJob* Follower::force_job() { return in_reset_ ? nullptr : &force_job_; }
+
+void Follower::Forced() {
+  Vec5 tau = Vec5::Zero();
+  bool saturated = false;
+  if (!in_reset_) {
+    const ForceJob& j = force_job_;
+    tau = j.tau;
+    saturated = j.saturated;
+    if (saturated) {
+      ++counters_.saturated_ticks;
+      for (int k = 0; k < 5; ++k) {
+        counters_.saturated_channel[k] += std::abs(tau(k)) >= tau_max_(k) && tau(k) != j.wanted(k);
+      }
     }
   }
-  return saturated;
+  out_.tau = tau;
+  if (saturated) out_.flags |= StateMsg::kFlagSaturated;
+  force_ = tau + tau_dist_;
 }
 
 void Follower::Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_dist,
@@ -231,6 +240,10 @@ void Follower::FollowTimeline(Micros now) {
 
 const StateMsg& Follower::Tick(Micros now) {
   const StateMsg& out = Control(now);
+  if (ForceJob* j = force_job()) {
+    SaturatedFeedbackLineariseMany(model_, &j, 1);
+  }
+  Forced();
   Integrate(model_, force_, current_ned_, ToSeconds(period_us_), substeps_, &x_, &control_trig_,
             &trig_);
   Integrated();
@@ -246,20 +259,20 @@ const StateMsg& Follower::Control(Micros now) {
   history_.Push(HistorySample{now, x_.eta, eta_dot});
 
   bool any_stale = false;
-  int count = 0;
   Vec5 a = Vec5::Zero();
-  Vec5 tau = Vec5::Zero();
-  bool saturated = false;
   if (in_reset_) {
     ++counters_.reset_ticks;
     counters_.active_neighbours = 0;
   } else {
-    count = GatherTerms(now, &any_stale);
+    const int count = GatherTerms(now, &any_stale);
     a = Protocol10(k1_, k2_, offset_, terms_.data(), count);
-    saturated = ControlForce(trig, a, &tau);
+    // The inner loop's input; the force comes back by Forced().
+    force_job_.trig = trig;
+    force_job_.nu = x_.nu;
+    force_job_.a = a;
+    force_job_.tau_max = tau_max_;
   }
-  Vec5 tau_dist;
-  Disturb(now, trig, &tau_dist, &current_ned_);
+  Disturb(now, trig, &tau_dist_, &current_ned_);
 
   out_.seq += 1;
   out_.utime = now;
@@ -267,12 +280,8 @@ const StateMsg& Follower::Control(Micros now) {
   out_.nu = x_.nu;
   out_.eta_dot = eta_dot;
   out_.accel_cmd = a;
-  out_.tau = tau;
-  out_.flags = (saturated ? StateMsg::kFlagSaturated : 0) |
-               (any_stale ? StateMsg::kFlagStaleNeighbour : 0) |
+  out_.flags = (any_stale ? StateMsg::kFlagStaleNeighbour : 0) |
                (in_reset_ ? StateMsg::kFlagControllerReset : 0);
-
-  force_ = tau + tau_dist;
   return out_;
 }
 

@@ -78,11 +78,19 @@ class Follower {
   /// neighbour data and own history at the window's first tick and commands zero force
   /// throughout (the plant and its disturbances go on). Never throws, never allocates.
   const StateMsg& Tick(Micros now);
-  /// Tick() in parts, for a caller that integrates many followers' plants at once
-  /// (IntegrateMany): Control(now) is Tick(now) up to the integration and returns the same
-  /// message; plant_job() is the integration it leaves; Integrated() ends the tick once
-  /// that job ran. Tick(now) is exactly these three.
+  /// Tick() in parts, for a caller that steps many followers' inner loops and plants at
+  /// once, in vector lanes (SaturatedFeedbackLineariseMany, IntegrateMany). Tick(now) is
+  /// exactly:
+  ///   Control(now): the tick up to the inner loop; returns the message, whose tau and
+  ///     saturation flag are filled in by Forced();
+  ///   force_job(): the inner loop's feedback linearisation to run (null in a controller
+  ///     reset, which commands no force);
+  ///   Forced(): the force's accounting once that job ran;
+  ///   plant_job(): the integration over the period, to run;
+  ///   Integrated(): the end of the tick once the integration ran.
   const StateMsg& Control(Micros now);
+  ForceJob* force_job();
+  void Forced();
   PlantJob plant_job();
   void Integrated();
   /// True if this follower's plant integrates with the same model, period and substeps as
@@ -123,7 +131,11 @@ class Follower {
     bool stale = false;
     bool active = true;  // its link is in the topology in force
     int link = -1;       // index of its link in the timeline
-    StateMsg msg;
+    // Of the newest accepted message, what protocol (10) and the checks use.
+    Micros utime = 0;
+    std::int32_t seq = 0;
+    Vec5 eta = Vec5::Zero();
+    Vec5 eta_dot = Vec5::Zero();
   };
 
   /// Applies the timeline at `now`: the reset window (entering it clears the memory) and
@@ -134,8 +146,6 @@ class Follower {
   /// Fills terms_ with protocol (10)'s terms of the live neighbours; returns their count.
   /// Marks (and counts) neighbours whose newest message is older than the timeout.
   int GatherTerms(Micros now, bool* any_stale);
-  /// tau for the commanded eta'' `a`, saturated; counts saturation; true if saturated.
-  bool ControlForce(const AttitudeTrig<double>& trig, const Vec5& a, Vec5* tau);
   /// The uncertain factor as a force, or the ocean current, held over the period.
   void Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_dist, Vec3* current);
 
@@ -166,6 +176,8 @@ class Follower {
   // What Control() leaves for the integration: the trig at the tick's state, the force
   // (control plus uncertain factor) and the ocean current, held over the period.
   AttitudeTrig<double> control_trig_{Vec5::Zero()};
+  ForceJob force_job_;
+  Vec5 tau_dist_ = Vec5::Zero();
   Vec5 force_ = Vec5::Zero();
   Vec3 current_ned_ = Vec3::Zero();
   StateHistory history_;

@@ -150,10 +150,14 @@ void IntegratePackBase(const FossenModel& model, double dt, int substeps, PlantJ
 }
 }  // namespace
 
+bool CpuHasAvx2() {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  return avx2;
+}
+
 void IntegrateMany(const FossenModel& model, double period_s, int substeps, PlantJob* jobs,
                    int count, LaneCode code) {
-  static const bool have_avx2 = __builtin_cpu_supports("avx2");
-  const bool avx2 = code == LaneCode::kAvx2 || (code == LaneCode::kBest && have_avx2);
+  const bool avx2 = code == LaneCode::kAvx2 || (code == LaneCode::kBest && CpuHasAvx2());
   const double dt = period_s / substeps;
   PlantJob* pack[4];
   int filled = 0;

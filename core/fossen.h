@@ -371,6 +371,8 @@ struct PlantJob {
 /// `lanes`: which vector code steps the lanes (kBest: AVX2 where the CPU has it, else SSE2
 /// pairs); every choice gives the same bits (tests/unit: all of them against Integrate()).
 enum class LaneCode { kBest, kAvx2, kBase };
+/// True if the CPU runs AVX2 (LaneCode::kBest's choice).
+bool CpuHasAvx2();
 void IntegrateMany(const FossenModel& model, double period_s, int substeps, PlantJob* jobs,
                    int count, LaneCode lanes = LaneCode::kBest);
 

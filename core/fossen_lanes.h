@@ -48,6 +48,11 @@ inline double At(const double& x, int) { return x; }
 [[gnu::always_inline]] inline void Set(double* x, int, double v) { *x = v; }
 [[gnu::always_inline]] inline void Set(Lanes4* x, int i, double v) { (*x)[i] = v; }
 
+inline double Clip(double v, double lim) { return v > lim ? lim : (v < -lim ? -lim : v); }
+[[gnu::always_inline]] inline Lanes4 Clip(Lanes4 v, Lanes4 lim) {
+  return v > lim ? lim : (v < -lim ? -lim : v);
+}
+
 template <typename L>
 struct Vec5L {
   L v[5];
@@ -144,6 +149,63 @@ class FossenLanes {
     y.v[2] = Mi(2, 2) * rhs.v[2] + Mi(2, 3) * rhs.v[3];
     y.v[3] = Mi(3, 2) * rhs.v[2] + Mi(3, 3) * rhs.v[3];
     return y;
+  }
+
+  /// SaturatedFeedbackLinearise (core/control.h), term for term: *tau receives the
+  /// saturated force, *demand the unsaturated one.
+  template <typename L>
+  [[gnu::always_inline]] void SaturatedFeedbackLinearise(
+      const lanes::TrigL<L>& c, const lanes::Vec5L<L>& nu, const lanes::Vec5L<L>& acc,
+      const lanes::Vec5L<L>& tau_max, lanes::Vec5L<L>* tau, lanes::Vec5L<L>* demand) const {
+    using lanes::Clip;
+    const L ct = c.ct, st = c.st, cp = c.cp, sp = c.sp;
+    const L u = nu.v[0], v = nu.v[1], w = nu.v[2], q = nu.v[3], r = nu.v[4];
+    // x = acc - J_dot(eta, nu) nu (FossenModel::JDotNu).
+    const L thd = q, psd = r / ct;
+    const L rt0 = -cp * st * u + cp * ct * w;
+    const L rt1 = -sp * st * u + sp * ct * w;
+    const L rt2 = -ct * u - st * w;
+    const L rp0 = -sp * ct * u - cp * v - sp * st * w;
+    const L rp1 = cp * ct * u - sp * v + cp * st * w;
+    const L x0 = acc.v[0] - (rt0 * thd + rp0 * psd);
+    const L x1 = acc.v[1] - (rt1 * thd + rp1 * psd);
+    const L x2 = acc.v[2] - rt2 * thd;
+    const L x3 = acc.v[3] - 0.0;
+    const L x4 = acc.v[4] - r * st * thd / (ct * ct);
+    // nd = J^{-1}(eta) x (FossenModel::JInvTimes).
+    const L nd0 = cp * ct * x0 + sp * ct * x1 + -st * x2;
+    const L nd1 = -sp * x0 + cp * x1;
+    const L nd2 = cp * st * x0 + sp * st * x1 + ct * x2;
+    const L nd3 = x3;
+    const L nd4 = ct * x4;
+    // n = C(nu) nu + D(nu) nu + g(eta).
+    const RemusParams& p = m_.p_;
+    const L a = m_.m33_ * w + m_.mb34_ * q;
+    const L b = m_.m22_ * v + m_.mb25_ * r;
+    const L cu = m_.m11_ * u;
+    using lanes::Abs;
+    const L n0 = (a * q - b * r) + -p.X_uu * Abs(u) * u;
+    const L n1 = cu * r + -(p.Y_vv * Abs(v) * v + u * (p.Y_uv * v + p.Y_ur * r));
+    const L n2 = -cu * q + -(p.Z_ww * Abs(w) * w + u * (p.Z_uw * w + p.Z_uq * q));
+    const L n3 = (-a * u + cu * w) + -(p.M_qq * Abs(q) * q + u * (p.M_uw * w + p.M_uq * q)) +
+                 p.W * p.z_g * st;
+    const L n4 = (b * u - cu * v) + -(p.N_rr * Abs(r) * r + u * (p.N_uv * v + p.N_ur * r));
+    // demand = M nd + n (FossenModel::MTimes), then translation first, attitude after.
+    const Mat5& M = m_.M_;
+    lanes::Vec5L<L>& d = *demand;
+    d.v[0] = M(0, 0) * nd0 + n0;
+    d.v[1] = (M(1, 1) * nd1 + M(1, 4) * nd4) + n1;
+    d.v[2] = (M(2, 2) * nd2 + M(2, 3) * nd3) + n2;
+    d.v[3] = (M(3, 2) * nd2 + M(3, 3) * nd3) + n3;
+    d.v[4] = (M(4, 1) * nd1 + M(4, 4) * nd4) + n4;
+    lanes::Vec5L<L>& t = *tau;
+    t.v[0] = Clip(d.v[0], tau_max.v[0]);
+    t.v[1] = Clip(d.v[1], tau_max.v[1]);
+    t.v[2] = Clip(d.v[2], tau_max.v[2]);
+    const L w_dot = (t.v[2] - n2 - M(2, 3) * nd3) / M(2, 2);
+    t.v[3] = Clip(M(3, 2) * w_dot + M(3, 3) * nd3 + n3, tau_max.v[3]);
+    const L v_dot = (t.v[1] - n1 - M(1, 4) * nd4) / M(1, 1);
+    t.v[4] = Clip(M(4, 1) * v_dot + M(4, 4) * nd4 + n4, tau_max.v[4]);
   }
 
   /// Rk4Step in still water: x_eta, x_nu are advanced by dt under tau; trig is the trig of

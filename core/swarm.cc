@@ -94,6 +94,7 @@ Swarm::Swarm(const Scenario& s, double duration_s)
   }
   published_.resize(followers_.size());
   jobs_.resize(followers_.size());
+  forces_.resize(followers_.size());
   together_ = true;
   for (const auto& f : followers_) together_ = together_ && f->SamePlant(*followers_.front());
   decisions_.reserve(topo_.Links().size());
@@ -118,12 +119,18 @@ bool Swarm::Step(SwarmObserver* obs) {
   if (warm_env_) env_->Warm(now);
   const StateMsg& lm = leader_.Tick(now);
   if (together_) {
-    // The plants are integrated together (in vector lanes), to the bits of Tick().
+    // The inner loops and the plants run together (in vector lanes), to the bits of Tick().
+    int forced = 0;
     for (std::size_t i = 0; i < followers_.size(); ++i) {
       published_[i] = &followers_[i]->Control(now);
-      jobs_[i] = followers_[i]->plant_job();
+      if (ForceJob* j = followers_[i]->force_job()) forces_[forced++] = j;
     }
     const Follower& first = *followers_.front();
+    SaturatedFeedbackLineariseMany(first.model(), forces_.data(), forced);
+    for (std::size_t i = 0; i < followers_.size(); ++i) {
+      followers_[i]->Forced();
+      jobs_[i] = followers_[i]->plant_job();
+    }
     IntegrateMany(first.model(), ToSeconds(period_us_), first.substeps(), jobs_.data(),
                   static_cast<int>(jobs_.size()));
     for (const auto& f : followers_) f->Integrated();

@@ -89,7 +89,8 @@ class Swarm {
   Channel<StateMsg> channel_;
   FormationMetrics metrics_;
   std::vector<const StateMsg*> published_;
-  std::vector<PlantJob> jobs_;  // the followers' integrations of the tick
+  std::vector<ForceJob*> forces_;  // the followers' inner loops of the tick
+  std::vector<PlantJob> jobs_;     // the followers' integrations of the tick
   bool together_ = false;        // every follower has the same plant: IntegrateMany
   std::vector<ChannelDecision> decisions_;
   int diverged_id_ = 0;

@@ -407,6 +407,9 @@ class ResourceLog {
 };
 
 /// One run: prepared (checks, nothing started), started, supervised, shut down.
+// How often the supervisor polls a lockstep run (real time: every 50 ms).
+constexpr std::chrono::milliseconds kLockstepPoll(10);
+
 class Launch {
  public:
   Launch(const Scenario& s, const LaunchOptions& opt, LaunchResult* r)
@@ -1181,7 +1184,8 @@ void Launch::Supervise(const LaunchCallbacks& cb) {
   if (resources_->open()) r_->resources_file = r_->process_output_dir + "/resources.csv";
   bool go_on = !start_failed_;
   while (go_on && !emulator_done_ && !StopSignals::Requested()) {
-    const timespec poll = {0, 50000000};
+    const long poll_ns = mode_ == Mode::kLockstep ? kLockstepPoll.count() * 1000000L : 50000000L;
+    const timespec poll = {0, poll_ns};
     nanosleep(&poll, nullptr);  // returns early when a child exits or stops (SIGCHLD)
     for (Child& c : kids_) {
       int status = 0;
@@ -1216,9 +1220,10 @@ void Launch::SampleResources(bool end) {
     sim_s = (MonotonicNs() - t0_ns_) * 1e-9;
   } else {
     const auto now = std::chrono::steady_clock::now();
-    // Every supervisor poll (50 ms): a lockstep run at 150x real time covers 7.5 s of
-    // mission in that time, so a 30 s --resource-interval still gets every sample it is due.
-    if (!end && now - last_resource_poll_ < std::chrono::milliseconds(50)) return;
+    // Every supervisor poll (10 ms in lockstep): a run at 1000x real time covers 10 s of
+    // mission in that time, so a 30 s --resource-interval still gets every sample it is due
+    // (at 50 ms, a 5-follower run at 330x on a fast host skipped one sample in ten).
+    if (!end && now - last_resource_poll_ < kLockstepPoll) return;
     last_resource_poll_ = now;
     tracker_->Poll();
     if (!tracker_->any_state()) return;

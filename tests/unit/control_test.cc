@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -193,6 +194,44 @@ TEST(ControlFeedbackLinearisationTest, SaturationFlagAtTheLimitOfEachChannel) {
       lim(i) = std::abs(wanted(i)) * (1.0 + 1e-7);
       ASSERT_FALSE(SaturatedFeedbackLinearise(model, eta, nu, a, lim, &tau)) << k << " " << i;
     }
+  }
+}
+
+// SaturatedFeedbackLineariseMany runs the inner loops of many followers four to a vector:
+// every one must get the bits the scalar function gives it, saturated or not, with every
+// lane code and any count (full and short packs, one alone).
+TEST(ControlFeedbackLinearisationTest, ManyAtOnceEqualsOneByOneToTheBit) {
+  const FossenModel model;
+  Rng rng(31);
+  for (const LaneCode code : {LaneCode::kBest, LaneCode::kAvx2, LaneCode::kBase}) {
+    if (code == LaneCode::kAvx2 && !CpuHasAvx2()) continue;
+    int saturated = 0, free = 0;
+    for (int round = 0; round < 400; ++round) {
+      const int count = 1 + round % 9;
+      std::vector<ForceJob> jobs(count);
+      std::vector<ForceJob*> ptrs;
+      for (ForceJob& j : jobs) {
+        j.trig = AttitudeTrig<double>(RandomEta(&rng, 1.2));
+        j.nu = RandomNu(&rng);
+        j.a = RandomVec(&rng, 2.0);
+        // Limits that clip some channels of some vehicles, and none of others.
+        for (int k = 0; k < 5; ++k) j.tau_max(k) = rng.Uniform() < 0.3 ? U(&rng, 1, 60) : 1e4;
+        ptrs.push_back(&j);
+      }
+      SaturatedFeedbackLineariseMany(model, ptrs.data(), count, code);
+      for (const ForceJob& j : jobs) {
+        Vec5 tau, wanted;
+        const bool sat =
+            SaturatedFeedbackLinearise(model, j.trig, j.nu, j.a, j.tau_max, &tau, &wanted);
+        ASSERT_EQ(sat, j.saturated) << round;
+        ASSERT_EQ(std::memcmp(tau.data(), j.tau.data(), sizeof(double) * 5), 0) << round;
+        ASSERT_EQ(std::memcmp(wanted.data(), j.wanted.data(), sizeof(double) * 5), 0) << round;
+        (sat ? saturated : free) += 1;
+      }
+    }
+    // Both kinds of vehicle were checked.
+    EXPECT_GT(saturated, 100);
+    EXPECT_GT(free, 100);
   }
 }
 

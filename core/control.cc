@@ -1,0 +1,68 @@
+#include "core/control.h"
+
+#include <algorithm>
+
+#include "core/fossen_lanes.h"
+
+namespace shoal {
+
+namespace {
+using lanes::Set;
+using lanes::TrigL;
+using lanes::Vec5L;
+
+// SaturatedFeedbackLinearise of one to four jobs in the lanes of L (a short pack repeats its
+// first job in the spare lanes, whose results are dropped). Inlined into each
+// instruction-set variant below.
+template <typename L>
+[[gnu::always_inline]] inline void ForcePack(const FossenModel& model, ForceJob* const* pack,
+                                             int count) {
+  TrigL<L> c;
+  Vec5L<L> nu, a, lim, tau, demand;
+  for (int i = 0; i < lanes::Count<L>::kLanes; ++i) {
+    const ForceJob& j = *pack[i < count ? i : 0];
+    Set(&c.ct, i, j.trig.ct);
+    Set(&c.st, i, j.trig.st);
+    Set(&c.cp, i, j.trig.cp);
+    Set(&c.sp, i, j.trig.sp);
+    for (int k = 0; k < 5; ++k) {
+      Set(&nu.v[k], i, j.nu(k));
+      Set(&a.v[k], i, j.a(k));
+      Set(&lim.v[k], i, j.tau_max(k));
+    }
+  }
+  FossenLanes(model).SaturatedFeedbackLinearise(c, nu, a, lim, &tau, &demand);
+  for (int i = 0; i < count; ++i) {
+    ForceJob& j = *pack[i];
+    for (int k = 0; k < 5; ++k) {
+      j.tau(k) = lanes::At(tau.v[k], i);
+      j.wanted(k) = lanes::At(demand.v[k], i);
+    }
+    j.saturated = SaturationChanged(j.tau, j.wanted);
+  }
+}
+
+__attribute__((target("avx2"))) void ForcePackAvx2(const FossenModel& model,
+                                                   ForceJob* const* pack, int count) {
+  ForcePack<Lanes4>(model, pack, count);
+}
+
+void ForcePackBase(const FossenModel& model, ForceJob* const* pack, int count) {
+  ForcePack<Lanes4>(model, pack, count);
+}
+}  // namespace
+
+void SaturatedFeedbackLineariseMany(const FossenModel& model, ForceJob* const* jobs, int count,
+                                    LaneCode code) {
+  const bool avx2 = code == LaneCode::kAvx2 || (code == LaneCode::kBest && CpuHasAvx2());
+  for (int first = 0; first < count; first += 4) {
+    const int n = std::min(4, count - first);
+    if (n == 1) {
+      ForcePack<double>(model, jobs + first, 1);
+    } else {
+      (avx2 ? ForcePackAvx2 : ForcePackBase)(model, jobs + first, n);
+    }
+  }
+}
+
+}  // namespace shoal
