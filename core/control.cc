@@ -42,6 +42,11 @@ template <typename L>
   }
 }
 
+__attribute__((target("avx512f"))) void ForcePackAvx512(const FossenModel& model,
+                                                        ForceJob* const* pack, int count) {
+  ForcePack<Lanes8>(model, pack, count);
+}
+
 __attribute__((target("avx2"))) void ForcePackAvx2(const FossenModel& model,
                                                    ForceJob* const* pack, int count) {
   ForcePack<Lanes4>(model, pack, count);
@@ -54,13 +59,16 @@ void ForcePackBase(const FossenModel& model, ForceJob* const* pack, int count) {
 
 void SaturatedFeedbackLineariseMany(const FossenModel& model, ForceJob* const* jobs, int count,
                                     LaneCode code) {
-  const bool avx2 = code == LaneCode::kAvx2 || (code == LaneCode::kBest && CpuHasAvx2());
-  for (int first = 0; first < count; first += 4) {
-    const int n = std::min(4, count - first);
+  code = BestLaneCode(code);
+  const int width = code == LaneCode::kAvx512 ? 8 : 4;
+  for (int first = 0; first < count; first += width) {
+    const int n = std::min(width, count - first);
     if (n == 1) {
       ForcePack<double>(model, jobs + first, 1);
     } else {
-      (avx2 ? ForcePackAvx2 : ForcePackBase)(model, jobs + first, n);
+      (code == LaneCode::kAvx512 ? ForcePackAvx512
+       : code == LaneCode::kAvx2 ? ForcePackAvx2
+                                 : ForcePackBase)(model, jobs + first, n);
     }
   }
 }

@@ -82,9 +82,11 @@ using lanes::TrigL;
 using lanes::Vec5L;
 
 // AttitudeTrig of each lane: the given one, or afresh from the lane's eta.
-[[gnu::always_inline]] inline TrigL<Lanes4> LaneTrig(const Vec5L<Lanes4>& eta, const AttitudeTrig<double>* const* given) {
-  TrigL<Lanes4> t;
-  for (int i = 0; i < 4; ++i) {
+template <typename L>
+[[gnu::always_inline]] inline TrigL<L> LaneTrig(const Vec5L<L>& eta,
+                                                const AttitudeTrig<double>* const* given) {
+  TrigL<L> t;
+  for (int i = 0; i < lanes::Count<L>::kLanes; ++i) {
     AttitudeTrig<double> c = given[i] != nullptr ? *given[i] : AttitudeTrig<double>(Vec5::Zero());
     if (given[i] == nullptr) {
       c.ct = std::cos(eta.v[3][i]);
@@ -100,14 +102,16 @@ using lanes::Vec5L;
   return t;
 }
 
-// Integrate() of two to four still-water jobs in the lanes of one vector (a short pack
-// repeats its first job in the spare lanes, whose results are dropped). Inlined into each
+// Integrate() of two or more still-water jobs in the lanes of L (a short pack repeats its
+// first job in the spare lanes, whose results are dropped). Inlined into each
 // instruction-set variant below.
+template <typename L>
 [[gnu::always_inline]] inline void IntegratePack(const FossenModel& model, double dt, int substeps,
                                                  PlantJob* const* pack, int count) {
-  const AttitudeTrig<double>* given[4];
-  Vec5L<Lanes4> eta, nu, tau;
-  for (int i = 0; i < 4; ++i) {
+  constexpr int kLanes = lanes::Count<L>::kLanes;
+  const AttitudeTrig<double>* given[kLanes];
+  Vec5L<L> eta, nu, tau;
+  for (int i = 0; i < kLanes; ++i) {
     const PlantJob& j = *pack[i < count ? i : 0];
     given[i] = j.trig;
     for (int k = 0; k < 5; ++k) {
@@ -116,13 +120,13 @@ using lanes::Vec5L;
       Set(&tau.v[k], i, j.tau(k));
     }
   }
-  const FossenLanes lanes(model);
-  TrigL<Lanes4> out;
+  const FossenLanes fossen(model);
+  TrigL<L> out;
   for (int s = 0; s < substeps; ++s) {
     // As in Integrate(): the given trig for the first substep, afresh for the others.
-    const TrigL<Lanes4> t = LaneTrig(eta, given);
-    given[0] = given[1] = given[2] = given[3] = nullptr;
-    lanes.Rk4Still(tau, dt, t, &eta, &nu, s + 1 == substeps ? &out : nullptr);
+    const TrigL<L> t = LaneTrig(eta, given);
+    for (int i = 0; i < kLanes; ++i) given[i] = nullptr;
+    fossen.Rk4Still(tau, dt, t, &eta, &nu, s + 1 == substeps ? &out : nullptr);
   }
   for (int i = 0; i < count; ++i) {
     for (int k = 0; k < 5; ++k) {
@@ -138,35 +142,52 @@ using lanes::Vec5L;
   }
 }
 
+__attribute__((target("avx512f"))) void IntegratePackAvx512(const FossenModel& model, double dt,
+                                                            int substeps, PlantJob* const* pack,
+                                                            int count) {
+  IntegratePack<Lanes8>(model, dt, substeps, pack, count);
+}
+
 __attribute__((target("avx2"))) void IntegratePackAvx2(const FossenModel& model, double dt,
                                                        int substeps, PlantJob* const* pack,
                                                        int count) {
-  IntegratePack(model, dt, substeps, pack, count);
+  IntegratePack<Lanes4>(model, dt, substeps, pack, count);
 }
 
 void IntegratePackBase(const FossenModel& model, double dt, int substeps, PlantJob* const* pack,
                        int count) {
-  IntegratePack(model, dt, substeps, pack, count);
+  IntegratePack<Lanes4>(model, dt, substeps, pack, count);
 }
 }  // namespace
 
-bool CpuHasAvx2() {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2;
+LaneCode BestLaneCode(LaneCode asked) {
+  static const LaneCode best = __builtin_cpu_supports("avx512f") ? LaneCode::kAvx512
+                               : __builtin_cpu_supports("avx2")  ? LaneCode::kAvx2
+                                                                 : LaneCode::kBase;
+  return asked == LaneCode::kBest ? best : asked;
+}
+
+bool CpuRuns(LaneCode code) {
+  const LaneCode best = BestLaneCode(LaneCode::kBest);
+  return code == LaneCode::kBase || code == LaneCode::kBest || code == best ||
+         (code == LaneCode::kAvx2 && best == LaneCode::kAvx512);
 }
 
 void IntegrateMany(const FossenModel& model, double period_s, int substeps, PlantJob* jobs,
                    int count, LaneCode code) {
-  const bool avx2 = code == LaneCode::kAvx2 || (code == LaneCode::kBest && CpuHasAvx2());
+  code = BestLaneCode(code);
+  const int width = code == LaneCode::kAvx512 ? 8 : 4;
   const double dt = period_s / substeps;
-  PlantJob* pack[4];
+  PlantJob* pack[8];
   int filled = 0;
   auto flush = [&] {
     if (filled == 1) {
       PlantJob& j = *pack[0];
       Integrate(model, j.tau, j.current_ned, period_s, substeps, j.x, j.trig, j.trig_out);
     } else if (filled > 1) {
-      (avx2 ? IntegratePackAvx2 : IntegratePackBase)(model, dt, substeps, pack, filled);
+      (code == LaneCode::kAvx512 ? IntegratePackAvx512
+       : code == LaneCode::kAvx2 ? IntegratePackAvx2
+                                 : IntegratePackBase)(model, dt, substeps, pack, filled);
     }
     filled = 0;
   };
@@ -177,7 +198,7 @@ void IntegrateMany(const FossenModel& model, double period_s, int substeps, Plan
       continue;
     }
     pack[filled++] = &j;
-    if (filled == 4) flush();
+    if (filled == width) flush();
   }
   flush();
 }

@@ -368,11 +368,14 @@ struct PlantJob {
 /// Integrate() for every job, all with the same model, period and substeps. Vehicles in
 /// still water are stepped four at a time in vector lanes (core/fossen_lanes.h); every
 /// result has the bits Integrate() gives it alone.
-/// `lanes`: which vector code steps the lanes (kBest: AVX2 where the CPU has it, else SSE2
-/// pairs); every choice gives the same bits (tests/unit: all of them against Integrate()).
-enum class LaneCode { kBest, kAvx2, kBase };
-/// True if the CPU runs AVX2 (LaneCode::kBest's choice).
-bool CpuHasAvx2();
+/// `lanes`: which vector code steps the lanes: kBest is the CPU's best of AVX-512 (eight
+/// lanes), AVX2 (four) and SSE2 (four, in pairs); every choice gives the same bits
+/// (tests/unit: each against Integrate()).
+enum class LaneCode { kBest, kAvx512, kAvx2, kBase };
+/// kBest: the CPU's best code; any other: itself.
+LaneCode BestLaneCode(LaneCode asked);
+/// True if this CPU can run `code`.
+bool CpuRuns(LaneCode code);
 void IntegrateMany(const FossenModel& model, double period_s, int substeps, PlantJob* jobs,
                    int count, LaneCode lanes = LaneCode::kBest);
 

@@ -1,5 +1,6 @@
 // The still-water RK4 step of the Fossen model (core/fossen.h) written once over a "lane"
-// type L: a double, or a GCC vector of four doubles that steps four vehicles at once.
+// type L: a double, or a GCC vector of four (eight) doubles that steps four (eight)
+// vehicles at once.
 // Every lane performs exactly the operations of the double version, in the same order
 // (IEEE arithmetic is the same in a vector lane as in a scalar register, and the core is
 // built with -ffp-contract=off so that no build fuses a multiply and an add differently),
@@ -20,15 +21,22 @@
 namespace shoal {
 
 using Lanes4 = double __attribute__((vector_size(32)));
+using Lanes8 = double __attribute__((vector_size(64)));
 
 namespace lanes {
 
 using Mask4 = std::int64_t __attribute__((vector_size(32)));
+using Mask8 = std::int64_t __attribute__((vector_size(64)));
 
 inline double Abs(double x) { return std::fabs(x); }
 [[gnu::always_inline]] inline Lanes4 Abs(Lanes4 x) {
   const Mask4 magnitude = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
   return reinterpret_cast<Lanes4>(reinterpret_cast<Mask4>(x) & magnitude);
+}
+[[gnu::always_inline]] inline Lanes8 Abs(Lanes8 x) {
+  const Mask8 magnitude = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX,
+                           INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+  return reinterpret_cast<Lanes8>(reinterpret_cast<Mask8>(x) & magnitude);
 }
 
 template <typename L>
@@ -41,15 +49,24 @@ template <>
 struct Count<Lanes4> {
   static constexpr int kLanes = 4;
 };
+template <>
+struct Count<Lanes8> {
+  static constexpr int kLanes = 8;
+};
 
 inline double& At(double& x, int) { return x; }
 inline double At(const double& x, int) { return x; }
 [[gnu::always_inline]] inline double At(const Lanes4& x, int i) { return x[i]; }
+[[gnu::always_inline]] inline double At(const Lanes8& x, int i) { return x[i]; }
 [[gnu::always_inline]] inline void Set(double* x, int, double v) { *x = v; }
 [[gnu::always_inline]] inline void Set(Lanes4* x, int i, double v) { (*x)[i] = v; }
+[[gnu::always_inline]] inline void Set(Lanes8* x, int i, double v) { (*x)[i] = v; }
 
 inline double Clip(double v, double lim) { return v > lim ? lim : (v < -lim ? -lim : v); }
 [[gnu::always_inline]] inline Lanes4 Clip(Lanes4 v, Lanes4 lim) {
+  return v > lim ? lim : (v < -lim ? -lim : v);
+}
+[[gnu::always_inline]] inline Lanes8 Clip(Lanes8 v, Lanes8 lim) {
   return v > lim ? lim : (v < -lim ? -lim : v);
 }
 

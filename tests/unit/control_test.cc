@@ -203,8 +203,9 @@ TEST(ControlFeedbackLinearisationTest, SaturationFlagAtTheLimitOfEachChannel) {
 TEST(ControlFeedbackLinearisationTest, ManyAtOnceEqualsOneByOneToTheBit) {
   const FossenModel model;
   Rng rng(31);
-  for (const LaneCode code : {LaneCode::kBest, LaneCode::kAvx2, LaneCode::kBase}) {
-    if (code == LaneCode::kAvx2 && !CpuHasAvx2()) continue;
+  for (const LaneCode code :
+       {LaneCode::kBest, LaneCode::kAvx512, LaneCode::kAvx2, LaneCode::kBase}) {
+    if (!CpuRuns(code)) continue;
     int saturated = 0, free = 0;
     for (int round = 0; round < 400; ++round) {
       const int count = 1 + round % 9;

@@ -658,8 +658,9 @@ TEST(FossenRk4Test, StillWaterStepIsTheModelsRk4ToTheBit) {
 TEST(FossenRk4Test, IntegrateManyEqualsIntegrateForEveryVehicleToTheBit) {
   const FossenModel model;
   Rng rng(4242);
-  for (const LaneCode code : {LaneCode::kBest, LaneCode::kAvx2, LaneCode::kBase}) {
-    if (code == LaneCode::kAvx2 && !__builtin_cpu_supports("avx2")) continue;
+  for (const LaneCode code :
+       {LaneCode::kBest, LaneCode::kAvx512, LaneCode::kAvx2, LaneCode::kBase}) {
+    if (!CpuRuns(code)) continue;
     for (int round = 0; round < 300; ++round) {
       const int count = 1 + round % 11;
       const int substeps = 1 + round % 3;
