@@ -6,6 +6,7 @@
 //   position_tol_m and velocity_tol_mps to the end of the run.
 #pragma once
 
+#include <cmath>
 #include <vector>
 
 #include "core/scenario.h"
@@ -33,12 +34,18 @@ class FormationMetrics {
   /// Earliest time after which all followers stayed within tolerance; -1 if not converged.
   double convergence_time_s() const;
   /// Worst follower at the last sample.
-  const FormationErrors& final_worst() const { return final_worst_; }
+  const FormationErrors& final_worst() const {
+    final_worst_ = Root(worst_sq_);
+    return final_worst_;
+  }
   /// Per-follower errors at the last sample.
-  const std::vector<FormationErrors>& final_errors() const { return final_; }
+  const std::vector<FormationErrors>& final_errors() const {
+    for (std::size_t i = 0; i < final_.size(); ++i) final_[i] = Root(final_sq_[i]);
+    return final_;
+  }
   /// Worst position error over the whole run and at the current sample.
-  double max_position_error_m() const { return max_position_; }
-  double current_worst_position_m() const { return final_worst_.position_m; }
+  double max_position_error_m() const { return std::sqrt(max_position_sq_); }
+  double current_worst_position_m() const { return std::sqrt(worst_sq_.position_m); }
   std::int64_t samples() const { return samples_; }
   double last_time_s() const { return last_t_; }
 
@@ -50,9 +57,18 @@ class FormationMetrics {
   double last_t_ = 0.0;
   double conv_start_t_ = 0.0;  // time of the first sample after the last violation
   bool pending_start_ = true;
-  std::vector<FormationErrors> final_;
-  FormationErrors final_worst_;
-  double max_position_ = 0.0;
+  // A sample keeps the squares of the errors (each a squared norm): the worst and the
+  // largest are the square roots of the largest squares, to the bit (sqrt is correctly
+  // rounded and monotonic), and the square roots are taken when asked for, not three per
+  // follower and sample.
+  static FormationErrors Root(const FormationErrors& sq) {
+    return {std::sqrt(sq.position_m), std::sqrt(sq.velocity_mps), std::sqrt(sq.attitude_rad)};
+  }
+  std::vector<FormationErrors> final_sq_;
+  FormationErrors worst_sq_;
+  double max_position_sq_ = 0.0;
+  mutable std::vector<FormationErrors> final_;
+  mutable FormationErrors final_worst_;
 };
 
 }  // namespace shoal

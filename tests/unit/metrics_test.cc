@@ -48,6 +48,36 @@ TEST(Metrics, ConvergedAtTheFirstSampleAfterTheLastViolation) {
   EXPECT_DOUBLE_EQ(m.max_position_error_m(), 9.0);
 }
 
+// The metrics keep squared errors and take square roots only when asked: every reported
+// error must still be ErrorsOf's to the bit, and a follower exactly at, a hair below and a
+// hair above the tolerance must be judged as sqrt(error^2) <= tol judges it.
+TEST(Metrics, SquaredErrorsGiveErrorsOfsNumbersAndItsJudgementAtTheTolerance) {
+  const double tol = 0.5;
+  int judged_in = 0, judged_out = 0;
+  for (int k = -40; k <= 40; ++k) {
+    // A position error (0.3, 0.4 + k 1e-17, 0): its norm is tol give or take a few ulps
+    // (the leader at the origin keeps the error's ulps).
+    const double x = 0.3, y = 0.4 + k * 1e-17;
+    FormationMetrics m({Vec3::Zero()}, MetricsConfig{tol, 1.0});
+    const StateMsg l = At(0, (Vec5() << 0, 0, 0, 0.3, 3.0).finished(),
+                          (Vec5() << 1, 0, 0, 0, 0).finished());
+    const StateMsg f = At(0, (Vec5() << x, y, 0, -0.2, -3.0).finished(),
+                          (Vec5() << 1.2, 0.1, 0, 0.01, 0).finished());
+    m.Add(l, {&f});
+    const FormationErrors e = ErrorsOf(f, Vec3::Zero(), l);
+    EXPECT_EQ(m.final_errors()[0].position_m, e.position_m) << k;
+    EXPECT_EQ(m.final_errors()[0].velocity_mps, e.velocity_mps) << k;
+    EXPECT_EQ(m.final_errors()[0].attitude_rad, e.attitude_rad) << k;
+    EXPECT_EQ(m.final_worst().position_m, e.position_m) << k;
+    EXPECT_EQ(m.max_position_error_m(), e.position_m) << k;
+    EXPECT_EQ(m.converged(), e.position_m <= tol) << k;
+    (e.position_m <= tol ? judged_in : judged_out) += 1;
+  }
+  // Both sides of the tolerance were reached.
+  EXPECT_GT(judged_in, 0);
+  EXPECT_GT(judged_out, 0);
+}
+
 TEST(Metrics, NeverViolatingConvergesAtTheFirstSample) {
   const auto m = RunPositionErrors({0.1, 0.2, 0.1});
   EXPECT_TRUE(m.converged());
