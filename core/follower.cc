@@ -140,15 +140,22 @@ int Follower::GatherTerms(Micros now, bool* any_stale) {
       *any_stale = true;
       continue;
     }
-    HistorySample own;
-    if (sl.utime > now || !history_.At(sl.utime, &own)) continue;
+    if (sl.utime > now) continue;
+    // A neighbour's send time is usually a tick of this vehicle's own (no copy of the
+    // sample then); else the own state is interpolated.
+    HistorySample between;
+    const HistorySample* own = history_.Exact(sl.utime);
+    if (own == nullptr) {
+      if (!history_.At(sl.utime, &between)) continue;
+      own = &between;
+    }
     NeighbourTerm& t = terms_[count++];
     t.weight = sl.weight;
     t.eta_j = sl.eta;
     t.eta_dot_j = sl.eta_dot;
     t.offset_j = sl.offset;
-    t.eta_i = own.eta;
-    t.eta_dot_i = own.eta_dot;
+    t.eta_i = own->eta;
+    t.eta_dot_i = own->eta_dot;
   }
   counters_.active_neighbours = count;
   return count;

@@ -49,6 +49,13 @@ class StateHistory {
   /// if t is outside [oldest, newest].
   bool At(Micros t, HistorySample* out) const;
 
+  /// The sample pushed at exactly utime t, or null (no copy: valid until the next Push).
+  const HistorySample* Exact(Micros t) const {
+    if (size_ == 0 || t < Oldest().utime || t > Newest().utime) return nullptr;
+    const HistorySample& s = Get(FirstAtOrAfter(t));
+    return s.utime == t ? &s : nullptr;
+  }
+
   /// Forgets every sample (the capacity stays).
   void Clear() {
     head_ = 0;
