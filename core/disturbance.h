@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/channel_model.h"
+#include "core/fossen.h"
 #include "core/leader_path.h"
 #include "core/rng.h"
 #include "core/scenario.h"
@@ -25,17 +26,51 @@ inline double FastTanh(double x) {
   return std::copysign(1.0 - 2.0 / (std::exp(2.0 * ax) + 1.0), x);
 }
 
-/// Paper Example 2's uncertain factor F~(x, v) (an acceleration in eta''), evaluated by the
-/// caller at the delayed arguments x = eta(t - tau(t)), v = eta_dot(t - tau(t)).
-inline Vec5 PaperExample2F(const Vec5& x, const Vec5& v) {
+/// Paper Example 2's uncertain factor F~(x, v) (an acceleration in eta'') given
+/// sin x(1), cos x(2) and sin x(4).
+inline Vec5 PaperExample2F(double sin_x1, double cos_x2, double sin_x4, const Vec5& v) {
   Vec5 f;
   f(0) = 0.4 * FastTanh(v(0));
-  f(1) = 0.01 * std::sin(x(1)) - 0.45 * FastTanh(v(1));
-  f(2) = -0.01 * std::cos(x(2));
+  f(1) = 0.01 * sin_x1 - 0.45 * FastTanh(v(1));
+  f(2) = -0.01 * cos_x2;
   f(3) = 0.48 * FastTanh(v(3));
-  f(4) = 0.02 * std::sin(x(4)) - 0.5 * FastTanh(v(4));
+  f(4) = 0.02 * sin_x4 - 0.5 * FastTanh(v(4));
   return f;
 }
+
+/// Paper Example 2's uncertain factor F~(x, v), evaluated by the caller at the delayed
+/// arguments x = eta(t - tau(t)), v = eta_dot(t - tau(t)).
+inline Vec5 PaperExample2F(const Vec5& x, const Vec5& v) {
+  return PaperExample2F(std::sin(x(1)), std::cos(x(2)), std::sin(x(4)), v);
+}
+
+/// sin and cos of an argument that moves little from one call to the next (a vehicle's
+/// delayed state, tick after tick): carried by ShiftAngle (core/fossen.h) from the last
+/// argument, computed afresh at the first call, every kRefresh calls (so that rounding
+/// cannot accumulate) and after a step beyond ShiftAngle's series.
+class CarriedSinCos {
+ public:
+  static constexpr int kRefresh = 50;
+  void Set(double x) {
+    const double d = x - x_;
+    if (age_ == 0 || std::abs(d) > 0.05) {
+      sin_ = std::sin(x);
+      cos_ = std::cos(x);
+    } else {
+      ShiftAngle(x_, sin_, cos_, d, &sin_, &cos_);
+    }
+    x_ = x;
+    age_ = (age_ + 1) % kRefresh;
+  }
+  double sin() const { return sin_; }
+  double cos() const { return cos_; }
+  /// The next Set computes afresh.
+  void Reset() { age_ = 0; }
+
+ private:
+  double x_ = 0.0, sin_ = 0.0, cos_ = 1.0;
+  int age_ = 0;
+};
 
 /// What the simulated world knows besides each vehicle's own state: the leader's path,
 /// for the paper's uncertain factor relative to the leader. One instance may be shared by

@@ -192,7 +192,12 @@ void Follower::Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_d
     const Environment::DelayedLeader dl = env_->At(now);
     HistorySample past;
     if (!history_.At(now - dl.delay_us, &past)) past = history_.Oldest();
-    Vec5 f = PaperExample2F(past.eta, past.eta_dot);
+    // The delayed state moves a few millimetres and milliradians per tick: its sines and
+    // cosines are carried from the last tick's (std::sin and cos were 14 % of shoal sim).
+    delayed_y_.Set(past.eta(1));
+    delayed_z_.Set(past.eta(2));
+    delayed_psi_.Set(past.eta(4));
+    Vec5 f = PaperExample2F(delayed_y_.sin(), delayed_z_.cos(), delayed_psi_.sin(), past.eta_dot);
     if (disturbance_relative_) f -= dl.f0;
     *tau_dist = model_.MTimes(FossenModel::JInvTimes(trig, f));
   } else if (disturbance_ == DisturbanceKind::kOceanCurrent) {

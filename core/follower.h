@@ -176,6 +176,8 @@ class Follower {
   // What Control() leaves for the integration: the trig at the tick's state, the force
   // (control plus uncertain factor) and the ocean current, held over the period.
   AttitudeTrig<double> control_trig_{Vec5::Zero()};
+  // sin y, cos z, sin psi of the state at the uncertain factor's delayed time.
+  CarriedSinCos delayed_y_, delayed_z_, delayed_psi_;
   ForceJob force_job_;
   Vec5 tau_dist_ = Vec5::Zero();
   Vec5 force_ = Vec5::Zero();

@@ -22,6 +22,9 @@ void Follower::Resume(const Checkpoint& c) {
   counters_ = c.counters;
   diverged_ = c.diverged;
   trig_age_ = 0;  // the next Tick computes the attitude's sines and cosines afresh
+  delayed_y_.Reset();
+  delayed_z_.Reset();
+  delayed_psi_.Reset();
   // The ocean current is a random process stepped once per tick: drawn again as far as
   // the checkpoint's tick, it goes on with the numbers the uninterrupted run would draw.
   if (disturbance_ == DisturbanceKind::kOceanCurrent) {
