@@ -20,6 +20,8 @@ using Mat5T = Eigen::Matrix<T, 5, 5>;
 template <typename T>
 struct AttitudeTrig {
   T ct, st, cp, sp;
+  AttitudeTrig(T cos_theta, T sin_theta, T cos_psi, T sin_psi)
+      : ct(cos_theta), st(sin_theta), cp(cos_psi), sp(sin_psi) {}
   explicit AttitudeTrig(const Vec5T<T>& eta) {
     using std::cos;
     using std::sin;

@@ -16,9 +16,15 @@ struct LeaderSample {
 class LeaderPath {
  public:
   explicit LeaderPath(const LeaderConfig& c);
-  /// The sample at t_s; `with_nu` false leaves nu zero, without the sines and cosines of
-  /// J^{-1} (a caller that needs only eta and eta_dot).
-  LeaderSample At(double t_s, bool with_nu = true) const;
+  /// What a caller needs of a sample.
+  enum class Parts {
+    kAll,
+    /// What paper Example 2's uncertain factor reads: eta except theta, and eta_dot.
+    /// theta (eta(3)) and nu are left zero, without their atan2 and J^{-1}.
+    kFactor,
+  };
+  /// The sample at t_s.
+  LeaderSample At(double t_s, Parts parts = Parts::kAll) const;
 
  private:
   // Position, velocity, acceleration of the path point (NED).

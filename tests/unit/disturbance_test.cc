@@ -1,5 +1,6 @@
-// Uncertain factors: the fast tanh of paper Example 2's F against the C library, and the
-// environment's per-tick cache against direct evaluation.
+// Uncertain factors: the fast tanh of paper Example 2's F against the C library, the
+// environment's per-tick cache against direct evaluation, and the leader's path against
+// its defining formulas.
 #include "core/disturbance.h"
 
 #include <gtest/gtest.h>
@@ -8,7 +9,10 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <utility>
+#include <vector>
 
+#include "core/control.h"
 #include "core/rng.h"
 
 namespace shoal {
@@ -90,6 +94,70 @@ TEST(EnvironmentTest, WarmedAnswerEqualsDirectEvaluation) {
   // A warmed environment asked about another time computes that time, not the cached one.
   warm.Warm(20000);
   EXPECT_EQ(warm.At(40000).f0, cold.At(40000).f0);
+}
+
+// The paths a leader may follow, each at times that cover its cases.
+std::vector<std::pair<LeaderConfig, std::vector<double>>> LeaderCases() {
+  std::vector<std::pair<LeaderConfig, std::vector<double>>> cases;
+  std::vector<double> times;
+  for (int k = 0; k <= 400; ++k) times.push_back(k * 7.31);
+  cases.push_back({LeaderConfig{}, times});  // the paper's helix
+  LeaderConfig line;
+  line.path = PathKind::kLine;
+  line.velocity_mps = Vec3(0.6, -1.1, 0.2);
+  cases.push_back({line, {0.0, 1.0, 100.0}});
+  line.velocity_mps = Vec3(0.0, 0.0, 0.5);  // straight down: no heading from the velocity
+  cases.push_back({line, {0.0, 3.0}});
+  LeaderConfig wp;
+  wp.path = PathKind::kWaypoints;
+  wp.waypoints_m = {Vec3(0, 0, 0), Vec3(10, 5, 2), Vec3(10, 20, 0)};
+  cases.push_back({wp, {0.0, 3.0, 12.0, 25.0, 1000.0}});  // the last: at rest at the end
+  return cases;
+}
+
+TEST(LeaderPathTest, HelixIsThePapersFormulas) {
+  const LeaderPath path{LeaderConfig{}};
+  const double wa = 0.0022 * kPi, wb = 0.0011 * kPi;
+  for (int k = 0; k <= 20000; ++k) {
+    const double t = k * 0.0513;
+    const LeaderSample s = path.At(t);
+    EXPECT_NEAR(s.eta(0), 60 * std::cos(wa * t) + 25 * std::sin(wb * t), 1e-12) << t;
+    EXPECT_NEAR(s.eta(1), 60 * std::sin(wa * t) + 25 * std::cos(wb * t), 1e-12) << t;
+    EXPECT_EQ(s.eta(2), -0.12 * t);
+    EXPECT_NEAR(s.eta_dot(0), -60 * wa * std::sin(wa * t) + 25 * wb * std::cos(wb * t), 1e-14)
+        << t;
+    EXPECT_NEAR(s.eta_dot(1), 60 * wa * std::cos(wa * t) - 25 * wb * std::sin(wb * t), 1e-14)
+        << t;
+  }
+}
+
+TEST(LeaderPathTest, NuIsJInverseOfEtaDot) {
+  for (const auto& [config, times] : LeaderCases()) {
+    const LeaderPath path(config);
+    for (double t : times) {
+      const LeaderSample s = path.At(t);
+      const Vec5 expect = FossenModel::JInv(s.eta) * s.eta_dot;
+      for (int i = 0; i < 5; ++i) {
+        EXPECT_NEAR(s.nu(i), expect(i), 1e-14 * (1.0 + std::abs(expect(i))))
+            << "path " << static_cast<int>(config.path) << " t " << t << " i " << i;
+      }
+    }
+  }
+}
+
+TEST(LeaderPathTest, FactorPartsAreAllButThetaAndNu) {
+  for (const auto& [config, times] : LeaderCases()) {
+    const LeaderPath path(config);
+    for (double t : times) {
+      const LeaderSample all = path.At(t);
+      const LeaderSample f = path.At(t, LeaderPath::Parts::kFactor);
+      EXPECT_EQ(f.eta.head<3>(), all.eta.head<3>()) << t;
+      EXPECT_EQ(f.eta(4), all.eta(4)) << t;
+      EXPECT_EQ(f.eta(3), 0.0) << t;
+      EXPECT_EQ(f.eta_dot, all.eta_dot) << t;
+      EXPECT_EQ(f.nu, Vec5::Zero()) << t;
+    }
+  }
 }
 
 }  // namespace
