@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 
 #include "core/types.h"
 
@@ -27,16 +28,26 @@ struct StateMsg {
   /// True if every numeric field is finite (NaN/Inf never reach the control law).
   bool AllFinite() const {
     // x * 0 is +-0 for a finite x and NaN for +-Inf and NaN, and NaN survives every sum:
-    // one comparison for the 25 numbers of every message a follower receives, where
-    // Eigen's allFinite() tests each vector with a branch and costs twice the instructions.
-    return ZeroIfFinite(eta) + ZeroIfFinite(nu) + ZeroIfFinite(eta_dot) +
-               ZeroIfFinite(accel_cmd) + ZeroIfFinite(tau) ==
-           0.0;
+    // one comparison for the 25 numbers of every message a follower receives. Two numbers
+    // per SSE2 operation, which every x86-64 has: where Eigen's allFinite() tests each
+    // vector with a branch, this is a third of its instructions.
+    const Pair z = {0.0, 0.0};
+    const Pair pairs = ((Head(eta) * z + Head(nu) * z) + (Head(eta_dot) * z + Head(accel_cmd) * z)) +
+                       ((Mid(eta) * z + Mid(nu) * z) + (Mid(eta_dot) * z + Mid(accel_cmd) * z)) +
+                       (Head(tau) * z + Mid(tau) * z);
+    const double lasts =
+        (eta(4) * 0.0 + nu(4) * 0.0) + (eta_dot(4) * 0.0 + accel_cmd(4) * 0.0) + tau(4) * 0.0;
+    return pairs[0] + pairs[1] + lasts == 0.0;
   }
 
  private:
-  static double ZeroIfFinite(const Vec5& v) {
-    return (v(0) * 0.0 + v(1) * 0.0) + (v(2) * 0.0 + v(3) * 0.0) + v(4) * 0.0;
+  using Pair = double __attribute__((vector_size(16)));
+  static Pair Head(const Vec5& v) { return Load(v.data()); }
+  static Pair Mid(const Vec5& v) { return Load(v.data() + 2); }
+  static Pair Load(const double* p) {
+    Pair r;
+    std::memcpy(&r, p, sizeof r);
+    return r;
   }
 };
 
