@@ -3,7 +3,8 @@
 # the code before it), so that both see the same machine load.
 # Usage: bench/sim_ab.sh SHOAL_A SHOAL_B [ROUNDS] [SCENARIO] [DURATION_S]
 # Runs A, B, A, B, ... ROUNDS times each and prints every run, each side's median / min /
-# max real-time factor and the ratio of the medians B / A.
+# max real-time factor, the ratio of the medians B / A, and the median of the ratios
+# within each round.
 set -euo pipefail
 a=${1:?usage: bench/sim_ab.sh SHOAL_A SHOAL_B [ROUNDS] [SCENARIO] [DURATION_S]}
 b=${2:?usage: bench/sim_ab.sh SHOAL_A SHOAL_B [ROUNDS] [SCENARIO] [DURATION_S]}
@@ -35,3 +36,11 @@ read -r mb minb maxb < <(printf '%s\n' "${vb[@]}" | stats)
 echo "A real-time factor: median $ma (min $mina, max $maxa)"
 echo "B real-time factor: median $mb (min $minb, max $maxb)"
 awk -v a="$ma" -v b="$mb" 'BEGIN { printf "B / A = %.3f (B %s by %.1f %%)\n", b / a, b < a ? "slower" : "faster", 100 * (b > a ? b / a - 1 : 1 - b / a) }'
+# Each B run against the A run just before it: on a host whose speed drifts from minute to
+# minute, the ratio within a pair sees the same moment, so its median resolves a few per
+# cent where the medians of the two sides need many more rounds.
+for ((i = 0; i < rounds; i++)); do echo "${va[i]} ${vb[i]}"; done |
+  awk '{printf "%.6f %d\n", $2 / $1, ($2 > $1) ? 1 : 0}' | sort -g |
+  awk '{r[NR] = $1; faster += $2}
+    END {m = (NR % 2) ? r[(NR + 1) / 2] : (r[NR / 2] + r[NR / 2 + 1]) / 2
+         printf "B / A within each round: median %.3f; B faster in %d of %d rounds\n", m, faster, NR}'
