@@ -211,16 +211,6 @@ bool Follower::SamePlant(const Follower& o) const {
          std::memcmp(&model_.params(), &o.model_.params(), sizeof(RemusParams)) == 0;
 }
 
-PlantJob Follower::plant_job() {
-  PlantJob j;
-  j.x = &x_;
-  j.tau = force_;
-  j.current_ned = current_ned_;
-  j.trig = &control_trig_;
-  j.trig_out = &trig_;
-  return j;
-}
-
 void Follower::Integrated() {
   trig_age_ = (trig_age_ + 1) % kTrigRefreshTicks;  // the heading's wrap below keeps sin, cos
   x_.eta(4) = WrapAngle(x_.eta(4));

@@ -91,7 +91,18 @@ class Follower {
   const StateMsg& Control(Micros now);
   ForceJob* force_job();
   void Forced();
-  PlantJob plant_job();
+  // Defined here so that the caller builds the job in place: a job returned from another
+  // translation unit is written by 8-byte stores and read back by 16-byte loads, which
+  // the CPU cannot forward from the stores (a stall of its own per follower and tick).
+  PlantJob plant_job() {
+    PlantJob j;
+    j.x = &x_;
+    j.tau = force_;
+    j.current_ned = current_ned_;
+    j.trig = &control_trig_;
+    j.trig_out = &trig_;
+    return j;
+  }
   void Integrated();
   /// True if this follower's plant integrates with the same model, period and substeps as
   /// `o`'s (so that both can be stepped in one IntegrateMany call).
