@@ -460,7 +460,7 @@ class Channel {
       if (!LinkInForce(k, send_utime)) continue;  // not a link of this topology: no decision
       ChannelDecision d = Decide(k, seq, send_utime, sender_pos);
       if (d.status == ChannelDecision::kDelivered) {
-        Push(Pending{d.deliver_utime, order_++, links_[k].to, slot});
+        Push(d.deliver_utime, order_++, links_[k].to, slot);
         ++refs_[slot];
       }
       decisions->push_back(d);
@@ -686,15 +686,18 @@ class Channel {
     if (--refs_[p.slot] == 0) free_.push_back(p.slot);
   }
 
-  void Push(const Pending& p) {
+  // The fields rather than a Pending: an entry built on the stack by narrow stores and
+  // copied into the queue by 16-byte loads stalls the CPU, which cannot forward those
+  // stores to the loads; written field by field it goes from registers.
+  void Push(Micros due, std::uint64_t order, int receiver, int slot) {
     ++pending_;
     if (period_us_ <= 0) {
-      heap_.push(p);
+      heap_.push(Pending{due, order, receiver, slot});
       return;
     }
-    if (p.due != push_due_ || !push_valid_) {  // deliveries of one send share their due time
-      push_tick_ = p.due / period_us_;
-      push_due_ = p.due;
+    if (due != push_due_ || !push_valid_) {  // deliveries of one send share their due time
+      push_tick_ = due / period_us_;
+      push_due_ = due;
       push_valid_ = true;
     }
     std::int64_t tick = push_tick_;
@@ -703,19 +706,22 @@ class Channel {
     tick = std::max(tick, next_tick_);
     Migrate();
     if (tick - next_tick_ >= static_cast<std::int64_t>(wheel_.size())) {
-      overflow_.push(Far{tick, p});
+      overflow_.push(Far{tick, Pending{due, order, receiver, slot}});
       return;
     }
-    Append(tick, p);
+    Append(tick, due, order, receiver, slot);
   }
 
-  // Appends p to the bucket of `tick` (within the wheel), taking a free queue entry.
-  void Append(std::int64_t tick, const Pending& p) {
+  // Appends an entry to the bucket of `tick` (within the wheel), taking a free queue entry.
+  void Append(std::int64_t tick, Micros due, std::uint64_t order, int receiver, int slot) {
     if (free_node_ < 0) AddNodes(std::max<std::size_t>(nodes_.size(), 8));
     const int k = free_node_;
     Node& n = nodes_[static_cast<std::size_t>(k)];
     free_node_ = n.next;
-    n.p = p;
+    n.p.due = due;
+    n.p.order = order;
+    n.p.receiver = receiver;
+    n.p.slot = slot;
     n.next = -1;
     Bucket& b = wheel_[static_cast<std::size_t>(tick) & (wheel_.size() - 1)];
     if (b.tail >= 0) {
@@ -746,7 +752,7 @@ class Channel {
       const std::int64_t tick = std::max(f.tick, next_tick_);  // overdue: the next delivery
       const Pending p = f.p;
       overflow_.pop();
-      Append(tick, p);
+      Append(tick, p.due, p.order, p.receiver, p.slot);
     }
   }
 
