@@ -34,6 +34,18 @@ inline double TraceDelaySeconds(const DelayTrace& tr, double t_s) {
   return d0 + f * (tr.delay_s[k] - d0);
 }
 
+/// std::cos(x), remembering the last argument of the calling thread: tau(t) of a
+/// sinusoidal delay is asked for at each tick's time by the channel and by the uncertain
+/// factor's environment, and cos of a large argument costs a range reduction.
+inline double CosOfLast(double x) {
+  thread_local double last_x = 0.0, last_cos = 1.0;
+  if (x != last_x) {  // a NaN argument is never remembered
+    last_cos = std::cos(x);
+    last_x = x;
+  }
+  return last_cos;
+}
+
 /// tau(t) in seconds for a message sent at t (seconds) over `range_m` metres (only the
 /// acoustic model uses the range). Draws from `rng` only for the uniform model and the
 /// acoustic model's jitter (jitter_s > 0). Never negative.
@@ -46,7 +58,7 @@ inline double DelaySeconds(const DelayConfig& c, double t_s, Rng* rng, double ra
       tau = c.base_s;
       break;
     case DelayKind::kSinusoid:
-      tau = c.base_s + c.amplitude_s * std::cos(c.omega_rad_s * t_s);
+      tau = c.base_s + c.amplitude_s * CosOfLast(c.omega_rad_s * t_s);
       break;
     case DelayKind::kUniform:
       tau = c.base_s + c.amplitude_s * (2.0 * rng->Uniform() - 1.0);
@@ -458,12 +470,14 @@ class Channel {
     const int slot = Store(payload);
     for (std::size_t k : by_sender_[sender]) {
       if (!LinkInForce(k, send_utime)) continue;  // not a link of this topology: no decision
-      ChannelDecision d = Decide(k, seq, send_utime, sender_pos);
+      // Decided in place: a decision built on the stack by narrow stores and copied into
+      // the vector by wide loads would stall (the CPU cannot forward such stores).
+      ChannelDecision& d = decisions->emplace_back();
+      Decide(k, seq, send_utime, sender_pos, &d);
       if (d.status == ChannelDecision::kDelivered) {
         Push(d.deliver_utime, order_++, links_[k].to, slot);
         ++refs_[slot];
       }
-      decisions->push_back(d);
     }
     if (refs_[slot] == 0) free_.push_back(slot);
   }
@@ -565,10 +579,11 @@ class Channel {
   // The decision for one transmitted message on link k: the loss and delay models (a
   // timeline's channel event may replace them), then the timeline's link outage, the
   // pending queue's bound and the receiver's deafness at the due time.
-  ChannelDecision Decide(std::size_t k, std::int32_t seq, Micros send_utime,
-                         const Vec3& sender_pos) {
+  void Decide(std::size_t k, std::int32_t seq, Micros send_utime, const Vec3& sender_pos,
+              ChannelDecision* out) {
     Link& l = links_[k];
-    ChannelDecision d = Decision(l.from, l.to, seq, send_utime);
+    ChannelDecision& d = *out;
+    SetDecision(l.from, l.to, seq, send_utime, &d);
     const ScenarioEvent* change =
         timeline_ && timeline_link_[k] >= 0
             ? timeline_->ChannelChange(static_cast<std::size_t>(timeline_link_[k]), send_utime)
@@ -613,7 +628,6 @@ class Channel {
         d.deliver_utime = 0;
       }
     }
-    return d;
   }
 
   // A vehicle's two newest positions (the newest may be of the tick being submitted).
@@ -625,11 +639,17 @@ class Channel {
 
   static ChannelDecision Decision(int sender, int receiver, std::int32_t seq, Micros send_utime) {
     ChannelDecision d;
-    d.sender = sender;
-    d.receiver = receiver;
-    d.msg_seq = seq;
-    d.send_utime = send_utime;
+    SetDecision(sender, receiver, seq, send_utime, &d);
     return d;
+  }
+  // The message's fields of a decision constructed just before (the others at their
+  // defaults: delivered, no delay yet).
+  static void SetDecision(int sender, int receiver, std::int32_t seq, Micros send_utime,
+                          ChannelDecision* d) {
+    d->sender = sender;
+    d->receiver = receiver;
+    d->msg_seq = seq;
+    d->send_utime = send_utime;
   }
 
   void Place(int id, Micros t, const Vec3& p) {
