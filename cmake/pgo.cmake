@@ -52,7 +52,7 @@ get_target_property(shoal_pgo_core_options shoal_core COMPILE_OPTIONS)
 
 # The core and the scenario loader compiled into one program: linking shoal_scenario
 # would bring shoal_core, which waits for this program's counts.
-add_executable(shoal_pgo_train ${PROJECT_SOURCE_DIR}/core/pgo/train.cc
+add_executable(shoal_pgo_train ${PROJECT_SOURCE_DIR}/tools/pgo_train.cc
                ${shoal_pgo_core_sources} ${shoal_pgo_scenario_sources})
 target_include_directories(shoal_pgo_train PRIVATE ${PROJECT_SOURCE_DIR})
 target_link_libraries(shoal_pgo_train PRIVATE Eigen3::Eigen tomlplusplus::tomlplusplus
