@@ -257,8 +257,12 @@ const StateMsg& Follower::Control(Micros now) {
   if (trig_age_ == 0) trig_ = AttitudeTrig<double>(x_.eta);
   control_trig_ = trig_;
   const AttitudeTrig<double>& trig = control_trig_;
-  const Vec5 eta_dot = FossenModel::EtaDot(trig, x_.nu);
-  history_.Push(HistorySample{now, x_.eta, eta_dot});
+  // eta_dot is computed into the history's newest sample, not copied there (see EtaDotTo).
+  HistorySample* newest = history_.Append(now);
+  Vec5 own_eta_dot;  // only if Control were asked twice for one time
+  Vec5& eta_dot = newest ? newest->eta_dot : own_eta_dot;
+  FossenModel::EtaDotTo(trig, x_.nu, &eta_dot);
+  if (newest) newest->eta = x_.eta;
 
   bool any_stale = false;
   Vec5 a = Vec5::Zero();

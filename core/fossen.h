@@ -259,14 +259,20 @@ class FossenModel {
   /// eta_dot = J(eta) nu, without forming J.
   template <typename T>
   static Vec5T<T> EtaDot(const AttitudeTrig<T>& c, const Vec5T<T>& nu) {
-    const T u = nu(0), v = nu(1), w = nu(2);
     Vec5T<T> d;
-    d(0) = c.cp * c.ct * u - c.sp * v + c.cp * c.st * w;
-    d(1) = c.sp * c.ct * u + c.cp * v + c.sp * c.st * w;
-    d(2) = -c.st * u + c.ct * w;
-    d(3) = nu(3);
-    d(4) = nu(4) / c.ct;
+    EtaDotTo(c, nu, &d);
     return d;
+  }
+  /// The same, written into *d: where it is to be stored (a copy of a vector just written
+  /// element by element, read by wide loads, waits for the stores to reach the cache).
+  template <typename T>
+  static void EtaDotTo(const AttitudeTrig<T>& c, const Vec5T<T>& nu, Vec5T<T>* d) {
+    const T u = nu(0), v = nu(1), w = nu(2);
+    (*d)(0) = c.cp * c.ct * u - c.sp * v + c.cp * c.st * w;
+    (*d)(1) = c.sp * c.ct * u + c.cp * v + c.sp * c.st * w;
+    (*d)(2) = -c.st * u + c.ct * w;
+    (*d)(3) = nu(3);
+    (*d)(4) = nu(4) / c.ct;
   }
   template <typename T>
   static Vec5T<T> EtaDot(const Vec5T<T>& eta, const Vec5T<T>& nu) {

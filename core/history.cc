@@ -5,25 +5,33 @@
 namespace shoal {
 
 bool StateHistory::Push(const HistorySample& s) {
-  if (size_ > 0 && s.utime <= Newest().utime) return false;
-  if (size_ > 0 && run_ >= 2 && s.utime - Newest().utime == step_) {
+  HistorySample* d = Append(s.utime);
+  if (d == nullptr) return false;
+  *d = s;
+  return true;
+}
+
+HistorySample* StateHistory::Append(Micros utime) {
+  if (size_ > 0 && utime <= Newest().utime) return nullptr;
+  if (size_ > 0 && run_ >= 2 && utime - Newest().utime == step_) {
     ++run_;
   } else if (size_ > 0) {
-    step_ = s.utime - Newest().utime;
+    step_ = utime - Newest().utime;
     run_ = 2;
   } else {
     run_ = 1;
   }
-  const int cap = capacity();
-  if (size_ < cap) {
-    buf_[(head_ + size_) & mask_] = s;
+  HistorySample* d;
+  if (size_ < capacity()) {
+    d = &buf_[(head_ + size_) & mask_];
     ++size_;
   } else {
-    buf_[head_] = s;
+    d = &buf_[head_];
     head_ = (head_ + 1) & mask_;
   }
   if (run_ > size_) run_ = size_;
-  return true;
+  d->utime = utime;
+  return d;
 }
 
 int StateHistory::FirstAtOrAfter(Micros t) const {

@@ -44,6 +44,10 @@ class StateHistory {
   /// Appends a sample; returns false (and ignores it) unless utime is newer than the last.
   bool Push(const HistorySample& s);
 
+  /// Appends a sample at `utime` for the caller to fill in place (its eta and eta_dot as
+  /// they were); null, and nothing appended, unless utime is newer than the last.
+  HistorySample* Append(Micros utime);
+
   /// The state at utime t: the exact sample if one was pushed at t, otherwise linear
   /// interpolation between its neighbours (angles along the short arc). Returns false
   /// if t is outside [oldest, newest].
