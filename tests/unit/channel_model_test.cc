@@ -188,6 +188,31 @@ TEST(ChannelDelaySecondsTest, DeterministicModels) {
   EXPECT_NEAR(NominalDelaySeconds(s, 2.0), DelaySeconds(s, 2.0, nullptr), 0.0);
 }
 
+TEST(ChannelDelaySecondsTest, CosOfLastIsStdCosForAnySequenceOfArguments) {
+  // Repeats, alternations, a NaN between two equal arguments, -0 after +0, huge arguments:
+  // the remembered value is never returned for another argument.
+  const double nan = std::nan("");
+  const std::vector<double> xs = {0.0,  0.0,   1.0,    1.0, 2.0, 1.0,  1e6,  1e6,  nan,
+                                  1e6,  nan,   nan,    -0.0, 0.0, 3e300, 3e300, -1e-320,
+                                  4.25, 4.25,  4.25};
+  for (std::size_t k = 0; k < xs.size(); ++k) {
+    const double want = std::cos(xs[k]);
+    const double got = CosOfLast(xs[k]);
+    if (std::isnan(want)) {
+      EXPECT_TRUE(std::isnan(got)) << k;
+    } else {
+      EXPECT_EQ(got, want) << k << ": cos(" << xs[k] << ")";
+    }
+  }
+  // The sinusoidal delay at a tick's time, asked for twice, is the same as computed afresh.
+  const DelayConfig s = Sinusoid(0.1, 0.05, 1.0);
+  for (double t = 0.0; t < 1000.0; t += 0.37) {
+    const double first = DelaySeconds(s, t, nullptr);
+    EXPECT_EQ(DelaySeconds(s, t, nullptr), first);
+    EXPECT_EQ(first, std::max(0.1 + 0.05 * std::cos(1.0 * t), 0.0)) << t;
+  }
+}
+
 TEST(ChannelDelaySecondsTest, UniformWithinBandWithMeanAtBase) {
   const DelayConfig c = Uniform(0.2, 0.05);
   Rng rng(3);

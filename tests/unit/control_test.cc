@@ -130,6 +130,25 @@ TEST(ControlFeedbackLinearisationTest, YieldsCommandedEtaDDot) {
   }
 }
 
+TEST(ControlFeedbackLinearisationTest, EtaDotToWritesWhatEtaDotReturns) {
+  Rng rng(12);
+  for (int k = 0; k < 200; ++k) {
+    Vec5 eta, nu;
+    for (int i = 0; i < 5; ++i) {
+      eta(i) = -3.0 + 6.0 * rng.Uniform();
+      nu(i) = -2.0 + 4.0 * rng.Uniform();
+    }
+    eta(3) = -1.2 + 2.4 * rng.Uniform();  // pitch within the model's range
+    const AttitudeTrig<double> trig(eta);
+    Vec5 into = Vec5::Constant(std::nan(""));
+    FossenModel::EtaDotTo(trig, nu, &into);
+    const Vec5 returned = FossenModel::EtaDot(trig, nu);
+    EXPECT_EQ(std::memcmp(into.data(), returned.data(), sizeof(double) * 5), 0) << k;
+    // And both are J(eta) nu.
+    EXPECT_LT((returned - FossenModel::J(eta) * nu).cwiseAbs().maxCoeff(), 1e-12) << k;
+  }
+}
+
 TEST(ControlFeedbackLinearisationTest, EtaDDotAgreesWithFiniteDifferenceOfEtaDot) {
   // Independent of JDotNu: differentiate eta_dot = J(eta) nu numerically along the
   // trajectory (eta_dot, nu_dot) produced by tau.

@@ -146,6 +146,37 @@ TEST(StateHistoryTest, PushRejectsNonIncreasingTime) {
   EXPECT_EQ(h.size(), 2);
 }
 
+TEST(StateHistoryTest, AppendHandsOutTheNewestSampleToFillInPlace) {
+  Rng rng(4);
+  StateHistory h(4);
+  const int cap = h.capacity();
+  std::vector<HistorySample> want;
+  for (int k = 0; k < cap + 3; ++k) {  // past the capacity: the slot of the oldest is reused
+    const HistorySample s = RandomSample(&rng, 20000 * k);
+    HistorySample* d = h.Append(s.utime);
+    ASSERT_NE(d, nullptr) << k;
+    EXPECT_EQ(d->utime, s.utime);
+    d->eta = s.eta;
+    d->eta_dot = s.eta_dot;
+    want.push_back(s);
+    EXPECT_EQ(d, &h.Newest()) << k;
+    EXPECT_EQ(h.size(), std::min(k + 1, cap));
+  }
+  // Filled in place, the samples are what Push would have stored, look-ups included.
+  StateHistory pushed(4);
+  for (const HistorySample& s : want) ASSERT_TRUE(pushed.Push(s));
+  HistorySample a, b;
+  for (Micros t = want[3].utime; t <= want.back().utime; t += 5000) {
+    ASSERT_EQ(h.At(t, &a), pushed.At(t, &b)) << t;
+    EXPECT_TRUE(BitwiseEqual(a, b)) << t;
+  }
+  // Not newer than the newest: nothing appended, nothing changed.
+  EXPECT_EQ(h.Append(want.back().utime), nullptr);
+  EXPECT_EQ(h.Append(want.back().utime - 1), nullptr);
+  EXPECT_EQ(h.size(), cap);
+  EXPECT_TRUE(BitwiseEqual(h.Newest(), want.back()));
+}
+
 TEST(StateHistoryTest, OverflowDropsTheOldest) {
   Rng rng(3);
   StateHistory h(8);
