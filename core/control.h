@@ -46,6 +46,16 @@ struct NeighbourTerm {
   Vec5 eta_dot_i = Vec5::Zero();
 };
 
+/// Adds one neighbour's term of protocol (10) to *a: the sum Protocol10 forms, term by
+/// term, for a caller that reads the operands where they lie rather than copying them into
+/// a NeighbourTerm.
+inline void AddProtocol10Term(double k1, double k2, const Vec5& offset_i, double weight,
+                              const Vec5& eta_j, const Vec5& eta_dot_j, const Vec5& offset_j,
+                              const Vec5& eta_i, const Vec5& eta_dot_i, Vec5* a) {
+  const Vec5 e = EtaDiff(eta_j - offset_j, eta_i - offset_i);
+  *a += weight * (k1 * e + k2 * (eta_dot_j - eta_dot_i));
+}
+
 /// Protocol (10) with formation offsets (docs/examples.md, "Outer loop"):
 ///   a_i = sum_j a_ij [k1((eta_j - d_j) - (eta_i - d_i)) + k2(eta_dot_j - eta_dot_i)]
 /// every term at the neighbour's send time t - tau_ij, angle differences wrapped.
@@ -54,8 +64,8 @@ inline Vec5 Protocol10(double k1, double k2, const Vec5& offset_i, const Neighbo
   Vec5 a = Vec5::Zero();
   for (int k = 0; k < count; ++k) {
     const NeighbourTerm& t = terms[k];
-    const Vec5 e = EtaDiff(t.eta_j - t.offset_j, t.eta_i - offset_i);
-    a += t.weight * (k1 * e + k2 * (t.eta_dot_j - t.eta_dot_i));
+    AddProtocol10Term(k1, k2, offset_i, t.weight, t.eta_j, t.eta_dot_j, t.offset_j, t.eta_i,
+                      t.eta_dot_i, &a);
   }
   return a;
 }

@@ -60,7 +60,6 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
     slot_of_[slots_[k].sender] = static_cast<int>(k);
     if (timeline_) slots_[k].link = timeline_->LinkIndex(slots_[k].sender, id_);
   }
-  terms_.resize(slots_.size());
 
   history_ = StateHistory(HistoryCapacity(s, duration_s));
 
@@ -86,17 +85,6 @@ std::int64_t Follower::HistoryCapacity(const Scenario& s, double duration_s) {
   return static_cast<std::int64_t>(std::min(span_samples, run_samples));
 }
 
-RxResult Follower::Check(const StateMsg& m) const {
-  if (m.vehicle_id < 0 || m.vehicle_id >= static_cast<int>(slot_of_.size()) ||
-      slot_of_[m.vehicle_id] < 0) {
-    return RxResult::kUnknownSender;
-  }
-  if (!m.AllFinite()) return RxResult::kNonFinite;
-  const Slot& sl = slots_[slot_of_[m.vehicle_id]];
-  if (sl.have && (m.utime <= sl.utime || m.seq <= sl.seq)) return RxResult::kOld;
-  return RxResult::kAccepted;
-}
-
 void Follower::CountRejected(RxResult r) {
   if (r == RxResult::kOld) {
     ++counters_.msgs_dropped_old;
@@ -105,29 +93,10 @@ void Follower::CountRejected(RxResult r) {
   }
 }
 
-RxResult Follower::Receive(const StateMsg& m) {
-  if (in_reset_) {
-    ++counters_.msgs_ignored_reset;
-    return RxResult::kAccepted;  // a valid message; the reset controller drops it
-  }
-  const RxResult r = Check(m);
-  if (r != RxResult::kAccepted) {
-    CountRejected(r);
-    return r;
-  }
-  Slot& sl = slots_[slot_of_[m.vehicle_id]];
-  sl.utime = m.utime;
-  sl.seq = m.seq;
-  sl.eta = m.eta;
-  sl.eta_dot = m.eta_dot;
-  sl.have = true;
-  sl.stale = false;
-  ++counters_.msgs_received;
-  return RxResult::kAccepted;
-}
-
-int Follower::GatherTerms(Micros now, bool* any_stale) {
-  // Protocol (10): one term per live neighbour, own state at the neighbour's send time.
+int Follower::SumTerms(Micros now, bool* any_stale, Vec5* a) {
+  // Protocol (10): one term per live neighbour, own state at the neighbour's send time,
+  // summed in slot order as Protocol10 sums its terms.
+  *a = Vec5::Zero();
   int count = 0;
   *any_stale = false;
   for (Slot& sl : slots_) {
@@ -149,13 +118,9 @@ int Follower::GatherTerms(Micros now, bool* any_stale) {
       if (!history_.At(sl.utime, &between)) continue;
       own = &between;
     }
-    NeighbourTerm& t = terms_[count++];
-    t.weight = sl.weight;
-    t.eta_j = sl.eta;
-    t.eta_dot_j = sl.eta_dot;
-    t.offset_j = sl.offset;
-    t.eta_i = own->eta;
-    t.eta_dot_i = own->eta_dot;
+    AddProtocol10Term(k1_, k2_, offset_, sl.weight, sl.eta, sl.eta_dot, sl.offset, own->eta,
+                      own->eta_dot, a);
+    ++count;
   }
   counters_.active_neighbours = count;
   return count;
@@ -270,8 +235,7 @@ const StateMsg& Follower::Control(Micros now) {
     ++counters_.reset_ticks;
     counters_.active_neighbours = 0;
   } else {
-    const int count = GatherTerms(now, &any_stale);
-    a = Protocol10(k1_, k2_, offset_, terms_.data(), count);
+    SumTerms(now, &any_stale, &a);
     // The inner loop's input; the force comes back by Forced().
     force_job_.trig = trig;
     force_job_.nu = x_.nu;

@@ -154,9 +154,10 @@ class Follower {
   void FollowTimeline(Micros now);
 
   // The steps of Tick, in order.
-  /// Fills terms_ with protocol (10)'s terms of the live neighbours; returns their count.
-  /// Marks (and counts) neighbours whose newest message is older than the timeout.
-  int GatherTerms(Micros now, bool* any_stale);
+  /// Protocol (10)'s sum over the live neighbours into *a (Protocol10 of their terms, to
+  /// the bit); returns their count. Marks (and counts) neighbours whose newest message is
+  /// older than the timeout.
+  int SumTerms(Micros now, bool* any_stale, Vec5* a);
   /// The uncertain factor as a force, or the ocean current, held over the period.
   void Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_dist, Vec3* current);
 
@@ -196,10 +197,43 @@ class Follower {
   StateHistory history_;
   std::vector<Slot> slots_;
   std::vector<int> slot_of_;  // sender id -> slot index, -1 if not a neighbour
-  std::vector<NeighbourTerm> terms_;  // preallocated scratch
   StateMsg out_;
   FollowerCounters counters_;
   bool diverged_ = false;
 };
+
+// Receive and Check are defined here so that a caller in another file (Swarm::Step, for
+// every delivery) inlines them.
+inline RxResult Follower::Check(const StateMsg& m) const {
+  if (m.vehicle_id < 0 || m.vehicle_id >= static_cast<int>(slot_of_.size()) ||
+      slot_of_[m.vehicle_id] < 0) {
+    return RxResult::kUnknownSender;
+  }
+  if (!m.AllFinite()) return RxResult::kNonFinite;
+  const Slot& sl = slots_[slot_of_[m.vehicle_id]];
+  if (sl.have && (m.utime <= sl.utime || m.seq <= sl.seq)) return RxResult::kOld;
+  return RxResult::kAccepted;
+}
+
+inline RxResult Follower::Receive(const StateMsg& m) {
+  if (in_reset_) {
+    ++counters_.msgs_ignored_reset;
+    return RxResult::kAccepted;  // a valid message; the reset controller drops it
+  }
+  const RxResult r = Check(m);
+  if (r != RxResult::kAccepted) {
+    CountRejected(r);
+    return r;
+  }
+  Slot& sl = slots_[slot_of_[m.vehicle_id]];
+  sl.utime = m.utime;
+  sl.seq = m.seq;
+  sl.eta = m.eta;
+  sl.eta_dot = m.eta_dot;
+  sl.have = true;
+  sl.stale = false;
+  ++counters_.msgs_received;
+  return RxResult::kAccepted;
+}
 
 }  // namespace shoal
