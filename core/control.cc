@@ -34,10 +34,12 @@ template <typename L>
   FossenLanes(model).SaturatedFeedbackLinearise(c, nu, a, lim, &tau, &demand);
   for (int i = 0; i < count; ++i) {
     ForceJob& j = *pack[i];
-    for (int k = 0; k < 5; ++k) {
-      j.tau(k) = lanes::At(tau.v[k], i);
-      j.wanted(k) = lanes::At(demand.v[k], i);
-    }
+    // By Vec5Of: Forced() reads the force whole right after.
+    j.tau = Vec5Of(lanes::At(tau.v[0], i), lanes::At(tau.v[1], i), lanes::At(tau.v[2], i),
+                   lanes::At(tau.v[3], i), lanes::At(tau.v[4], i));
+    j.wanted = Vec5Of(lanes::At(demand.v[0], i), lanes::At(demand.v[1], i),
+                      lanes::At(demand.v[2], i), lanes::At(demand.v[3], i),
+                      lanes::At(demand.v[4], i));
     j.saturated = SaturationChanged(j.tau, j.wanted);
   }
 }

@@ -22,10 +22,8 @@ inline double WrapAngle(double a) {
 
 /// eta_a - eta_b with the angle components (theta, psi) wrapped to (-pi, pi].
 inline Vec5 EtaDiff(const Vec5& a, const Vec5& b) {
-  Vec5 d = a - b;
-  d(3) = WrapAngle(d(3));
-  d(4) = WrapAngle(d(4));
-  return d;
+  return Vec5Of(a(0) - b(0), a(1) - b(1), a(2) - b(2), WrapAngle(a(3) - b(3)),
+                WrapAngle(a(4) - b(4)));
 }
 
 /// Formation offset d_i as a 5-vector (position only; attitude offsets are zero).
@@ -52,8 +50,18 @@ struct NeighbourTerm {
 inline void AddProtocol10Term(double k1, double k2, const Vec5& offset_i, double weight,
                               const Vec5& eta_j, const Vec5& eta_dot_j, const Vec5& offset_j,
                               const Vec5& eta_i, const Vec5& eta_dot_i, Vec5* a) {
-  const Vec5 e = EtaDiff(eta_j - offset_j, eta_i - offset_i);
-  *a += weight * (k1 * e + k2 * (eta_dot_j - eta_dot_i));
+  // e = EtaDiff(eta_j - offset_j, eta_i - offset_i); a += weight (k1 e + k2 (eta_dot_j -
+  // eta_dot_i)), one component at a time with the same operations, the sum stored by
+  // Vec5Of: as vectors, e's wrapped angles were stored over halves of stored pairs and the
+  // pairs read back whole, which the CPU cannot forward.
+  // (Components as expressions, not a loop over an array: the array would be stored and
+  // read back in pairs, the very load that stalls.)
+  const auto e = [&](int k) { return (eta_j(k) - offset_j(k)) - (eta_i(k) - offset_i(k)); };
+  const auto sum = [&](int k, double ek) {
+    return (*a)(k) + weight * (k1 * ek + k2 * (eta_dot_j(k) - eta_dot_i(k)));
+  };
+  *a = Vec5Of(sum(0, e(0)), sum(1, e(1)), sum(2, e(2)), sum(3, WrapAngle(e(3))),
+              sum(4, WrapAngle(e(4))));
 }
 
 /// Protocol (10) with formation offsets (docs/examples.md, "Outer loop"):

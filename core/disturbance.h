@@ -29,13 +29,8 @@ inline double FastTanh(double x) {
 /// Paper Example 2's uncertain factor F~(x, v) (an acceleration in eta'') given
 /// sin x(1), cos x(2) and sin x(4).
 inline Vec5 PaperExample2F(double sin_x1, double cos_x2, double sin_x4, const Vec5& v) {
-  Vec5 f;
-  f(0) = 0.4 * FastTanh(v(0));
-  f(1) = 0.01 * sin_x1 - 0.45 * FastTanh(v(1));
-  f(2) = -0.01 * cos_x2;
-  f(3) = 0.48 * FastTanh(v(3));
-  f(4) = 0.02 * sin_x4 - 0.5 * FastTanh(v(4));
-  return f;
+  return Vec5Of(0.4 * FastTanh(v(0)), 0.01 * sin_x1 - 0.45 * FastTanh(v(1)), -0.01 * cos_x2,
+                0.48 * FastTanh(v(3)), 0.02 * sin_x4 - 0.5 * FastTanh(v(4)));
 }
 
 /// Paper Example 2's uncertain factor F~(x, v), evaluated by the caller at the delayed

@@ -129,10 +129,9 @@ template <typename L>
     fossen.Rk4Still(tau, dt, t, &eta, &nu, s + 1 == substeps ? &out : nullptr);
   }
   for (int i = 0; i < count; ++i) {
-    for (int k = 0; k < 5; ++k) {
-      pack[i]->x->eta(k) = eta.v[k][i];
-      pack[i]->x->nu(k) = nu.v[k][i];
-    }
+    // By Vec5Of: the state is read whole right after (Follower::Integrated).
+    pack[i]->x->eta = Vec5Of(eta.v[0][i], eta.v[1][i], eta.v[2][i], eta.v[3][i], eta.v[4][i]);
+    pack[i]->x->nu = Vec5Of(nu.v[0][i], nu.v[1][i], nu.v[2][i], nu.v[3][i], nu.v[4][i]);
     if (pack[i]->trig_out != nullptr) {
       pack[i]->trig_out->ct = out.ct[i];
       pack[i]->trig_out->st = out.st[i];

@@ -82,9 +82,15 @@ bool StateHistory::At(Micros t, HistorySample* out) const {
   const HistorySample& a = Get(lo - 1);  // lo > 0 since t > Oldest().utime
   const double f = static_cast<double>(t - a.utime) / static_cast<double>(b.utime - a.utime);
   out->utime = t;
-  out->eta = a.eta + f * EtaDiff(b.eta, a.eta);
-  out->eta(3) = WrapAngle(out->eta(3));
-  out->eta(4) = WrapAngle(out->eta(4));
+  // a.eta + f EtaDiff(b.eta, a.eta), the angles wrapped again, one component at a time
+  // with the same operations, stored by Vec5Of (see there).
+  // (Components as expressions, not a loop over an array: the array would be stored and
+  // read back in pairs, the very load that stalls.)
+  const auto lerp = [&](int k) { return a.eta(k) + f * (b.eta(k) - a.eta(k)); };
+  const auto lerp_angle = [&](int k) {
+    return WrapAngle(a.eta(k) + f * WrapAngle(b.eta(k) - a.eta(k)));
+  };
+  out->eta = Vec5Of(lerp(0), lerp(1), lerp(2), lerp_angle(3), lerp_angle(4));
   out->eta_dot = a.eta_dot + f * (b.eta_dot - a.eta_dot);
   return true;
 }
