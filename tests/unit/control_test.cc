@@ -384,6 +384,52 @@ TEST(ControlProtocol10Test, MatchesHandComputation) {
   EXPECT_EQ(Protocol10(k1, k2, offset_i, t, 0), Vec5::Zero());
 }
 
+TEST(ControlProtocol10Test, TermsHaveTheBitsOfTheVectorForm) {
+  // AddProtocol10Term computes component by component (so that its stores can be
+  // forwarded); it must give, to the bit, the vector form of protocol (10)'s term:
+  //   e = (eta_j - d_j) - (eta_i - d_i), angles wrapped; a += w (k1 e + k2 (eta_dot_j - eta_dot_i))
+  // here with headings and pitches on both sides of +-pi and several turns off.
+  Rng rng(11);
+  const auto u = [&](double lo, double hi) { return lo + (hi - lo) * rng.Uniform(); };
+  const auto vec = [&](double scale, double angle) {
+    return Vec5Of(u(-scale, scale), u(-scale, scale), u(-scale, scale), u(-angle, angle),
+                  u(-angle, angle));
+  };
+  int wrapped = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const double k1 = u(0.0, 2.0), k2 = u(0.0, 3.0), w = u(0.0, 4.0);
+    const Vec5 d_i = vec(20.0, 0.0), d_j = vec(20.0, 0.0);
+    const Vec5 eta_j = vec(500.0, 12.0), eta_i = vec(500.0, 12.0);
+    const Vec5 dot_j = vec(3.0, 1.0), dot_i = vec(3.0, 1.0);
+    const Vec5 a0 = vec(5.0, 5.0);
+
+    Vec5 e = (eta_j - d_j) - (eta_i - d_i);
+    wrapped += std::abs(e(4)) > kPi;
+    e(3) = WrapAngle(e(3));
+    e(4) = WrapAngle(e(4));
+    const Vec5 want = a0 + w * (k1 * e + k2 * (dot_j - dot_i));
+
+    Vec5 got = a0;
+    AddProtocol10Term(k1, k2, d_i, w, eta_j, dot_j, d_j, eta_i, dot_i, &got);
+    ASSERT_EQ(std::memcmp(got.data(), want.data(), sizeof(double) * 5), 0)
+        << "trial " << trial << ": " << got.transpose() << " against " << want.transpose();
+  }
+  EXPECT_GT(wrapped, 1000);  // the wrap was exercised
+}
+
+TEST(ControlProtocol10Test, Vec5OfKeepsTheOrderOfItsComponents) {
+  const Vec5 v = Vec5Of(1.5, -2.25, 3.0, -0.125, 7.0);
+  EXPECT_EQ(v, (Vec5() << 1.5, -2.25, 3.0, -0.125, 7.0).finished());
+  // And EtaDiff, built by it, wraps only the two angles.
+  const Vec5 a = Vec5Of(10.0, 20.0, 30.0, 3.0, -3.0), b = Vec5Of(1.0, 2.0, 3.0, -3.0, 3.0);
+  const Vec5 d = EtaDiff(a, b);
+  EXPECT_EQ(d(0), 9.0);
+  EXPECT_EQ(d(1), 18.0);
+  EXPECT_EQ(d(2), 27.0);
+  EXPECT_EQ(d(3), WrapAngle(6.0));
+  EXPECT_EQ(d(4), WrapAngle(-6.0));
+}
+
 TEST(ControlProtocol10Test, ConsensusAtTheOffsetsGivesZero) {
   // Every follower exactly at its slot, moving with the leader, headings equal modulo
   // 2 pi: a_i = 0.

@@ -238,6 +238,46 @@ TEST(StateHistoryTest, InterpolatesLinearlyAlongTheShortArc) {
   EXPECT_NEAR(out.eta(4), -3.0 - 0.25 * arc, 1e-14);
 }
 
+TEST(StateHistoryTest, InterpolationHasTheBitsOfTheVectorForm) {
+  // At() interpolates component by component (so that its stores can be forwarded); it must
+  // give, to the bit, a.eta + f EtaDiff(b.eta, a.eta) with the angles wrapped again, and
+  // a.eta_dot + f (b.eta_dot - a.eta_dot), also across +-pi.
+  Rng rng(12);
+  StateHistory h(64);
+  std::vector<HistorySample> pushed;
+  for (int k = 0; k < 40; ++k) {
+    HistorySample s = RandomSample(&rng, 1000 + 20000 * k);
+    s.eta(3) = U(&rng, -kPi, kPi);
+    s.eta(4) = U(&rng, -kPi, kPi);
+    ASSERT_TRUE(h.Push(s));
+    pushed.push_back(s);
+  }
+  int across_pi = 0;
+  for (int k = 0; k + 1 < static_cast<int>(pushed.size()); ++k) {
+    const HistorySample& a = pushed[k];
+    const HistorySample& b = pushed[k + 1];
+    across_pi += std::abs(b.eta(4) - a.eta(4)) > kPi;
+    for (Micros dt : {1, 777, 10000, 19999}) {
+      const Micros t = a.utime + dt;
+      const double f = static_cast<double>(t - a.utime) / static_cast<double>(b.utime - a.utime);
+      Vec5 d = b.eta - a.eta;
+      d(3) = WrapAngle(d(3));
+      d(4) = WrapAngle(d(4));
+      Vec5 want = a.eta + f * d;
+      want(3) = WrapAngle(want(3));
+      want(4) = WrapAngle(want(4));
+      const Vec5 want_dot = a.eta_dot + f * (b.eta_dot - a.eta_dot);
+      HistorySample got;
+      ASSERT_TRUE(h.At(t, &got));
+      EXPECT_EQ(got.utime, t);
+      ASSERT_EQ(std::memcmp(got.eta.data(), want.data(), sizeof(double) * 5), 0)
+          << "t " << t << ": " << got.eta.transpose() << " against " << want.transpose();
+      ASSERT_EQ(std::memcmp(got.eta_dot.data(), want_dot.data(), sizeof(double) * 5), 0);
+    }
+  }
+  EXPECT_GT(across_pi, 5);
+}
+
 TEST(StateHistoryTest, EvenlySpacedBufferAfterWrapAround) {
   // The fast path (interpolated index) on a full ring buffer whose head has moved.
   Rng rng(5);
