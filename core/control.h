@@ -52,8 +52,8 @@ inline void AddProtocol10Term(double k1, double k2, const Vec5& offset_i, double
                               const Vec5& eta_i, const Vec5& eta_dot_i, Vec5* a) {
   // e = EtaDiff(eta_j - offset_j, eta_i - offset_i); a += weight (k1 e + k2 (eta_dot_j -
   // eta_dot_i)), one component at a time with the same operations, the sum stored by
-  // Vec5Of: as vectors, e's wrapped angles were stored over halves of stored pairs and the
-  // pairs read back whole, which the CPU cannot forward.
+  // Vec5Of: as vectors, e's wrapped angles would be stored over halves of stored pairs and
+  // the pairs read back whole, which the CPU cannot forward.
   // (Components as expressions, not a loop over an array: the array would be stored and
   // read back in pairs, the very load that stalls.)
   const auto e = [&](int k) { return (eta_j(k) - offset_j(k)) - (eta_i(k) - offset_i(k)); };
