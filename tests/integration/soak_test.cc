@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -128,6 +129,8 @@ TEST(Soak, ResourcesSampleEveryProcessWithAPlausibleRss) {
   std::map<std::string, int> rows;
   std::map<std::string, double> last_sim;
   std::map<std::string, long long> last_switches;
+  std::map<std::string, double> last_cpu;
+  int finer_than_ticks = 0;  // CPU times that are not whole clock ticks (10 ms)
   while (std::getline(in, line)) {
     std::stringstream ss(line);
     std::string sim, wall, name, pid, rss, cpu, voluntary, involuntary;
@@ -146,7 +149,14 @@ TEST(Soak, ResourcesSampleEveryProcessWithAPlausibleRss) {
     EXPECT_GT(std::stod(rss), 500.0) << line;      // KiB: a process, not nothing
     EXPECT_LT(std::stod(rss), 2000000.0) << line;  // and not 2 GiB
     EXPECT_GE(std::stod(cpu), 0.0) << line;
+    EXPECT_GE(std::stod(cpu), last_cpu[name]) << line;  // one pid per name in this run
+    last_cpu[name] = std::stod(cpu);
+    const double centis = std::stod(cpu) * 100.0;
+    finer_than_ticks += std::fabs(centis - std::round(centis)) > 1e-3;
   }
+  // The process's CPU clock, to the microsecond: nearly every sample of a process that ran
+  // at all falls between clock ticks.
+  EXPECT_GT(finer_than_ticks, 50);
   const std::set<std::string> expected = {"lcm-logger", "channel emulator", "leader",
                                           "vehicle 1", "vehicle 2", "vehicle 3",
                                           "vehicle 4", "vehicle 5"};
