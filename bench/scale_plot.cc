@@ -1,9 +1,13 @@
-// scale_plot: the figure of bench/scale.sh -- CPU per tick of one vehicle process against
-// the number of followers, one line per mode (and per CSV: a second median CSV, e.g. the
-// code before a change, is drawn dashed), with the +-20 % band around the 5-follower value
-// that the scaling target allows.
+// scale_plot: the figure of bench/scale.sh against the number of followers, one line per
+// mode (and per CSV: a second median CSV, e.g. the code before a change, is drawn dashed),
+// in two panels, each with the +-20 % band around the fewest followers' value that the
+// scaling target allows: the CPU per tick of one vehicle process, and the CPU per tick of
+// all the run's processes that work per message (the vehicles, the channel emulator and
+// lcm-logger) divided by the number of followers. Prints, per panel and mode, the dearest
+// size's figure over the cheapest's.
 //
 //   build/bench/scale_plot MEDIAN_CSV OUT_PNG [BEFORE_MEDIAN_CSV]
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -18,8 +22,12 @@ namespace {
 
 using shoal::render::Series;
 
-// mode -> (followers, vehicle CPU per tick in us), from a median CSV of bench/scale.sh.
-std::map<std::string, std::vector<std::pair<double, double>>> ReadMedians(const std::string& path) {
+// What a panel plots of a median CSV row: one vehicle's CPU, or every role's per follower.
+enum class Quantity { kVehicle, kPerFollower };
+
+// mode -> (followers, CPU per tick in us), from a median CSV of bench/scale.sh.
+std::map<std::string, std::vector<std::pair<double, double>>> ReadMedians(const std::string& path,
+                                                                         Quantity q) {
   std::map<std::string, std::vector<std::pair<double, double>>> out;
   std::ifstream in(path);
   std::string line;
@@ -35,20 +43,26 @@ std::map<std::string, std::vector<std::pair<double, double>>> ReadMedians(const 
     std::map<std::string, std::string> row;
     for (std::size_t k = 0; k < f.size() && k < header.size(); ++k) row[header[k]] = f[k];
     const double n = std::atof(row["followers"].c_str());
-    const double cpu = std::atof(row["vehicle_cpu_us_per_tick"].c_str());
-    if (n > 0 && cpu > 0) out[row["mode"]].push_back({n, cpu});
+    const double vehicle = std::atof(row["vehicle_cpu_us_per_tick"].c_str());
+    const double others = std::atof(row["emulator_cpu_us_per_tick"].c_str()) +
+                          std::atof(row["logger_cpu_us_per_tick"].c_str());
+    const double cpu = q == Quantity::kVehicle ? vehicle : vehicle + others / n;
+    if (n > 0 && vehicle > 0) out[row["mode"]].push_back({n, cpu});
   }
   return out;
 }
 
-void AddSeries(const std::string& path, const std::string& suffix, bool dashed,
+void AddSeries(const std::string& path, const std::string& suffix, bool dashed, Quantity q,
                shoal::render::Panel* panel) {
-  for (const auto& [mode, points] : ReadMedians(path)) {
+  for (const auto& [mode, points] : ReadMedians(path, q)) {
     Series s;
     s.label = mode + suffix;
+    double lo = INFINITY, hi = 0.0;
     for (const auto& [n, cpu] : points) {
       s.x.push_back(n);
       s.y.push_back(cpu);
+      lo = std::min(lo, cpu);
+      hi = std::max(hi, cpu);
     }
     s.color = shoal::render::Hex(mode == "lockstep" ? 0x1f77b4 : 0xd62728);
     s.line = dashed ? shoal::render::LineStyle::kDashed : shoal::render::LineStyle::kSolid;
@@ -61,8 +75,28 @@ void AddSeries(const std::string& path, const std::string& suffix, bool dashed,
         panel->hlines.push_back(r);
       }
     }
+    if (!points.empty()) {
+      std::printf("%s, %s%s: dearest / cheapest size %.2f\n", panel->title.c_str(),
+                  mode.c_str(), suffix.c_str(), hi / lo);
+    }
     panel->series.push_back(std::move(s));
   }
+}
+
+shoal::render::Panel MakePanel(Quantity q, char** argv, int argc) {
+  shoal::render::Panel p;
+  p.title = q == Quantity::kVehicle ? "one vehicle process" : "vehicles, emulator and logger";
+  p.note = q == Quantity::kVehicle
+               ? "two in-links per follower; medians of the runs"
+               : "their CPU per tick divided by the followers: the run's cost per vehicle";
+  p.x.label = "followers";
+  p.x.log = true;
+  p.y.label = q == Quantity::kVehicle ? "CPU per tick per vehicle" : "CPU per tick per follower";
+  p.y.unit = "µs";
+  p.y.min = 0;
+  AddSeries(argv[1], "", false, q, &p);
+  if (argc == 4) AddSeries(argv[3], " (before)", true, q, &p);
+  return p;
 }
 
 }  // namespace
@@ -74,22 +108,17 @@ int main(int argc, char** argv) {
   }
   shoal::render::Figure2D fig;
   fig.width_px = 1200;
-  fig.height_px = 750;
-  fig.title = "shoal run: CPU per tick of one vehicle process (bench/scale.sh)";
-  shoal::render::Panel p;
-  p.note = "two in-links per follower; medians of the runs";
-  p.x.label = "followers";
-  p.x.log = true;
-  p.y.label = "CPU per tick per vehicle";
-  p.y.unit = "µs";
-  p.y.min = 0;
-  AddSeries(argv[1], "", false, &p);
-  if (argc == 4) AddSeries(argv[3], " (before)", true, &p);
-  if (p.series.empty()) {
-    std::fprintf(stderr, "scale_plot: no rows with vehicle_cpu_us_per_tick in %s\n", argv[1]);
-    return 1;
+  fig.height_px = 1100;
+  fig.title = "shoal run: CPU per tick against the swarm's size (bench/scale.sh)";
+  for (Quantity q : {Quantity::kVehicle, Quantity::kPerFollower}) {
+    shoal::render::Panel p = MakePanel(q, argv, argc);
+    if (p.series.empty()) {
+      std::fprintf(stderr, "scale_plot: no rows with vehicle_cpu_us_per_tick in %s\n", argv[1]);
+      return 1;
+    }
+    fig.panels.push_back(std::move(p));
   }
-  fig.panels.push_back(std::move(p));
+  fig.link_x = true;
   std::string err;
   if (!shoal::render::RenderPng(fig, argv[2], &err)) {
     std::fprintf(stderr, "scale_plot: %s\n", err.c_str());
