@@ -109,9 +109,8 @@ class Environment {
     d.delay_us = static_cast<Micros>(
         std::llround(NominalDelaySeconds(delay_, ToSeconds(now)) * 1e6));
     if (!leader_factor_) return d;
-    const LeaderSample l = path_.At(std::max(0.0, ToSeconds(now - d.delay_us)),
-                                       LeaderPath::Parts::kFactor);
-    d.f0 = PaperExample2F(l.eta, l.eta_dot);
+    const LeaderPath::FactorSample l = path_.FactorAt(std::max(0.0, ToSeconds(now - d.delay_us)));
+    d.f0 = PaperExample2F(std::sin(l.p(1)), std::cos(l.p(2)), l.sin_psi, l.eta_dot);
     return d;
   }
 

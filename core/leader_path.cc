@@ -65,32 +65,33 @@ void LeaderPath::Point(double t, Vec3* p, Vec3* v, Vec3* a) const {
   }
 }
 
-LeaderSample LeaderPath::At(double t_s, Parts parts) const {
+void LeaderPath::Rates(const Vec3& v, const Vec3& a, double h2, double h, double* theta_dot,
+                       double* psi_dot) {
+  *psi_dot = (v.x() * a.y() - v.y() * a.x()) / h2;
+  const double h_dot = (v.x() * a.x() + v.y() * a.y()) / h;
+  *theta_dot = (-h * a.z() + v.z() * h_dot) / (h2 + v.z() * v.z());
+}
+
+LeaderSample LeaderPath::At(double t_s) const {
   Vec3 p, v, a;
   Point(t_s, &p, &v, &a);
   LeaderSample s;
-  const bool all = parts == Parts::kAll;
   const double h2 = v.x() * v.x() + v.y() * v.y();
   const double h = std::sqrt(h2);
   const double speed = std::sqrt(h2 + v.z() * v.z());
   double psi = 0.0, theta = 0.0, psi_dot = 0.0, theta_dot = 0.0;
   if (speed > 1e-9) {
     psi = h > 1e-9 ? std::atan2(v.y(), v.x()) : 0.0;
-    if (all) theta = std::atan2(-v.z(), h);
-    if (h > 1e-9) {
-      psi_dot = (v.x() * a.y() - v.y() * a.x()) / h2;
-      const double h_dot = (v.x() * a.x() + v.y() * a.y()) / h;
-      theta_dot = (-h * a.z() + v.z() * h_dot) / (h2 + v.z() * v.z());
-    }
+    theta = std::atan2(-v.z(), h);
+    if (h > 1e-9) Rates(v, a, h2, h, &theta_dot, &psi_dot);
   } else if (c_.path == PathKind::kWaypoints && c_.waypoints_m.size() >= 2) {
     // At rest at the end: keep the last segment's attitude.
     const Vec3 d = c_.waypoints_m.back() - c_.waypoints_m[c_.waypoints_m.size() - 2];
     psi = std::atan2(d.y(), d.x());
-    if (all) theta = std::atan2(-d.z(), std::hypot(d.x(), d.y()));
+    theta = std::atan2(-d.z(), std::hypot(d.x(), d.y()));
   }
   s.eta << p, theta, WrapAngle(psi);
   s.eta_dot << v, theta_dot, psi_dot;
-  if (!all) return s;
   if (speed > 1e-9 && h > 1e-9) {
     // The attitude is the velocity's direction, so its sines and cosines are the
     // velocity's own ratios: no sin and cos of the angles just found.
@@ -101,6 +102,29 @@ LeaderSample LeaderPath::At(double t_s, Parts parts) const {
     s.nu = FossenModel::JInv(s.eta) * s.eta_dot;
   }
   return s;
+}
+
+LeaderPath::FactorSample LeaderPath::FactorAt(double t_s) const {
+  Vec3 v, a;
+  FactorSample f;
+  Point(t_s, &f.p, &v, &a);
+  const double h2 = v.x() * v.x() + v.y() * v.y();
+  const double h = std::sqrt(h2);
+  const double speed = std::sqrt(h2 + v.z() * v.z());
+  double psi_dot = 0.0, theta_dot = 0.0;
+  if (speed > 1e-9) {
+    if (h > 1e-9) {
+      // The heading is the horizontal velocity's direction: its sine is the ratio.
+      f.sin_psi = v.y() / h;
+      Rates(v, a, h2, h, &theta_dot, &psi_dot);
+    }
+  } else if (c_.path == PathKind::kWaypoints && c_.waypoints_m.size() >= 2) {
+    const Vec3 d = c_.waypoints_m.back() - c_.waypoints_m[c_.waypoints_m.size() - 2];
+    const double dh = std::hypot(d.x(), d.y());
+    f.sin_psi = dh > 0.0 ? d.y() / dh : 0.0;
+  }
+  f.eta_dot << v, theta_dot, psi_dot;
+  return f;
 }
 
 }  // namespace shoal

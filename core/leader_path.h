@@ -16,19 +16,26 @@ struct LeaderSample {
 class LeaderPath {
  public:
   explicit LeaderPath(const LeaderConfig& c);
-  /// What a caller needs of a sample.
-  enum class Parts {
-    kAll,
-    /// What paper Example 2's uncertain factor reads: eta except theta, and eta_dot.
-    /// theta (eta(3)) and nu are left zero, without their atan2 and J^{-1}.
-    kFactor,
-  };
   /// The sample at t_s.
-  LeaderSample At(double t_s, Parts parts = Parts::kAll) const;
+  LeaderSample At(double t_s) const;
+
+  /// What paper Example 2's uncertain factor reads of the sample at t_s.
+  struct FactorSample {
+    Vec3 p = Vec3::Zero();        // eta(0..2)
+    double sin_psi = 0.0;         // sin eta(4), as the velocity's ratio y' / |(x', y')|
+    Vec5 eta_dot = Vec5::Zero();  // as At gives it
+  };
+  /// The factor's part of At(t_s), without the angles' atan2 and the sine of the heading
+  /// (equal to sin(At(t_s).eta(4)) within rounding), or J^{-1}.
+  FactorSample FactorAt(double t_s) const;
 
  private:
   // Position, velocity, acceleration of the path point (NED).
   void Point(double t, Vec3* p, Vec3* v, Vec3* a) const;
+  // The attitude's rates (theta_dot, psi_dot) of a path whose velocity is v, acceleration
+  // a and horizontal speed h (h2 its square), h > 1e-9.
+  static void Rates(const Vec3& v, const Vec3& a, double h2, double h, double* theta_dot,
+                    double* psi_dot);
 
   LeaderConfig c_;
   std::vector<double> seg_start_s_;  // waypoints: time at which each segment starts

@@ -145,17 +145,17 @@ TEST(LeaderPathTest, NuIsJInverseOfEtaDot) {
   }
 }
 
-TEST(LeaderPathTest, FactorPartsAreAllButThetaAndNu) {
+TEST(LeaderPathTest, FactorSampleIsTheSamplesPositionRatesAndHeadingsSine) {
   for (const auto& [config, times] : LeaderCases()) {
     const LeaderPath path(config);
     for (double t : times) {
       const LeaderSample all = path.At(t);
-      const LeaderSample f = path.At(t, LeaderPath::Parts::kFactor);
-      EXPECT_EQ(f.eta.head<3>(), all.eta.head<3>()) << t;
-      EXPECT_EQ(f.eta(4), all.eta(4)) << t;
-      EXPECT_EQ(f.eta(3), 0.0) << t;
+      const LeaderPath::FactorSample f = path.FactorAt(t);
+      EXPECT_EQ(f.p, all.eta.head<3>()) << t;
       EXPECT_EQ(f.eta_dot, all.eta_dot) << t;
-      EXPECT_EQ(f.nu, Vec5::Zero()) << t;
+      // The velocity's ratio against the sine of the angle atan2 found: rounding apart.
+      EXPECT_NEAR(f.sin_psi, std::sin(all.eta(4)), 4e-16) << "path "
+          << static_cast<int>(config.path) << " t " << t;
     }
   }
 }
