@@ -4,10 +4,12 @@
 # Runs a lockstep run of bench/scale_scenario.sh N from a script of shoal run
 # --print-launch, with vehicle 1 under valgrind --tool=lackey --trace-mem=yes (lockstep
 # waits for it), and counts, per call of its ClockedNode::HandleBus (one window), the
-# distinct 64-byte data lines, code lines and data pages. A window's lines must come back
-# from L3 or memory when the processes that ran on its CPU since its last turn have pushed
-# them out of that CPU's L2: the count times the followers per CPU, against the L2's size,
-# says when that begins. Kernel lines (socket, task, page tables) are not counted.
+# distinct 64-byte data lines, code lines, data pages and code pages. A window's lines must
+# come back from L3 or memory when the processes that ran on its CPU since its last turn
+# have pushed them out of that CPU's L2: the count times the followers per CPU, against the
+# L2's size, says when that begins. Its pages each cost a walk of the page tables when the
+# TLB no longer holds the process's translations. Kernel lines (socket, task, page tables)
+# are not counted.
 # Usage: bench/window_footprint.sh [BUILD_DIR] [N] [DURATION_S]
 #   e.g. bench/window_footprint.sh build 16 10
 set -euo pipefail

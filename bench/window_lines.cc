@@ -3,9 +3,11 @@
 // instruction at the entry of a vehicle's ClockedNode::HandleBus, the user-space data and
 // code lines of each lockstep window. These are what the window must fetch again when a
 // hundred other processes have run on its CPU since its last turn and its lines have left
-// that CPU's L2; the count does not depend on the machine or on what else runs.
+// that CPU's L2; the count does not depend on the machine or on what else runs. The pages
+// are what the window's address translations cover: each costs a walk of the page tables
+// when the TLB no longer holds the process's entries.
 // Usage: window_lines MARK_HEX [SKIP] < trace
-//   prints one row per window: window, data lines, code lines, data pages
+//   prints one row per window: window, data lines, code lines, data pages, code pages
 //   (SKIP first windows, default 20: the start-up's), then the medians on stderr.
 #include <algorithm>
 #include <cstdio>
@@ -28,8 +30,8 @@ int main(int argc, char** argv) {
   }
   const unsigned long mark = std::strtoul(argv[1], nullptr, 16);
   const long skip = argc > 2 ? std::atol(argv[2]) : 20;
-  std::unordered_set<unsigned long> data, code, pages;
-  std::vector<std::size_t> data_n, code_n, pages_n;
+  std::unordered_set<unsigned long> data, code, pages, code_pages;
+  std::vector<std::size_t> data_n, code_n, pages_n, code_pages_n;
   char line[256];
   long window = -1;
   while (std::fgets(line, sizeof line, stdin) != nullptr) {
@@ -38,17 +40,21 @@ int main(int argc, char** argv) {
       const unsigned long ip = std::strtoul(line + 3, &end, 16);
       if (ip == mark) {
         if (window >= skip) {
-          std::printf("%ld %zu %zu %zu\n", window, data.size(), code.size(), pages.size());
+          std::printf("%ld %zu %zu %zu %zu\n", window, data.size(), code.size(), pages.size(),
+                      code_pages.size());
           data_n.push_back(data.size());
           code_n.push_back(code.size());
           pages_n.push_back(pages.size());
+          code_pages_n.push_back(code_pages.size());
         }
         ++window;
         data.clear();
         code.clear();
         pages.clear();
+        code_pages.clear();
       }
       code.insert(ip >> 6);
+      code_pages.insert(ip >> 12);
     } else if (line[0] == ' ' && (line[1] == 'L' || line[1] == 'S' || line[1] == 'M')) {
       const unsigned long a = std::strtoul(line + 3, &end, 16);
       const long size = end != nullptr && *end == ',' ? std::strtol(end + 1, nullptr, 10) : 1;
@@ -63,7 +69,10 @@ int main(int argc, char** argv) {
                  mark, window + 1);
     return 1;
   }
-  std::fprintf(stderr, "windows %zu  median per window: data lines %zu, code lines %zu, data pages %zu\n",
-               data_n.size(), Median(data_n), Median(code_n), Median(pages_n));
+  std::fprintf(stderr,
+               "windows %zu  median per window: data lines %zu, code lines %zu, data pages %zu, "
+               "code pages %zu\n",
+               data_n.size(), Median(data_n), Median(code_n), Median(pages_n),
+               Median(code_pages_n));
   return 0;
 }
