@@ -17,8 +17,9 @@
 # BUILD_DIRS: one build directory, or several separated by commas (A/B: their runs are
 # interleaved, and each row names its build). Writes OUT_CSV (one row per run) and
 # OUT_CSV with .csv replaced by _median.csv (medians per build, mode and N), and, if
-# <first build>/bench/scale_plot exists, a PNG of CPU per tick per vehicle against N
-# (_cpu.png; with two builds, the second drawn dashed as "before").
+# <first build>/bench/scale_plot exists, a PNG of CPU per tick against N (_cpu.png; with two
+# builds, the second drawn dashed as "before") in two panels, one vehicle process and all
+# three roles per follower, each with its +-20 % band, and prints each one's spread.
 set -euo pipefail
 builds=${1:-build}
 runs=${2:-3}

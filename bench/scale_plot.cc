@@ -49,6 +49,8 @@ std::map<std::string, std::vector<std::pair<double, double>>> ReadMedians(const 
     const double cpu = q == Quantity::kVehicle ? vehicle : vehicle + others / n;
     if (n > 0 && vehicle > 0) out[row["mode"]].push_back({n, cpu});
   }
+  // The band is drawn around the fewest followers, whatever order the sizes were run in.
+  for (auto& [mode, points] : out) std::sort(points.begin(), points.end());
   return out;
 }
 
@@ -88,7 +90,7 @@ shoal::render::Panel MakePanel(Quantity q, char** argv, int argc) {
   p.title = q == Quantity::kVehicle ? "one vehicle process" : "vehicles, emulator and logger";
   p.note = q == Quantity::kVehicle
                ? "two in-links per follower; medians of the runs"
-               : "their CPU per tick divided by the followers: the run's cost per vehicle";
+               : "their CPU per tick divided by the followers: the run's cost per follower";
   p.x.label = "followers";
   p.x.log = true;
   p.y.label = q == Quantity::kVehicle ? "CPU per tick per vehicle" : "CPU per tick per follower";

@@ -21,12 +21,14 @@ class LeaderPath {
 
   /// What paper Example 2's uncertain factor reads of the sample at t_s.
   struct FactorSample {
-    Vec3 p = Vec3::Zero();        // eta(0..2)
-    double sin_psi = 0.0;         // sin eta(4), as the velocity's ratio y' / |(x', y')|
+    Vec3 p = Vec3::Zero();  // eta(0..2)
+    // sin eta(4): the horizontal velocity's ratio y' / |(x', y')|; at rest at the end of
+    // waypoints, the last segment's; 0 moving straight up or down, or at rest otherwise.
+    double sin_psi = 0.0;
     Vec5 eta_dot = Vec5::Zero();  // as At gives it
   };
-  /// The factor's part of At(t_s), without the angles' atan2 and the sine of the heading
-  /// (equal to sin(At(t_s).eta(4)) within rounding), or J^{-1}.
+  /// The factor's part of At(t_s): sin psi without atan2 and sin (equal to
+  /// sin(At(t_s).eta(4)) within rounding), and no theta or J^{-1}.
   FactorSample FactorAt(double t_s) const;
 
  private:

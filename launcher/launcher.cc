@@ -361,8 +361,8 @@ bool ReadProcessResources(pid_t pid, long long* rss_kib, double* cpu_s) {
   *rss_kib = static_cast<long long>(resident * static_cast<unsigned long long>(sysconf(_SC_PAGESIZE)) / 1024);
   // The process's CPU clock counts every thread's time, those that ended included, to the
   // nanosecond; /proc/<pid>/stat rounds down to clock ticks (10 ms), which is more than a
-  // vehicle of a short lockstep run uses in all (a few ms), so figures per tick taken from
-  // it were mostly rounding. The ticks remain for a kernel that refuses the clock.
+  // vehicle of a short lockstep run uses in all (a few ms): figures per tick taken from it
+  // would be mostly rounding. The ticks remain for a kernel that refuses the clock.
   clockid_t clock = 0;
   timespec cpu{};
   if (clock_getcpuclockid(pid, &clock) == 0 && clock_gettime(clock, &cpu) == 0) {

@@ -88,8 +88,13 @@ TEST(EnvironmentTest, WarmedAnswerEqualsDirectEvaluation) {
     EXPECT_EQ(a.f0, b.f0);
     const Micros expect_delay = std::llround((0.1 + 0.05 * std::cos(ToSeconds(now))) * 1e6);
     EXPECT_EQ(a.delay_us, expect_delay);
-    const LeaderSample l = LeaderPath(leader).At(std::max(0.0, ToSeconds(now - expect_delay)));
-    EXPECT_EQ(a.f0, PaperExample2F(l.eta, l.eta_dot));
+    const double t = std::max(0.0, ToSeconds(now - expect_delay));
+    const LeaderPath::FactorSample f = LeaderPath(leader).FactorAt(t);
+    EXPECT_EQ(a.f0, PaperExample2F(std::sin(f.p(1)), std::cos(f.p(2)), f.sin_psi, f.eta_dot));
+    // Within rounding of the factor of the whole sample, whose heading's sine goes through
+    // atan2 and sin (0.02 sin psi: a few 1e-18).
+    const LeaderSample l = LeaderPath(leader).At(t);
+    EXPECT_LT((a.f0 - PaperExample2F(l.eta, l.eta_dot)).cwiseAbs().maxCoeff(), 1e-17);
   }
   // A warmed environment asked about another time computes that time, not the cached one.
   warm.Warm(20000);
