@@ -7,7 +7,6 @@
 namespace shoal {
 
 namespace {
-using lanes::Set;
 using lanes::TrigL;
 using lanes::Vec5L;
 
@@ -17,22 +16,27 @@ using lanes::Vec5L;
 template <typename L>
 [[gnu::always_inline]] inline void ForcePack(const FossenModel& model, ForceJob* const* pack,
                                              int count) {
+  constexpr int kLanes = lanes::Count<L>::kLanes;
+  const ForceJob* j[kLanes];
+  for (int i = 0; i < kLanes; ++i) j[i] = pack[i < count ? i : 0];
+  using lanes::Gather;
   TrigL<L> c;
+  c.ct = Gather<L>([&](int i) { return j[i]->trig.ct; });
+  c.st = Gather<L>([&](int i) { return j[i]->trig.st; });
+  c.cp = Gather<L>([&](int i) { return j[i]->trig.cp; });
+  c.sp = Gather<L>([&](int i) { return j[i]->trig.sp; });
   Vec5L<L> nu, a, lim, tau, demand;
-  for (int i = 0; i < lanes::Count<L>::kLanes; ++i) {
-    const ForceJob& j = *pack[i < count ? i : 0];
-    Set(&c.ct, i, j.trig.ct);
-    Set(&c.st, i, j.trig.st);
-    Set(&c.cp, i, j.trig.cp);
-    Set(&c.sp, i, j.trig.sp);
-    for (int k = 0; k < 5; ++k) {
-      Set(&nu.v[k], i, j.nu(k));
-      Set(&a.v[k], i, j.a(k));
-      Set(&lim.v[k], i, j.tau_max(k));
-    }
+  for (int k = 0; k < 5; ++k) {
+    nu.v[k] = Gather<L>([&](int i) { return j[i]->nu(k); });
+    a.v[k] = Gather<L>([&](int i) { return j[i]->a(k); });
+    lim.v[k] = Gather<L>([&](int i) { return j[i]->tau_max(k); });
   }
   FossenLanes(model).SaturatedFeedbackLinearise(c, nu, a, lim, &tau, &demand);
-  for (int i = 0; i < count; ++i) {
+  // Unrolled, so that each lane is taken from the register by its constant index: a
+  // vector stored whole and read back a lane at a time stalls as the gather would.
+#pragma GCC unroll 8
+  for (int i = 0; i < lanes::Count<L>::kLanes; ++i) {
+    if (i >= count) break;
     ForceJob& j = *pack[i];
     // By Vec5Of: Forced() reads the force whole right after.
     j.tau = Vec5Of(lanes::At(tau.v[0], i), lanes::At(tau.v[1], i), lanes::At(tau.v[2], i),

@@ -86,6 +86,16 @@ template <typename L>
 [[gnu::always_inline]] inline TrigL<L> LaneTrig(const Vec5L<L>& eta,
                                                 const AttitudeTrig<double>* const* given) {
   TrigL<L> t;
+  bool all_given = true;
+  for (int i = 0; i < lanes::Count<L>::kLanes; ++i) all_given = all_given && given[i] != nullptr;
+  if (all_given) {
+    using lanes::Gather;
+    t.ct = Gather<L>([&](int i) { return given[i]->ct; });
+    t.st = Gather<L>([&](int i) { return given[i]->st; });
+    t.cp = Gather<L>([&](int i) { return given[i]->cp; });
+    t.sp = Gather<L>([&](int i) { return given[i]->sp; });
+    return t;
+  }
   for (int i = 0; i < lanes::Count<L>::kLanes; ++i) {
     AttitudeTrig<double> c = given[i] != nullptr ? *given[i] : AttitudeTrig<double>(Vec5::Zero());
     if (given[i] == nullptr) {
@@ -110,15 +120,17 @@ template <typename L>
                                                  PlantJob* const* pack, int count) {
   constexpr int kLanes = lanes::Count<L>::kLanes;
   const AttitudeTrig<double>* given[kLanes];
-  Vec5L<L> eta, nu, tau;
+  const PlantJob* j[kLanes];
   for (int i = 0; i < kLanes; ++i) {
-    const PlantJob& j = *pack[i < count ? i : 0];
-    given[i] = j.trig;
-    for (int k = 0; k < 5; ++k) {
-      Set(&eta.v[k], i, j.x->eta(k));
-      Set(&nu.v[k], i, j.x->nu(k));
-      Set(&tau.v[k], i, j.tau(k));
-    }
+    j[i] = pack[i < count ? i : 0];
+    given[i] = j[i]->trig;
+  }
+  using lanes::Gather;
+  Vec5L<L> eta, nu, tau;
+  for (int k = 0; k < 5; ++k) {
+    eta.v[k] = Gather<L>([&](int i) { return j[i]->x->eta(k); });
+    nu.v[k] = Gather<L>([&](int i) { return j[i]->x->nu(k); });
+    tau.v[k] = Gather<L>([&](int i) { return j[i]->tau(k); });
   }
   const FossenLanes fossen(model);
   TrigL<L> out;
@@ -128,7 +140,11 @@ template <typename L>
     for (int i = 0; i < kLanes; ++i) given[i] = nullptr;
     fossen.Rk4Still(tau, dt, t, &eta, &nu, s + 1 == substeps ? &out : nullptr);
   }
-  for (int i = 0; i < count; ++i) {
+  // Unrolled, so that each lane is taken from the register by its constant index: a
+  // vector stored whole and read back a lane at a time stalls as the gather would.
+#pragma GCC unroll 8
+  for (int i = 0; i < lanes::Count<L>::kLanes; ++i) {
+    if (i >= count) break;
     // By Vec5Of: the state is read whole right after (Follower::Integrated).
     pack[i]->x->eta = Vec5Of(eta.v[0][i], eta.v[1][i], eta.v[2][i], eta.v[3][i], eta.v[4][i]);
     pack[i]->x->nu = Vec5Of(nu.v[0][i], nu.v[1][i], nu.v[2][i], nu.v[3][i], nu.v[4][i]);

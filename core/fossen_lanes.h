@@ -14,8 +14,9 @@
 
 // Every function taking or returning Lanes4 is inlined into its caller, so GCC's note that
 // a 32-byte vector is passed differently with and without AVX concerns no call made. (Only
-// core/fossen.cc includes this header, and the note comes with the templates' instances
-// at the end of that file: the pragma stays in force.)
+// the core's lane code includes this header, core/fossen.cc and control.cc, and the note
+// comes with the templates' instances at the end of those files: the pragma stays in
+// force.)
 #pragma GCC diagnostic ignored "-Wpsabi"
 
 namespace shoal {
@@ -61,6 +62,20 @@ inline double At(const double& x, int) { return x; }
 [[gnu::always_inline]] inline void Set(double* x, int, double v) { *x = v; }
 [[gnu::always_inline]] inline void Set(Lanes4* x, int i, double v) { (*x)[i] = v; }
 [[gnu::always_inline]] inline void Set(Lanes8* x, int i, double v) { (*x)[i] = v; }
+
+/// The lanes f(0), f(1), ... of L, built in registers: a vector written lane by lane in
+/// memory and then read whole stalls the CPU, which cannot forward narrow stores to a wide
+/// load (a gather of a pack's states that way was a tenth of its integration).
+template <typename L, typename F>
+[[gnu::always_inline]] inline L Gather(F f) {
+  if constexpr (Count<L>::kLanes == 1) {
+    return f(0);
+  } else if constexpr (Count<L>::kLanes == 4) {
+    return L{f(0), f(1), f(2), f(3)};
+  } else {
+    return L{f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7)};
+  }
+}
 
 inline double Clip(double v, double lim) { return v > lim ? lim : (v < -lim ? -lim : v); }
 [[gnu::always_inline]] inline Lanes4 Clip(Lanes4 v, Lanes4 lim) {
