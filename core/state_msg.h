@@ -26,7 +26,9 @@ struct StateMsg {
   static constexpr std::int32_t kFlagControllerReset = 8;  // a controller_reset window
 
   /// True if every numeric field is finite (NaN/Inf never reach the control law).
-  bool AllFinite() const {
+  /// Always inlined: it runs for every delivery, and a link-time optimised build that
+  /// sees it called from many files otherwise keeps one out-of-line copy (4 % of shoal sim).
+  [[gnu::always_inline]] bool AllFinite() const {
     // x * 0 is +-0 for a finite x and NaN for +-Inf and NaN, and NaN survives every sum:
     // one comparison for the 25 numbers of every message a follower receives. Two numbers
     // per SSE2 operation, which every x86-64 has: where Eigen's allFinite() tests each
