@@ -90,26 +90,29 @@ class Environment {
     Micros delay_us = 0;
     Vec5 f0 = Vec5::Zero();
   };
-  DelayedLeader At(Micros now) const {
+  /// `anchor`: the caller's own, kept between calls (LeaderPath::HelixAnchor; may be
+  /// null): the answer is the same with or without it.
+  DelayedLeader At(Micros now, LeaderPath::HelixAnchor* anchor = nullptr) const {
     if (valid_ && now == now_) return cached_;
-    return Compute(now);
+    return Compute(now, anchor);
   }
 
   /// Caches At(now). Not to be called while followers step.
   void Warm(Micros now) {
     if (valid_ && now == now_) return;
-    cached_ = Compute(now);
+    cached_ = Compute(now, &anchor_);
     now_ = now;
     valid_ = true;
   }
 
  private:
-  DelayedLeader Compute(Micros now) const {
+  DelayedLeader Compute(Micros now, LeaderPath::HelixAnchor* anchor) const {
     DelayedLeader d;
     d.delay_us = static_cast<Micros>(
         std::llround(NominalDelaySeconds(delay_, ToSeconds(now)) * 1e6));
     if (!leader_factor_) return d;
-    const LeaderPath::FactorSample l = path_.FactorAt(std::max(0.0, ToSeconds(now - d.delay_us)));
+    const LeaderPath::FactorSample l =
+        path_.FactorAt(std::max(0.0, ToSeconds(now - d.delay_us)), anchor);
     d.f0 = PaperExample2F(std::sin(l.p(1)), std::cos(l.p(2)), l.sin_psi, l.eta_dot);
     return d;
   }
@@ -120,6 +123,7 @@ class Environment {
   bool valid_ = false;
   Micros now_ = 0;
   DelayedLeader cached_;
+  LeaderPath::HelixAnchor anchor_;  // Warm's
 };
 
 /// First-order Gauss-Markov current speed (Fossen 2011, sec. 8.3):

@@ -154,7 +154,7 @@ void Follower::Disturb(Micros now, const AttitudeTrig<double>& trig, Vec5* tau_d
   current->setZero();
   if (disturbance_ == DisturbanceKind::kPaperExample2) {
     // f(eta(t - tau(t)), eta_dot(t - tau(t))) in eta'': as a force, M J^{-1} f.
-    const Environment::DelayedLeader dl = env_->At(now);
+    const Environment::DelayedLeader dl = env_->At(now, &leader_anchor_);
     HistorySample past;
     if (!history_.At(now - dl.delay_us, &past)) past = history_.Oldest();
     // The delayed state moves a few millimetres and milliradians per tick: its sines and

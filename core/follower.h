@@ -190,6 +190,9 @@ class Follower {
   AttitudeTrig<double> control_trig_{Vec5::Zero()};
   // sin y, cos z, sin psi of the state at the uncertain factor's delayed time.
   CarriedSinCos delayed_y_, delayed_z_, delayed_psi_;
+  // The leader's helix anchor for the factor, when the environment is not warmed for this
+  // tick (a vehicle process: its own environment).
+  LeaderPath::HelixAnchor leader_anchor_;
   ForceJob force_job_;
   Vec5 tau_dist_ = Vec5::Zero();
   Vec5 force_ = Vec5::Zero();

@@ -17,7 +17,7 @@ class Leader {
 
   /// The leader's state at `now` (the message to publish on SHOAL_STATE_0).
   const StateMsg& Tick(Micros now) {
-    const LeaderSample s = path_.At(ToSeconds(now));
+    const LeaderSample s = path_.At(ToSeconds(now), &anchor_);
     out_.seq += 1;
     out_.utime = now;
     out_.eta = s.eta;
@@ -28,6 +28,7 @@ class Leader {
 
  private:
   LeaderPath path_;
+  LeaderPath::HelixAnchor anchor_;
   StateMsg out_;
 };
 

@@ -1,6 +1,7 @@
 #include "core/leader_path.h"
 
 #include <cmath>
+#include <limits>
 
 #include "core/control.h"
 #include "core/fossen.h"
@@ -23,20 +24,80 @@ LeaderPath::LeaderPath(const LeaderConfig& c) : c_(c) {
   }
 }
 
-void LeaderPath::Point(double t, Vec3* p, Vec3* v, Vec3* a) const {
+namespace {
+
+// Paper Sec. IV: x0 = 60 cos(0.0022 pi t) + 25 sin(0.0011 pi t),
+// y0 = 60 sin(0.0022 pi t) + 25 cos(0.0011 pi t), z0 = -0.12 t.
+constexpr double kHelixWa = 0.0022 * kPi, kHelixWb = 0.0011 * kPi;
+
+// The helix at t given cos and sin of kHelixWb t. kHelixWa is exactly 2 kHelixWb (a factor
+// of two is exact in binary), so the faster pair follows from the slower by the
+// double-angle formulas.
+void HelixPoint(double t, double cb, double sb, Vec3* p, Vec3* v, Vec3* a) {
+  const double wa = kHelixWa, wb = kHelixWb;
+  const double sa = 2.0 * sb * cb, ca = (cb - sb) * (cb + sb);
+  *p = Vec3(60 * ca + 25 * sb, 60 * sa + 25 * cb, -0.12 * t);
+  *v = Vec3(-60 * wa * sa + 25 * wb * cb, 60 * wa * ca - 25 * wb * sb, -0.12);
+  *a = Vec3(-60 * wa * wa * ca - 25 * wb * wb * sb, -60 * wa * wa * sa - 25 * wb * wb * cb, 0.0);
+}
+
+// The angle from direction (ax, ay) to (bx, by) when it is small (|tan| <= 0.05): the
+// arctangent's series of cross / dot to the 11th power (truncation below 1e-18); NaN
+// otherwise, for the caller to take atan2. The helix turns less than 0.009 rad a second.
+double SmallTurn(double ax, double ay, double bx, double by) {
+  const double dot = ax * bx + ay * by;
+  const double r = (ax * by - ay * bx) / dot;
+  if (!(dot > 0.0 && std::abs(r) <= 0.05)) return std::numeric_limits<double>::quiet_NaN();
+  constexpr double a3 = 1.0 / 3.0, a5 = 1.0 / 5.0, a7 = 1.0 / 7.0, a9 = 1.0 / 9.0,
+                   a11 = 1.0 / 11.0;
+  const double r2 = r * r;
+  return r - r * r2 * (a3 - r2 * (a5 - r2 * (a7 - r2 * (a9 - r2 * a11))));
+}
+
+// The attitude (psi unwrapped, theta) of a path point whose velocity is v, horizontal speed
+// h > 1e-9: from the anchor's by the turn since it, where the anchor has one.
+void Attitude(const Vec3& v, double h, const LeaderPath::HelixAnchor* an, double* psi,
+              double* theta) {
+  if (an != nullptr && an->h > 1e-9) {
+    const double dpsi = SmallTurn(an->v.x(), an->v.y(), v.x(), v.y());
+    const double dtheta = SmallTurn(an->h, -an->v.z(), h, -v.z());
+    if (!std::isnan(dpsi) && !std::isnan(dtheta)) {
+      *psi = an->psi + dpsi;
+      *theta = an->theta + dtheta;
+      return;
+    }
+  }
+  *psi = std::atan2(v.y(), v.x());
+  *theta = std::atan2(-v.z(), h);
+}
+
+}  // namespace
+
+const LeaderPath::HelixAnchor& LeaderPath::AnchorOf(double t, HelixAnchor* kept,
+                                                    HelixAnchor* local) const {
+  const double t0 = std::floor(t);
+  HelixAnchor* an = kept != nullptr ? kept : local;
+  if (an->t == t0) return *an;
+  an->t = t0;
+  an->cb = std::cos(kHelixWb * t0);
+  an->sb = std::sin(kHelixWb * t0);
+  Vec3 p, a;
+  HelixPoint(t0, an->cb, an->sb, &p, &an->v, &a);
+  an->h = std::sqrt(an->v.x() * an->v.x() + an->v.y() * an->v.y());
+  an->h = an->h > 1e-9 ? an->h : 0.0;
+  Attitude(an->v, an->h, nullptr, &an->psi, &an->theta);
+  return *an;
+}
+
+void LeaderPath::Point(double t, HelixAnchor* anchor, Vec3* p, Vec3* v, Vec3* a) const {
   switch (c_.path) {
     case PathKind::kPaperHelix: {
-      // Paper Sec. IV: x0 = 60 cos(0.0022 pi t) + 25 sin(0.0011 pi t),
-      // y0 = 60 sin(0.0022 pi t) + 25 cos(0.0011 pi t), z0 = -0.12 t.
-      const double wa = 0.0022 * kPi, wb = 0.0011 * kPi;
-      // wa is exactly 2 wb (a factor of two is exact in binary), so the faster pair
-      // follows from the slower by the double-angle formulas: one sincos, not two.
-      const double cb = std::cos(wb * t), sb = std::sin(wb * t);
-      const double sa = 2.0 * sb * cb, ca = (cb - sb) * (cb + sb);
-      *p = Vec3(60 * ca + 25 * sb, 60 * sa + 25 * cb, -0.12 * t);
-      *v = Vec3(-60 * wa * sa + 25 * wb * cb, 60 * wa * ca - 25 * wb * sb, -0.12);
-      *a = Vec3(-60 * wa * wa * ca - 25 * wb * wb * sb, -60 * wa * wa * sa - 25 * wb * wb * cb,
-                0.0);
+      HelixAnchor local;
+      const HelixAnchor& an = AnchorOf(t, anchor, &local);
+      // t - an.t is exact: both lie within a second of each other.
+      double cb, sb;
+      ShiftAngle(kHelixWb * an.t, an.sb, an.cb, kHelixWb * (t - an.t), &sb, &cb);
+      HelixPoint(t, cb, sb, p, v, a);
       return;
     }
     case PathKind::kLine:
@@ -72,18 +133,23 @@ void LeaderPath::Rates(const Vec3& v, const Vec3& a, double h2, double h, double
   *theta_dot = (-h * a.z() + v.z() * h_dot) / (h2 + v.z() * v.z());
 }
 
-LeaderSample LeaderPath::At(double t_s) const {
+LeaderSample LeaderPath::At(double t_s, HelixAnchor* anchor) const {
   Vec3 p, v, a;
-  Point(t_s, &p, &v, &a);
+  HelixAnchor local;
+  if (c_.path == PathKind::kPaperHelix && anchor == nullptr) anchor = &local;
+  Point(t_s, anchor, &p, &v, &a);
   LeaderSample s;
   const double h2 = v.x() * v.x() + v.y() * v.y();
   const double h = std::sqrt(h2);
   const double speed = std::sqrt(h2 + v.z() * v.z());
   double psi = 0.0, theta = 0.0, psi_dot = 0.0, theta_dot = 0.0;
   if (speed > 1e-9) {
-    psi = h > 1e-9 ? std::atan2(v.y(), v.x()) : 0.0;
-    theta = std::atan2(-v.z(), h);
-    if (h > 1e-9) Rates(v, a, h2, h, &theta_dot, &psi_dot);
+    if (h > 1e-9) {
+      Attitude(v, h, c_.path == PathKind::kPaperHelix ? anchor : nullptr, &psi, &theta);
+      Rates(v, a, h2, h, &theta_dot, &psi_dot);
+    } else {
+      theta = std::atan2(-v.z(), h);
+    }
   } else if (c_.path == PathKind::kWaypoints && c_.waypoints_m.size() >= 2) {
     // At rest at the end: keep the last segment's attitude.
     const Vec3 d = c_.waypoints_m.back() - c_.waypoints_m[c_.waypoints_m.size() - 2];
@@ -104,10 +170,10 @@ LeaderSample LeaderPath::At(double t_s) const {
   return s;
 }
 
-LeaderPath::FactorSample LeaderPath::FactorAt(double t_s) const {
+LeaderPath::FactorSample LeaderPath::FactorAt(double t_s, HelixAnchor* anchor) const {
   Vec3 v, a;
   FactorSample f;
-  Point(t_s, &f.p, &v, &a);
+  Point(t_s, anchor, &f.p, &v, &a);
   const double h2 = v.x() * v.x() + v.y() * v.y();
   const double h = std::sqrt(h2);
   const double speed = std::sqrt(h2 + v.z() * v.z());

@@ -15,9 +15,24 @@ struct LeaderSample {
 
 class LeaderPath {
  public:
+  /// The paper's helix at a whole second t: the slower angle's cosine and sine, the
+  /// velocity, its horizontal part h, and the attitude, found by libm. A sample of the helix
+  /// is taken from the anchor of the second it falls in: the angle moved on by a short
+  /// series (ShiftAngle) and the attitude by the arctangent's series of the turn since the
+  /// anchor. A sample is thus a function of its time alone: a caller that keeps the anchor
+  /// between calls gets the same bits as one that does not, and pays libm once a simulated
+  /// second rather than a sincos and two atan2 a sample (a third of the leader's cost in
+  /// shoal sim). Other paths ignore it.
+  struct HelixAnchor {
+    double t = -1.0;  // -1: none yet
+    double cb = 1.0, sb = 0.0;
+    Vec3 v = Vec3::Zero();
+    double h = 0.0, psi = 0.0, theta = 0.0;
+  };
+
   explicit LeaderPath(const LeaderConfig& c);
-  /// The sample at t_s.
-  LeaderSample At(double t_s) const;
+  /// The sample at t_s. `anchor`: the caller's, kept between calls (may be null).
+  LeaderSample At(double t_s, HelixAnchor* anchor = nullptr) const;
 
   /// What paper Example 2's uncertain factor reads of the sample at t_s.
   struct FactorSample {
@@ -29,11 +44,13 @@ class LeaderPath {
   };
   /// The factor's part of At(t_s): sin psi without atan2 and sin (equal to
   /// sin(At(t_s).eta(4)) within rounding), and no theta or J^{-1}.
-  FactorSample FactorAt(double t_s) const;
+  FactorSample FactorAt(double t_s, HelixAnchor* anchor = nullptr) const;
 
  private:
-  // Position, velocity, acceleration of the path point (NED).
-  void Point(double t, Vec3* p, Vec3* v, Vec3* a) const;
+  // Position, velocity, acceleration of the path point (NED); of the helix, from the
+  // anchor of t's second (`anchor` kept by the caller, or null).
+  void Point(double t, HelixAnchor* anchor, Vec3* p, Vec3* v, Vec3* a) const;
+  const HelixAnchor& AnchorOf(double t, HelixAnchor* kept, HelixAnchor* local) const;
   // The attitude's rates (theta_dot, psi_dot) of a path whose velocity is v, acceleration
   // a and horizontal speed h (h2 its square), h > 1e-9.
   static void Rates(const Vec3& v, const Vec3& a, double h2, double h, double* theta_dot,

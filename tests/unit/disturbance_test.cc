@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -136,6 +137,58 @@ TEST(LeaderPathTest, HelixIsThePapersFormulas) {
   }
 }
 
+// Every double of two samples, bit for bit.
+bool SameSample(const LeaderSample& a, const LeaderSample& b) {
+  return std::memcmp(a.eta.data(), b.eta.data(), sizeof(double) * 5) == 0 &&
+         std::memcmp(a.eta_dot.data(), b.eta_dot.data(), sizeof(double) * 5) == 0 &&
+         std::memcmp(a.nu.data(), b.nu.data(), sizeof(double) * 5) == 0;
+}
+
+bool SameFactor(const LeaderPath::FactorSample& a, const LeaderPath::FactorSample& b) {
+  return std::memcmp(a.p.data(), b.p.data(), sizeof(double) * 3) == 0 &&
+         std::memcmp(&a.sin_psi, &b.sin_psi, sizeof(double)) == 0 &&
+         std::memcmp(a.eta_dot.data(), b.eta_dot.data(), sizeof(double) * 5) == 0;
+}
+
+// A kept anchor only saves work: the leader process, a vehicle process and shoal sim ask
+// for the helix in different orders and must get the same bits (lockstep equals shoal sim).
+TEST(LeaderPathTest, HelixSampleIsAFunctionOfTimeAlone) {
+  const LeaderPath path{LeaderConfig{}};
+  std::vector<double> times;
+  for (int k = 0; k <= 3000; ++k) times.push_back(k * 0.02);            // ticks, in order
+  for (int k = 0; k <= 300; ++k) times.push_back(59.9 - k * 0.0137);    // backwards
+  Rng rng(7, 8, 9);
+  for (int k = 0; k < 3000; ++k) times.push_back(1200.0 * rng.Uniform());  // anywhere
+  for (double t : {0.0, 1.0, 0.9999999999999999, 1.0000000000000002, 999.0, 2999.98}) {
+    times.push_back(t);
+  }
+  LeaderPath::HelixAnchor kept, kept_factor;
+  for (double t : times) {
+    ASSERT_TRUE(SameSample(path.At(t, &kept), path.At(t))) << t;
+    ASSERT_TRUE(SameFactor(path.FactorAt(t, &kept_factor), path.FactorAt(t))) << t;
+    // One anchor shared by both kinds of sample, too.
+    LeaderPath::HelixAnchor shared;
+    path.FactorAt(std::floor(t) + 0.5, &shared);
+    ASSERT_TRUE(SameSample(path.At(t, &shared), path.At(t))) << t;
+  }
+}
+
+// The helix's attitude from its anchor, against atan2 of the sample's own velocity.
+TEST(LeaderPathTest, HelixAttitudeIsTheVelocitysDirectionWithinRounding) {
+  const LeaderPath path{LeaderConfig{}};
+  LeaderPath::HelixAnchor kept;
+  double worst = 0.0;
+  for (int k = 0; k <= 150000; ++k) {
+    const double t = k * 0.02;
+    const LeaderSample s = path.At(t, &kept);
+    const Vec3 v = s.eta_dot.head<3>();
+    const double h = std::hypot(v.x(), v.y());
+    worst = std::max(worst, std::abs(WrapAngle(s.eta(4) - std::atan2(v.y(), v.x()))));
+    worst = std::max(worst, std::abs(s.eta(3) - std::atan2(-v.z(), h)));
+  }
+  EXPECT_LT(worst, 1e-15) << worst;
+}
+
 TEST(LeaderPathTest, NuIsJInverseOfEtaDot) {
   for (const auto& [config, times] : LeaderCases()) {
     const LeaderPath path(config);
@@ -158,8 +211,9 @@ TEST(LeaderPathTest, FactorSampleIsTheSamplesPositionRatesAndHeadingsSine) {
       const LeaderPath::FactorSample f = path.FactorAt(t);
       EXPECT_EQ(f.p, all.eta.head<3>()) << t;
       EXPECT_EQ(f.eta_dot, all.eta_dot) << t;
-      // The velocity's ratio against the sine of the angle atan2 found: rounding apart.
-      EXPECT_NEAR(f.sin_psi, std::sin(all.eta(4)), 4e-16) << "path "
+      // The velocity's ratio against the sine of the heading: rounding apart (the
+      // helix's heading, from its anchor, within a few units in the last place of atan2's).
+      EXPECT_NEAR(f.sin_psi, std::sin(all.eta(4)), 1e-15) << "path "
           << static_cast<int>(config.path) << " t " << t;
     }
   }
