@@ -98,7 +98,9 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
     shared_has_vehicles_ = shared_has_vehicles_ || vbus_[id] == bus_;
     // What goes to the vehicles' own buses at one instant leaves in one system call.
     if (vbus_[id] != bus_) vbus_[id]->SendThrough(&batch_);
+    vbus_[id]->PrepareBundles();
   }
+  bus_->PrepareBundles();
   if (mode == Mode::kLockstep) {
     // Every state goes to the logger's bus; so does every delivery to a vehicle that
     // receives there (at most one per link and tick).

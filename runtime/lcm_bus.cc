@@ -82,18 +82,21 @@ bool LcmBus::AppendPart(const std::string& channel, const void* data, int size, 
   return ok;
 }
 
+void LcmBus::PrepareBundles() {
+  if (bundle_.capacity() >= static_cast<std::size_t>(bundle_wire::kMaxBytes)) return;
+  // The largest bundle's buffers, written once: as windows grow with the channel's delay,
+  // buffers that grew with them would show as memory growth late in a long run (a soak's
+  // verdict), though nothing leaks.
+  bundle_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes), 0);
+  signed_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes) + bus_auth::kTrailerBytes, 0);
+}
+
 void LcmBus::BeginBundle(bool recordable) {
   // Nested: receivers that share one bus each open a bundle on it; what they queued goes
   // out together when the outermost closes, none of it dropped by a later Begin.
   if (bundle_depth_++ > 0) return;
   recordable_ = recordable;
-  if (bundle_.capacity() < static_cast<std::size_t>(bundle_wire::kMaxBytes)) {
-    // The largest bundle's buffers, written once now: as windows grow with the channel's
-    // delay, buffers that grew with them would show as memory growth late in a long run
-    // (a soak's verdict), though nothing leaks.
-    bundle_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes), 0);
-    signed_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes) + bus_auth::kTrailerBytes, 0);
-  }
+  PrepareBundles();
   bundling_ = true;
   bundle_parts_ = 0;
   if (recordable) {

@@ -85,6 +85,11 @@ class Bus {
   virtual void BeginBundle(bool recordable = false) { (void)recordable; }
   /// Sends what BeginBundle kept (a single message as it is). False if a publish failed.
   virtual bool EndBundle() { return true; }
+  /// Makes the buffers of the largest bundle now rather than at the first BeginBundle. A
+  /// real-time process calls it before its clock starts: written for the first time (and,
+  /// under mlockall, mapped) at its first release, they made that release over a
+  /// millisecond late on a VM, a tick late for its receivers.
+  virtual void PrepareBundles() {}
   /// While `batch` is active (runtime/udpm_sender.h), what this bus sends goes into it, to
   /// leave with the batch's other datagrams in one system call. Only a udpm LcmBus does
   /// this; any other bus sends as before.
@@ -137,6 +142,7 @@ class LcmBus : public Bus {
   std::int64_t overflowed() const { return receiver_ ? receiver_->overflowed() : 0; }
   void BeginBundle(bool recordable = false) override;
   bool EndBundle() override;
+  void PrepareBundles() override;
   void SendThrough(UdpmBatch* batch) override;
   int fileno() { return receiver_ ? receiver_->fd() : lcm_.getFileno(); }
   const std::string& url() const { return url_; }
