@@ -69,7 +69,8 @@ class CarriedSinCos {
 
 /// What the simulated world knows besides each vehicle's own state: the leader's path,
 /// for the paper's uncertain factor relative to the leader. One instance may be shared by
-/// the followers of a process, also across threads: reads never write. The owner may
+/// the followers of a process, also across threads: reads never write it (At writes only
+/// the anchor its caller passes). The owner may
 /// Warm() it with the time every follower is about to ask for (all followers ask for the
 /// same time in a tick), before the followers step.
 class Environment {

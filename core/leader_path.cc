@@ -43,7 +43,7 @@ void HelixPoint(double t, double cb, double sb, Vec3* p, Vec3* v, Vec3* a) {
 
 // The angle from direction (ax, ay) to (bx, by) when it is small (|tan| <= 0.05): the
 // arctangent's series of cross / dot to the 11th power (truncation below 1e-18); NaN
-// otherwise, for the caller to take atan2. The helix turns less than 0.009 rad a second.
+// otherwise, for the caller to take atan2. The helix turns less than 0.01 rad a second.
 double SmallTurn(double ax, double ay, double bx, double by) {
   const double dot = ax * bx + ay * by;
   const double r = (ax * by - ay * bx) / dot;
@@ -94,7 +94,8 @@ void LeaderPath::Point(double t, HelixAnchor* anchor, Vec3* p, Vec3* v, Vec3* a)
     case PathKind::kPaperHelix: {
       HelixAnchor local;
       const HelixAnchor& an = AnchorOf(t, anchor, &local);
-      // t - an.t is exact: both lie within a second of each other.
+      // t - an.t is exact for t >= 0 (both within a second of each other); in any case a
+      // function of t alone.
       double cb, sb;
       ShiftAngle(kHelixWb * an.t, an.sb, an.cb, kHelixWb * (t - an.t), &sb, &cb);
       HelixPoint(t, cb, sb, p, v, a);

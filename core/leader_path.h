@@ -1,6 +1,8 @@
 // Paths of the leader (id 0): the paper's helix, a straight line, or waypoints.
 #pragma once
 
+#include <limits>
+
 #include "core/scenario.h"
 
 namespace shoal {
@@ -21,10 +23,11 @@ class LeaderPath {
   /// series (ShiftAngle) and the attitude by the arctangent's series of the turn since the
   /// anchor. A sample is thus a function of its time alone: a caller that keeps the anchor
   /// between calls gets the same bits as one that does not, and pays libm once a simulated
-  /// second rather than a sincos and two atan2 a sample (a third of the leader's cost in
-  /// shoal sim). Other paths ignore it.
+  /// second rather than a sincos a sample, and for At two atan2 more (a third of the
+  /// leader's cost in shoal sim). Other paths ignore it.
   struct HelixAnchor {
-    double t = -1.0;  // -1: none yet
+    // NaN: none yet. Equal to no second, negative ones included.
+    double t = std::numeric_limits<double>::quiet_NaN();
     double cb = 1.0, sb = 0.0;
     Vec3 v = Vec3::Zero();
     double h = 0.0, psi = 0.0, theta = 0.0;

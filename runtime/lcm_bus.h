@@ -86,9 +86,9 @@ class Bus {
   /// Sends what BeginBundle kept (a single message as it is). False if a publish failed.
   virtual bool EndBundle() { return true; }
   /// Makes the buffers of the largest bundle now rather than at the first BeginBundle. A
-  /// real-time process calls it before its clock starts: written for the first time (and,
-  /// under mlockall, mapped) at its first release, they made that release over a
-  /// millisecond late on a VM, a tick late for its receivers.
+  /// real-time process calls it before its clock starts: allocated and zero-filled at its
+  /// first release, they made that release over a millisecond late on a VM, a tick late
+  /// for its receivers.
   virtual void PrepareBundles() {}
   /// While `batch` is active (runtime/udpm_sender.h), what this bus sends goes into it, to
   /// leave with the batch's other datagrams in one system call. Only a udpm LcmBus does

@@ -124,8 +124,8 @@ std::vector<std::pair<LeaderConfig, std::vector<double>>> LeaderCases() {
 TEST(LeaderPathTest, HelixIsThePapersFormulas) {
   const LeaderPath path{LeaderConfig{}};
   const double wa = 0.0022 * kPi, wb = 0.0011 * kPi;
-  for (int k = 0; k <= 20000; ++k) {
-    const double t = k * 0.0513;
+  for (int k = -60; k <= 20000; ++k) {  // negative times too: before the run, as the paper's
+    const double t = k * 0.0513;        // formulas give them
     const LeaderSample s = path.At(t);
     EXPECT_NEAR(s.eta(0), 60 * std::cos(wa * t) + 25 * std::sin(wb * t), 1e-12) << t;
     EXPECT_NEAR(s.eta(1), 60 * std::sin(wa * t) + 25 * std::cos(wb * t), 1e-12) << t;
@@ -159,7 +159,8 @@ TEST(LeaderPathTest, HelixSampleIsAFunctionOfTimeAlone) {
   for (int k = 0; k <= 300; ++k) times.push_back(59.9 - k * 0.0137);    // backwards
   Rng rng(7, 8, 9);
   for (int k = 0; k < 3000; ++k) times.push_back(1200.0 * rng.Uniform());  // anywhere
-  for (double t : {0.0, 1.0, 0.9999999999999999, 1.0000000000000002, 999.0, 2999.98}) {
+  for (double t : {0.0, 1.0, 0.9999999999999999, 1.0000000000000002, 999.0, 2999.98, -0.3,
+                   -1.0, -1.7, -2.0}) {
     times.push_back(t);
   }
   LeaderPath::HelixAnchor kept, kept_factor;
