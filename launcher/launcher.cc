@@ -439,6 +439,10 @@ class Launch {
   void Shutdown();
   /// Once every process has exited: what each dropped for failed authentication.
   void GatherRejections();
+  /// Real time: tick 0 on CLOCK_MONOTONIC (once StartAll has set it).
+  std::int64_t t0_ns() const { return t0_ns_; }
+  /// The run's processes on a host with another kernel than shoal run's (--hosts).
+  std::vector<int> ElsewhereIds();
 
  private:
   /// Mode, duration, size and executables.
@@ -667,6 +671,17 @@ bool Launch::LoggerVisible() const {
   if (!opt_.hosts) return true;
   const auto logger = host_checks_.find(HostFor(kLoggerId)->name);
   return logger != host_checks_.end() && logger->second.same_process;
+}
+
+std::vector<int> Launch::ElsewhereIds() {
+  std::vector<int> ids;
+  for (const PlannedProcess& p : plan_.processes) {
+    const Host* h = HostFor(p.id);
+    if (p.id != kLoggerId && h != nullptr && !host_checks_[h->name].same_clock) {
+      ids.push_back(p.id);
+    }
+  }
+  return ids;
 }
 
 const Host* Launch::HostFor(int id) const {
@@ -1357,7 +1372,12 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   result->cpu_latency_request = latency && latency->held();
   result->cpu_latency_note = latency ? latency->note() : "no CPU latency request (--deep-idle)";
   launch.StartAll();
+  // Real time: whether the machine itself stalled, for the timing verdict to tell it apart.
+  MachineWitness witness;
+  if (launch.plan().mode == Mode::kRealtime) witness.Start(launch.t0_ns());
   launch.Supervise(callbacks);
+  result->machine = witness.Stop();
+  if (launch.plan().mode == Mode::kRealtime) result->unwatched_ids = launch.ElsewhereIds();
   launch.Shutdown();
   launch.GatherRejections();
   return true;

@@ -13,6 +13,7 @@
 
 #include "core/scenario.h"
 #include "launcher/hosts_file.h"
+#include "launcher/machine_witness.h"
 #include "runtime/bus_auth.h"
 #include "runtime/process.h"
 
@@ -144,6 +145,10 @@ struct LaunchResult {
   /// (killed before its end). Empty with --insecure. Forgeries sent straight to a
   /// vehicle's own group reach that vehicle only: the log never sees them.
   std::map<std::string, std::int64_t> unauthenticated_by_process;
+  /// Real time: what the machine itself did during the run (launcher/machine_witness.h),
+  /// and the processes it cannot speak for: those on hosts with another kernel (--hosts).
+  MachineWatch machine;
+  std::vector<int> unwatched_ids;
 };
 
 /// Shown while the run goes on.

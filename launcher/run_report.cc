@@ -20,22 +20,85 @@ std::string ProcessName(int id) {
   return id == 0 ? "leader" : "vehicle " + std::to_string(id);
 }
 
-/// Real time: each process's last health report (its figures since it started).
-void JudgeTiming(const RunAnalysis& a, double period_s, RunReport* r) {
+/// A stretch between two of a process's health reports (mission time) in which it overran
+/// a period or woke later than kMaxLatenessP99S, and its worst lateness there.
+struct LateWindow {
+  double from_s = 0.0, to_s = 0.0;
+  double worst_late_s = 0.0;
+};
+
+/// Process `id`'s late windows; false when its reports carry no window (a log of
+/// health_t, which has only figures since the start).
+bool LateWindows(const RunData& run, int id, std::vector<LateWindow>* out) {
+  const HealthRecord* prev = nullptr;
+  for (const HealthRecord& h : run.health) {
+    if (h.process_id != id) continue;
+    if (h.lateness_window_count < 0) return false;
+    const std::int64_t overruns = h.overruns - (prev != nullptr ? prev->overruns : 0);
+    if (overruns > 0 || h.lateness_window_max_s > kMaxLatenessP99S) {
+      out->push_back({prev != nullptr ? prev->utime * 1e-6 : 0.0, h.utime * 1e-6,
+                      h.lateness_window_max_s});
+    }
+    prev = &h;
+  }
+  return true;
+}
+
+/// The machine's worst stall in each of process `id`'s late windows, when in every one of
+/// them (or within a period of it, the reports' resolution) the machine stalled for at
+/// least half a period and at least half the process's worst lateness there; nullptr when
+/// in one it did not, or when the witness cannot speak for the process. Half: once the
+/// machine runs again, every loop it held wakes at once and queues for the CPUs, so a loop
+/// loses more than the stall, and the witness sees a stall of length L as a wake-up at
+/// least L - kWitnessPeriodNs late. Half the lateness too: a short stall that fell in the
+/// second a process lost much more (stopped, or stuck in its own work) does not explain it.
+const MachineStall* MachineExplains(const RunData& run, const LaunchResult& l, int id,
+                                    double period_s) {
+  if (!l.machine.watched ||
+      std::find(l.unwatched_ids.begin(), l.unwatched_ids.end(), id) != l.unwatched_ids.end()) {
+    return nullptr;
+  }
+  std::vector<LateWindow> windows;
+  if (!LateWindows(run, id, &windows) || windows.empty()) return nullptr;
+  const MachineStall* worst = nullptr;
+  for (const LateWindow& w : windows) {
+    const MachineStall* s = l.machine.WorstIn(w.from_s - period_s, w.to_s + period_s,
+                                              0.5 * std::max(period_s, w.worst_late_s));
+    if (s == nullptr) return nullptr;
+    if (worst == nullptr || s->length_s > worst->length_s) worst = s;
+  }
+  return worst;
+}
+
+}  // namespace
+
+void JudgeTiming(const RunData& run, const RunAnalysis& a, double period_s, RunReport* r) {
+  int machines = 0;
   for (const ProcessAnalysis& p : a.processes) {
     const HealthRecord& h = p.last;
     if (p.id != kEmulatorId && h.lateness_p99_s > kSlowLoopFraction * period_s) ++r->slow_loops;
     if (h.overruns == 0 && h.lateness_p99_s <= kMaxLatenessP99S) continue;
-    char text[256];
-    std::snprintf(text, sizeof(text),
-                  "%s: %lld overruns, %s p99 %.1f ms (limits: 0 overruns, p99 %.0f ms)",
-                  ProcessName(p.id).c_str(), static_cast<long long>(h.overruns),
-                  p.id == kEmulatorId ? "release error" : "loop lateness", h.lateness_p99_s * 1e3,
-                  kMaxLatenessP99S * 1e3);
+    char text[384];
+    int n = std::snprintf(text, sizeof(text),
+                          "%s: %lld overruns, %s p99 %.1f ms (limits: 0 overruns, p99 %.0f ms)",
+                          ProcessName(p.id).c_str(), static_cast<long long>(h.overruns),
+                          p.id == kEmulatorId ? "release error" : "loop lateness",
+                          h.lateness_p99_s * 1e3, kMaxLatenessP99S * 1e3);
+    if (const MachineStall* s = MachineExplains(run, r->launch, p.id, period_s)) {
+      ++machines;
+      std::snprintf(text + n, sizeof(text) - n,
+                    "; in each second it was late the machine itself stalled for half a period "
+                    "or more (worst %.1f ms, at t = %.2f s)",
+                    s->length_s * 1e3, s->start_s);
+    }
     r->timing_problems.push_back(text);
   }
   r->timing_ok = r->timing_problems.empty();
+  r->timing_machine_limited =
+      !r->timing_ok && machines == static_cast<int>(r->timing_problems.size());
 }
+
+namespace {
 
 std::string Lost(std::int64_t have, std::int64_t expected, const std::string& what) {
   return "the log holds " + std::to_string(have) + " of " + std::to_string(expected) + " " + what +
@@ -113,6 +176,59 @@ void PrintRestarts(const RunReport& r, std::FILE* out) {
   }
 }
 
+/// Stalls at least this long are listed one by one (--json "machine.stalls"), at most
+/// kStallsListed of them; the count and the worst cover all.
+constexpr std::size_t kStallsListed = 100;
+
+int StallsAtLeast(const MachineWatch& m, double min_s) {
+  int n = 0;
+  for (const MachineStall& s : m.stalls) n += s.length_s >= min_s;
+  return n;
+}
+
+nlohmann::ordered_json MachineJson(const MachineWatch& m, double period_s) {
+  nlohmann::ordered_json j;
+  j["watched"] = m.watched;
+  j["how"] = m.note;
+  j["cpus"] = m.cpus;
+  j["stall_min_s"] = kMachineStallMinS;
+  j["stall_count"] = m.stalls.size() + m.stalls_not_kept;
+  j["stalls_half_period"] = StallsAtLeast(m, 0.5 * period_s);
+  j["worst_stall_s"] = m.worst_s();
+  nlohmann::ordered_json list = nlohmann::ordered_json::array();
+  for (const MachineStall& s : m.stalls) {
+    if (list.size() >= kStallsListed) break;
+    list.push_back({{"start_s", s.start_s}, {"length_s", s.length_s}, {"cpu", s.cpu}});
+  }
+  j["stalls"] = list;
+  return j;
+}
+
+void PrintMachine(const MachineWatch& m, double period_s, bool limited, std::FILE* out) {
+  if (!m.watched) {
+    std::fprintf(out, "  machine: not watched (%s)\n", m.note.c_str());
+    return;
+  }
+  const MachineStall* worst = nullptr;
+  for (const MachineStall& s : m.stalls) {
+    if (worst == nullptr || s.length_s > worst->length_s) worst = &s;
+  }
+  std::fprintf(out, "  machine: %lld stall(s) of %.0f ms or more on %d CPU(s), %d of half a "
+               "period or more",
+               static_cast<long long>(m.stalls.size() + m.stalls_not_kept),
+               kMachineStallMinS * 1e3, m.cpus, StallsAtLeast(m, 0.5 * period_s));
+  if (worst != nullptr) {
+    std::fprintf(out, "; worst %.1f ms at t = %.2f s on CPU %d", worst->length_s * 1e3,
+                 worst->start_s, worst->cpu);
+  }
+  std::fprintf(out, "\n");
+  if (limited) {
+    std::fprintf(out, "  the run missed its timing targets where the machine itself stalled: "
+                 "its timing is what this machine allows (docs/run.md, \"When the machine "
+                 "stalls\")\n");
+  }
+}
+
 }  // namespace
 
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
@@ -146,7 +262,7 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     r.bus_authenticated = run.bus_authenticated();
     r.unauthenticated = run.unauthenticated;
     r.unauthenticated_by_channel = run.unauthenticated_by_channel;
-    if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, 1.0 / s.control_rate_hz, &r);
+    if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(run, a, 1.0 / s.control_rate_hz, &r);
     if (r.launch.mode == ModeName(Mode::kLockstep)) {
       clock_ticks = ClockTicks(run);
     }
@@ -205,6 +321,8 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["log_problems"] = r.log_problems;
   j["timing_ok"] = r.timing_ok;
   j["timing_problems"] = r.timing_problems;
+  j["timing_machine_limited"] = r.timing_machine_limited;
+  if (realtime) j["machine"] = MachineJson(l.machine, 1.0 / r.control_rate_hz);
   j["hints"] = r.hints;
   j["lcm_url"] = l.lcm_url;
   j["bus_authenticated"] = r.bus_authenticated;
@@ -276,6 +394,7 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   for (const std::string& p : r.timing_problems) {
     std::fprintf(out, "  LATE (real time): %s\n", p.c_str());
   }
+  if (realtime) PrintMachine(l.machine, 1.0 / r.control_rate_hz, r.timing_machine_limited, out);
   PrintAuthentication(r, out);
   for (const std::string& h : r.hints) std::fprintf(out, "  hint: %s\n", h.c_str());
   std::fprintf(out, "  output of each process: %s/\n", l.process_output_dir.c_str());

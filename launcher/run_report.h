@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "analysis/analysis.h"
+#include "analysis/run_data.h"
 #include "launcher/launcher.h"
 
 namespace shoal {
@@ -40,6 +41,11 @@ struct RunReport {
   /// lockstep, which reads no clock. timing_problems names each process that did not.
   bool timing_ok = true;
   std::vector<std::string> timing_problems;
+  /// Real time: timing_ok is false, and in every stretch in which a process named in
+  /// timing_problems overran or was late, the machine itself stalled for half a period, and
+  /// half the process's worst lateness there, or more (launch.machine, JudgeTiming): the
+  /// run's timing is what this machine allows.
+  bool timing_machine_limited = false;
   /// The log was read with the run's key: what did not authenticate (forged, another
   /// run's) was dropped before anything above counted it (docs/run.md).
   bool bus_authenticated = false;
@@ -77,6 +83,14 @@ struct LoopPlacement {
 /// CPU each, staggering is not what the run lacked; one late process is that process's
 /// trouble (a stall, a fault).
 std::string StaggerHint(const RunReport& r, const LoopPlacement& p);
+
+/// Real time: judges each process's timing from its last health report in `run` (its
+/// figures since it started), against kMaxLatenessP99S and no overrun; sets timing_ok,
+/// timing_problems, slow_loops and timing_machine_limited. A problem in whose every late
+/// stretch (between two of the process's health reports) r->launch.machine saw the machine
+/// stall for half a period, and half the process's worst lateness there, or more says so;
+/// a process on another kernel (launch.unwatched_ids) never does.
+void JudgeTiming(const RunData& run, const RunAnalysis& a, double period_s, RunReport* r);
 
 /// Reads the run's log (launch.log) and builds the report.
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch);

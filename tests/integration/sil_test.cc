@@ -737,6 +737,10 @@ TEST(Sil, RealtimeVehicleStoppedForOneAndAHalfSecondsFailsTheRun) {
   // 1.5 s at 50 Hz: about 75 periods missed.
   EXPECT_GE(std::atoll(report.c_str() + at + line.size()), 50) << report;
   EXPECT_NE(report.find("overruns", at), std::string::npos) << report;
+  // Stopped alone, not by the machine: the verdict does not put it on the machine.
+  const std::string late_line = report.substr(at, report.find('\n', at) - at);
+  EXPECT_EQ(late_line.find("machine"), std::string::npos) << report;
+  EXPECT_EQ(report.find("where the machine itself stalled"), std::string::npos) << report;
 }
 
 // lcm-logger killed during a run (or failing on a full disk): nothing is recorded any more,

@@ -9,9 +9,9 @@
 #     two send);
 #   - lockstep: the run's log equals shoal sim's of the same scenario exactly;
 #   - real time: every process ran to the end, the log holds every state, the loops'
-#     lateness and the emulator's release error are within the run's targets (a run that
-#     misses only the timing targets, as a machine stall makes it, is run again, at most
-#     twice);
+#     lateness and the emulator's release error are within the run's targets, or missed
+#     them only where the machine itself stalled (shoal run's machine witness says so); a
+#     run that misses them otherwise is run again, at most twice;
 #   - nothing the runs started is left running in the namespaces.
 # Every namespace (and with them every interface) is deleted on exit, also on failure, and
 # the /run/netns mount `ip netns add` makes is removed when it was not there before.
@@ -196,11 +196,12 @@ done
 echo "lockstep over three hosts equals shoal sim"
 
 # --- Real time: within the run's targets. -----------------------------------------------
-# A run that misses only its timing targets (0 overruns, lateness and release error p99
-# <= 20 ms) is run again, at most twice: a shared CI machine can lose every CPU for tens
-# of milliseconds, which overruns every loop at once whatever Shoal does
-# (tests/integration/sil_test.cc allows 1 % of the ticks for the same reason). Everything else must hold in every run,
-# and one of the three must meet the targets.
+# A shared VM stops a virtual CPU for 10-40 ms every few seconds (a thread at the highest
+# real-time priority sees it, docs/benchmarks.md): a loop held then overruns whatever Shoal
+# does. shoal run's verdict says when every timing miss of a run fell where the machine
+# itself stalled (timing_machine_limited); such a run holds. A run that misses its timing
+# targets otherwise is run again, at most twice (a stall the witness's threads missed);
+# everything else must hold in every run.
 realtime_run() {  # $1: attempt; returns 0 on the targets met, 1 on timing alone; fails otherwise
   local out=$work/rt$1 status=0
   "$shoal" run --hosts "$work/hosts.toml" "$scenario" --mode realtime --duration "$REALTIME_S" \
@@ -208,13 +209,19 @@ realtime_run() {  # $1: attempt; returns 0 on the targets met, 1 on timing alone
   # Exit 1 only for the formation, which does not converge in 8 s: everything else holds.
   [ "$status" = 1 ] || fail "real-time run: exit status $status: $(cat "$out.err" "$out.json")"
   [ "$(json converged "$out.json")" = false ] || fail "real-time run: $(cat "$out.json")"
-  for key in all_processes_ok log_complete; do
+  for key in all_processes_ok log_complete watched; do
     [ "$(json "$key" "$out.json")" = true ] || fail "real-time run: $key: $(cat "$out.json")"
   done
   [ "$(json log_states "$out.json")" = "$(json log_states_expected "$out.json")" ] ||
     fail "real-time run: not every state logged: $(cat "$out.json")"
+  local problems
+  problems=$(grep -oE '"timing_problems":\[[^]]*\]' "$out.json")
   if [ "$(json timing_ok "$out.json")" != true ]; then
-    echo "real-time run $1 missed its timing targets: $(grep -oE '"timing_problems":\[[^]]*\]' "$out.json")"
+    if [ "$(json timing_machine_limited "$out.json")" = true ]; then
+      echo "real-time run $1 missed its timing targets only where the machine stalled: $problems"
+      return 0
+    fi
+    echo "real-time run $1 missed its timing targets: $problems"
     return 1
   fi
   awk -v e="$(json delay_error_p99_s "$out.json")" -v l="$(json lateness_p99_s "$out.json")" \
