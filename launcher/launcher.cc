@@ -1374,10 +1374,13 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   launch.StartAll();
   // Real time: whether the machine itself stalled, for the timing verdict to tell it apart.
   MachineWitness witness;
-  if (launch.plan().mode == Mode::kRealtime) witness.Start(launch.t0_ns());
+  const bool realtime = launch.plan().mode == Mode::kRealtime;
+  const std::string refusal = realtime ? WitnessRefusal() : "";
+  if (realtime && refusal.empty()) witness.Start(launch.t0_ns());
   launch.Supervise(callbacks);
   result->machine = witness.Stop();
-  if (launch.plan().mode == Mode::kRealtime) result->unwatched_ids = launch.ElsewhereIds();
+  if (!refusal.empty()) result->machine.note = refusal;
+  if (realtime) result->unwatched_ids = launch.ElsewhereIds();
   launch.Shutdown();
   launch.GatherRejections();
   return true;

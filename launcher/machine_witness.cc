@@ -4,8 +4,10 @@
 #include <sched.h>
 
 #include <algorithm>
-#include <cerrno>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <system_error>
 
 #include "runtime/clock.h"
 
@@ -73,15 +75,29 @@ std::vector<MachineStall> StallTracker::Finish() {
   return std::move(stalls_);
 }
 
+std::string WitnessRefusal() {
+  if (std::getenv("SHOAL_SCHED_FIFO") == nullptr) return "";
+  std::ifstream in("/proc/sys/kernel/sched_rt_runtime_us");
+  long long runtime_us = 0;
+  if (in >> runtime_us && runtime_us == -1) return "";
+  return "SHOAL_SCHED_FIFO puts run processes at SCHED_FIFO, and real-time throttling "
+         "(kernel.sched_rt_runtime_us) would hold the witness with a busy one";
+}
+
 void MachineWitness::Start(std::int64_t t0_ns) {
   if (started_) return;
   started_ = true;
+  stop_ = false;
   t0_ns_ = t0_ns;
   const std::vector<int> cpus = AllowedCpus();
   threads_.resize(cpus.size());  // before any thread runs: each holds a pointer to its slot
   for (std::size_t i = 0; i < cpus.size(); ++i) {
     threads_[i].cpu = cpus[i];
-    threads_[i].thread = std::thread(&MachineWitness::Watch, this, &threads_[i]);
+    try {
+      threads_[i].thread = std::thread(&MachineWitness::Watch, this, &threads_[i]);
+    } catch (const std::system_error& e) {
+      threads_[i].refused = std::string("cannot start a thread: ") + e.what();
+    }
   }
 }
 

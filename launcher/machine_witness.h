@@ -1,9 +1,10 @@
 // What the machine itself did to a real-time run: one thread per CPU, pinned to it at the
 // highest SCHED_FIFO priority, wakes at fixed absolute deadlines and records each time it
-// woke late (a stall). No process of the run can delay such a thread: only the machine can
-// (the hypervisor taking the virtual CPU away, the kernel with interrupts off, SMIs). So a
-// stall it saw is the machine's, and a process late in the same second was late because of
-// it, whatever the process did (docs/run.md, "When the machine stalls").
+// woke late (a stall). The run's processes run at normal priority, or at SCHED_FIFO 40-50
+// (SHOAL_SCHED_FIFO), and cannot delay such a thread; the machine can (the hypervisor taking
+// the virtual CPU away, the kernel with interrupts off). So a stall it saw is the
+// machine's; whether it accounts for a process's overrun is the timing verdict's to judge
+// (JudgeTiming, launcher/run_report.h; docs/run.md, "When the machine stalls").
 #pragma once
 
 #include <atomic>
@@ -21,8 +22,8 @@ struct MachineStall {
   int cpu = 0;
 };
 
-/// Stalls are those of at least this length: a wake-up later than this is not the timer's
-/// ordinary jitter (p99 about 2 ms on a shared VM, docs/benchmarks.md).
+/// Stalls are those of at least this length: shorter lateness is the timers' ordinary
+/// jitter on a shared VM (a plain 1 kHz loop's p99 was 2.2-2.3 ms on one, docs/benchmarks.md).
 inline constexpr double kMachineStallMinS = 0.002;
 /// The witness's period: a stall of length L shows as a wake-up at least L minus this late.
 /// At this rate each thread takes about 0.9 % of a CPU on a 2-vCPU VM (docs/run.md).
@@ -43,8 +44,9 @@ struct MachineWatch {
 };
 
 /// Folds one thread's wake-ups into stalls. A stall lasts from a deadline the thread could
-/// not wake at to when it woke; the deadlines it passed meanwhile wake it at the same
-/// instant, with less lateness each, and belong to the same stall.
+/// not wake at to when it woke. MachineWitness skips the deadlines a stall passed; a
+/// caller that wakes for them too (each at the same instant, less late) gets the same
+/// stall.
 class StallTracker {
  public:
   explicit StallTracker(int cpu, std::size_t room) : cpu_(cpu) { stalls_.reserve(room); }
@@ -66,6 +68,13 @@ class StallTracker {
 /// Watches from Start to Stop. Without the right to real-time priority or to pin threads
 /// (CAP_SYS_NICE, RLIMIT_RTPRIO) it does not watch: a thread at normal priority would
 /// count the run's own load as the machine's.
+///
+/// Why it must not watch here, or "" when it can: run processes at SCHED_FIFO
+/// (SHOAL_SCHED_FIFO in the environment they inherit) under the kernel's real-time
+/// throttling (kernel.sched_rt_runtime_us not -1), where a FIFO loop that keeps its CPU
+/// busy gets every real-time thread on that CPU held, the witness's with it: its own
+/// stall would be counted as the machine's.
+std::string WitnessRefusal();
 class MachineWitness {
  public:
   MachineWitness() = default;
@@ -73,7 +82,7 @@ class MachineWitness {
   MachineWitness(const MachineWitness&) = delete;
   MachineWitness& operator=(const MachineWitness&) = delete;
   /// Starts watching from `t0_ns` (CLOCK_MONOTONIC, the run's tick 0; stalls are given in
-  /// seconds from it).
+  /// seconds from it). A thread that cannot be made leaves the witness not watching.
   void Start(std::int64_t t0_ns);
   /// Stops the threads and returns what they saw.
   MachineWatch Stop();
@@ -89,7 +98,6 @@ class MachineWitness {
   void Watch(Thread* t);
   std::int64_t t0_ns_ = 0;
   std::atomic<bool> stop_{false};
-  std::atomic<int> ready_{0};
   std::vector<Thread> threads_;
   bool started_ = false;
 };

@@ -5,11 +5,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 
 #include "analysis/analysis_json.h"
 #include "analysis/run_data.h"
 #include "analysis/verdict.h"
 #include "runtime/channels.h"
+#include "runtime/overrun_note.h"
 #include "runtime/process.h"
 
 namespace shoal {
@@ -20,50 +22,45 @@ std::string ProcessName(int id) {
   return id == 0 ? "leader" : "vehicle " + std::to_string(id);
 }
 
-/// A stretch between two of a process's health reports (mission time) in which it overran
-/// a period or woke later than kMaxLatenessP99S, and its worst lateness there.
-struct LateWindow {
-  double from_s = 0.0, to_s = 0.0;
-  double worst_late_s = 0.0;
-};
-
-/// Process `id`'s late windows; false when its reports carry no window (a log of
-/// health_t, which has only figures since the start).
-bool LateWindows(const RunData& run, int id, std::vector<LateWindow>* out) {
-  const HealthRecord* prev = nullptr;
-  for (const HealthRecord& h : run.health) {
-    if (h.process_id != id) continue;
-    if (h.lateness_window_count < 0) return false;
-    const std::int64_t overruns = h.overruns - (prev != nullptr ? prev->overruns : 0);
-    if (overruns > 0 || h.lateness_window_max_s > kMaxLatenessP99S) {
-      out->push_back({prev != nullptr ? prev->utime * 1e-6 : 0.0, h.utime * 1e-6,
-                      h.lateness_window_max_s});
-    }
-    prev = &h;
+/// The overrun notes of the leader or a vehicle (runtime/overrun_note.h) from its output
+/// file; false when it has none to read, or wrote that more followed than it noted.
+bool ReadOverrunNotes(const LaunchResult& l, int id, std::vector<OverrunNote>* notes) {
+  const std::string tag = id == 0 ? "leader" : "vehicle" + std::to_string(id);
+  std::ifstream in(l.process_output_dir + "/" + tag + ".txt");
+  if (!in) return false;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line == kOverrunNotesEnd) return false;
+    OverrunNote n;
+    if (ParseOverrunNote(line, &n)) notes->push_back(n);
   }
   return true;
 }
 
-/// The machine's worst stall in each of process `id`'s late windows, when in every one of
-/// them (or within a period of it, the reports' resolution) the machine stalled for at
-/// least half a period and at least half the process's worst lateness there; nullptr when
-/// in one it did not, or when the witness cannot speak for the process. Half: once the
-/// machine runs again, every loop it held wakes at once and queues for the CPUs, so a loop
-/// loses more than the stall, and the witness sees a stall of length L as a wake-up at
-/// least L - kWitnessPeriodNs late. Half the lateness too: a short stall that fell in the
-/// second a process lost much more (stopped, or stuck in its own work) does not explain it.
-const MachineStall* MachineExplains(const RunData& run, const LaunchResult& l, int id,
-                                    double period_s) {
-  if (!l.machine.watched ||
+/// The machine's worst stall among those that account for each overrun of process `id`:
+/// a stall of at least half the time the tick lost (from when it was due to when its step
+/// ended) that overlaps that time, give or take the witness's period. nullptr when one
+/// overrun has none, when the process noted fewer overruns than it counted (a restarted
+/// process, more than kOverrunNotes), for the channel emulator (its releases are not
+/// noted), or when the witness cannot speak for the process. Half: once the machine runs
+/// again, every loop it held wakes at once and queues for the CPUs, so a loop loses more
+/// than the stall; and the witness sees a stall of length L as a wake-up at least
+/// L - kWitnessPeriodNs late. A short stall that fell while a process lost much more
+/// (stopped, or stuck in its own work) does not account for it.
+const MachineStall* MachineExplains(const LaunchResult& l, int id, std::int64_t overruns) {
+  if (!l.machine.watched || id == kEmulatorId || overruns <= 0 ||
       std::find(l.unwatched_ids.begin(), l.unwatched_ids.end(), id) != l.unwatched_ids.end()) {
     return nullptr;
   }
-  std::vector<LateWindow> windows;
-  if (!LateWindows(run, id, &windows) || windows.empty()) return nullptr;
+  std::vector<OverrunNote> notes;
+  if (!ReadOverrunNotes(l, id, &notes) || static_cast<std::int64_t>(notes.size()) < overruns) {
+    return nullptr;
+  }
+  const double slack_s = kWitnessPeriodNs * 1e-9;
   const MachineStall* worst = nullptr;
-  for (const LateWindow& w : windows) {
-    const MachineStall* s = l.machine.WorstIn(w.from_s - period_s, w.to_s + period_s,
-                                              0.5 * std::max(period_s, w.worst_late_s));
+  for (const OverrunNote& n : notes) {
+    const MachineStall* s =
+        l.machine.WorstIn(n.due_s - slack_s, n.due_s + n.done_s + slack_s, 0.5 * n.done_s);
     if (s == nullptr) return nullptr;
     if (worst == nullptr || s->length_s > worst->length_s) worst = s;
   }
@@ -72,7 +69,7 @@ const MachineStall* MachineExplains(const RunData& run, const LaunchResult& l, i
 
 }  // namespace
 
-void JudgeTiming(const RunData& run, const RunAnalysis& a, double period_s, RunReport* r) {
+void JudgeTiming(const RunAnalysis& a, double period_s, RunReport* r) {
   int machines = 0;
   for (const ProcessAnalysis& p : a.processes) {
     const HealthRecord& h = p.last;
@@ -84,11 +81,15 @@ void JudgeTiming(const RunData& run, const RunAnalysis& a, double period_s, RunR
                           ProcessName(p.id).c_str(), static_cast<long long>(h.overruns),
                           p.id == kEmulatorId ? "release error" : "loop lateness",
                           h.lateness_p99_s * 1e3, kMaxLatenessP99S * 1e3);
-    if (const MachineStall* s = MachineExplains(run, r->launch, p.id, period_s)) {
+    // Where the limit is shorter than a period, a loop can be late beyond it without
+    // overrunning: ticks no note names.
+    const bool noted = h.lateness_p99_s <= kMaxLatenessP99S || period_s <= kMaxLatenessP99S;
+    const MachineStall* s = noted ? MachineExplains(r->launch, p.id, h.overruns) : nullptr;
+    if (s != nullptr) {
       ++machines;
       std::snprintf(text + n, sizeof(text) - n,
-                    "; in each second it was late the machine itself stalled for half a period "
-                    "or more (worst %.1f ms, at t = %.2f s)",
+                    "; the machine itself stalled through each overrun (worst %.1f ms, at "
+                    "t = %.3f s)",
                     s->length_s * 1e3, s->start_s);
     }
     r->timing_problems.push_back(text);
@@ -262,7 +263,7 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     r.bus_authenticated = run.bus_authenticated();
     r.unauthenticated = run.unauthenticated;
     r.unauthenticated_by_channel = run.unauthenticated_by_channel;
-    if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(run, a, 1.0 / s.control_rate_hz, &r);
+    if (r.launch.mode == ModeName(Mode::kRealtime)) JudgeTiming(a, 1.0 / s.control_rate_hz, &r);
     if (r.launch.mode == ModeName(Mode::kLockstep)) {
       clock_ticks = ClockTicks(run);
     }

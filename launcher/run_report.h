@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "analysis/analysis.h"
-#include "analysis/run_data.h"
 #include "launcher/launcher.h"
 
 namespace shoal {
@@ -41,10 +40,9 @@ struct RunReport {
   /// lockstep, which reads no clock. timing_problems names each process that did not.
   bool timing_ok = true;
   std::vector<std::string> timing_problems;
-  /// Real time: timing_ok is false, and in every stretch in which a process named in
-  /// timing_problems overran or was late, the machine itself stalled for half a period, and
-  /// half the process's worst lateness there, or more (launch.machine, JudgeTiming): the
-  /// run's timing is what this machine allows.
+  /// Real time: timing_ok is false, and the machine itself stalled through every overrun
+  /// of every process named in timing_problems (launch.machine, JudgeTiming): the run's
+  /// timing is what this machine allows.
   bool timing_machine_limited = false;
   /// The log was read with the run's key: what did not authenticate (forged, another
   /// run's) was dropped before anything above counted it (docs/run.md).
@@ -84,13 +82,17 @@ struct LoopPlacement {
 /// trouble (a stall, a fault).
 std::string StaggerHint(const RunReport& r, const LoopPlacement& p);
 
-/// Real time: judges each process's timing from its last health report in `run` (its
+/// Real time: judges each process's timing from its last health report in `a` (its
 /// figures since it started), against kMaxLatenessP99S and no overrun; sets timing_ok,
-/// timing_problems, slow_loops and timing_machine_limited. A problem in whose every late
-/// stretch (between two of the process's health reports) r->launch.machine saw the machine
-/// stall for half a period, and half the process's worst lateness there, or more says so;
-/// a process on another kernel (launch.unwatched_ids) never does.
-void JudgeTiming(const RunData& run, const RunAnalysis& a, double period_s, RunReport* r);
+/// timing_problems, slow_loops and timing_machine_limited. The problem of the leader or a
+/// vehicle whose every overrun, as it noted them in its output file
+/// (runtime/overrun_note.h), the machine itself accounts for (r->launch.machine: a stall
+/// of at least half the time the tick lost, overlapping it) says so. At 50 Hz, where the
+/// limit is a period, a loop cannot be late beyond it without overrunning, so its
+/// lateness p99 beyond the limit is then the machine's too; at lower rates such a problem
+/// is not put on the machine. The channel emulator's, and a process's on another kernel
+/// (launch.unwatched_ids), never are.
+void JudgeTiming(const RunAnalysis& a, double period_s, RunReport* r);
 
 /// Reads the run's log (launch.log) and builds the report.
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch);

@@ -13,6 +13,7 @@
 #include "core/topology.h"
 #include "runtime/channels.h"
 #include "runtime/messages.h"
+#include "runtime/overrun_note.h"
 
 namespace shoal {
 
@@ -350,10 +351,12 @@ int ClockedNode::RunRealtime() {
     const std::int64_t deadline = t0_ns_ + k * period_ns + phase_ns_;
     SleepUntilNs(deadline);
     if (StopRequested()) break;
-    lateness_.Add(static_cast<double>(MonotonicNs() - deadline) * 1e-9);
+    const std::int64_t woke = MonotonicNs();
+    lateness_.Add(static_cast<double>(woke - deadline) * 1e-9);
     HandleBus(0, deadline - phase_ns_ + kArrivalSlackNs);  // what arrived by the tick's time
     Step(k);
-    if (MonotonicNs() > deadline + period_ns) ++counters_.overruns;
+    const std::int64_t done = MonotonicNs();
+    if (done > deadline + period_ns) NoteOverrun(k, deadline, woke, done);
   }
   LeaveRealtimeScheduling();
   const bool finished = next_tick_ > final_tick_;
@@ -365,6 +368,19 @@ int ClockedNode::RunRealtime() {
                static_cast<long long>(counters_.overruns));
   PublishStatus(RunStateName(finished ? RunState::kFinished : RunState::kInterrupted));
   return finished ? 0 : 1;
+}
+
+void ClockedNode::NoteOverrun(std::int64_t k, std::int64_t deadline, std::int64_t woke,
+                              std::int64_t done) {
+  ++counters_.overruns;
+  // Written once the tick is already late: the write delays nothing that was on time.
+  if (counters_.overruns > kOverrunNotes + 1) return;
+  const std::string line =
+      counters_.overruns > kOverrunNotes
+          ? std::string(kOverrunNotesEnd)
+          : FormatOverrunNote({k, (deadline - t0_ns_) * 1e-9, (woke - deadline) * 1e-9,
+                               (done - deadline) * 1e-9});
+  std::fprintf(stderr, "%s\n", line.c_str());
 }
 
 bool ClockedNode::RestoreCheckpoint(std::int64_t tick, CheckpointPayload* /*in*/) {

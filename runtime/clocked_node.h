@@ -194,6 +194,9 @@ class ClockedNode {
   /// Lockstep: announces readiness until the first tick; false once it waited too long.
   bool AnnounceReady(std::int64_t start_ns, std::int64_t* last_ready_ns);
   int RunRealtime();
+  /// Counts an overrun of tick k (due at `deadline`, woken at `woke`, its step done at
+  /// `done`, CLOCK_MONOTONIC ns) and writes its note (runtime/overrun_note.h).
+  void NoteOverrun(std::int64_t k, std::int64_t deadline, std::int64_t woke, std::int64_t done);
 
   const Scenario& s_;
   const int id_;

@@ -9,9 +9,10 @@
 #     two send);
 #   - lockstep: the run's log equals shoal sim's of the same scenario exactly;
 #   - real time: every process ran to the end, the log holds every state, the loops'
-#     lateness and the emulator's release error are within the run's targets, or missed
-#     them only where the machine itself stalled (shoal run's machine witness says so); a
-#     run that misses them otherwise is run again, at most twice;
+#     lateness and the emulator's release error are within the run's targets, or every
+#     overrun fell where the machine itself stalled (shoal run's verdict says so,
+#     timing_machine_limited); a run that misses them otherwise is run again, at most
+#     twice;
 #   - nothing the runs started is left running in the namespaces.
 # Every namespace (and with them every interface) is deleted on exit, also on failure, and
 # the /run/netns mount `ip netns add` makes is removed when it was not there before.
@@ -196,20 +197,21 @@ done
 echo "lockstep over three hosts equals shoal sim"
 
 # --- Real time: within the run's targets. -----------------------------------------------
-# A shared VM stops a virtual CPU for 10-40 ms every few seconds (a thread at the highest
-# real-time priority sees it, docs/benchmarks.md): a loop held then overruns whatever Shoal
-# does. shoal run's verdict says when every timing miss of a run fell where the machine
-# itself stalled (timing_machine_limited); such a run holds. A run that misses its timing
-# targets otherwise is run again, at most twice (a stall the witness's threads missed);
-# everything else must hold in every run.
-realtime_run() {  # $1: attempt; returns 0 on the targets met, 1 on timing alone; fails otherwise
+# A shared VM holds a virtual CPU for 10-50 ms several times a minute (a thread at the
+# highest real-time priority sees it, docs/benchmarks.md, "The machine's own stalls"): a
+# loop held then overruns whatever Shoal does. shoal run's verdict says when the machine
+# stalled through every overrun of a run (timing_machine_limited); such a run holds. A run
+# that misses its timing targets otherwise is run again, at most twice; everything else
+# must hold in every run.
+realtime_run() {  # $1: attempt; returns 0 on the targets met or missed only where the
+                  # machine stalled, 1 on timing missed otherwise; fails on anything else
   local out=$work/rt$1 status=0
   "$shoal" run --hosts "$work/hosts.toml" "$scenario" --mode realtime --duration "$REALTIME_S" \
     --json --out "$out.lcmlog" >"$out.json" 2>"$out.err" || status=$?
   # Exit 1 only for the formation, which does not converge in 8 s: everything else holds.
   [ "$status" = 1 ] || fail "real-time run: exit status $status: $(cat "$out.err" "$out.json")"
   [ "$(json converged "$out.json")" = false ] || fail "real-time run: $(cat "$out.json")"
-  for key in all_processes_ok log_complete watched; do
+  for key in all_processes_ok log_complete; do
     [ "$(json "$key" "$out.json")" = true ] || fail "real-time run: $key: $(cat "$out.json")"
   done
   [ "$(json log_states "$out.json")" = "$(json log_states_expected "$out.json")" ] ||
@@ -233,4 +235,4 @@ until realtime_run "$attempt"; do
   [ "$attempt" -lt 3 ] || fail "real-time run: timing targets missed in 3 runs of 3"
   attempt=$((attempt + 1))
 done
-echo "real time over three hosts within its targets"
+echo "real time over three hosts within its targets, or late only where the machine stalled"

@@ -1,19 +1,21 @@
 // The machine witness of real-time runs: its threads fold wake-ups into stalls and see a
 // stall of the whole process; the timing verdict names a process's problem the machine's
-// only when the machine stalled for half a period, and half the process's lateness, in
-// every stretch the process was late.
+// only when a stall of at least half the time each overrun lost overlapped it.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
+#include <fstream>
 #include <thread>
 
 #include "launcher/machine_witness.h"
 #include "launcher/run_report.h"
 #include "runtime/channels.h"
 #include "runtime/clock.h"
+#include "runtime/overrun_note.h"
 #include "runtime/process.h"
 
 namespace shoal {
@@ -92,91 +94,120 @@ TEST(MachineWitness, StopsAtOnceBeforeTickZero) {
   }
 }
 
-// A run of one vehicle (id 3) and the leader, with health reports every second.
+// A real-time run's verdict from the processes' last health reports, their overrun notes
+// in their output files, and the machine's stalls.
 struct TimedRun {
-  RunData data;
   RunAnalysis analysis;
   RunReport report;
+  std::string dir;
   TimedRun() {
+    char tmpl[] = "/tmp/shoal-machine-test.XXXXXX";
+    dir = mkdtemp(tmpl);
     report.launch.mode = ModeName(Mode::kRealtime);
+    report.launch.process_output_dir = dir;
     report.launch.machine.watched = true;
   }
-  /// Process `id` reports at t = 1..5 s; `late` at the report of second `second`: one
-  /// overrun and 25 ms of lateness in the second before it.
-  void Reports(int id, std::vector<int> late_seconds) {
-    std::int64_t overruns = 0;
+  ~TimedRun() { std::system(("rm -rf '" + dir + "'").c_str()); }
+  TimedRun(const TimedRun&) = delete;
+  TimedRun& operator=(const TimedRun&) = delete;
+  /// Process `id` (0 leader, else a vehicle) overran at each of `due_s`, each time done
+  /// `lost_s` after it was due; `counted` overruns in its last report (-1: as many as
+  /// noted).
+  void Overruns(int id, std::vector<double> due_s, double lost_s = 0.025, int counted = -1) {
+    std::ofstream out(dir + "/" + (id == 0 ? "leader" : "vehicle" + std::to_string(id)) +
+                      ".txt");
+    out << "shoal_vehicle: SCHED_OTHER, timer slack 1 ns\n";
+    for (std::size_t i = 0; i < due_s.size(); ++i) {
+      out << FormatOverrunNote({static_cast<std::int64_t>(due_s[i] * 50), due_s[i],
+                                lost_s - 0.0002, lost_s})
+          << "\n";
+    }
     HealthRecord h;
     h.process_id = id;
-    for (int second = 1; second <= 5; ++second) {
-      h.utime = second * 1000000LL;
-      h.lateness_window_count = 50;
-      h.lateness_window_max_s = 0.001;
-      for (int l : late_seconds) {
-        if (l != second) continue;
-        ++overruns;
-        h.lateness_window_max_s = 0.025;
-      }
-      h.overruns = overruns;
-      h.lateness_p99_s = 0.002;
-      h.lateness_max_s = overruns > 0 ? 0.025 : 0.001;
-      data.health.push_back(h);
-    }
+    h.overruns = counted >= 0 ? counted : static_cast<std::int64_t>(due_s.size());
+    h.lateness_p99_s = 0.002;
     analysis.processes.push_back({id, 5, h});
   }
   void Stall(double start_s, double length_s) {
     report.launch.machine.stalls.push_back({start_s, length_s, 0});
   }
-  void Judge() { JudgeTiming(data, analysis, 0.02, &report); }
+  void Judge() { JudgeTiming(analysis, 0.02, &report); }
 };
 
-TEST(MachineTiming, AProblemInEverySecondOfWhichTheMachineStalledIsTheMachines) {
+TEST(OverrunNote, ReadsBackWhatItWrites) {
+  const OverrunNote n{205, 4.102003, 0.0231, 0.0234};
+  OverrunNote back;
+  ASSERT_TRUE(ParseOverrunNote(FormatOverrunNote(n), &back)) << FormatOverrunNote(n);
+  EXPECT_EQ(back.tick, 205);
+  EXPECT_NEAR(back.due_s, 4.102003, 1e-9);
+  EXPECT_NEAR(back.woke_s, 0.0231, 1e-9);
+  EXPECT_NEAR(back.done_s, 0.0234, 1e-9);
+  EXPECT_FALSE(ParseOverrunNote(FormatOverrunNote(n) + " and more", &back));
+  EXPECT_FALSE(ParseOverrunNote("overrun: tick 5", &back));
+  EXPECT_FALSE(ParseOverrunNote(kOverrunNotesEnd, &back));
+}
+
+TEST(MachineTiming, OverrunsTheMachineStalledThroughAreTheMachines) {
   TimedRun r;
-  r.Reports(3, {2, 4});  // late in (1 s, 2 s] and (3 s, 4 s]
-  r.Reports(0, {});
-  r.Stall(1.50, 0.030);
-  r.Stall(3.20, 0.013);  // half of the 25 ms the vehicle lost, and more
+  r.Overruns(3, {1.5, 3.2});
+  r.Overruns(0, {});
+  r.Stall(1.499, 0.030);  // began up to a witness period before the tick was due
+  r.Stall(3.21, 0.013);   // half of the 25 ms the vehicle lost, and more
   r.Judge();
   EXPECT_FALSE(r.report.timing_ok);
   ASSERT_EQ(r.report.timing_problems.size(), 1u);
   EXPECT_NE(r.report.timing_problems[0].find("vehicle 3: 2 overruns"), std::string::npos);
-  EXPECT_NE(r.report.timing_problems[0].find("the machine itself stalled for half a period or "
-                                             "more (worst 30.0 ms, at t = 1.50 s)"),
+  EXPECT_NE(r.report.timing_problems[0].find("the machine itself stalled through each overrun "
+                                             "(worst 30.0 ms, at t = 1.499 s)"),
             std::string::npos)
       << r.report.timing_problems[0];
   EXPECT_TRUE(r.report.timing_machine_limited);
 }
 
-TEST(MachineTiming, ASecondWithoutAStallOfHalfAPeriodIsNot) {
-  for (const double length_s : {0.009, 0.0}) {  // too short; none in that second
+TEST(MachineTiming, AnOverrunWithoutAStallThroughItIsNot) {
+  // Too short; a few ms after the tick was done; a second before it; none.
+  for (const double at_s : {3.2, 3.23, 2.2, -1.0}) {
     TimedRun r;
-    r.Reports(3, {2, 4});
+    r.Overruns(3, {1.5, 3.2});
     r.Stall(1.50, 0.030);
-    if (length_s > 0) r.Stall(3.20, length_s);
-    r.Stall(4.60, 0.040);  // a second later than the late one
+    if (at_s >= 0) r.Stall(at_s, at_s == 3.2 ? 0.012 : 0.030);
     r.Judge();
     ASSERT_EQ(r.report.timing_problems.size(), 1u);
     EXPECT_EQ(r.report.timing_problems[0].find("machine"), std::string::npos)
-        << r.report.timing_problems[0];
-    EXPECT_FALSE(r.report.timing_machine_limited);
+        << at_s << ": " << r.report.timing_problems[0];
+    EXPECT_FALSE(r.report.timing_machine_limited) << at_s;
   }
 }
 
-TEST(MachineTiming, AShortStallDoesNotExplainAMuchLongerLateness) {
-  for (const double late_s : {0.025, 1.5}) {  // a machine stall, a process stopped
+TEST(MachineTiming, AShortStallDoesNotExplainAMuchLongerLoss) {
+  for (const double lost_s : {0.025, 1.5}) {  // a machine stall, a process stopped
     TimedRun r;
-    r.Reports(3, {2});
-    r.data.health[1].lateness_window_max_s = late_s;
-    r.Stall(1.50, 0.013);  // half a period, but not half of 1.5 s
+    r.Overruns(3, {2.0}, lost_s);
+    r.Stall(2.01, 0.030);
     r.Judge();
     ASSERT_EQ(r.report.timing_problems.size(), 1u);
-    EXPECT_EQ(r.report.timing_machine_limited, late_s < 0.026) << late_s;
+    EXPECT_EQ(r.report.timing_machine_limited, lost_s < 0.026) << lost_s;
+  }
+}
+
+TEST(MachineTiming, FewerNotesThanOverrunsAreNotEnough) {
+  for (const bool more : {false, true}) {
+    TimedRun r;
+    r.Overruns(3, {1.5}, 0.025, more ? 1 : 2);
+    if (more) {
+      std::ofstream(r.dir + "/vehicle3.txt", std::ios::app) << kOverrunNotesEnd << "\n";
+    }
+    r.Stall(1.50, 0.030);
+    r.Judge();
+    ASSERT_EQ(r.report.timing_problems.size(), 1u);
+    EXPECT_FALSE(r.report.timing_machine_limited) << more;
   }
 }
 
 TEST(MachineTiming, OneProblemNotTheMachinesIsEnoughToSaySo) {
   TimedRun r;
-  r.Reports(3, {2});
-  r.Reports(4, {5});
+  r.Overruns(3, {1.9});
+  r.Overruns(4, {4.5});
   r.Stall(1.90, 0.020);
   r.Judge();
   ASSERT_EQ(r.report.timing_problems.size(), 2u);
@@ -185,25 +216,22 @@ TEST(MachineTiming, OneProblemNotTheMachinesIsEnoughToSaySo) {
   EXPECT_FALSE(r.report.timing_machine_limited);
 }
 
-TEST(MachineTiming, NotWhereTheWitnessCannotSpeak) {
-  for (const bool elsewhere : {false, true}) {
+TEST(MachineTiming, NeverTheEmulatorsNorWhereTheWitnessCannotSpeak) {
+  for (const int c : {0, 1, 2}) {
     TimedRun r;
-    r.Reports(3, {2});
+    r.Overruns(c == 2 ? kEmulatorId : 3, {1.5});
     r.Stall(1.50, 0.030);
-    if (elsewhere) {
-      r.report.launch.unwatched_ids = {3};  // on a host with another kernel
-    } else {
-      r.report.launch.machine.watched = false;  // no real-time priority
-    }
+    if (c == 0) r.report.launch.unwatched_ids = {3};     // on a host with another kernel
+    if (c == 1) r.report.launch.machine.watched = false;  // no real-time priority
     r.Judge();
     ASSERT_EQ(r.report.timing_problems.size(), 1u);
-    EXPECT_FALSE(r.report.timing_machine_limited);
+    EXPECT_FALSE(r.report.timing_machine_limited) << c;
   }
 }
 
 TEST(MachineTiming, OnTimeRunsAreNotTheMachines) {
   TimedRun r;
-  r.Reports(3, {});
+  r.Overruns(3, {});
   r.Stall(1.50, 0.030);
   r.Judge();
   EXPECT_TRUE(r.report.timing_ok);

@@ -1,0 +1,50 @@
+// A real-time loop's overrun as the process writes it to its output, one line each, and as
+// shoal run reads it back: to tell the ticks the machine itself held (its witness,
+// launcher/machine_witness.h) from those the process lost on its own, the verdict needs to
+// know when each overrun happened, to the millisecond; the health reports say only in
+// which second.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+
+namespace shoal {
+
+struct OverrunNote {
+  std::int64_t tick = 0;
+  double due_s = 0.0;   // when the tick was due: s from the run's tick 0 (its phase included)
+  double woke_s = 0.0;  // how late the loop woke for it
+  double done_s = 0.0;  // when its step ended, s after it was due (above one period)
+};
+
+/// A process writes at most this many; after them one line says that more followed.
+inline constexpr int kOverrunNotes = 200;
+inline constexpr const char* kOverrunNotesEnd = "overrun: more than the notes above follow";
+
+inline std::string FormatOverrunNote(const OverrunNote& n) {
+  char text[160];
+  std::snprintf(text, sizeof(text),
+                "overrun: tick %lld due at t = %.6f s, woke %.3f ms late, done %.3f ms after "
+                "it was due",
+                static_cast<long long>(n.tick), n.due_s, n.woke_s * 1e3, n.done_s * 1e3);
+  return text;
+}
+
+/// `line` without its newline; false unless it is a note of FormatOverrunNote's.
+inline bool ParseOverrunNote(const std::string& line, OverrunNote* n) {
+  long long tick = 0;
+  double due = 0, woke_ms = 0, done_ms = 0;
+  int end = 0;
+  if (std::sscanf(line.c_str(),
+                  "overrun: tick %lld due at t = %lf s, woke %lf ms late, done %lf ms after it "
+                  "was due%n",
+                  &tick, &due, &woke_ms, &done_ms, &end) != 4 ||
+      end != static_cast<int>(line.size())) {
+    return false;
+  }
+  *n = {tick, due, woke_ms * 1e-3, done_ms * 1e-3};
+  return true;
+}
+
+}  // namespace shoal
