@@ -1376,6 +1376,7 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   MachineWitness witness;
   const bool realtime = launch.plan().mode == Mode::kRealtime;
   const std::string refusal = realtime ? WitnessRefusal() : "";
+  if (realtime) result->t0_monotonic_ns = launch.t0_ns();
   if (realtime && refusal.empty()) witness.Start(launch.t0_ns());
   launch.Supervise(callbacks);
   result->machine = witness.Stop();

@@ -122,6 +122,7 @@ struct LaunchResult {
   std::string lcm_url;
   double duration_s = 0.0;         // simulated seconds asked for
   double wall_time_s = 0.0;        // real time: from the common start time t0
+  std::int64_t t0_monotonic_ns = 0;  // real time: t0 on this host's CLOCK_MONOTONIC
   bool interrupted = false;        // SIGINT/SIGTERM/SIGHUP stopped the run
   std::vector<std::string> problems;  // processes that failed, or had to be killed
   /// How lcm-logger ended when it exited before the run did (then the run was stopped at

@@ -39,13 +39,19 @@ double MachineWatch::worst_s() const {
   return w;
 }
 
-const MachineStall* MachineWatch::WorstIn(double from_s, double to_s, double min_s) const {
-  const MachineStall* worst = nullptr;
+const MachineStall* MachineWatch::MostOverlapping(double from_s, double to_s,
+                                                  double* overlap_s) const {
+  const MachineStall* most = nullptr;
+  *overlap_s = 0.0;
   for (const MachineStall& s : stalls) {
-    if (s.length_s < min_s || s.start_s > to_s || s.start_s + s.length_s < from_s) continue;
-    if (worst == nullptr || s.length_s > worst->length_s) worst = &s;
+    const double begin = std::max(from_s, s.start_s - kWitnessPeriodNs * 1e-9);
+    const double end = std::min(to_s, s.start_s + s.length_s);
+    if (end > begin && end - begin > *overlap_s) {
+      *overlap_s = end - begin;
+      most = &s;
+    }
   }
-  return worst;
+  return most;
 }
 
 void StallTracker::Wake(std::int64_t deadline_ns, std::int64_t woke_ns) {

@@ -38,9 +38,10 @@ struct MachineWatch {
   std::vector<MachineStall> stalls;  // in order of start, every CPU's
   std::int64_t stalls_not_kept = 0;  // beyond each thread's room (kStallRoom)
   double worst_s() const;
-  /// The longest stall of at least `min_s` overlapping [from_s, to_s] (mission time);
-  /// nullptr if none.
-  const MachineStall* WorstIn(double from_s, double to_s, double min_s) const;
+  /// The stall that overlaps [from_s, to_s] (mission time) the most, and by how much
+  /// (s) in *overlap_s; nullptr if none does. A stall is taken to begin up to one witness
+  /// period before its start: the witness notices one only at its next deadline.
+  const MachineStall* MostOverlapping(double from_s, double to_s, double* overlap_s) const;
 };
 
 /// Folds one thread's wake-ups into stalls. A stall lasts from a deadline the thread could

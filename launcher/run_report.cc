@@ -30,38 +30,43 @@ bool ReadOverrunNotes(const LaunchResult& l, int id, std::vector<OverrunNote>* n
   if (!in) return false;
   std::string line;
   while (std::getline(in, line)) {
-    if (line == kOverrunNotesEnd) return false;
+    if (line.rfind("overrun:", 0) != 0) continue;
     OverrunNote n;
-    if (ParseOverrunNote(line, &n)) notes->push_back(n);
+    // More than it noted, or a note another thread's output cut into: one not judged.
+    if (line == kOverrunNotesEnd || !ParseOverrunNote(line, &n)) return false;
+    if (l.t0_monotonic_ns > 0) n.due_s = (n.due_ns - l.t0_monotonic_ns) * 1e-9;
+    notes->push_back(n);
   }
   return true;
 }
 
 /// The machine's worst stall among those that account for each overrun of process `id`:
-/// a stall of at least half the time the tick lost (from when it was due to when its step
-/// ended) that overlaps that time, give or take the witness's period. nullptr when one
-/// overrun has none, when the process noted fewer overruns than it counted (a restarted
-/// process, more than kOverrunNotes), for the channel emulator (its releases are not
-/// noted), or when the witness cannot speak for the process. Half: once the machine runs
-/// again, every loop it held wakes at once and queues for the CPUs, so a loop loses more
-/// than the stall; and the witness sees a stall of length L as a wake-up at least
-/// L - kWitnessPeriodNs late. A short stall that fell while a process lost much more
-/// (stopped, or stuck in its own work) does not account for it.
+/// a stall that covers at least half the time the tick lost (from when it was due to when
+/// its step ended). nullptr when one overrun has none; when the process noted fewer
+/// overruns than it counted (more than kOverrunNotes) or a note cannot be read; for a
+/// process that was started again (its last report is the new process's, whose notes are
+/// in another file); for the channel emulator (its releases are not noted); or when the
+/// witness cannot speak for the process. Half: once the machine runs again, every loop it
+/// held wakes at once and queues for the CPUs, so a loop loses more than the stall. A
+/// stall that covers less of the lost time (the process stopped, or stuck in its own work,
+/// for the rest) does not account for it.
 const MachineStall* MachineExplains(const LaunchResult& l, int id, std::int64_t overruns) {
   if (!l.machine.watched || id == kEmulatorId || overruns <= 0 ||
       std::find(l.unwatched_ids.begin(), l.unwatched_ids.end(), id) != l.unwatched_ids.end()) {
     return nullptr;
   }
+  for (const ProcessRestart& r : l.restarts) {
+    if (r.process == ProcessName(id)) return nullptr;
+  }
   std::vector<OverrunNote> notes;
   if (!ReadOverrunNotes(l, id, &notes) || static_cast<std::int64_t>(notes.size()) < overruns) {
     return nullptr;
   }
-  const double slack_s = kWitnessPeriodNs * 1e-9;
   const MachineStall* worst = nullptr;
   for (const OverrunNote& n : notes) {
-    const MachineStall* s =
-        l.machine.WorstIn(n.due_s - slack_s, n.due_s + n.done_s + slack_s, 0.5 * n.done_s);
-    if (s == nullptr) return nullptr;
+    double covered_s = 0.0;
+    const MachineStall* s = l.machine.MostOverlapping(n.due_s, n.due_s + n.done_s, &covered_s);
+    if (s == nullptr || covered_s < 0.5 * n.done_s) return nullptr;
     if (worst == nullptr || s->length_s > worst->length_s) worst = s;
   }
   return worst;
@@ -88,8 +93,8 @@ void JudgeTiming(const RunAnalysis& a, double period_s, RunReport* r) {
     if (s != nullptr) {
       ++machines;
       std::snprintf(text + n, sizeof(text) - n,
-                    "; the machine itself stalled through each overrun (worst %.1f ms, at "
-                    "t = %.3f s)",
+                    "; the machine itself stalled for at least half of each overrun (worst "
+                    "%.1f ms, at t = %.3f s)",
                     s->length_s * 1e3, s->start_s);
     }
     r->timing_problems.push_back(text);

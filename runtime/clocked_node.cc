@@ -378,8 +378,8 @@ void ClockedNode::NoteOverrun(std::int64_t k, std::int64_t deadline, std::int64_
   const std::string line =
       counters_.overruns > kOverrunNotes
           ? std::string(kOverrunNotesEnd)
-          : FormatOverrunNote({k, (deadline - t0_ns_) * 1e-9, (woke - deadline) * 1e-9,
-                               (done - deadline) * 1e-9});
+          : FormatOverrunNote({k, deadline, (deadline - t0_ns_) * 1e-9,
+                               (woke - deadline) * 1e-9, (done - deadline) * 1e-9});
   std::fprintf(stderr, "%s\n", line.c_str());
 }
 

@@ -13,7 +13,12 @@ namespace shoal {
 
 struct OverrunNote {
   std::int64_t tick = 0;
-  double due_s = 0.0;   // when the tick was due: s from the run's tick 0 (its phase included)
+  /// When the tick was due: CLOCK_MONOTONIC ns, and s from the process's tick 0 (its phase
+  /// included). A reader on the same kernel takes the first: the second rests on the
+  /// process's own conversion of a wall-clock start time (--t0-unix-ns), which a step of
+  /// the wall clock between two processes' starts shifts.
+  std::int64_t due_ns = 0;
+  double due_s = 0.0;
   double woke_s = 0.0;  // how late the loop woke for it
   double done_s = 0.0;  // when its step ended, s after it was due (above one period)
 };
@@ -25,25 +30,26 @@ inline constexpr const char* kOverrunNotesEnd = "overrun: more than the notes ab
 inline std::string FormatOverrunNote(const OverrunNote& n) {
   char text[160];
   std::snprintf(text, sizeof(text),
-                "overrun: tick %lld due at t = %.6f s, woke %.3f ms late, done %.3f ms after "
-                "it was due",
-                static_cast<long long>(n.tick), n.due_s, n.woke_s * 1e3, n.done_s * 1e3);
+                "overrun: tick %lld due at t = %.6f s (CLOCK_MONOTONIC %lld ns), woke %.3f ms "
+                "late, done %.3f ms after it was due",
+                static_cast<long long>(n.tick), n.due_s, static_cast<long long>(n.due_ns),
+                n.woke_s * 1e3, n.done_s * 1e3);
   return text;
 }
 
 /// `line` without its newline; false unless it is a note of FormatOverrunNote's.
 inline bool ParseOverrunNote(const std::string& line, OverrunNote* n) {
-  long long tick = 0;
+  long long tick = 0, due_ns = 0;
   double due = 0, woke_ms = 0, done_ms = 0;
   int end = 0;
   if (std::sscanf(line.c_str(),
-                  "overrun: tick %lld due at t = %lf s, woke %lf ms late, done %lf ms after it "
-                  "was due%n",
-                  &tick, &due, &woke_ms, &done_ms, &end) != 4 ||
+                  "overrun: tick %lld due at t = %lf s (CLOCK_MONOTONIC %lld ns), woke %lf ms "
+                  "late, done %lf ms after it was due%n",
+                  &tick, &due, &due_ns, &woke_ms, &done_ms, &end) != 5 ||
       end != static_cast<int>(line.size())) {
     return false;
   }
-  *n = {tick, due, woke_ms * 1e-3, done_ms * 1e-3};
+  *n = {tick, due_ns, due, woke_ms * 1e-3, done_ms * 1e-3};
   return true;
 }
 

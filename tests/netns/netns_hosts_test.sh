@@ -9,9 +9,9 @@
 #     two send);
 #   - lockstep: the run's log equals shoal sim's of the same scenario exactly;
 #   - real time: every process ran to the end, the log holds every state, the loops'
-#     lateness and the emulator's release error are within the run's targets, or every
-#     overrun fell where the machine itself stalled (shoal run's verdict says so,
-#     timing_machine_limited); a run that misses them otherwise is run again, at most
+#     lateness and the emulator's release error are within the run's targets, or the
+#     machine itself stalled for at least half of every overrun (shoal run's verdict says
+#     so, timing_machine_limited); a run that misses them otherwise is run again, at most
 #     twice;
 #   - nothing the runs started is left running in the namespaces.
 # Every namespace (and with them every interface) is deleted on exit, also on failure, and
@@ -200,7 +200,8 @@ echo "lockstep over three hosts equals shoal sim"
 # A shared VM holds a virtual CPU for 10-50 ms several times a minute (a thread at the
 # highest real-time priority sees it, docs/benchmarks.md, "The machine's own stalls"): a
 # loop held then overruns whatever Shoal does. shoal run's verdict says when the machine
-# stalled through every overrun of a run (timing_machine_limited); such a run holds. A run
+# stalled for at least half of every overrun of a run (timing_machine_limited); such a run
+# holds. A run
 # that misses its timing targets otherwise is run again, at most twice; everything else
 # must hold in every run.
 realtime_run() {  # $1: attempt; returns 0 on the targets met or missed only where the

@@ -1,6 +1,6 @@
 // The machine witness of real-time runs: its threads fold wake-ups into stalls and see a
 // stall of the whole process; the timing verdict names a process's problem the machine's
-// only when a stall of at least half the time each overrun lost overlapped it.
+// only when a stall covered at least half the time each of its overruns lost.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <thread>
 
 #include "launcher/machine_witness.h"
@@ -102,7 +103,9 @@ struct TimedRun {
   std::string dir;
   TimedRun() {
     char tmpl[] = "/tmp/shoal-machine-test.XXXXXX";
-    dir = mkdtemp(tmpl);
+    const char* made = mkdtemp(tmpl);
+    if (made == nullptr) std::abort();  // no temporary folder: nothing here can be tested
+    dir = made;
     report.launch.mode = ModeName(Mode::kRealtime);
     report.launch.process_output_dir = dir;
     report.launch.machine.watched = true;
@@ -113,32 +116,36 @@ struct TimedRun {
   /// Process `id` (0 leader, else a vehicle) overran at each of `due_s`, each time done
   /// `lost_s` after it was due; `counted` overruns in its last report (-1: as many as
   /// noted).
-  void Overruns(int id, std::vector<double> due_s, double lost_s = 0.025, int counted = -1) {
+  void Overruns(int id, std::vector<double> due_s, double lost_s = 0.025, int counted = -1,
+                double p99_s = 0.002) {
     std::ofstream out(dir + "/" + (id == 0 ? "leader" : "vehicle" + std::to_string(id)) +
                       ".txt");
     out << "shoal_vehicle: SCHED_OTHER, timer slack 1 ns\n";
     for (std::size_t i = 0; i < due_s.size(); ++i) {
-      out << FormatOverrunNote({static_cast<std::int64_t>(due_s[i] * 50), due_s[i],
+      // On the monotonic clock, tick 0 at 1000 s.
+      const auto due_ns = static_cast<std::int64_t>((1000 + due_s[i]) * 1e9);
+      out << FormatOverrunNote({static_cast<std::int64_t>(due_s[i] * 50), due_ns, due_s[i],
                                 lost_s - 0.0002, lost_s})
           << "\n";
     }
     HealthRecord h;
     h.process_id = id;
     h.overruns = counted >= 0 ? counted : static_cast<std::int64_t>(due_s.size());
-    h.lateness_p99_s = 0.002;
+    h.lateness_p99_s = p99_s;
     analysis.processes.push_back({id, 5, h});
   }
   void Stall(double start_s, double length_s) {
     report.launch.machine.stalls.push_back({start_s, length_s, 0});
   }
-  void Judge() { JudgeTiming(analysis, 0.02, &report); }
+  void Judge(double period_s = 0.02) { JudgeTiming(analysis, period_s, &report); }
 };
 
 TEST(OverrunNote, ReadsBackWhatItWrites) {
-  const OverrunNote n{205, 4.102003, 0.0231, 0.0234};
+  const OverrunNote n{205, 123456789012345, 4.102003, 0.0231, 0.0234};
   OverrunNote back;
   ASSERT_TRUE(ParseOverrunNote(FormatOverrunNote(n), &back)) << FormatOverrunNote(n);
   EXPECT_EQ(back.tick, 205);
+  EXPECT_EQ(back.due_ns, 123456789012345);
   EXPECT_NEAR(back.due_s, 4.102003, 1e-9);
   EXPECT_NEAR(back.woke_s, 0.0231, 1e-9);
   EXPECT_NEAR(back.done_s, 0.0234, 1e-9);
@@ -157,16 +164,17 @@ TEST(MachineTiming, OverrunsTheMachineStalledThroughAreTheMachines) {
   EXPECT_FALSE(r.report.timing_ok);
   ASSERT_EQ(r.report.timing_problems.size(), 1u);
   EXPECT_NE(r.report.timing_problems[0].find("vehicle 3: 2 overruns"), std::string::npos);
-  EXPECT_NE(r.report.timing_problems[0].find("the machine itself stalled through each overrun "
-                                             "(worst 30.0 ms, at t = 1.499 s)"),
+  EXPECT_NE(r.report.timing_problems[0].find("the machine itself stalled for at least half of "
+                                             "each overrun (worst 30.0 ms, at t = 1.499 s)"),
             std::string::npos)
       << r.report.timing_problems[0];
   EXPECT_TRUE(r.report.timing_machine_limited);
 }
 
 TEST(MachineTiming, AnOverrunWithoutAStallThroughItIsNot) {
-  // Too short; a few ms after the tick was done; a second before it; none.
-  for (const double at_s : {3.2, 3.23, 2.2, -1.0}) {
+  // Too short; beginning 20 ms into the 25 ms the tick lost; a few ms after the tick was
+  // done; a second before it; none.
+  for (const double at_s : {3.2, 3.22, 3.23, 2.2, -1.0}) {
     TimedRun r;
     r.Overruns(3, {1.5, 3.2});
     r.Stall(1.50, 0.030);
@@ -176,6 +184,56 @@ TEST(MachineTiming, AnOverrunWithoutAStallThroughItIsNot) {
     EXPECT_EQ(r.report.timing_problems[0].find("machine"), std::string::npos)
         << at_s << ": " << r.report.timing_problems[0];
     EXPECT_FALSE(r.report.timing_machine_limited) << at_s;
+  }
+}
+
+TEST(MachineTiming, AStallBeganUpToAWitnessPeriodBeforeItsStart) {
+  // 22 ms lost from 3.2 s; a stall the witness noticed at 3.2015 s, to 3.212 s: it began
+  // up to 2 ms earlier, so it covers 12 ms of the 22, more than half.
+  TimedRun r;
+  r.Overruns(3, {3.2}, 0.022);
+  r.Stall(3.2015, 0.0105);
+  r.Judge();
+  EXPECT_TRUE(r.report.timing_machine_limited) << r.report.timing_problems[0];
+}
+
+TEST(MachineTiming, TheNotesMonotonicTimeIsTheOneJudged) {
+  // The note's seconds from tick 0 off by 5 s (the process converted a wall-clock start
+  // time after the wall clock was stepped); its CLOCK_MONOTONIC time right.
+  TimedRun r;
+  r.report.launch.t0_monotonic_ns = 1000000000000;  // 1000 s, as the notes above
+  r.Overruns(3, {1.5});
+  std::ifstream in(r.dir + "/vehicle3.txt");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t at = text.find("due at t = 1.5");
+  ASSERT_NE(at, std::string::npos) << text;
+  text.replace(at, 14, "due at t = 6.5");
+  std::ofstream(r.dir + "/vehicle3.txt") << text;
+  r.Stall(1.50, 0.030);
+  r.Judge();
+  EXPECT_TRUE(r.report.timing_machine_limited) << text;
+}
+
+TEST(MachineTiming, NeverARestartedProcess) {
+  TimedRun r;
+  r.Overruns(3, {1.5});
+  r.Stall(1.50, 0.030);
+  r.report.launch.restarts.push_back({"vehicle 3", 100, 101, "killed by signal 9", 3.0});
+  r.Judge();
+  ASSERT_EQ(r.report.timing_problems.size(), 1u);
+  EXPECT_FALSE(r.report.timing_machine_limited);
+}
+
+TEST(MachineTiming, NotALatenessNoOverrunNamesBelowFiftyHertz) {
+  // At 10 Hz a loop can be 30 ms late at p99 without overrunning: no note names those
+  // ticks. At 50 Hz each such tick overran and is noted.
+  for (const double period_s : {0.1, 0.02}) {
+    TimedRun r;
+    r.Overruns(3, {1.5}, 0.025, -1, 0.030);
+    r.Stall(1.50, 0.030);
+    r.Judge(period_s);
+    ASSERT_EQ(r.report.timing_problems.size(), 1u);
+    EXPECT_EQ(r.report.timing_machine_limited, period_s < 0.05) << period_s;
   }
 }
 
