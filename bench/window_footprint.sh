@@ -29,8 +29,9 @@ dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 
 # valgrind loads a position-independent program at 0x108000 (amd64), any other where it
-# was linked: the window's mark is HandleBus's entry there.
-offset=$(nm -C "$vehicle" | awk '/ T shoal::ClockedNode::HandleBus\(/ && !n++ {print $1}')
+# was linked: the window's mark is HandleBus's entry there. A link-time optimised build
+# makes it a local symbol (t), and GCC may split off its cold part ([clone .cold]).
+offset=$(nm -C "$vehicle" | awk '/ [tT] shoal::ClockedNode::HandleBus\(int, long\)$/ && !n++ {print $1}')
 [ -n "$offset" ] || { echo "bench: ClockedNode::HandleBus not found in $vehicle" >&2; exit 2; }
 base=0
 if readelf -h "$vehicle" | grep -q 'Type:.*DYN'; then base=0x108000; fi
