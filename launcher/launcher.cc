@@ -25,6 +25,7 @@
 
 #include "core/metrics.h"
 #include "core/swarm.h"
+#include "launcher/idle_poller.h"
 #include "launcher/remote_host.h"
 #include "runtime/channels.h"
 #include "runtime/checkpoint.h"
@@ -1358,6 +1359,44 @@ void Launch::GatherRejections() {
   }
 }
 
+/// Unless --deep-idle: the 0 us CPU latency request, in both modes, and in real time, where
+/// no cpuidle driver acts on it, threads that keep every CPU polling
+/// (launcher/idle_poller.h): a tick waits for a wake-up, and from a halted virtual CPU that
+/// came milliseconds late. Not in lockstep, where they made Example 2 a quarter slower
+/// (docs/benchmarks.md, "Idle CPUs kept polling").
+void KeepCpusPolling(const LaunchOptions& opt, bool realtime,
+                     std::unique_ptr<CpuLatencyRequest>* latency, IdlePoller* poller,
+                     LaunchResult* result) {
+  result->cpuidle_driver = CpuidleDriver();
+  if (opt.deep_idle) {
+    result->cpu_latency_note = "no CPU latency request, CPUs may halt when idle (--deep-idle)";
+    return;
+  }
+  *latency = std::make_unique<CpuLatencyRequest>();
+  result->cpu_latency_request = (*latency)->held();
+  if (LatencyRequestPolls(result->cpuidle_driver)) {
+    result->cpu_latency_note =
+        result->cpu_latency_request
+            ? "CPU latency request 0 us held: idle CPUs poll (cpuidle driver " +
+                  result->cpuidle_driver + ")"
+            : (*latency)->note();
+    return;
+  }
+  const std::string request = result->cpu_latency_request ? "CPU latency request 0 us held"
+                                                          : (*latency)->note();
+  if (!realtime) {
+    result->cpu_latency_note = request + "; no cpuidle driver acts on it: idle CPUs halt";
+    return;
+  }
+  result->idle_poll_threads = poller->Start();
+  result->cpu_latency_note =
+      request + "; no cpuidle driver acts on it, so " +
+      (result->idle_poll_threads > 0
+           ? std::to_string(result->idle_poll_threads) +
+                 " threads at SCHED_IDLE keep the CPUs polling"
+           : std::string("idle CPUs halt (no thread could be put at SCHED_IDLE)"));
+}
+
 }  // namespace
 
 bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallbacks& callbacks,
@@ -1368,13 +1407,12 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   const StopSignals signals({/*hangup=*/true, /*wake_on_child=*/true});
   // Held until every child has stopped.
   std::unique_ptr<CpuLatencyRequest> latency;
-  if (!opt.deep_idle) latency = std::make_unique<CpuLatencyRequest>();
-  result->cpu_latency_request = latency && latency->held();
-  result->cpu_latency_note = latency ? latency->note() : "no CPU latency request (--deep-idle)";
+  IdlePoller poller;
+  const bool realtime = launch.plan().mode == Mode::kRealtime;
+  KeepCpusPolling(opt, realtime, &latency, &poller, result);
   launch.StartAll();
   // Real time: whether the machine itself stalled, for the timing verdict to tell it apart.
   MachineWitness witness;
-  const bool realtime = launch.plan().mode == Mode::kRealtime;
   const std::string refusal = realtime ? WitnessRefusal() : "";
   if (realtime) result->t0_monotonic_ns = launch.t0_ns();
   if (realtime && refusal.empty()) witness.Start(launch.t0_ns());
@@ -1384,6 +1422,7 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   if (realtime) result->unwatched_ids = launch.ElsewhereIds();
   launch.Shutdown();
   launch.GatherRejections();
+  poller.Stop();
   return true;
 }
 

@@ -138,6 +138,10 @@ struct LaunchResult {
   std::vector<ProcessRestart> restarts;  // in the order they happened
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
+  /// The kernel's cpuidle driver ("none": idle CPUs halt whatever is asked), and the
+  /// threads that kept the CPUs polling instead (launcher/idle_poller.h; 0: none ran).
+  std::string cpuidle_driver;
+  int idle_poll_threads = 0;
   /// The run's bus key (none with --insecure), and the file next to the log that holds it.
   std::optional<bus_auth::Key> key;
   std::string key_file;

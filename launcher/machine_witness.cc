@@ -17,8 +17,7 @@ namespace {
 // Stalls one thread keeps: a machine that stalls every few seconds fills it in hours; one
 // that stalls more often than that has said what it is long before.
 constexpr std::size_t kStallRoom = 4096;
-// Most CPUs watched: one thread each.
-constexpr int kMaxWatchedCpus = 256;
+}  // namespace
 
 std::vector<int> AllowedCpus() {
   std::vector<int> cpus;
@@ -30,8 +29,6 @@ std::vector<int> AllowedCpus() {
   }
   return cpus;
 }
-
-}  // namespace
 
 double MachineWatch::worst_s() const {
   double w = 0.0;

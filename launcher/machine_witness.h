@@ -15,6 +15,12 @@
 
 namespace shoal {
 
+/// Most CPUs shoal run puts a thread of its own on (the witness's, the idle poller's).
+inline constexpr int kMaxWatchedCpus = 256;
+/// The CPUs this process may run on (its affinity), at most kMaxWatchedCpus; empty if the
+/// kernel does not say.
+std::vector<int> AllowedCpus();
+
 /// One stall: from `start_s` (mission time, s) for `length_s`, on CPU `cpu`.
 struct MachineStall {
   double start_s = 0.0;

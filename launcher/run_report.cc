@@ -342,6 +342,8 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   }
   j["unauthenticated_by_process"] = by_process;
   j["cpu_latency_request"] = l.cpu_latency_request;
+  j["cpuidle_driver"] = l.cpuidle_driver;
+  j["idle_poll_threads"] = l.idle_poll_threads;
   return j;
 }
 

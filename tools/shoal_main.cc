@@ -104,7 +104,9 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
               "Run even if the run is estimated to take over 1 h or 4 GiB of memory");
   c->add_flag("--deep-idle", run->launch.deep_idle,
               "Let idle CPUs halt during the run (by default, as root, shoal run holds "
-              "a 0 us CPU latency request: idle CPUs poll, wake-ups are cheaper)");
+              "a 0 us CPU latency request: idle CPUs poll, wake-ups are cheaper; in real "
+              "time, where no cpuidle driver acts on it, a thread per CPU at SCHED_IDLE "
+              "keeps the CPUs polling instead)");
   c->add_flag("--keep-going", run->launch.keep_going,
               "A vehicle or the leader that dies or is stopped does not stop the run "
               "(it is reported, and the run fails); by default any such fault stops it");
