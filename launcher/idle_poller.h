@@ -5,9 +5,13 @@
 // hypervisor gets to it: on a 2-vCPU VM that made wake-ups 2-50 ms late many times a minute
 // (docs/benchmarks.md, "Idle CPUs kept polling"). There the poller does what the request
 // cannot: one thread per CPU, pinned to it at SCHED_IDLE, spins, so no CPU is ever idle.
-// Any other thread that wakes on that CPU takes it at once (the scheduler preempts a
-// SCHED_IDLE thread at every wake-up of a normal or real-time one), so the poller costs
-// the run's processes a context switch where they had a wake-up from idle.
+// A thread of the run that wakes on that CPU takes it at once (the scheduler preempts a
+// SCHED_IDLE thread at every wake-up of another thread of its group), so the poller costs
+// the run's processes a context switch where they had a wake-up from idle. SCHED_IDLE
+// ranks a thread only within its scheduling group (its session under autogroup, its
+// cgroup): the processes shoal run starts share its group, but another session's share
+// the CPUs with the poller as with a busy process. And under a CPU quota the spinning
+// would spend the quota and have the whole group held: CpuQuota() says when not to start.
 #pragma once
 
 #include <atomic>
@@ -20,9 +24,18 @@ namespace shoal {
 /// The kernel's cpuidle driver (e.g. "intel_idle", "acpi_idle", "haltpoll"); "none" when
 /// it has none, "" when the kernel does not say (built without cpuidle).
 std::string CpuidleDriver();
+/// The name of CPU 0's shallowest idle state ("POLL" on x86), "" when the kernel does not say.
+std::string CpuidleState0();
 /// Whether a CPU latency request makes this machine's idle CPUs poll: only a cpuidle driver
-/// chooses a polling state for it; without one the idle loop halts.
-bool LatencyRequestPolls(const std::string& cpuidle_driver);
+/// chooses a state for it, and that state (the shallowest) must be one that polls; without a
+/// driver the idle loop halts.
+bool LatencyRequestPolls(const std::string& cpuidle_driver, const std::string& state0);
+/// The cgroup file that limits this process's CPU time (cgroup v2 cpu.max, v1
+/// cpu.cfs_quota_us, at its own cgroup or one above), or "" when none does.
+std::string CpuQuota();
+
+/// The poller's threads' name (what ps -L and top show).
+inline constexpr const char* kIdlePollerThreadName = "shoal idle poll";
 
 class IdlePoller {
  public:

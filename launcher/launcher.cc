@@ -1374,7 +1374,7 @@ void KeepCpusPolling(const LaunchOptions& opt, bool realtime,
   }
   *latency = std::make_unique<CpuLatencyRequest>();
   result->cpu_latency_request = (*latency)->held();
-  if (LatencyRequestPolls(result->cpuidle_driver)) {
+  if (LatencyRequestPolls(result->cpuidle_driver, CpuidleState0())) {
     result->cpu_latency_note =
         result->cpu_latency_request
             ? "CPU latency request 0 us held: idle CPUs poll (cpuidle driver " +
@@ -1386,6 +1386,13 @@ void KeepCpusPolling(const LaunchOptions& opt, bool realtime,
                                                           : (*latency)->note();
   if (!realtime) {
     result->cpu_latency_note = request + "; no cpuidle driver acts on it: idle CPUs halt";
+    return;
+  }
+  const std::string quota = CpuQuota();
+  if (!quota.empty()) {
+    result->cpu_latency_note = request + "; no cpuidle driver acts on it, and " + quota +
+                               " limits this group's CPU time, which threads keeping the "
+                               "CPUs polling would spend: idle CPUs halt";
     return;
   }
   result->idle_poll_threads = poller->Start();
@@ -1422,7 +1429,7 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   if (realtime) result->unwatched_ids = launch.ElsewhereIds();
   launch.Shutdown();
   launch.GatherRejections();
-  poller.Stop();
+  result->idle_poll_cpu_s = poller.Stop();
   return true;
 }
 

@@ -142,6 +142,7 @@ struct LaunchResult {
   /// threads that kept the CPUs polling instead (launcher/idle_poller.h; 0: none ran).
   std::string cpuidle_driver;
   int idle_poll_threads = 0;
+  double idle_poll_cpu_s = 0.0;  // the CPU time they took (shoal run's own, not the run's)
   /// The run's bus key (none with --insecure), and the file next to the log that holds it.
   std::optional<bus_auth::Key> key;
   std::string key_file;

@@ -344,6 +344,7 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   j["cpu_latency_request"] = l.cpu_latency_request;
   j["cpuidle_driver"] = l.cpuidle_driver;
   j["idle_poll_threads"] = l.idle_poll_threads;
+  j["idle_poll_cpu_s"] = l.idle_poll_cpu_s;
   return j;
 }
 
