@@ -8,9 +8,9 @@
 // A thread of the run that wakes on that CPU takes it at once (the scheduler preempts a
 // SCHED_IDLE thread at every wake-up of another thread of its group), so the poller costs
 // the run's processes a context switch where they had a wake-up from idle. SCHED_IDLE
-// ranks a thread only within its scheduling group (its session under autogroup, its
-// cgroup): the processes shoal run starts share its group, but another session's share
-// the CPUs with the poller as with a busy process. And under a CPU quota the spinning
+// ranks a thread only within its scheduling group (its autogroup, one per setsid(), or its
+// cgroup): the processes shoal run starts share its group, but those of another login or
+// terminal share the CPUs with the poller as with a busy process. And under a CPU quota the spinning
 // would spend the quota and have the whole group held: CpuQuota() says when not to start.
 #pragma once
 
