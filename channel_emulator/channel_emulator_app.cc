@@ -868,11 +868,7 @@ int ChannelEmulatorMain(int argc, char** argv) {
   }
   // Before LCM starts its receive threads, so that they inherit the policy; above the
   // vehicles: releases are the delays the run is about.
-  if (opt.parsed_mode() == Mode::kRealtime) {
-    std::cerr << "shoal_channel_emulator: " << EnableRealtimeScheduling(50, /*clock_master=*/true) << "\n";
-  } else {
-    std::cerr << "shoal_channel_emulator: " << EnableBatchScheduling() << "\n";
-  }
+  if (!EnterScheduling("shoal_channel_emulator", opt, kEmulatorFifoPriority, /*clock_master=*/true)) return 2;
   try {
     auto address = [](const std::string& u) { return u.substr(0, u.find('?')); };
     if (!eo.uplink_url.empty() && address(eo.uplink_url) == address(opt.lcm_url)) {

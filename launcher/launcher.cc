@@ -532,6 +532,17 @@ bool Launch::CheckOptions(std::string* error) {
     return false;
   }
   mode_ = *mode;
+  if (!opt_.sched_fifo.empty() && opt_.sched_fifo != kSchedFifoAll &&
+      opt_.sched_fifo != kSchedFifoEmulator) {
+    *error = "--sched-fifo must be " + std::string(kSchedFifoAll) + " or " +
+             kSchedFifoEmulator + " (got " + opt_.sched_fifo + ")";
+    return false;
+  }
+  if (!opt_.sched_fifo.empty() && mode_ != Mode::kRealtime) {
+    *error = "--sched-fifo is for real time; lockstep runs under SCHED_BATCH (add --mode "
+             "realtime, or leave --sched-fifo out)";
+    return false;
+  }
   if (opt_.duration_s == 0 || (opt_.duration_s < 0 && opt_.duration_s != -1)) {
     *error = "--duration must be a positive number of seconds";
     return false;
@@ -542,6 +553,10 @@ bool Launch::CheckOptions(std::string* error) {
     if (!error->empty()) return false;
   }
   r_->mode = opt_.mode;
+  const char* fifo_env = std::getenv("SHOAL_SCHED_FIFO");
+  r_->sched_fifo = !opt_.sched_fifo.empty() ? opt_.sched_fifo
+                   : fifo_env != nullptr    ? std::string("SHOAL_SCHED_FIFO=") + fifo_env
+                                            : "none";
   r_->duration_s = opt_.duration_s > 0 ? opt_.duration_s : s_.duration_s;
   r_->log = opt_.out.empty() ? s_.name + ".lcmlog" : opt_.out;
   r_->process_output_dir = r_->log + ".d";
@@ -567,6 +582,14 @@ bool Launch::Prepare(bool for_print, std::string* error) {
     return false;
   }
   if (!CheckOptions(error) || !ChooseUrls(!for_print, error)) return false;
+  // Here, before anything starts, rather than as each process refuses at its start. On
+  // other hosts (--hosts) each process asks for itself and refuses to start if denied.
+  std::string why;
+  if (!for_print && !opt_.hosts && !opt_.sched_fifo.empty() &&
+      !SchedFifoPermitted(kEmulatorFifoPriority, &why)) {
+    *error = "--sched-fifo: " + why;
+    return false;
+  }
   BuildPlan();
   if (for_print) return true;
   // Everything that can refuse the run is checked before anything is written: a refused
@@ -832,6 +855,7 @@ void Launch::PlanEmulator() {
     more.push_back(list);
   }
   if (!uplink_url_.empty()) more.insert(more.end(), {"--uplink-url", uplink_url_});
+  if (!opt_.sched_fifo.empty()) more.push_back("--sched-fifo");
   PlannedProcess e;
   e.name = "channel emulator";
   e.id = kEmulatorId;
@@ -880,6 +904,7 @@ void Launch::PlanNodes() {
     if (mode_ == Mode::kRealtime && opt_.stagger && phase_us > 0) {
       more.insert(more.end(), {"--phase-us", std::to_string(phase_us)});
     }
+    if (opt_.sched_fifo == kSchedFifoAll) more.push_back("--sched-fifo");
     p.argv = ProcessArgs(id == 0 ? leader_exe_ : vehicle_exe_, more, uplink_url_);
     p.nice_inc = run_nice;
     plan_.processes.push_back(p);
@@ -1420,7 +1445,7 @@ bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallback
   launch.StartAll();
   // Real time: whether the machine itself stalled, for the timing verdict to tell it apart.
   MachineWitness witness;
-  const std::string refusal = realtime ? WitnessRefusal() : "";
+  const std::string refusal = realtime ? WitnessRefusal(!opt.sched_fifo.empty()) : "";
   if (realtime) result->t0_monotonic_ns = launch.t0_ns();
   if (realtime && refusal.empty()) witness.Start(launch.t0_ns());
   launch.Supervise(callbacks);

@@ -19,6 +19,10 @@
 
 namespace shoal {
 
+/// LaunchOptions::sched_fifo's values (shoal run --sched-fifo).
+inline constexpr const char* kSchedFifoAll = "all";
+inline constexpr const char* kSchedFifoEmulator = "emulator";
+
 struct LaunchOptions {
   std::string scenario;  // scenario file, passed on to every process
   std::vector<std::string> set;  // --set KEY=VALUE changes of it, passed on likewise
@@ -31,6 +35,11 @@ struct LaunchOptions {
   long long max_lookahead = 50;   // lockstep: most ticks the clock master releases at once
   bool allow_large = false;  // run even when the estimate exceeds 1 h or 4 GiB (core/swarm.h)
   bool deep_idle = false;  // do not hold the 0 us CPU latency request during the run
+  /// Real time: which processes run at SCHED_FIFO (their --sched-fifo): kSchedFifoAll, the
+  /// leader, the vehicles and the channel emulator; kSchedFifoEmulator, the emulator alone;
+  /// empty, none (unless SHOAL_SCHED_FIFO in the environment they inherit asks). Refused
+  /// in lockstep, and where this host does not permit it.
+  std::string sched_fifo;
   /// Real time: spread the followers' loop phases over half the control period
   /// (ClockedNode::StaggerPhaseUs, --phase-us), so that N loops do not wake at one instant.
   /// shoal run sets it wherever the scenario allows, unless --no-stagger; shoal soak
@@ -137,6 +146,10 @@ struct LaunchResult {
   std::string stopped_by;
   std::vector<ProcessRestart> restarts;  // in the order they happened
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
+  /// Real time: which processes were asked to run at SCHED_FIFO: "all", "emulator" (shoal
+  /// run --sched-fifo), "SHOAL_SCHED_FIFO=<value>" (the environment they inherited), or
+  /// "none". Each process's output file says what it got.
+  std::string sched_fifo = "none";
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
   /// The kernel's cpuidle driver ("none": idle CPUs halt whatever is asked), and the
   /// threads that kept the CPUs polling instead (launcher/idle_poller.h; 0: none ran).

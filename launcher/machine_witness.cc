@@ -78,12 +78,14 @@ std::vector<MachineStall> StallTracker::Finish() {
   return std::move(stalls_);
 }
 
-std::string WitnessRefusal() {
-  if (std::getenv("SHOAL_SCHED_FIFO") == nullptr) return "";
+std::string WitnessRefusal(bool fifo_asked) {
+  const bool from_env = std::getenv("SHOAL_SCHED_FIFO") != nullptr;
+  if (!fifo_asked && !from_env) return "";
   std::ifstream in("/proc/sys/kernel/sched_rt_runtime_us");
   long long runtime_us = 0;
   if (in >> runtime_us && runtime_us == -1) return "";
-  return "SHOAL_SCHED_FIFO puts run processes at SCHED_FIFO, and real-time throttling "
+  return std::string(fifo_asked ? "--sched-fifo" : "SHOAL_SCHED_FIFO") +
+         " puts run processes at SCHED_FIFO, and real-time throttling "
          "(kernel.sched_rt_runtime_us) would hold the witness with a busy one";
 }
 

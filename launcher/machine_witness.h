@@ -77,11 +77,12 @@ class StallTracker {
 /// count the run's own load as the machine's.
 ///
 /// Why it must not watch here, or "" when it can: run processes at SCHED_FIFO
-/// (SHOAL_SCHED_FIFO in the environment they inherit) under the kernel's real-time
+/// (`fifo_asked`: shoal run --sched-fifo; or SHOAL_SCHED_FIFO in the environment they
+/// inherit) under the kernel's real-time
 /// throttling (kernel.sched_rt_runtime_us not -1), where a FIFO loop that keeps its CPU
 /// busy gets every real-time thread on that CPU held, the witness's with it: its own
 /// stall would be counted as the machine's.
-std::string WitnessRefusal();
+std::string WitnessRefusal(bool fifo_asked);
 class MachineWitness {
  public:
   MachineWitness() = default;

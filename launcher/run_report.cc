@@ -341,6 +341,7 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
     by_process[name] = n >= 0 ? nlohmann::ordered_json(n) : nlohmann::ordered_json();
   }
   j["unauthenticated_by_process"] = by_process;
+  j["sched_fifo"] = l.sched_fifo;
   j["cpu_latency_request"] = l.cpu_latency_request;
   j["cpuidle_driver"] = l.cpuidle_driver;
   j["idle_poll_threads"] = l.idle_poll_threads;
@@ -348,19 +349,38 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   return j;
 }
 
-std::string StaggerHint(const RunReport& r, const LoopPlacement& p) {
+namespace {
+
+/// Several loops of a real-time run on one machine with fewer CPUs than loops were late:
+/// they queued for the CPUs. One late process is that process's trouble (a stall, a fault).
+bool LoopsQueued(const RunReport& r, const LoopPlacement& p) {
   const long loops = r.followers + 2;
-  // One late process is that process's trouble (a stall, a fault); loops that queue for
-  // the CPUs make several late.
-  const bool queued = r.timing_problems.size() >= 2 || r.slow_loops >= 2;
-  if (r.launch.mode != ModeName(Mode::kRealtime) || !queued || r.launch.interrupted ||
-      p.staggered || !p.one_host || !p.stagger_allowed || loops <= p.cpus) {
+  const bool several_late = r.timing_problems.size() >= 2 || r.slow_loops >= 2;
+  return r.launch.mode == ModeName(Mode::kRealtime) && several_late && !r.launch.interrupted &&
+         p.one_host && loops > p.cpus;
+}
+
+std::string Cpus(long n) { return std::to_string(n) + " CPU" + (n == 1 ? "" : "s"); }
+
+}  // namespace
+
+std::string StaggerHint(const RunReport& r, const LoopPlacement& p) {
+  if (!LoopsQueued(r, p) || p.staggered || !p.stagger_allowed) return "";
+  return "the " + std::to_string(r.followers + 2) + " loops woke at the start of each period "
+         "on " + Cpus(p.cpus) + ", and the last waited for the others; without --no-stagger "
+         "the followers are spread over half a period (docs/run.md, \"Many vehicles on few "
+         "CPUs\")";
+}
+
+std::string FifoHint(const RunReport& r, const LoopPlacement& p) {
+  if (!LoopsQueued(r, p) || !StaggerHint(r, p).empty() ||
+      r.launch.sched_fifo == kSchedFifoAll) {
     return "";
   }
-  return "the " + std::to_string(loops) + " loops woke at the start of each period on " +
-         std::to_string(p.cpus) + " CPU" + (p.cpus == 1 ? "" : "s") +
-         ", and the last waited for the others; without --no-stagger the followers are "
-         "spread over half a period (docs/run.md, \"Many vehicles on few CPUs\")";
+  return "several of the " + std::to_string(r.followers + 2) + " loops on " + Cpus(p.cpus) +
+         " were late; as root, --sched-fifo all runs every loop at SCHED_FIFO, so that each "
+         "gets a CPU at its instant ahead of the machine's other work (docs/run.md, \"Many "
+         "vehicles on few CPUs\")";
 }
 
 void PrintRunReport(const RunReport& r, std::FILE* out) {
@@ -389,8 +409,9 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   if (realtime) std::fprintf(out, ", release error p99 %.3f ms", sum.release_error_p99_s * 1e3);
   std::fprintf(out, "\n");
   if (realtime) {
-    std::fprintf(out, "  loops: lateness p99 %.3f ms, %lld overruns\n", sum.lateness_p99_s * 1e3,
-                 static_cast<long long>(sum.overruns));
+    std::fprintf(out, "  loops: lateness p99 %.3f ms, %lld overruns; SCHED_FIFO: %s\n",
+                 sum.lateness_p99_s * 1e3, static_cast<long long>(sum.overruns),
+                 l.sched_fifo.c_str());
   }
   for (const std::string& p : r.problems) std::fprintf(out, "  PROBLEM: %s\n", p.c_str());
   std::fprintf(out, "  log: %s (URL %s), %lld of %lld vehicle states recorded\n", l.log.c_str(),

@@ -81,6 +81,11 @@ struct LoopPlacement {
 /// CPU each, staggering is not what the run lacked; one late process is that process's
 /// trouble (a stall, a fault).
 std::string StaggerHint(const RunReport& r, const LoopPlacement& p);
+/// The same kind of run, its loops staggered (or in a scenario that leaves no room to),
+/// not every loop at SCHED_FIFO: says that as root --sched-fifo all gives each loop a CPU
+/// at its instant ahead of the machine's other work (docs/run.md). Empty otherwise, and
+/// where StaggerHint has something to say.
+std::string FifoHint(const RunReport& r, const LoopPlacement& p);
 
 /// Real time: judges each process's timing from its last health report in `a` (its
 /// figures since it started), against kMaxLatenessP99S and no overrun; sets timing_ok,

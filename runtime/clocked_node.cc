@@ -499,11 +499,7 @@ int ClockedNodeMain(CLI::App* app, int argc, char** argv, const std::string& nam
   bus_auth::Setting auth;
   if (!bus_auth::SettingOrReport(opt.insecure, name, &auth)) return 2;
   // Before LCM starts its receive thread, so that the thread inherits the policy.
-  if (opt.parsed_mode() == Mode::kRealtime) {
-    std::cerr << name << ": " << EnableRealtimeScheduling(40, /*clock_master=*/false) << "\n";
-  } else {
-    std::cerr << name << ": " << EnableBatchScheduling() << "\n";
-  }
+  if (!EnterScheduling(name, opt, kNodeFifoPriority, /*clock_master=*/false)) return 2;
   try {
     LcmBus bus(opt.lcm_url, auth.key);
     std::unique_ptr<LcmBus> rx;

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sched.h>
 #include <signal.h>
+#include <pthread.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
@@ -15,6 +16,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <thread>
 
 #include <CLI/CLI.hpp>
 
@@ -72,6 +74,9 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
   app->add_flag("--insecure", opt->insecure,
                 "Do not authenticate the bus's messages (else the run's key is read from "
                 "SHOAL_BUS_KEY, docs/run.md)");
+  app->add_flag("--sched-fifo", opt->sched_fifo,
+                "realtime: run at SCHED_FIFO (shoal run --sched-fifo); a process that may "
+                "not (it needs root, CAP_SYS_NICE or RLIMIT_RTPRIO) refuses to start");
   app->footer(kStartAloneHelp);
 }
 
@@ -168,6 +173,11 @@ int StartProcess(CLI::App* app, int argc, char** argv, const std::string& name,
   } catch (const CLI::ParseError& e) {
     return app->exit(e) == 0 ? 0 : 2;
   }
+  if (opt->sched_fifo && opt->parsed_mode() != Mode::kRealtime) {
+    std::fprintf(stderr, "%s: --sched-fifo is for real time; lockstep runs under SCHED_BATCH "
+                 "(add --mode realtime, or leave --sched-fifo out)\n", name.c_str());
+    return 2;
+  }
   std::string error;
   const bool unix_given = app->count("--t0-unix-ns") > 0;
   if (!ResolveStartTime(app->count("--t0-ns") > 0, unix_given, opt, &error)) {
@@ -187,23 +197,64 @@ void InstallProcessSignals() {
 
 bool StopRequested() { return StopSignals::Requested(); }
 
-std::string EnableRealtimeScheduling(int priority, bool clock_master) {
+std::string EnableRealtimeScheduling(int priority, bool clock_master, bool required,
+                                     bool* refused) {
+  if (refused != nullptr) *refused = false;
   prctl(PR_SET_TIMERSLACK, 1UL);
   // SCHED_FIFO is opt-in: under load a late FIFO loop catching up starves lcm-logger and
   // the others (docs/benchmarks.md, real time). The emulator alone does a bounded burst of
   // work at each release and sleeps between: "emulator" gives it the CPU at its release
   // instants without letting the vehicles' loops take anyone's.
   const char* fifo = std::getenv("SHOAL_SCHED_FIFO");
-  if (fifo == nullptr || (std::strcmp(fifo, "emulator") == 0 && !clock_master)) {
-    return "SCHED_OTHER, timer slack 1 ns";
-  }
+  const bool from_env =
+      fifo != nullptr && (std::strcmp(fifo, "emulator") != 0 || clock_master);
+  if (!required && !from_env) return "SCHED_OTHER, timer slack 1 ns";
   sched_param sp = {};
   sp.sched_priority = priority;
   if (sched_setscheduler(0, SCHED_FIFO, &sp) == 0) {
     return "SCHED_FIFO priority " + std::to_string(priority) + ", timer slack 1 ns";
   }
-  return std::string("SCHED_OTHER (SCHED_FIFO refused: ") + std::strerror(errno) +
+  const int err = errno;
+  if (required && refused != nullptr) *refused = true;
+  return std::string("SCHED_OTHER (SCHED_FIFO refused: ") + std::strerror(err) +
+         (err == EPERM ? "; it needs root, CAP_SYS_NICE or RLIMIT_RTPRIO >= " +
+                             std::to_string(priority)
+                       : std::string()) +
          "), timer slack 1 ns";
+}
+
+bool EnterScheduling(const std::string& name, const ProcessOptions& opt, int priority,
+                     bool clock_master) {
+  if (opt.parsed_mode() != Mode::kRealtime) {
+    std::fprintf(stderr, "%s: %s\n", name.c_str(), EnableBatchScheduling().c_str());
+    return true;
+  }
+  bool refused = false;
+  const std::string said =
+      EnableRealtimeScheduling(priority, clock_master, opt.sched_fifo, &refused);
+  std::fprintf(stderr, "%s: %s\n", name.c_str(), said.c_str());
+  if (refused) {
+    std::fprintf(stderr, "%s: --sched-fifo asked for SCHED_FIFO and the kernel refused it; "
+                 "not starting\n", name.c_str());
+  }
+  return !refused;
+}
+
+bool SchedFifoPermitted(int priority, std::string* why) {
+  int err = 0;
+  std::thread probe([&err, priority] {
+    sched_param sp = {};
+    sp.sched_priority = priority;
+    err = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+  });
+  probe.join();
+  if (err == 0) return true;
+  *why = std::string("SCHED_FIFO priority ") + std::to_string(priority) + " refused: " +
+         std::strerror(err) +
+         (err == EPERM ? " (it needs root, CAP_SYS_NICE or RLIMIT_RTPRIO >= " +
+                             std::to_string(priority) + ")"
+                       : std::string());
+  return false;
 }
 
 void LeaveRealtimeScheduling() {

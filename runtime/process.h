@@ -34,6 +34,7 @@ struct ProcessOptions {
   std::int64_t t0_unix_ns = 0;  // --t0-unix-ns: CLOCK_REALTIME time of tick 0, if given
   double duration_s = -1.0;  // < 0: the scenario's
   bool insecure = false;     // no bus authentication (else the key comes from SHOAL_BUS_KEY)
+  bool sched_fifo = false;   // --sched-fifo: realtime at SCHED_FIFO, or refuse to start
   Mode parsed_mode() const { return ParseMode(mode).value_or(Mode::kLockstep); }
 };
 
@@ -87,10 +88,30 @@ bool StopRequested();
 /// datagram of a burst costs two context switches). Call before LCM starts its receive
 /// thread, so that the thread inherits the policy. Returns what was set, for the log.
 std::string EnableBatchScheduling();
-/// Real time: timer slack 1 ns, and SCHED_FIFO at `priority` when SHOAL_SCHED_FIFO asks for
-/// it: "emulator" for the channel emulator alone (`clock_master`), any other value for
-/// every real-time process. Returns what was set, for the log.
-std::string EnableRealtimeScheduling(int priority, bool clock_master);
+/// Real time: timer slack 1 ns, and SCHED_FIFO at `priority` when `required` (the process's
+/// --sched-fifo) or SHOAL_SCHED_FIFO asks for it: "emulator" for the channel emulator alone
+/// (`clock_master`), any other value for every real-time process. Returns what was set, for
+/// the log. A policy the command line asked for and the kernel refused sets *refused (the
+/// process then must not start: its loop would run unlike the run it was asked to be); one
+/// only the environment asked for is noted and the process goes on under SCHED_OTHER.
+std::string EnableRealtimeScheduling(int priority, bool clock_master, bool required = false,
+                                     bool* refused = nullptr);
+
+/// SCHED_FIFO priorities in real time: the channel emulator's releases are the delays the
+/// run is about, so it stands above the leader's and the vehicles' loops.
+inline constexpr int kEmulatorFifoPriority = 50;
+inline constexpr int kNodeFifoPriority = 40;
+
+/// A process's scheduling for its mode, said on stderr as "<name>: <policy>": in real time
+/// EnableRealtimeScheduling (`priority`, `clock_master`, required by opt.sched_fifo), in
+/// lockstep EnableBatchScheduling. False (said why) when --sched-fifo was refused: the
+/// process must exit 2. Call before LCM starts its receive thread, which inherits it.
+bool EnterScheduling(const std::string& name, const ProcessOptions& opt, int priority,
+                     bool clock_master);
+
+/// Whether this process may put a thread at SCHED_FIFO `priority` (root, CAP_SYS_NICE or
+/// RLIMIT_RTPRIO): tried on a thread of its own, which ends at once. False with *why.
+bool SchedFifoPermitted(int priority, std::string* why);
 /// After a real-time loop's last tick: SCHED_OTHER at nice 10, so that what a process does
 /// on its way out (its last messages, freeing its locked memory) never delays the loops of
 /// the processes still running.

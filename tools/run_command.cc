@@ -114,8 +114,8 @@ int RunRun(const RunOptions& opt) {
   placement.one_host = !launch_options.hosts.has_value();
   placement.stagger_allowed = stagger_allowed;
   placement.cpus = sysconf(_SC_NPROCESSORS_ONLN);
-  if (const std::string hint = StaggerHint(report, placement); !hint.empty()) {
-    report.hints.push_back(hint);
+  for (const std::string& hint : {StaggerHint(report, placement), FifoHint(report, placement)}) {
+    if (!hint.empty()) report.hints.push_back(hint);
   }
   if (opt.json) {
     std::cout << JsonText(RunReportJson(report)) << "\n";

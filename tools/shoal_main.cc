@@ -47,6 +47,18 @@ CLI::App* AddSim(CLI::App* app, shoal::SimOptions* sim) {
   return c;
 }
 
+// --sched-fifo all|emulator, for shoal run and shoal soak.
+void AddSchedFifoOption(CLI::App* c, std::string* sched_fifo) {
+  c->add_option("--sched-fifo", *sched_fifo,
+                "Real time, as root (or with CAP_SYS_NICE / RLIMIT_RTPRIO): run the loops at "
+                "SCHED_FIFO, ahead of everything else on the machine. all: the leader, the "
+                "vehicles and the channel emulator; emulator: the emulator alone. Refused in "
+                "lockstep and where not permitted. Many loops on few CPUs meet their targets "
+                "with all (docs/run.md, \"Many vehicles on few CPUs\"), but a loop that falls "
+                "behind then takes the CPU from lcm-logger and the rest")
+      ->check(CLI::IsMember({shoal::kSchedFifoAll, shoal::kSchedFifoEmulator}));
+}
+
 // shoal run's options for the real-time loops: their start time and their phases.
 void AddRunLoopOptions(CLI::App* c, shoal::RunOptions* run) {
   auto* stagger = c->add_flag(
@@ -58,6 +70,7 @@ void AddRunLoopOptions(CLI::App* c, shoal::RunOptions* run) {
   c->add_flag("--no-stagger", run->no_stagger,
               "Real time: wake every loop at the start of its period, all at one instant")
       ->excludes(stagger);
+  AddSchedFifoOption(c, &run->launch.sched_fifo);
   c->add_option("--t0-clock", run->t0_clock,
                 "realtime: the clock on which the processes are given tick 0: monotonic "
                 "(--t0-ns, this host's CLOCK_MONOTONIC) or wall (--t0-unix-ns, "
@@ -307,6 +320,7 @@ CLI::App* AddSoak(CLI::App* app, shoal::SoakOptions* soak) {
                 "Output directory: soak.lcmlog (the run's log), soak.json, soak.png")
       ->required();
   AddSetOption(c, &soak->set);
+  AddSchedFifoOption(c, &soak->sched_fifo);
   c->add_flag("--json", soak->json, "Print soak.json instead of the summary");
   c->add_flag("--quiet", soak->quiet, "No progress line");
   return c;

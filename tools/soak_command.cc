@@ -215,6 +215,7 @@ LaunchOptions LaunchOptionsOf(const SoakOptions& opt, const Planned& p) {
   launch.out = opt.out + "/soak.lcmlog";
   for (const ScenarioOverride& o : p.plan.overrides) launch.set.push_back(o.key + "=" + o.value);
   launch.resource_interval_s = 60.0;
+  launch.sched_fifo = opt.sched_fifo;
   // As shoal run: real-time followers are staggered wherever the channel leaves room.
   launch.stagger = launch.mode == ModeName(Mode::kRealtime) &&
                    ClockedNode::StaggerPhaseUs(p.plan.scenario, p.plan.scenario.followers) > 0;
@@ -244,6 +245,11 @@ int RunSoak(const SoakOptions& opt) {
   Planned p;
   if (!Plan(opt, &p)) return kExitBadInput;
   std::string error;
+  if (!opt.sched_fifo.empty() && p.campaign.engine != CampaignEngine::kRealtime) {
+    std::cerr << "shoal soak: --sched-fifo is for real time; this campaign's engine is "
+              << EngineName(p.campaign.engine) << "\n";
+    return kExitBadInput;
+  }
   if (!MakeOutDir(opt.out, &error)) {
     std::cerr << "shoal soak: " << error << "\n";
     return kExitBadInput;

@@ -11,6 +11,7 @@ struct SoakOptions {
   std::vector<std::string> set;  // --set KEY=VALUE on the base scenario
   bool json = false;             // print soak.json instead of the summary
   bool quiet = false;            // no progress line
+  std::string sched_fifo;        // real time: --sched-fifo all|emulator (LaunchOptions)
 };
 
 /// `shoal soak`: one long shoal run whose phases step the campaign's axis values, judged

@@ -304,6 +304,81 @@ TEST(Sil, StaggeredRealtimeRunLogsEveryStateAndFollowsTheLockstepRun) {
   EXPECT_GE(cj["samples"].get<double>(), 0.9 * 6.0 * 201) << cmp.out;
 }
 
+// --sched-fifo all puts the leader, every vehicle and the channel emulator at SCHED_FIFO
+// (their own --sched-fifo, also in a printed launch script), emulator the emulator alone.
+// Refused, before anything starts or is written: in lockstep, where this host does not
+// permit it (here: root without CAP_SYS_NICE), and a process given it that may not take it
+// does not start (exit 2).
+TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
+  const auto lockstep = RunShoal("run " + kExample2 + " --sched-fifo all --duration 1",
+                                 "sil_fifo_lockstep");
+  EXPECT_EQ(lockstep.status, 2) << lockstep.err;
+  EXPECT_NE(lockstep.err.find("--sched-fifo is for real time"), std::string::npos) << lockstep.err;
+  const auto count_args = [](const std::string& script) {
+    int n = 0;
+    for (std::size_t at = 0; (at = script.find("    --sched-fifo\n", at)) != std::string::npos;
+         ++at) {
+      ++n;
+    }
+    return n;
+  };
+  const auto all = RunShoal("run " + kExample2 + " --mode realtime --sched-fifo all --print-launch",
+                            "sil_fifo_all_script");
+  ASSERT_EQ(all.status, 0) << all.err;
+  EXPECT_EQ(count_args(all.out), 7) << all.out;  // the emulator, the leader, 5 vehicles
+  const auto emulator = RunShoal(
+      "run " + kExample2 + " --mode realtime --sched-fifo emulator --print-launch",
+      "sil_fifo_emulator_script");
+  ASSERT_EQ(emulator.status, 0) << emulator.err;
+  ASSERT_EQ(count_args(emulator.out), 1) << emulator.out;
+  const std::size_t emulator_at = emulator.out.find("shoal_channel_emulator");
+  const std::size_t leader_at = emulator.out.find("shoal_leader");
+  const std::size_t arg_at = emulator.out.find("    --sched-fifo\n");
+  EXPECT_TRUE(emulator_at < arg_at && arg_at < leader_at) << emulator.out;
+
+  // Root may have it, but not without CAP_SYS_NICE (RLIMIT_RTPRIO is 0 here unless raised).
+  const std::string no_rt = geteuid() == 0
+                                ? "setpriv --bounding-set -sys_nice --inh-caps -sys_nice --"
+                                : "";
+  const std::string denied_log = TmpPath("sil_fifo_denied.lcmlog");
+  std::remove(denied_log.c_str());
+  const auto denied = RunShoal("run " + kExample2 + " --mode realtime --sched-fifo emulator " +
+                                   "--duration 1 --out " + denied_log,
+                               "sil_fifo_denied", no_rt);
+  EXPECT_EQ(denied.status, 2) << denied.out << denied.err;
+  EXPECT_NE(denied.err.find("--sched-fifo: SCHED_FIFO priority 50 refused"), std::string::npos)
+      << denied.err;
+  EXPECT_FALSE(std::ifstream(denied_log).good()) << "a refused run wrote its log";
+  const std::string bad_out = TmpPath("sil_fifo_vehicle.out");
+  const std::string vehicle = "timeout 20 " + no_rt + " " + std::string(SHOAL_BINARY_DIR) +
+                              "/vehicle/shoal_vehicle --id 1 --insecure --scenario " + kExample2 +
+                              " --lcm-url 'udpm://239.255.76.67:31591?ttl=0' --mode realtime "
+                              "--t0-unix-ns $(( $(date +%s%N) + 60000000000 )) --sched-fifo >" +
+                              bad_out + " 2>&1";
+  const int raw = std::system(vehicle.c_str());
+  EXPECT_EQ(WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, 2) << ReadFile(bad_out);
+  EXPECT_NE(ReadFile(bad_out).find("--sched-fifo asked for SCHED_FIFO and the kernel refused it"),
+            std::string::npos)
+      << ReadFile(bad_out);
+  if (geteuid() != 0) GTEST_SKIP() << "a run at SCHED_FIFO needs root";
+
+  const std::string log = TmpPath("sil_fifo.lcmlog");
+  const auto rt = RunShoal("run " + kExample2 + " --mode realtime --sched-fifo all --duration 3 " +
+                               "--json --out " + log,
+                           "sil_fifo_rt");
+  ASSERT_EQ(rt.status, 1) << rt.out << rt.err;  // not converged within 3 s
+  const auto j = ParseJson(rt.out);
+  EXPECT_EQ(j["sched_fifo"], "all") << rt.out;
+  EXPECT_EQ(j["all_processes_ok"], true) << rt.out;
+  EXPECT_EQ(j["log_states"], j["log_states_expected"]) << rt.out;
+  const std::string dir = log + ".d/";
+  EXPECT_NE(ReadFile(dir + "emulator.txt").find("SCHED_FIFO priority 50"), std::string::npos);
+  for (const char* tag : {"leader", "vehicle1", "vehicle5"}) {
+    EXPECT_NE(ReadFile(dir + tag + ".txt").find("SCHED_FIFO priority 40"), std::string::npos)
+        << tag << ": " << ReadFile(dir + tag + ".txt");
+  }
+}
+
 // A delay of whole periods (REMUS's constant 0.5 s) makes every delivery due at a tick's
 // very time: the emulator releases it then, and it reaches the vehicle just after. It still
 // counts for that tick (within ClockedNode::kArrivalSlackNs), as in lockstep: a staggered

@@ -57,12 +57,15 @@ struct RunResult {
   std::string err;
 };
 
-/// Runs `args` (a shell-quoted argument string) with the shoal binary.
-inline RunResult RunShoal(const std::string& args, const std::string& tag) {
+/// Runs `args` (a shell-quoted argument string) with the shoal binary, under `prefix` (a
+/// command such as setpriv's that runs the rest) if one is given.
+inline RunResult RunShoal(const std::string& args, const std::string& tag,
+                          const std::string& prefix = "") {
   const std::string dir = std::string(SHOAL_BINARY_DIR) + "/test_tmp";
   std::system(("mkdir -p " + dir).c_str());
   const std::string out = dir + "/" + tag + ".out", err = dir + "/" + tag + ".err";
-  const std::string cmd = ShoalBinary() + " " + args + " >" + out + " 2>" + err + " </dev/null";
+  const std::string cmd = (prefix.empty() ? "" : prefix + " ") + ShoalBinary() + " " + args +
+                          " >" + out + " 2>" + err + " </dev/null";
   const int raw = std::system(cmd.c_str());
   RunResult r;
   if (WIFEXITED(raw)) {

@@ -1,6 +1,7 @@
-// shoal run's hint about --no-stagger: given exactly when a real-time run's loops queued for
-// the CPUs (several late, more loops than CPUs, unstaggered, one host, a scenario that
-// allows it), and never otherwise.
+// shoal run's hints about --no-stagger and --sched-fifo: given exactly when a real-time
+// run's loops queued for the CPUs (several late, more loops than CPUs, one host): the first
+// for a run unstaggered in a scenario that allows staggering, the second for the others
+// whose loops were not all at SCHED_FIFO; never otherwise.
 #include <gtest/gtest.h>
 
 #include "launcher/run_report.h"
@@ -77,6 +78,57 @@ TEST(StaggerHint, NoneWhereStaggeringIsNotWhatTheRunLacked) {
     Late l;
     l.placement.cpus = 66;
     EXPECT_EQ(StaggerHint(l.report, l.placement), "") << "a CPU for every loop";
+  }
+}
+
+TEST(FifoHint, GivenWhereStaggeredLoopsWereStillLate) {
+  Late l;
+  l.placement.staggered = true;
+  const std::string hint = FifoHint(l.report, l.placement);
+  EXPECT_NE(hint.find("several of the 66 loops on 2 CPUs were late"), std::string::npos) << hint;
+  EXPECT_NE(hint.find("--sched-fifo all"), std::string::npos) << hint;
+  l.report.launch.sched_fifo = kSchedFifoEmulator;
+  EXPECT_EQ(FifoHint(l.report, l.placement), hint) << "the emulator alone";
+  l.placement.staggered = false;
+  l.placement.stagger_allowed = false;
+  EXPECT_EQ(FifoHint(l.report, l.placement), hint) << "no room to stagger";
+}
+
+TEST(FifoHint, NoneWhereItIsNotWhatTheRunLacked) {
+  {
+    const Late l;
+    EXPECT_NE(StaggerHint(l.report, l.placement), "");
+    EXPECT_EQ(FifoHint(l.report, l.placement), "") << "unstaggered: the stagger hint first";
+  }
+  {
+    Late l;
+    l.placement.staggered = true;
+    l.report.launch.sched_fifo = kSchedFifoAll;
+    EXPECT_EQ(FifoHint(l.report, l.placement), "") << "already SCHED_FIFO";
+  }
+  {
+    Late l;
+    l.placement.staggered = true;
+    l.report.timing_problems.resize(1);
+    EXPECT_EQ(FifoHint(l.report, l.placement), "") << "one late process";
+  }
+  {
+    Late l;
+    l.placement.staggered = true;
+    l.report.launch.mode = ModeName(Mode::kLockstep);
+    EXPECT_EQ(FifoHint(l.report, l.placement), "") << "lockstep";
+  }
+  {
+    Late l;
+    l.placement.staggered = true;
+    l.placement.one_host = false;
+    EXPECT_EQ(FifoHint(l.report, l.placement), "") << "several hosts";
+  }
+  {
+    Late l;
+    l.placement.staggered = true;
+    l.placement.cpus = 66;
+    EXPECT_EQ(FifoHint(l.report, l.placement), "") << "a CPU for every loop";
   }
 }
 
