@@ -107,6 +107,14 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
     EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
     EXPECT_NE(access((dir + "/out").c_str(), F_OK), 0) << "nothing may be written or run";
   }
+  const std::string dir = WriteCampaign("fifo", Steps("0.1", "120", "90"));
+  const RunResult fifo = RunShoal("soak " + dir + "/fifo.toml --sched-fifo all --out " + dir +
+                                      "/out", "soak_fifo");
+  EXPECT_EQ(fifo.status, 2) << fifo.err;
+  EXPECT_NE(fifo.err.find("--sched-fifo is for real time; this campaign's engine is lockstep"),
+            std::string::npos)
+      << fifo.err;
+  EXPECT_NE(access((dir + "/out").c_str(), F_OK), 0) << "nothing may be written or run";
 }
 
 TEST(SoakCli, CtrlCKeepsTheJudgementOfWhatRanAndLeavesNoProcess) {
