@@ -6,6 +6,7 @@
 #include "runtime/bus_auth.h"
 #include "runtime/channels.h"
 #include "runtime/lcm_queue_shim.h"
+#include "runtime/process.h"
 
 namespace shoal {
 namespace {
@@ -158,6 +159,13 @@ std::string CommentText(const std::string& text) {
   return out;
 }
 
+bool AnyAtSchedFifo(const LaunchPlan& plan) {
+  for (const PlannedProcess& p : plan.processes) {
+    if (std::find(p.argv.begin(), p.argv.end(), "--sched-fifo") != p.argv.end()) return true;
+  }
+  return false;
+}
+
 /// What the script is, the processes and how they find each other.
 void WriteHeader(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ostream& o) {
   const bool rt = plan.mode == Mode::kRealtime;
@@ -194,8 +202,9 @@ void WriteHeader(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::os
     << "# CLOCK_REALTIME ns), 4 s after the logger is up; each process converts it once to\n"
     << "# its own monotonic clock (on several hosts their wall clocks must agree).\n"
     << "# Exit status: 0 the emulator ended the run and every process ran to the end; 1 a\n"
-    << "# process failed or the logger exited early; 2 multicast not kept on the host;\n"
-    << "# 130/143 interrupted. Judge the run with: shoal analyze <log>.\n"
+    << "# process failed or the logger exited early; 2 multicast not kept on the host" 
+    << (AnyAtSchedFifo(plan) ? ", or\n# SCHED_FIFO (--sched-fifo) not permitted here;" : ";")
+    << "\n# 130/143 interrupted. Judge the run with: shoal analyze <log>.\n"
     << "set -euo pipefail\n";
 }
 
@@ -211,6 +220,15 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
       << "  if [ \"$(id -u)\" = 0 ]; then\n    " << fix << "\n  else\n"
       << "    echo \"$0: multicast is not routed to the loopback interface; as root run: "
       << fix << "\" >&2\n    exit 2\n  fi\nfi\n";
+  }
+  if (AnyAtSchedFifo(plan)) {
+    const std::string prio = std::to_string(kEmulatorFifoPriority);
+    o << "\n# Processes given --sched-fifo refuse to start without the right to SCHED_FIFO:\n"
+      << "# checked before anything starts, as shoal run does.\n"
+      << "if ! chrt -f " << prio << " true 2>/dev/null; then\n"
+      << "  echo \"$0: --sched-fifo: SCHED_FIFO priority " << prio << " refused here (it needs "
+      << "CAP_SYS_NICE, which root has, or RLIMIT_RTPRIO >= " << prio << ")\" >&2\n"
+      << "  exit 2\nfi\n";
   }
   o << "\nunset " << bus_auth::kKeyEnv
     << "  # a key exported by the calling shell would reach lcm-logger and other runs\n";

@@ -20,6 +20,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <map>
+#include <set>
 #include <memory>
 #include <thread>
 
@@ -553,10 +554,7 @@ bool Launch::CheckOptions(std::string* error) {
     if (!error->empty()) return false;
   }
   r_->mode = opt_.mode;
-  const char* fifo_env = std::getenv("SHOAL_SCHED_FIFO");
-  r_->sched_fifo = !opt_.sched_fifo.empty() ? opt_.sched_fifo
-                   : fifo_env != nullptr    ? std::string("SHOAL_SCHED_FIFO=") + fifo_env
-                                            : "none";
+  r_->sched_fifo = SchedFifoAsked(mode_, opt_.sched_fifo, std::getenv("SHOAL_SCHED_FIFO"));
   r_->duration_s = opt_.duration_s > 0 ? opt_.duration_s : s_.duration_s;
   r_->log = opt_.out.empty() ? s_.name + ".lcmlog" : opt_.out;
   r_->process_output_dir = r_->log + ".d";
@@ -581,15 +579,18 @@ bool Launch::Prepare(bool for_print, std::string* error) {
     *error = "--print-launch starts every process on this host: it does not take --hosts";
     return false;
   }
-  if (!CheckOptions(error) || !ChooseUrls(!for_print, error)) return false;
-  // Here, before anything starts, rather than as each process refuses at its start. On
-  // other hosts (--hosts) each process asks for itself and refuses to start if denied.
+  // SCHED_FIFO is checked here, before anything is changed or started, rather than as each
+  // process refuses at its start; with --hosts, on each host by CheckHosts' probe. A
+  // printed script is run later, perhaps by another user: its processes check for
+  // themselves.
   std::string why;
+  if (!CheckOptions(error)) return false;
   if (!for_print && !opt_.hosts && !opt_.sched_fifo.empty() &&
       !SchedFifoPermitted(kEmulatorFifoPriority, &why)) {
     *error = "--sched-fifo: " + why;
     return false;
   }
+  if (!ChooseUrls(!for_print, error)) return false;
   BuildPlan();
   if (for_print) return true;
   // Everything that can refuse the run is checked before anything is written: a refused
@@ -648,8 +649,14 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
     *error = "--hosts needs an udpm:// LCM URL (got " + url + ")";
     return false;
   }
-  if (!CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), mode_ == Mode::kRealtime,
-                  &host_checks_, error)) {
+  std::set<std::string> fifo_hosts;  // where processes are given --sched-fifo
+  if (opt_.sched_fifo == kSchedFifoAll) {
+    for (const Host* h : hosts->UsedHosts(s_.followers)) fifo_hosts.insert(h->name);
+  } else if (opt_.sched_fifo == kSchedFifoEmulator) {
+    fifo_hosts.insert(hosts->HostOf(HostRole::kEmulator).name);
+  }
+  if (!CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), fifo_hosts, &host_checks_,
+                  error)) {
     return false;
   }
   for (const auto& [name, check] : host_checks_) wall_clock_t0_ |= !check.same_clock;
@@ -1430,6 +1437,14 @@ void KeepCpusPolling(const LaunchOptions& opt, bool realtime,
 }
 
 }  // namespace
+
+std::string SchedFifoAsked(Mode mode, const std::string& option, const char* env) {
+  if (mode != Mode::kRealtime) return "none";
+  const bool env_all = env != nullptr && std::strcmp(env, kSchedFifoEmulator) != 0;
+  if (option == kSchedFifoAll || env_all) return kSchedFifoAll;
+  if (option == kSchedFifoEmulator || env != nullptr) return kSchedFifoEmulator;
+  return "none";
+}
 
 bool LaunchRun(const Scenario& s, const LaunchOptions& opt, const LaunchCallbacks& callbacks,
                LaunchResult* result, std::string* error) {

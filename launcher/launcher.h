@@ -79,6 +79,12 @@ inline constexpr int kLoggerId = -100;
 inline constexpr const char* kT0Arg = "${t0}";
 inline constexpr const char* kLoggerPidArg = "${logger_pid}";
 
+/// Which processes of a run are asked to run at SCHED_FIFO: kSchedFifoAll, kSchedFifoEmulator
+/// or "none", from --sched-fifo (`option`, "" if not given) and SHOAL_SCHED_FIFO (`env`,
+/// nullptr if unset: "emulator" asks for the emulator, any other value for every real-time
+/// process), whichever asks for more. "none" in lockstep, which runs under SCHED_BATCH.
+std::string SchedFifoAsked(Mode mode, const std::string& option, const char* env);
+
 /// One process of a run: the command shoal run starts it with, and --print-launch prints.
 /// Both are built from the one plan (LaunchPlan), so that they cannot differ.
 struct PlannedProcess {
@@ -146,9 +152,8 @@ struct LaunchResult {
   std::string stopped_by;
   std::vector<ProcessRestart> restarts;  // in the order they happened
   bool cpu_latency_request = false;   // the 0 us CPU latency request was held
-  /// Real time: which processes were asked to run at SCHED_FIFO: "all", "emulator" (shoal
-  /// run --sched-fifo), "SHOAL_SCHED_FIFO=<value>" (the environment they inherited), or
-  /// "none". Each process's output file says what it got.
+  /// Which processes were asked to run at SCHED_FIFO, by --sched-fifo or SHOAL_SCHED_FIFO
+  /// (SchedFifoAsked). Each process's output file says what it got.
   std::string sched_fifo = "none";
   std::string cpu_latency_note;       // what was done about CPU latency, for the summary
   /// The kernel's cpuidle driver ("none": idle CPUs halt whatever is asked), and the

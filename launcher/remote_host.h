@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <map>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -79,11 +80,12 @@ std::string ShellQuote(const std::string& text);
 /// `interface` when it gives one and not through loopback when the run spans more than one
 /// host, and `ttl` lets the run's messages leave a host when it spans more than one. Finds
 /// which hosts share shoal run's CLOCK_MONOTONIC (HostCheck::same_clock: where one does
-/// not, a real-time run's start time goes on the wall clock). Fills *checks by host name;
-/// false with *error.
+/// not, a real-time run's start time goes on the wall clock), and that each host named in
+/// `fifo_hosts` permits SCHED_FIFO at kEmulatorFifoPriority (shoal run --sched-fifo). Fills
+/// *checks by host name; false with *error.
 bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::string>& groups,
-                int ttl, bool realtime, std::map<std::string, HostCheck>* checks,
-                std::string* error);
+                int ttl, const std::set<std::string>& fifo_hosts,
+                std::map<std::string, HostCheck>* checks, std::string* error);
 
 /// The multicast group of an udpm:// URL ("" if it is not one).
 std::string GroupOfUrl(const std::string& url);

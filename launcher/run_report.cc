@@ -378,9 +378,10 @@ std::string FifoHint(const RunReport& r, const LoopPlacement& p) {
     return "";
   }
   return "several of the " + std::to_string(r.followers + 2) + " loops on " + Cpus(p.cpus) +
-         " were late; as root, --sched-fifo all runs every loop at SCHED_FIFO, so that each "
-         "gets a CPU at its instant ahead of the machine's other work (docs/run.md, \"Many "
-         "vehicles on few CPUs\")";
+         " were late; --sched-fifo all (it needs CAP_SYS_NICE, which root has) runs every "
+         "loop at SCHED_FIFO, so that each gets a CPU at its instant ahead of the machine's "
+         "other work; the machine's own stalls are then not watched (docs/run.md, "
+         "\"SCHED_FIFO\")";
 }
 
 void PrintRunReport(const RunReport& r, std::FILE* out) {
@@ -409,7 +410,7 @@ void PrintRunReport(const RunReport& r, std::FILE* out) {
   if (realtime) std::fprintf(out, ", release error p99 %.3f ms", sum.release_error_p99_s * 1e3);
   std::fprintf(out, "\n");
   if (realtime) {
-    std::fprintf(out, "  loops: lateness p99 %.3f ms, %lld overruns; SCHED_FIFO: %s\n",
+    std::fprintf(out, "  loops: lateness p99 %.3f ms, %lld overruns; SCHED_FIFO asked for: %s\n",
                  sum.lateness_p99_s * 1e3, static_cast<long long>(sum.overruns),
                  l.sched_fifo.c_str());
   }

@@ -76,7 +76,8 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
                 "SHOAL_BUS_KEY, docs/run.md)");
   app->add_flag("--sched-fifo", opt->sched_fifo,
                 "realtime: run at SCHED_FIFO (shoal run --sched-fifo); a process that may "
-                "not (it needs root, CAP_SYS_NICE or RLIMIT_RTPRIO) refuses to start");
+                "not (it needs CAP_SYS_NICE, which root has, or RLIMIT_RTPRIO) refuses to "
+                "start");
   app->footer(kStartAloneHelp);
 }
 
@@ -217,7 +218,7 @@ std::string EnableRealtimeScheduling(int priority, bool clock_master, bool requi
   const int err = errno;
   if (required && refused != nullptr) *refused = true;
   return std::string("SCHED_OTHER (SCHED_FIFO refused: ") + std::strerror(err) +
-         (err == EPERM ? "; it needs root, CAP_SYS_NICE or RLIMIT_RTPRIO >= " +
+         (err == EPERM ? "; it needs CAP_SYS_NICE, which root has, or RLIMIT_RTPRIO >= " +
                              std::to_string(priority)
                        : std::string()) +
          "), timer slack 1 ns";
@@ -251,7 +252,7 @@ bool SchedFifoPermitted(int priority, std::string* why) {
   if (err == 0) return true;
   *why = std::string("SCHED_FIFO priority ") + std::to_string(priority) + " refused: " +
          std::strerror(err) +
-         (err == EPERM ? " (it needs root, CAP_SYS_NICE or RLIMIT_RTPRIO >= " +
+         (err == EPERM ? " (it needs CAP_SYS_NICE, which root has, or RLIMIT_RTPRIO >= " +
                              std::to_string(priority) + ")"
                        : std::string());
   return false;

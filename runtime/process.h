@@ -109,8 +109,9 @@ inline constexpr int kNodeFifoPriority = 40;
 bool EnterScheduling(const std::string& name, const ProcessOptions& opt, int priority,
                      bool clock_master);
 
-/// Whether this process may put a thread at SCHED_FIFO `priority` (root, CAP_SYS_NICE or
-/// RLIMIT_RTPRIO): tried on a thread of its own, which ends at once. False with *why.
+/// Whether this process may put a thread at SCHED_FIFO `priority` (CAP_SYS_NICE, which root
+/// has, or RLIMIT_RTPRIO; and a cgroup that grants real-time time): tried on a thread of its
+/// own, which ends at once. False with *why.
 bool SchedFifoPermitted(int priority, std::string* why);
 /// After a real-time loop's last tick: SCHED_OTHER at nice 10, so that what a process does
 /// on its way out (its last messages, freeing its locked memory) never delays the loops of

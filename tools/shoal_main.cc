@@ -50,12 +50,14 @@ CLI::App* AddSim(CLI::App* app, shoal::SimOptions* sim) {
 // --sched-fifo all|emulator, for shoal run and shoal soak.
 void AddSchedFifoOption(CLI::App* c, std::string* sched_fifo) {
   c->add_option("--sched-fifo", *sched_fifo,
-                "Real time, as root (or with CAP_SYS_NICE / RLIMIT_RTPRIO): run the loops at "
-                "SCHED_FIFO, ahead of everything else on the machine. all: the leader, the "
-                "vehicles and the channel emulator; emulator: the emulator alone. Refused in "
-                "lockstep and where not permitted. Many loops on few CPUs meet their targets "
-                "with all (docs/run.md, \"Many vehicles on few CPUs\"), but a loop that falls "
-                "behind then takes the CPU from lcm-logger and the rest")
+                "Real time: run the loops at SCHED_FIFO, ahead of everything else on the "
+                "machine. all: the leader, the vehicles and the channel emulator; emulator: "
+                "the emulator alone. Needs CAP_SYS_NICE (root has it) or RLIMIT_RTPRIO >= 50 "
+                "on every host concerned: refused before anything starts where not "
+                "permitted, and in lockstep. Many loops on few CPUs meet their targets with "
+                "all, but a loop that falls behind then takes the CPU from lcm-logger and "
+                "the rest, and the machine's own stalls are not watched (docs/run.md, "
+                "\"SCHED_FIFO\")")
       ->check(CLI::IsMember({shoal::kSchedFifoAll, shoal::kSchedFifoEmulator}));
 }
 

@@ -20,6 +20,7 @@
 #include "campaign/soak_plan.h"
 #include "launcher/run_report.h"
 #include "runtime/clocked_node.h"
+#include "runtime/process.h"
 #include "render/campaign_figures.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
@@ -248,6 +249,11 @@ int RunSoak(const SoakOptions& opt) {
   if (!opt.sched_fifo.empty() && p.campaign.engine != CampaignEngine::kRealtime) {
     std::cerr << "shoal soak: --sched-fifo is for real time; this campaign's engine is "
               << EngineName(p.campaign.engine) << "\n";
+    return kExitBadInput;
+  }
+  std::string why;
+  if (!opt.sched_fifo.empty() && !SchedFifoPermitted(kEmulatorFifoPriority, &why)) {
+    std::cerr << "shoal soak: --sched-fifo: " << why << "\n";
     return kExitBadInput;
   }
   if (!MakeOutDir(opt.out, &error)) {

@@ -310,6 +310,7 @@ TEST(Sil, StaggeredRealtimeRunLogsEveryStateAndFollowsTheLockstepRun) {
 // permit it (here: root without CAP_SYS_NICE), and a process given it that may not take it
 // does not start (exit 2).
 TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
+  unsetenv("SHOAL_SCHED_FIFO");  // which would give the processes SCHED_FIFO without the option
   const auto lockstep = RunShoal("run " + kExample2 + " --sched-fifo all --duration 1",
                                  "sil_fifo_lockstep");
   EXPECT_EQ(lockstep.status, 2) << lockstep.err;
@@ -326,6 +327,11 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
                             "sil_fifo_all_script");
   ASSERT_EQ(all.status, 0) << all.err;
   EXPECT_EQ(count_args(all.out), 7) << all.out;  // the emulator, the leader, 5 vehicles
+  EXPECT_NE(all.out.find("if ! chrt -f 50 true"), std::string::npos) << all.out;
+  const auto none = RunShoal("run " + kExample2 + " --mode realtime --print-launch",
+                             "sil_fifo_none_script");
+  EXPECT_EQ(none.out.find("--sched-fifo"), std::string::npos) << none.out;
+  EXPECT_EQ(none.out.find("chrt"), std::string::npos) << none.out;
   const auto emulator = RunShoal(
       "run " + kExample2 + " --mode realtime --sched-fifo emulator --print-launch",
       "sil_fifo_emulator_script");
@@ -336,10 +342,10 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
   const std::size_t arg_at = emulator.out.find("    --sched-fifo\n");
   EXPECT_TRUE(emulator_at < arg_at && arg_at < leader_at) << emulator.out;
 
-  // Root may have it, but not without CAP_SYS_NICE (RLIMIT_RTPRIO is 0 here unless raised).
-  const std::string no_rt = geteuid() == 0
-                                ? "setpriv --bounding-set -sys_nice --inh-caps -sys_nice --"
-                                : "";
+  // No real-time rights: RLIMIT_RTPRIO 0, and as root, no CAP_SYS_NICE.
+  const std::string no_rt =
+      std::string("prlimit --rtprio=0:0 ") +
+      (geteuid() == 0 ? "setpriv --bounding-set -sys_nice --inh-caps -sys_nice --" : "");
   const std::string denied_log = TmpPath("sil_fifo_denied.lcmlog");
   std::remove(denied_log.c_str());
   const auto denied = RunShoal("run " + kExample2 + " --mode realtime --sched-fifo emulator " +
@@ -369,6 +375,11 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
   ASSERT_EQ(rt.status, 1) << rt.out << rt.err;  // not converged within 3 s
   const auto j = ParseJson(rt.out);
   EXPECT_EQ(j["sched_fifo"], "all") << rt.out;
+  long long rt_runtime_us = 0;
+  std::ifstream("/proc/sys/kernel/sched_rt_runtime_us") >> rt_runtime_us;
+  if (rt_runtime_us != -1) {  // throttled FIFO loops would hold the witness
+    EXPECT_EQ(j["machine"]["watched"], false) << rt.out;
+  }
   EXPECT_EQ(j["all_processes_ok"], true) << rt.out;
   EXPECT_EQ(j["log_states"], j["log_states_expected"]) << rt.out;
   const std::string dir = log + ".d/";
@@ -377,6 +388,38 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
     EXPECT_NE(ReadFile(dir + tag + ".txt").find("SCHED_FIFO priority 40"), std::string::npos)
         << tag << ": " << ReadFile(dir + tag + ".txt");
   }
+
+  // Over hosts (the run above has made multicast stay on loopback): each host that runs a
+  // process given --sched-fifo is asked through its prefix, before anything starts.
+  const std::string hosts = TmpPath("sil_fifo_hosts.toml");
+  std::ofstream(hosts) << "[bus]\nttl = 0\n[[host]]\nname = \"nort\"\nprefix = [\"prlimit\", "
+                          "\"--rtprio=0:0\", \"setpriv\", \"--bounding-set\", \"-sys_nice\", "
+                          "\"--inh-caps\", \"-sys_nice\", \"--\"]\n[placement]\n"
+                          "vehicles = { nort = [\"1-5\"] }\n";
+  const std::string hosts_log = TmpPath("sil_fifo_hosts.lcmlog");
+  std::remove(hosts_log.c_str());
+  const auto over = RunShoal("run " + kExample2 + " --hosts " + hosts + " --mode realtime " +
+                                 "--sched-fifo all --duration 1 --out " + hosts_log,
+                             "sil_fifo_hosts");
+  EXPECT_EQ(over.status, 2) << over.out << over.err;
+  EXPECT_NE(over.err.find("--sched-fifo: host nort"), std::string::npos) << over.err;
+  EXPECT_NE(over.err.find("does not permit SCHED_FIFO priority 50"), std::string::npos)
+      << over.err;
+  EXPECT_FALSE(std::ifstream(hosts_log).good()) << "a refused run wrote its log";
+  // The emulator alone, on this host: the vehicles' host is not asked, and the run goes.
+  const auto emulator_only = RunShoal("run " + kExample2 + " --hosts " + hosts + " --mode " +
+                                          "realtime --sched-fifo emulator --duration 1 --json " +
+                                          "--out " + hosts_log,
+                                      "sil_fifo_hosts_emulator");
+  ASSERT_EQ(emulator_only.status, 1) << emulator_only.out << emulator_only.err;  // not converged
+  const auto ej = ParseJson(emulator_only.out);
+  EXPECT_EQ(ej["sched_fifo"], "emulator") << emulator_only.out;
+  EXPECT_EQ(ej["all_processes_ok"], true) << emulator_only.out;
+  EXPECT_NE(ReadFile(hosts_log + ".d/emulator.txt").find("SCHED_FIFO priority 50"),
+            std::string::npos);
+  EXPECT_NE(ReadFile(hosts_log + ".d/vehicle1.txt").find("SCHED_OTHER, timer slack"),
+            std::string::npos)
+      << ReadFile(hosts_log + ".d/vehicle1.txt");
 }
 
 // A delay of whole periods (REMUS's constant 0.5 s) makes every delivery due at a tick's

@@ -139,8 +139,8 @@ TEST(RealtimeScheduling, RequiredByTheCommandLineAndRefusedSaysSoAndWhy) {
   EXPECT_EQ(r.policy, SCHED_OTHER) << r.said;
   EXPECT_TRUE(r.refused) << r.said;
   EXPECT_FALSE(r.permitted) << r.said;
-  EXPECT_NE(r.said.find("SCHED_FIFO refused: Operation not permitted; it needs root, "
-                        "CAP_SYS_NICE or RLIMIT_RTPRIO >= 40"),
+  EXPECT_NE(r.said.find("SCHED_FIFO refused: Operation not permitted; it needs CAP_SYS_NICE, "
+                        "which root has, or RLIMIT_RTPRIO >= 40"),
             std::string::npos)
       << r.said;
   EXPECT_NE(r.said.find("| SCHED_FIFO priority 50 refused: Operation not permitted"),
