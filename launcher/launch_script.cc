@@ -213,6 +213,16 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
     << "log=" << ShellWord(plan.log) << "\nout_dir=" << ShellWord(plan.output_dir)
     << "  # each process's output, <tag>.txt\n"
     << "keep_going=" << (plan.keep_going ? 1 : 0) << "\n";
+  if (AnyAtSchedFifo(plan)) {
+    // The emulator is given --sched-fifo whenever any process is, at the highest priority.
+    const std::string prio = std::to_string(kEmulatorFifoPriority);
+    o << "\n# Processes given --sched-fifo refuse to start without the right to SCHED_FIFO:\n"
+      << "# checked before anything is changed or started, as shoal run does.\n"
+      << "if command -v chrt >/dev/null && ! chrt -f " << prio << " true 2>/dev/null; then\n"
+      << "  echo \"$0: --sched-fifo: SCHED_FIFO priority " << prio << " refused here (it needs "
+      << "CAP_SYS_NICE, which root has, or RLIMIT_RTPRIO >= " << prio << ")\" >&2\n"
+      << "  exit 2\nfi\n";
+  }
   if (plan.lcm_url.rfind("udpm://", 0) == 0) {
     const std::string fix = "ip link set lo multicast on && ip route add 239.255.0.0/16 dev lo";
     o << "\n# Multicast must stay on this host (as shoal run checks).\n"
@@ -220,15 +230,6 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
       << "  if [ \"$(id -u)\" = 0 ]; then\n    " << fix << "\n  else\n"
       << "    echo \"$0: multicast is not routed to the loopback interface; as root run: "
       << fix << "\" >&2\n    exit 2\n  fi\nfi\n";
-  }
-  if (AnyAtSchedFifo(plan)) {
-    const std::string prio = std::to_string(kEmulatorFifoPriority);
-    o << "\n# Processes given --sched-fifo refuse to start without the right to SCHED_FIFO:\n"
-      << "# checked before anything starts, as shoal run does.\n"
-      << "if ! chrt -f " << prio << " true 2>/dev/null; then\n"
-      << "  echo \"$0: --sched-fifo: SCHED_FIFO priority " << prio << " refused here (it needs "
-      << "CAP_SYS_NICE, which root has, or RLIMIT_RTPRIO >= " << prio << ")\" >&2\n"
-      << "  exit 2\nfi\n";
   }
   o << "\nunset " << bus_auth::kKeyEnv
     << "  # a key exported by the calling shell would reach lcm-logger and other runs\n";

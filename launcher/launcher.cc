@@ -649,11 +649,17 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
     *error = "--hosts needs an udpm:// LCM URL (got " + url + ")";
     return false;
   }
-  std::set<std::string> fifo_hosts;  // where processes are given --sched-fifo
+  // Where processes are given --sched-fifo, at the highest priority each host's take (the
+  // logger never is).
+  std::map<std::string, int> fifo_hosts;
   if (opt_.sched_fifo == kSchedFifoAll) {
-    for (const Host* h : hosts->UsedHosts(s_.followers)) fifo_hosts.insert(h->name);
-  } else if (opt_.sched_fifo == kSchedFifoEmulator) {
-    fifo_hosts.insert(hosts->HostOf(HostRole::kEmulator).name);
+    fifo_hosts[hosts->HostOf(HostRole::kLeader).name] = kNodeFifoPriority;
+    for (int id = 1; id <= s_.followers; ++id) {
+      fifo_hosts[hosts->HostOfVehicle(id).name] = kNodeFifoPriority;
+    }
+  }
+  if (!opt_.sched_fifo.empty()) {
+    fifo_hosts[hosts->HostOf(HostRole::kEmulator).name] = kEmulatorFifoPriority;
   }
   if (!CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), fifo_hosts, &host_checks_,
                   error)) {

@@ -37,15 +37,20 @@ constexpr const char* kWrapper =
     "exec \"$@\" 3<&- </dev/null";
 
 // Prints what CheckHosts compares with shoal run's own; "$@": the groups.
-static_assert(kEmulatorFifoPriority == 50, "kProbe's chrt asks for the emulator's priority");
+// fifo<P>: whether SCHED_FIFO priority P may be had there ("ok", chrt's refusal, or "nochrt":
+// not known, and each process checks for itself).
+static_assert(kNodeFifoPriority == 40 && kEmulatorFifoPriority == 50,
+              "kProbe's chrt asks for the priorities a run's processes take");
 constexpr const char* kProbe =
     "echo \"pid=$$\"; "
     "echo \"boot=$(cat /proc/sys/kernel/random/boot_id 2>/dev/null)\"; "
     "echo \"timens=$(readlink /proc/$$/ns/time 2>/dev/null)\"; "
     "echo \"pidns=$(readlink /proc/$$/ns/pid 2>/dev/null)\"; "
     "echo \"netns=$(readlink /proc/$$/ns/net 2>/dev/null)\"; "
-    "if chrt -f 50 true 2>/dev/null; then echo fifo=ok; "
-    "else echo \"fifo=$(chrt -f 50 true 2>&1 | head -n 1)\"; fi; "
+    "for p in 40 50; do "
+    "if ! command -v chrt >/dev/null 2>&1; then echo \"fifo$p=nochrt\"; "
+    "elif chrt -f $p true 2>/dev/null; then echo \"fifo$p=ok\"; "
+    "else echo \"fifo$p=$(chrt -f $p true 2>&1 | head -n 1)\"; fi; done; "
     "for g in \"$@\"; do echo \"route $g=$(ip route get \"$g\" 2>&1 | head -n 1)\"; done";
 
 constexpr int kProbeTimeoutS = 30;
@@ -302,7 +307,7 @@ std::string GroupOfUrl(const std::string& url) {
 }
 
 bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::string>& groups,
-                int ttl, const std::set<std::string>& fifo_hosts,
+                int ttl, const std::map<std::string, int>& fifo_hosts,
                 std::map<std::string, HostCheck>* checks, std::string* error) {
   const std::vector<const Host*> used = hosts.UsedHosts(followers);
   std::vector<std::map<std::string, std::string>> probed(used.size());
@@ -336,12 +341,15 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
     // remote shell's pid may equal the local ssh client's by chance: the boot id tells.
     c.same_process = in_place[i] && f["pidns"] == pidns && f["boot"] == boot;
     c.login_s = login_s[i];
-    if (fifo_hosts.count(h.name) != 0 && f["fifo"] != "ok") {
-      *error = "--sched-fifo: host " + h.name + Where(hosts, h) +
-               " does not permit SCHED_FIFO priority " + std::to_string(kEmulatorFifoPriority) +
-               " (chrt -f " + std::to_string(kEmulatorFifoPriority) + " true: " +
-               (f["fifo"].empty() ? "no answer" : f["fifo"]) + ")";
-      return false;
+    if (const auto fifo = fifo_hosts.find(h.name); fifo != fifo_hosts.end()) {
+      const std::string prio = std::to_string(fifo->second);
+      const std::string& said = f["fifo" + prio];
+      if (said != "ok" && said != "nochrt") {
+        *error = "--sched-fifo: host " + h.name + Where(hosts, h) +
+                 " does not permit SCHED_FIFO priority " + prio + " (chrt -f " + prio +
+                 " true: " + (said.empty() ? "no answer" : said) + ")";
+        return false;
+      }
     }
     for (const std::string& g : groups) {
       const std::string route = f["route " + g];

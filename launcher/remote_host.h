@@ -80,11 +80,12 @@ std::string ShellQuote(const std::string& text);
 /// `interface` when it gives one and not through loopback when the run spans more than one
 /// host, and `ttl` lets the run's messages leave a host when it spans more than one. Finds
 /// which hosts share shoal run's CLOCK_MONOTONIC (HostCheck::same_clock: where one does
-/// not, a real-time run's start time goes on the wall clock), and that each host named in
-/// `fifo_hosts` permits SCHED_FIFO at kEmulatorFifoPriority (shoal run --sched-fifo). Fills
-/// *checks by host name; false with *error.
+/// not, a real-time run's start time goes on the wall clock), and that each host in
+/// `fifo_hosts` permits SCHED_FIFO at the priority given for it (shoal run --sched-fifo:
+/// the highest its processes take; where the host has no chrt to ask, its processes check
+/// for themselves at their start). Fills *checks by host name; false with *error.
 bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::string>& groups,
-                int ttl, const std::set<std::string>& fifo_hosts,
+                int ttl, const std::map<std::string, int>& fifo_hosts,
                 std::map<std::string, HostCheck>* checks, std::string* error);
 
 /// The multicast group of an udpm:// URL ("" if it is not one).

@@ -380,8 +380,8 @@ std::string FifoHint(const RunReport& r, const LoopPlacement& p) {
   return "several of the " + std::to_string(r.followers + 2) + " loops on " + Cpus(p.cpus) +
          " were late; --sched-fifo all (it needs CAP_SYS_NICE, which root has) runs every "
          "loop at SCHED_FIFO, so that each gets a CPU at its instant ahead of the machine's "
-         "other work; the machine's own stalls are then not watched (docs/run.md, "
-         "\"SCHED_FIFO\")";
+         "other work, though where real-time tasks are throttled the machine's own stalls "
+         "are then not watched (docs/run.md, \"SCHED_FIFO\")";
 }
 
 void PrintRunReport(const RunReport& r, std::FILE* out) {

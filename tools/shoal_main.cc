@@ -53,11 +53,11 @@ void AddSchedFifoOption(CLI::App* c, std::string* sched_fifo) {
                 "Real time: run the loops at SCHED_FIFO, ahead of everything else on the "
                 "machine. all: the leader, the vehicles and the channel emulator; emulator: "
                 "the emulator alone. Needs CAP_SYS_NICE (root has it) or RLIMIT_RTPRIO >= 50 "
-                "on every host concerned: refused before anything starts where not "
+                "(40 where only the leader or vehicles run) on every host concerned: refused before anything starts where not "
                 "permitted, and in lockstep. Many loops on few CPUs meet their targets with "
                 "all, but a loop that falls behind then takes the CPU from lcm-logger and "
-                "the rest, and the machine's own stalls are not watched (docs/run.md, "
-                "\"SCHED_FIFO\")")
+                "the rest, and where real-time tasks are throttled (the default) the "
+                "machine's own stalls are not watched (docs/run.md, \"SCHED_FIFO\")")
       ->check(CLI::IsMember({shoal::kSchedFifoAll, shoal::kSchedFifoEmulator}));
 }
 

@@ -327,7 +327,7 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
                             "sil_fifo_all_script");
   ASSERT_EQ(all.status, 0) << all.err;
   EXPECT_EQ(count_args(all.out), 7) << all.out;  // the emulator, the leader, 5 vehicles
-  EXPECT_NE(all.out.find("if ! chrt -f 50 true"), std::string::npos) << all.out;
+  EXPECT_NE(all.out.find("! chrt -f 50 true"), std::string::npos) << all.out;
   const auto none = RunShoal("run " + kExample2 + " --mode realtime --print-launch",
                              "sil_fifo_none_script");
   EXPECT_EQ(none.out.find("--sched-fifo"), std::string::npos) << none.out;
@@ -355,6 +355,15 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
   EXPECT_NE(denied.err.find("--sched-fifo: SCHED_FIFO priority 50 refused"), std::string::npos)
       << denied.err;
   EXPECT_FALSE(std::ifstream(denied_log).good()) << "a refused run wrote its log";
+  // The printed script checks the same before it starts anything.
+  const std::string script = TmpPath("sil_fifo_all.sh"), script_out = TmpPath("sil_fifo_sh.out");
+  std::ofstream(script) << all.out;
+  const int script_raw =
+      std::system(("timeout 60 " + no_rt + " bash " + script + " >" + script_out + " 2>&1").c_str());
+  EXPECT_EQ(WIFEXITED(script_raw) ? WEXITSTATUS(script_raw) : -1, 2) << ReadFile(script_out);
+  EXPECT_NE(ReadFile(script_out).find("--sched-fifo: SCHED_FIFO priority 50 refused here"),
+            std::string::npos)
+      << ReadFile(script_out);
   const std::string bad_out = TmpPath("sil_fifo_vehicle.out");
   const std::string vehicle = "timeout 20 " + no_rt + " " + std::string(SHOAL_BINARY_DIR) +
                               "/vehicle/shoal_vehicle --id 1 --insecure --scenario " + kExample2 +
@@ -391,11 +400,15 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
 
   // Over hosts (the run above has made multicast stay on loopback): each host that runs a
   // process given --sched-fifo is asked through its prefix, before anything starts.
-  const std::string hosts = TmpPath("sil_fifo_hosts.toml");
-  std::ofstream(hosts) << "[bus]\nttl = 0\n[[host]]\nname = \"nort\"\nprefix = [\"prlimit\", "
-                          "\"--rtprio=0:0\", \"setpriv\", \"--bounding-set\", \"-sys_nice\", "
-                          "\"--inh-caps\", \"-sys_nice\", \"--\"]\n[placement]\n"
-                          "vehicles = { nort = [\"1-5\"] }\n";
+  const auto hosts_file = [](const std::string& name, const std::string& placement) {
+    const std::string path = TmpPath(name);
+    std::ofstream(path) << "[bus]\nttl = 0\n[[host]]\nname = \"nort\"\nprefix = [\"prlimit\", "
+                           "\"--rtprio=0:0\", \"setpriv\", \"--bounding-set\", \"-sys_nice\", "
+                           "\"--inh-caps\", \"-sys_nice\", \"--\"]\n[placement]\n"
+                        << placement;
+    return path;
+  };
+  const std::string hosts = hosts_file("sil_fifo_hosts.toml", "vehicles = { nort = [\"1-5\"] }\n");
   const std::string hosts_log = TmpPath("sil_fifo_hosts.lcmlog");
   std::remove(hosts_log.c_str());
   const auto over = RunShoal("run " + kExample2 + " --hosts " + hosts + " --mode realtime " +
@@ -403,7 +416,7 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
                              "sil_fifo_hosts");
   EXPECT_EQ(over.status, 2) << over.out << over.err;
   EXPECT_NE(over.err.find("--sched-fifo: host nort"), std::string::npos) << over.err;
-  EXPECT_NE(over.err.find("does not permit SCHED_FIFO priority 50"), std::string::npos)
+  EXPECT_NE(over.err.find("does not permit SCHED_FIFO priority 40"), std::string::npos)
       << over.err;
   EXPECT_FALSE(std::ifstream(hosts_log).good()) << "a refused run wrote its log";
   // The emulator alone, on this host: the vehicles' host is not asked, and the run goes.
@@ -420,6 +433,23 @@ TEST(Sil, SchedFifoIsGivenToTheLoopsAskedForOrRefusedBeforeAnythingStarts) {
   EXPECT_NE(ReadFile(hosts_log + ".d/vehicle1.txt").find("SCHED_OTHER, timer slack"),
             std::string::npos)
       << ReadFile(hosts_log + ".d/vehicle1.txt");
+  // The emulator's host is asked for its priority; the logger's host, where nothing is
+  // given --sched-fifo, is not.
+  const std::string emulator_there =
+      hosts_file("sil_fifo_hosts2.toml", "logger = \"nort\"\nemulator = \"nort\"\n");
+  const auto refused = RunShoal("run " + kExample2 + " --hosts " + emulator_there + " --mode " +
+                                    "realtime --sched-fifo emulator --duration 1 --out " + hosts_log,
+                                "sil_fifo_hosts2");
+  EXPECT_EQ(refused.status, 2) << refused.out << refused.err;
+  EXPECT_NE(refused.err.find("host nort"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("does not permit SCHED_FIFO priority 50"), std::string::npos)
+      << refused.err;
+  const std::string logger_there = hosts_file("sil_fifo_hosts3.toml", "logger = \"nort\"\n");
+  const auto goes = RunShoal("run " + kExample2 + " --hosts " + logger_there + " --mode " +
+                                 "realtime --sched-fifo all --duration 1 --json --out " + hosts_log,
+                             "sil_fifo_hosts3");
+  ASSERT_EQ(goes.status, 1) << goes.out << goes.err;  // not converged
+  EXPECT_EQ(ParseJson(goes.out)["all_processes_ok"], true) << goes.out;
 }
 
 // A delay of whole periods (REMUS's constant 0.5 s) makes every delivery due at a tick's

@@ -115,6 +115,21 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
             std::string::npos)
       << fifo.err;
   EXPECT_NE(access((dir + "/out").c_str(), F_OK), 0) << "nothing may be written or run";
+  // In real time without the right to SCHED_FIFO (RLIMIT_RTPRIO 0; as root, no CAP_SYS_NICE).
+  std::string realtime = Steps("0.1", "120", "90");
+  realtime.replace(realtime.find("\"lockstep\""), 10, "\"realtime\"");
+  const std::string rt_dir = WriteCampaign("fifo_rt", realtime);
+  const std::string no_rt =
+      std::string("prlimit --rtprio=0:0 ") +
+      (geteuid() == 0 ? "setpriv --bounding-set -sys_nice --inh-caps -sys_nice --" : "");
+  const RunResult denied = RunShoal("soak " + rt_dir + "/fifo_rt.toml --sched-fifo emulator " +
+                                        "--out " + rt_dir + "/out",
+                                    "soak_fifo_rt", no_rt);
+  EXPECT_EQ(denied.status, 2) << denied.err;
+  EXPECT_NE(denied.err.find("shoal soak: --sched-fifo: SCHED_FIFO priority 50 refused"),
+            std::string::npos)
+      << denied.err;
+  EXPECT_NE(access((rt_dir + "/out").c_str(), F_OK), 0) << "nothing may be written or run";
 }
 
 TEST(SoakCli, CtrlCKeepsTheJudgementOfWhatRanAndLeavesNoProcess) {
