@@ -96,6 +96,28 @@ void ExpectConsistentVerdict(const shoal::testing::RunResult& run) {
   EXPECT_EQ(run.status, ok ? 0 : 1) << run.out;
 }
 
+// A real-time run's loops: lateness p99 below one control period (20 ms) and at most
+// `max_overruns` overruns, unless the run's verdict says the machine itself stalled for at
+// least half of every overrun (timing_machine_limited): a shared VM holds a virtual CPU
+// for tens of milliseconds now and then (docs/benchmarks.md, "The machine's own stalls"),
+// and a loop held then is late whatever Shoal does. The verdict must still name the
+// misses, and the run must not pass.
+void ExpectLoopsOnTimeUnlessTheMachineStalled(const nlohmann::ordered_json& rj,
+                                              double max_overruns, const std::string& out) {
+  const double lateness_p99 = rj["loop"]["lateness_p99_s"].get<double>();
+  const double overruns = rj["loop"]["overruns"].get<double>();
+  if (rj["timing_machine_limited"] == true) {
+    EXPECT_EQ(rj["timing_ok"], false) << out;
+    EXPECT_FALSE(rj["timing_problems"].empty()) << out;
+    EXPECT_GT(rj["machine"]["stall_count"].get<double>(), 0.0) << out;
+    std::printf("timing missed only where the machine stalled: %s\n",
+                rj["timing_problems"].dump().c_str());
+    return;
+  }
+  EXPECT_LT(lateness_p99, 0.02) << out;
+  EXPECT_LE(overruns, max_overruns) << out;
+}
+
 // A lockstep SIL run equals shoal sim of the same scenario, state by state.
 TEST(Sil, LockstepRunEqualsShoalSim) {
   const std::string run_log = TmpPath("sil_eq_run.lcmlog"), sim_log = TmpPath("sil_eq_sim.lcmlog");
@@ -222,10 +244,8 @@ TEST(Sil, RealtimeRunFollowsTheLockstepRun) {
   // its deadline (lateness > 0), and on this 2-core machine, even loaded, the worst
   // process's p99 stays below one control period (20 ms). A tick overruns only when its
   // process lost the CPU for most of a period: at most 1 % of the 6 x 401 loop ticks.
-  const double lateness_p99 = rj["loop"]["lateness_p99_s"].get<double>();
-  EXPECT_GT(lateness_p99, 0.0) << rt.out;
-  EXPECT_LT(lateness_p99, 0.02) << rt.out;
-  EXPECT_LE(rj["loop"]["overruns"].get<double>(), 0.01 * 6 * 401) << rt.out;
+  EXPECT_GT(rj["loop"]["lateness_p99_s"].get<double>(), 0.0) << rt.out;
+  ExpectLoopsOnTimeUnlessTheMachineStalled(rj, 0.01 * 6 * 401, rt.out);
   // Real time advances with the wall clock: 8 s of run take at least 8 s.
   EXPECT_GE(rj["wall_time_s"].get<double>(), 8.0) << rt.out;
   ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 8 --quiet --out " + ls_log, "sil_rt_ls").status, 1);
@@ -292,8 +312,10 @@ TEST(Sil, StaggeredRealtimeRunLogsEveryStateAndFollowsTheLockstepRun) {
   EXPECT_EQ(rj["all_processes_ok"], true) << rt.out;
   EXPECT_EQ(rj["log_complete"], true) << rt.out;
   EXPECT_EQ(rj["log_states"], rj["log_states_expected"]) << rt.out;
-  EXPECT_LT(rj["loop"]["lateness_p99_s"].get<double>(), 0.02) << rt.out;
-  EXPECT_EQ(rj["hints"], nlohmann::ordered_json::array()) << rt.out;  // already staggered
+  ExpectLoopsOnTimeUnlessTheMachineStalled(rj, 0.01 * 6 * 201, rt.out);
+  if (rj["timing_machine_limited"] != true) {  // a stall adds the --sched-fifo hint
+    EXPECT_EQ(rj["hints"], nlohmann::ordered_json::array()) << rt.out;  // already staggered
+  }
   ASSERT_EQ(RunShoal("run " + kExample2 + " --duration 4 --quiet --out " + ls_log, "sil_stagger_ls2").status, 1);
   const auto cmp = RunShoal("compare " + rt_log + " " + ls_log + " --allow-missing" +
                                 " --position-tol-m 0.02 --velocity-tol-mps 0.02 --json",
