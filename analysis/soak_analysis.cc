@@ -146,14 +146,6 @@ bool InWindow(double t, double lo, double hi, double end_s) {
   return t >= lo && (t < hi || (hi >= end_s && t <= end_s + 1e-9));
 }
 
-/// The figures of one window [lo, hi) that minutes and phases share.
-struct Window {
-  double lateness_p99_s = 0.0, release_error_p99_s = 0.0;
-  long long overruns = 0;
-  std::optional<double> delay_error_p99_s;
-  long long states = 0, states_expected = 0;
-};
-
 long long StatesIn(const SoakData& d, double lo, double hi) {
   long long k = 0;
   const Micros lo_us = static_cast<Micros>(std::floor(lo * 1e6));
@@ -219,22 +211,35 @@ struct WindowLateness {
     count += h.lateness_window_count;
     max_s = std::max(max_s, h.lateness_window_max_s);
   }
-  double P99() const {
+  double P99() const { return P99Without(0); }
+  /// The p99 of the samples less the `latest` latest (of all of them when not every
+  /// report carried its window: the since-start figure cannot be cut).
+  double P99Without(long long latest) const {
     if (!all_windowed) return since_start_p99;
-    return LatenessBins::Quantile(bins.data(), count, max_s, 0.99);
+    const std::int64_t kept = std::max<std::int64_t>(0, count - latest);
+    return LatenessBins::Quantile(bins.data(), kept, max_s, 0.99);
   }
+};
+
+/// The figures of one window [lo, hi) that minutes and phases share.
+struct Window {
+  double lateness_p99_s = 0.0, release_error_p99_s = 0.0;
+  long long overruns = 0;
+  std::optional<double> delay_error_p99_s;
+  long long states = 0, states_expected = 0;
+  WindowLateness loop;  // the loops' samples the p99 is of
 };
 
 Window Measure(const SoakData& d, double lo, double hi) {
   Window w;
-  WindowLateness loop, release;
+  WindowLateness release;
   for (std::size_t k = 0; k < d.run.health.size(); ++k) {
     const HealthRecord& h = d.run.health[k];
     if (!InWindow(ToSeconds(h.utime), lo, hi, d.end_s)) continue;
-    (h.process_id >= 0 ? loop : release).Add(h);
+    (h.process_id >= 0 ? w.loop : release).Add(h);
     w.overruns += d.overrun_increase[k];
   }
-  w.lateness_p99_s = loop.P99();
+  w.lateness_p99_s = w.loop.P99();
   w.release_error_p99_s = release.P99();
   std::vector<double> err;
   auto e = std::lower_bound(d.delay_errors.begin(), d.delay_errors.end(), lo,
@@ -350,16 +355,72 @@ std::string CheckCriterion(const SoakCriterion& c, const nlohmann::ordered_json&
   return "";
 }
 
-/// Real time: a phase's loop and channel timing against the targets.
-void PhaseTargets(const SoakTargets& t, const Window& w, std::vector<std::string>* why) {
-  if (w.overruns > t.overruns_max) {
+/// How far back of a window its health reports reach: they come once a second, each with
+/// the samples since the one before.
+constexpr double kHealthReachS = 1.0;
+
+/// The machine's stalls within a window's reach and the loop ticks they could make late
+/// (definitions in soak_analysis.h).
+struct StallAllowance {
+  long long stalls = 0;
+  const SoakStall* worst = nullptr;
+  long long late_ticks = 0;     // beyond the lateness target
+  long long overrun_ticks = 0;
+};
+
+StallAllowance StallsIn(const SoakInput& in, const SoakData& d, double lo, double hi) {
+  StallAllowance a;
+  const double period_s = ToSeconds(d.a.period_us);
+  const long long loops = d.run.followers + 1;
+  for (const SoakStall& s : in.machine_stalls) {
+    const bool in_reach = s.start_s >= lo - kHealthReachS &&
+                          (s.start_s < lo || InWindow(s.start_s, lo, hi, d.end_s));
+    if (!in_reach) continue;
+    ++a.stalls;
+    if (a.worst == nullptr || s.length_s > a.worst->length_s) a.worst = &s;
+    if (!(period_s > 0.0)) continue;
+    const long long ticks = loops * (static_cast<long long>(std::ceil(s.length_s / period_s)) + 1);
+    if (s.length_s >= 0.5 * in.targets.lateness_p99_max_s) a.late_ticks += ticks;
+    if (s.length_s >= 0.5 * period_s) a.overrun_ticks += ticks;
+  }
+  return a;
+}
+
+nlohmann::ordered_json StallJson(const StallAllowance& a) {
+  nlohmann::ordered_json j;
+  j["stalls"] = a.stalls;
+  j["worst_stall_s"] = a.worst ? nlohmann::ordered_json(a.worst->length_s) : nlohmann::ordered_json();
+  j["worst_stall_at_s"] = a.worst ? nlohmann::ordered_json(a.worst->start_s) : nlohmann::ordered_json();
+  j["late_ticks_accounted"] = a.late_ticks;
+  j["overruns_accounted"] = a.overrun_ticks;
+  return j;
+}
+
+/// Real time: a phase's loop and channel timing against the targets. The loop's sentences
+/// say so when the machine's stalls account for the miss (*machine_limited).
+void PhaseTargets(const SoakTargets& t, const Window& w, const StallAllowance& a,
+                  std::vector<std::string>* why, bool* machine_limited) {
+  const bool late = w.lateness_p99_s > t.lateness_p99_max_s;
+  const bool overran = w.overruns > t.overruns_max;
+  const bool channel_ok = !(w.release_error_p99_s > t.delay_error_p99_max_s) &&
+                    !(w.delay_error_p99_s && *w.delay_error_p99_s > t.delay_error_p99_max_s);
+  *machine_limited = (late || overran) && channel_ok && a.worst != nullptr &&
+                     w.overruns - a.overrun_ticks <= t.overruns_max &&
+                     !(w.loop.P99Without(a.late_ticks) > t.lateness_p99_max_s);
+  std::string machine;
+  if (*machine_limited) {
+    machine = "; the machine itself stalled " + std::to_string(a.stalls) +
+              " time(s) within the phase (worst " + Num(a.worst->length_s * 1e3) +
+              " ms, at t = " + Num(a.worst->start_s) + " s), which accounts for it";
+  }
+  if (overran) {
     why->push_back(std::to_string(w.overruns) + " control ticks overran their period" +
                    (t.overruns_max > 0 ? " (at most " + std::to_string(t.overruns_max) + ")"
-                                       : std::string()));
+                                       : std::string()) + machine);
   }
-  if (w.lateness_p99_s > t.lateness_p99_max_s) {
+  if (late) {
     why->push_back("loop lateness p99 " + Num(w.lateness_p99_s * 1e3) + " ms > target " +
-                   Num(t.lateness_p99_max_s * 1e3) + " ms");
+                   Num(t.lateness_p99_max_s * 1e3) + " ms" + machine);
   }
   if (w.release_error_p99_s > t.delay_error_p99_max_s) {
     why->push_back("channel release error p99 " + Num(w.release_error_p99_s * 1e3) +
@@ -371,7 +432,9 @@ void PhaseTargets(const SoakTargets& t, const Window& w, std::vector<std::string
   }
 }
 
-SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, int index) {
+/// `*other_why`: the phase's sentences the machine does not account for.
+SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, int index,
+                           std::size_t* other_why) {
   SoakPhaseResult r;
   r.index = index;
   r.phase = in.phases[static_cast<std::size_t>(index)];
@@ -383,12 +446,19 @@ SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, int index) {
   r.metrics["overruns"] = w.overruns;
   r.metrics["states"] = w.states;
   r.metrics["states_expected"] = w.states_expected;
-  if (in.engine == "realtime") PhaseTargets(in.targets, w, &r.why);
+  std::size_t timing_why = 0;  // sentences that the machine accounts for
+  if (in.engine == "realtime") {
+    const StallAllowance a = StallsIn(in, d, r.phase.start_s, r.phase.end_s);
+    if (in.machine_watched) r.machine = StallJson(a);
+    PhaseTargets(in.targets, w, a, &r.why, &r.timing_machine_limited);
+    if (r.timing_machine_limited) timing_why = r.why.size();
+  }
   for (const SoakCriterion& c : in.criteria) {
     const std::string miss = CheckCriterion(c, r.metrics);
     if (!miss.empty()) r.why.push_back(miss);
   }
   r.pass = r.why.empty();
+  *other_why = r.why.size() - timing_why;
   return r;
 }
 
@@ -548,24 +618,32 @@ bool AnalyseSoak(const SoakInput& in, SoakResult* out, std::string* error) {
                            (in.resources_csv.empty() ? std::string("none given")
                                                      : in.resources_csv) + ")");
   }
+  const std::size_t other_reasons = out->reasons.size();
+  std::size_t not_machine = 0;  // phase sentences the machine does not account for
   for (int k = 0; k < static_cast<int>(in.phases.size()); ++k) {
-    out->phases.push_back(JudgePhase(d, in, k));
+    std::size_t other = 0;
+    out->phases.push_back(JudgePhase(d, in, k, &other));
+    not_machine += other;
     const SoakPhaseResult& p = out->phases.back();
     for (const std::string& w : p.why) out->reasons.push_back(PhaseName(p) + ": " + w);
   }
   out->pass = out->reasons.empty();
+  out->timing_machine_limited = !out->pass && other_reasons == 0 && not_machine == 0;
   return true;
 }
 
 nlohmann::ordered_json SoakJson(const SoakResult& r) {
   nlohmann::ordered_json j;
   j["verdict"] = r.pass ? "pass" : "fail";
+  j["timing_machine_limited"] = r.timing_machine_limited;
   j["reasons"] = r.reasons;
   j["phases"] = nlohmann::ordered_json::array();
   for (const SoakPhaseResult& p : r.phases) {
     j["phases"].push_back({{"index", p.index}, {"value", p.phase.label},
                            {"start_s", p.phase.start_s}, {"end_s", p.phase.end_s},
-                           {"metrics", p.metrics}, {"pass", p.pass}, {"why", p.why}});
+                           {"metrics", p.metrics}, {"pass", p.pass}, {"why", p.why},
+                           {"machine", p.machine},
+                           {"timing_machine_limited", p.timing_machine_limited}});
   }
   j["minutes"] = nlohmann::ordered_json::array();
   for (const SoakMinute& m : r.minutes) {

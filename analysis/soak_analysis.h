@@ -42,6 +42,19 @@
 // p99 beyond targets.lateness_p99_max_s, or its delay error p99 or release error p99 beyond
 // targets.delay_error_p99_max_s (shoal run reports the release error as
 // channel.delay_error_p99_s); a phase that does not re-converge or misses a criterion.
+// - The machine's own stalls (real time, when shoal run's witness watched: SoakInput's
+//   machine_stalls): those that began within a phase's reach, from a second before it
+//   (the reach of its first health reports) to its end. A stall of length L can delay
+//   ceil(L / period) + 1 ticks of each loop (the leader and every vehicle: the tick due
+//   before it, still waiting for a CPU, and those due during it); such ticks of stalls of
+//   at least half the lateness target can be late beyond it, of stalls of at least half a
+//   period can overrun (once the machine runs again every loop it held queues for the
+//   CPUs, so a loop loses more than the stall). A phase's timing is machine-limited when
+//   it missed the loop lateness or overrun target but would have met every timing target
+//   without that many of its latest ticks and overruns: its loop lateness p99 of the
+//   window's samples less that many from the top, its overruns less that many. The
+//   channel's delay and release errors are not excused. The verdict still fails on it;
+//   the phase and the verdict say that the machine accounts for the miss.
 #pragma once
 
 #include <optional>
@@ -79,6 +92,12 @@ struct SoakTargets {
   long long overruns_max = 0;            // real time only: overrun ticks a phase may have
 };
 
+/// A stall of the whole machine that shoal run's witness saw (launcher/machine_witness.h):
+/// from `start_s` (mission time) for `length_s`.
+struct SoakStall {
+  double start_s = 0.0, length_s = 0.0;
+};
+
 struct SoakInput {
   std::string log;            // the run's LCM log
   std::string key_file;       // its key (<log>.key); "" for that default (LoadOptions)
@@ -89,6 +108,8 @@ struct SoakInput {
   std::vector<SoakCriterion> criteria;
   SoakTargets targets;
   std::string engine = "lockstep";  // "lockstep" or "realtime"
+  bool machine_watched = false;     // the witness watched the whole run
+  std::vector<SoakStall> machine_stalls;  // what it saw, in order of start
 };
 
 struct SoakProcessUse {
@@ -118,6 +139,12 @@ struct SoakPhaseResult {
   nlohmann::ordered_json metrics;
   bool pass = true;
   std::vector<std::string> why;
+  /// The machine's stalls within the phase's reach (definitions above): how many, the
+  /// worst and when it began, and the ticks they could make late beyond the lateness target
+  /// and overrun. Null when the machine was not watched.
+  nlohmann::ordered_json machine;
+  /// The phase missed its loop timing targets only by what the machine's stalls account for.
+  bool timing_machine_limited = false;
 };
 
 struct SoakProcessGrowth {
@@ -129,6 +156,8 @@ struct SoakProcessGrowth {
 
 struct SoakResult {
   bool pass = false;
+  /// Failed only on phases whose timing was machine-limited (and on nothing else).
+  bool timing_machine_limited = false;
   std::vector<std::string> reasons;  // one sentence per failure
   std::vector<SoakPhaseResult> phases;
   std::vector<SoakMinute> minutes;

@@ -183,6 +183,11 @@ void PrintSummary(const SoakResult& r, const std::string& dir) {
                 p.pass ? "pass" : "FAIL", why.empty() ? "" : ": ", why.c_str());
   }
   for (const std::string& reason : r.reasons) std::printf("  - %s\n", reason.c_str());
+  if (r.timing_machine_limited) {
+    std::printf("  the soak missed only timing targets, where the machine itself stalled: its "
+                "timing is what this machine allows (docs/campaigns.md, \"The machine's own "
+                "stalls\")\n");
+  }
   std::printf("  written: %s/soak.json, %s/soak.png, log %s/soak.lcmlog\n", dir.c_str(),
               dir.c_str(), dir.c_str());
 }
@@ -237,6 +242,10 @@ SoakInput InputOf(const Planned& p, const LaunchResult& launch, nlohmann::json r
   in.targets.memory_growth_max = p.campaign.soak.memory_growth_max;
   in.targets.overruns_max = p.campaign.soak.overruns_max;
   in.engine = EngineName(p.campaign.engine);
+  in.machine_watched = launch.machine.watched;
+  for (const MachineStall& s : launch.machine.stalls) {
+    in.machine_stalls.push_back({s.start_s, s.length_s});
+  }
   return in;
 }
 

@@ -81,14 +81,23 @@ bool Mentions(const ojson& why, const std::string& text) {
   return false;
 }
 
+// Passes, unless the verdict says it failed only on timing the machine's own stalls
+// account for (timing_machine_limited, docs/campaigns.md): a shared VM holds a virtual CPU
+// for up to 100 ms now and then, whatever the loops do.
 TEST(SoakRealtime, AShortSoakPassesWithEveryRealTimePartOfItsVerdict) {
   const std::string dir = WriteCampaign("pass", 10, 3);
   const RunResult r = RunShoal("soak " + dir + "/c.toml --out " + dir + "/out", "soak_rt_pass");
-  EXPECT_EQ(r.status, 0) << r.out << r.err;
-  EXPECT_NE(r.out.find("verdict PASS"), std::string::npos) << r.out;
   const ojson soak = ParseJson(ReadFile(dir + "/out/soak.json"));
   ASSERT_TRUE(soak.contains("verdict") && soak.contains("phases")) << r.out << r.err;
-  EXPECT_EQ(soak.at("verdict"), "pass") << soak.at("reasons").dump();
+  const bool machine = soak.at("timing_machine_limited").get<bool>();
+  EXPECT_EQ(r.status, machine ? 1 : 0) << r.out << r.err;
+  EXPECT_NE(r.out.find(machine ? "verdict FAIL" : "verdict PASS"), std::string::npos) << r.out;
+  EXPECT_EQ(soak.at("verdict"), machine ? "fail" : "pass") << soak.at("reasons").dump();
+  if (machine) {
+    std::printf("timing missed only where the machine stalled: %s\n",
+                soak.at("reasons").dump().c_str());
+    EXPECT_NE(r.out.find("where the machine itself stalled"), std::string::npos) << r.out;
+  }
   // One minute row: 30 s of ticks and the final one, every vehicle; the soak's 30 s, not
   // the scenario's 600 s.
   ASSERT_EQ(soak.at("minutes").size(), 1u);
@@ -102,12 +111,18 @@ TEST(SoakRealtime, AShortSoakPassesWithEveryRealTimePartOfItsVerdict) {
   long long states = 0;
   for (const auto& p : soak.at("phases")) {
     const ojson& pm = p.at("metrics");
-    EXPECT_TRUE(p.at("pass").get<bool>()) << p.dump();
+    // Where the run's witness watched the machine (as root), every phase says what it saw.
+    EXPECT_EQ(p.at("machine").is_null(), !soak.at("run").at("machine").at("watched").get<bool>())
+        << p.dump();
+    const bool stalled = p.at("timing_machine_limited").get<bool>();
+    EXPECT_EQ(p.at("pass").get<bool>(), !stalled) << p.dump();
     EXPECT_GT(pm.at("lateness_p99_s").get<double>(), 0.0) << p.dump();
-    EXPECT_LE(pm.at("lateness_p99_s").get<double>(), 0.02) << p.dump();
     EXPECT_GT(pm.at("release_error_p99_s").get<double>(), 0.0) << p.dump();
     EXPECT_LE(pm.at("release_error_p99_s").get<double>(), 0.02) << p.dump();
-    EXPECT_LE(pm.at("overruns").get<long long>(), 5) << p.dump();
+    if (!stalled) {
+      EXPECT_LE(pm.at("lateness_p99_s").get<double>(), 0.02) << p.dump();
+      EXPECT_LE(pm.at("overruns").get<long long>(), 5) << p.dump();
+    }
     EXPECT_EQ(pm.at("states").get<long long>(), pm.at("states_expected").get<long long>());
     states += pm.at("states").get<long long>();
   }
@@ -186,13 +201,17 @@ TEST(SoakRealtime, ALoopHeldInTheLastPhaseFailsThatPhaseOnly) {
   ASSERT_EQ(s.at("phases").size(), 3u);
   for (int k : {0, 1}) {
     const ojson& p = s.at("phases").at(k);
+    if (p.at("timing_machine_limited").get<bool>()) continue;  // the machine stalled there
     EXPECT_FALSE(Mentions(p.at("why"), "loop lateness")) << p.dump();
     EXPECT_LE(p.at("metrics").at("lateness_p99_s").get<double>(), 0.02) << p.dump();
   }
   // 20 ticks of vehicle 2 run late by up to a second: more than 1 % of the phase's
-  // 7 s x 20 Hz x 3 loops (420), so its p99 is one of them.
+  // 7 s x 20 Hz x 3 loops (420), so its p99 is one of them. No stall of the machine
+  // accounts for that, and the verdict says so.
   const ojson& late = s.at("phases").at(2);
   EXPECT_FALSE(late.at("pass").get<bool>());
+  EXPECT_FALSE(late.at("timing_machine_limited").get<bool>()) << late.dump();
+  EXPECT_FALSE(s.at("timing_machine_limited").get<bool>());
   EXPECT_TRUE(Mentions(late.at("why"), "loop lateness p99")) << late.dump();
   EXPECT_TRUE(Mentions(late.at("why"), "control ticks overran their period (at most 5)"))
       << late.dump();

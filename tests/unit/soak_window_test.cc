@@ -257,6 +257,107 @@ TEST(SoakWindow, APhaseFailsOnMoreOverrunsThanItsTargetAllows) {
   }
 }
 
+// Two phases of 10 s at 50 Hz (leader and two vehicles: three loops); in the second, the
+// report at 15 s holds 6 ticks of each loop 100 ms late and each loop overran 4 ticks: 18
+// of the phase's 1500 loop samples, above its p99 rank (1485), and 12 overruns.
+std::string WriteStalledLog() {
+  const std::string path = Tmp("stalled.lcmlog");
+  LogWriter log(path);
+  run_status_t st;
+  st.utime = 0;
+  st.vehicle_id = kLauncherId;
+  st.state = "running";
+  st.scenario_name = "soak_window";
+  st.scenario_toml = kScenario;
+  st.followers = 2;
+  log.Write(channels::Status(), 0, st);
+  std::vector<Process> procs = {{0, {}}, {1, {}}, {2, {}}, {kEmulatorId, {}}};
+  for (int s = 1; s <= 20; ++s) {
+    for (Process& p : procs) {
+      const bool held = s == 15 && p.id != kEmulatorId;
+      for (int k = 0; k < 50; ++k) p.stats.Add(held && k < 6 ? 0.100 : 200e-6);
+      health2_t h = p.Report(s * 1000000LL);
+      h.overruns = (p.id != kEmulatorId && s >= 15) ? 4 : 0;
+      log.Write(channels::Health(p.id), s * 1000000LL, h);
+    }
+  }
+  return path;
+}
+
+// A phase whose loops were late and overran where the machine stalled says that the stall
+// accounts for it, only when the stall could have delayed that many ticks: 100 ms at a
+// 20 ms period, 6 ticks of each of the 3 loops; a 30 ms stall, 3 of each, not the 12
+// overruns. A stall outside the phase's reach, or an unwatched machine, accounts for
+// nothing. The phase fails either way.
+TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
+  SoakInput in;
+  in.log = WriteStalledLog();
+  in.phases = {{0.0, 10.0, "first"}, {10.0, 20.0, "second"}};
+  in.settle_s = 1.0;
+  in.engine = "realtime";
+  in.report = nlohmann::json::object();
+  in.targets.lateness_p99_max_s = 0.002;
+  in.targets.overruns_max = 0;
+  auto judge = [&](bool watched, std::vector<SoakStall> stalls) {
+    in.machine_watched = watched;
+    in.machine_stalls = std::move(stalls);
+    SoakResult r;
+    std::string error;
+    EXPECT_TRUE(AnalyseSoak(in, &r, &error)) << error;
+    return r;
+  };
+  auto timing_why = [](const SoakPhaseResult& p) {
+    std::vector<std::string> out;
+    for (const std::string& w : p.why) {
+      if (w.find("overran") != std::string::npos || w.find("lateness") != std::string::npos) {
+        out.push_back(w);
+      }
+    }
+    return out;
+  };
+  const SoakResult held = judge(true, {{14.5, 0.100}});
+  ASSERT_EQ(held.phases.size(), 2u);
+  const SoakPhaseResult& second = held.phases[1];
+  EXPECT_EQ(second.metrics["overruns"].get<long long>(), 12);
+  EXPECT_EQ(second.metrics["lateness_p99_s"].get<double>(), 0.100);
+  EXPECT_FALSE(second.pass);
+  EXPECT_TRUE(second.timing_machine_limited);
+  EXPECT_EQ(second.machine["stalls"], 1);
+  EXPECT_EQ(second.machine["worst_stall_s"], 0.100);
+  EXPECT_EQ(second.machine["worst_stall_at_s"], 14.5);
+  EXPECT_EQ(second.machine["late_ticks_accounted"], 18);
+  EXPECT_EQ(second.machine["overruns_accounted"], 18);
+  const std::vector<std::string> why = timing_why(second);
+  ASSERT_EQ(why.size(), 2u) << ::testing::PrintToString(second.why);
+  for (const std::string& w : why) {
+    EXPECT_NE(w.find("; the machine itself stalled 1 time(s) within the phase (worst 100 ms, "
+                     "at t = 14.5 s), which accounts for it"),
+              std::string::npos) << w;
+  }
+  EXPECT_FALSE(held.phases[0].timing_machine_limited);
+  EXPECT_EQ(held.phases[0].machine["stalls"], 0);
+  // The log holds no vehicle state: every phase fails on re-convergence too, which the
+  // machine does not account for.
+  EXPECT_FALSE(held.pass);
+  EXPECT_FALSE(held.timing_machine_limited);
+
+  const SoakResult shorter = judge(true, {{14.5, 0.030}});
+  EXPECT_FALSE(shorter.phases[1].timing_machine_limited);
+  EXPECT_EQ(shorter.phases[1].machine["late_ticks_accounted"], 9);
+  EXPECT_EQ(shorter.phases[1].machine["overruns_accounted"], 9);
+  for (const std::string& w : timing_why(shorter.phases[1])) {
+    EXPECT_EQ(w.find("machine"), std::string::npos) << w;
+  }
+  // Within the second before the phase (its first reports' reach): counted; before: not.
+  EXPECT_TRUE(judge(true, {{9.2, 0.100}}).phases[1].timing_machine_limited);
+  const SoakResult before = judge(true, {{8.5, 0.100}});
+  EXPECT_FALSE(before.phases[1].timing_machine_limited);
+  EXPECT_EQ(before.phases[1].machine["stalls"], 0);
+  const SoakResult unwatched = judge(false, {});
+  EXPECT_FALSE(unwatched.phases[1].timing_machine_limited);
+  EXPECT_TRUE(unwatched.phases[1].machine.is_null());
+}
+
 TEST(SoakWindow, ReportsKeepTheirWindowAndADamagedHistogramIsRejected) {
   const std::string path = Tmp("damaged.lcmlog");
   {
