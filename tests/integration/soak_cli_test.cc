@@ -56,8 +56,14 @@ TEST(SoakCli, APhaseBeyondTheMarginFailsTheVerdictNamingThatPhase) {
   EXPECT_TRUE(soak["phases"][0]["pass"].get<bool>());
   EXPECT_FALSE(soak["phases"][1]["pass"].get<bool>());
   EXPECT_FALSE(soak["phases"][1]["metrics"]["reconverged"].get<bool>());
-  ASSERT_FALSE(soak["reasons"].empty());
-  const std::string reason = soak["reasons"][0];
+  // The phase's reason, wherever it is: a loaded machine can make the logger lose a state,
+  // which the verdict names first.
+  std::string reason;
+  for (const auto& r : soak["reasons"]) {
+    const std::string text = r.get<std::string>();
+    if (reason.empty() && text.rfind("phase 2 (", 0) == 0) reason = text;
+  }
+  ASSERT_FALSE(reason.empty()) << soak["reasons"].dump();
   EXPECT_NE(reason.find("phase 2 (channel.delay.base_s = 0.5, 120-240 s)"), std::string::npos)
       << reason;
   EXPECT_NE(reason.find("did not re-converge"), std::string::npos) << reason;
