@@ -31,14 +31,21 @@ struct ResourceRow {
   double rss_kib = 0.0, cpu_s = 0.0;
 };
 
+struct DelayError {
+  double send_s = 0.0, due_s = 0.0, error_s = 0.0;  // due: send + configured delay
+};
+
 /// What the windows are measured from: the run, its analysis and the derived series.
 struct SoakData {
   RunData run;
   RunAnalysis a;
   std::vector<Sample> samples;              // in time order
   std::vector<long long> overrun_increase;  // aligned with run.health
-  /// (send time, realised - configured delay) of each delivered event, by send time.
-  std::vector<std::pair<double, double>> delay_errors;
+  /// Each delivered event's realised - configured delay, by send time.
+  std::vector<DelayError> delay_errors;
+  /// Each health report's start: its process's previous report (the first: a second
+  /// before it), aligned with run.health.
+  std::vector<double> health_from_s;
   double end_s = 0.0;                       // the run's expected end (last tick)
   std::map<std::string, std::vector<ResourceRow>> resources;  // per process, in time order
 };
@@ -164,17 +171,29 @@ long long StatesIn(const SoakData& d, double lo, double hi) {
   return k;
 }
 
-std::vector<std::pair<double, double>> DelayErrors(const RunData& run, const RunAnalysis& a) {
-  std::vector<std::pair<double, double>> out;
+std::vector<DelayError> DelayErrors(const RunData& run, const RunAnalysis& a) {
+  std::vector<DelayError> out;
   const std::vector<ChannelEventRecord>& ev = run.channel_events;
   for (std::size_t k = 0; k < ev.size(); ++k) {
     const double cfg = a.channel.configured_delay_s[k];
     if (ev[k].status != 0 || std::isnan(cfg)) continue;
-    out.emplace_back(ToSeconds(ev[k].send_utime),
-                     ToSeconds(ev[k].deliver_utime - ev[k].send_utime) - cfg);
+    const double send = ToSeconds(ev[k].send_utime);
+    out.push_back({send, send + cfg, ToSeconds(ev[k].deliver_utime - ev[k].send_utime) - cfg});
   }
   std::stable_sort(out.begin(), out.end(),
-                   [](const auto& x, const auto& y) { return x.first < y.first; });
+                   [](const DelayError& x, const DelayError& y) { return x.send_s < y.send_s; });
+  return out;
+}
+
+std::vector<double> HealthStarts(const std::vector<HealthRecord>& health) {
+  std::vector<double> out(health.size(), 0.0);
+  std::map<int, double> last;
+  for (std::size_t k = 0; k < health.size(); ++k) {
+    const double t = ToSeconds(health[k].utime);
+    auto it = last.find(health[k].process_id);
+    out[k] = it == last.end() ? t - 1.0 : it->second;
+    last[health[k].process_id] = t;
+  }
   return out;
 }
 
@@ -201,23 +220,33 @@ struct WindowLateness {
   bool all_windowed = true;     // every report carried its window (health2_t)
   double since_start_p99 = 0.0;  // older logs: the largest since-start p99 reported
 
-  void Add(const HealthRecord& h) {
+  /// Adds a report's samples less up to `excuse` of those beyond `target_s` and not
+  /// beyond `latest_s` (the latest first): those the machine's stalls account for. The
+  /// number left out.
+  long long Add(const HealthRecord& h, long long excuse = 0, double target_s = 0.0,
+                double latest_s = 0.0) {
     since_start_p99 = std::max(since_start_p99, h.lateness_p99_s);
     if (h.lateness_window_count < 0) {
       all_windowed = false;
-      return;
+      return 0;
     }
-    for (const LatenessBinCount& b : h.lateness_window) bins[b.bin] += b.count;
-    count += h.lateness_window_count;
+    long long excused = 0;
+    for (auto b = h.lateness_window.rbegin(); b != h.lateness_window.rend(); ++b) {
+      const bool beyond = LatenessBins::UpperS(b->bin) > target_s;
+      const bool explained = b->bin == 0 || LatenessBins::UpperS(b->bin - 1) <= latest_s;
+      const long long take = beyond && explained && excuse > excused
+                                 ? std::min<long long>(excuse - excused, b->count)
+                                 : 0;
+      bins[b->bin] += b->count - take;
+      excused += take;
+    }
+    count += h.lateness_window_count - excused;
     max_s = std::max(max_s, h.lateness_window_max_s);
+    return excused;
   }
-  double P99() const { return P99Without(0); }
-  /// The p99 of the samples less the `latest` latest (of all of them when not every
-  /// report carried its window: the since-start figure cannot be cut).
-  double P99Without(long long latest) const {
+  double P99() const {
     if (!all_windowed) return since_start_p99;
-    const std::int64_t kept = std::max<std::int64_t>(0, count - latest);
-    return LatenessBins::Quantile(bins.data(), kept, max_s, 0.99);
+    return LatenessBins::Quantile(bins.data(), count, max_s, 0.99);
   }
 };
 
@@ -227,25 +256,24 @@ struct Window {
   long long overruns = 0;
   std::optional<double> delay_error_p99_s;
   long long states = 0, states_expected = 0;
-  WindowLateness loop;  // the loops' samples the p99 is of
 };
 
 Window Measure(const SoakData& d, double lo, double hi) {
   Window w;
-  WindowLateness release;
+  WindowLateness loop, release;
   for (std::size_t k = 0; k < d.run.health.size(); ++k) {
     const HealthRecord& h = d.run.health[k];
     if (!InWindow(ToSeconds(h.utime), lo, hi, d.end_s)) continue;
-    (h.process_id >= 0 ? w.loop : release).Add(h);
+    (h.process_id >= 0 ? loop : release).Add(h);
     w.overruns += d.overrun_increase[k];
   }
-  w.lateness_p99_s = w.loop.P99();
+  w.lateness_p99_s = loop.P99();
   w.release_error_p99_s = release.P99();
   std::vector<double> err;
   auto e = std::lower_bound(d.delay_errors.begin(), d.delay_errors.end(), lo,
-                            [](const auto& x, double t) { return x.first < t; });
-  for (; e != d.delay_errors.end() && InWindow(e->first, lo, hi, d.end_s); ++e) {
-    err.push_back(e->second);
+                            [](const DelayError& x, double t) { return x.send_s < t; });
+  for (; e != d.delay_errors.end() && InWindow(e->send_s, lo, hi, d.end_s); ++e) {
+    err.push_back(e->error_s);
   }
   if (!err.empty()) w.delay_error_p99_s = QuantilesOf(&err).p99;
   w.states = StatesIn(d, lo, hi);
@@ -358,69 +386,172 @@ std::string CheckCriterion(const SoakCriterion& c, const nlohmann::ordered_json&
 /// How far back of a window its health reports reach: they come once a second, each with
 /// the samples since the one before.
 constexpr double kHealthReachS = 1.0;
+/// The witness notices a stall at its next deadline: up to its period (2 ms,
+/// launcher/machine_witness.h) after the stall began.
+constexpr double kWitnessLeadS = 0.002;
 
-/// The machine's stalls within a window's reach and the loop ticks they could make late
-/// (definitions in soak_analysis.h).
-struct StallAllowance {
-  long long stalls = 0;
-  const SoakStall* worst = nullptr;
-  long long late_ticks = 0;     // beyond the lateness target
-  long long overrun_ticks = 0;
+/// One stall of the machine: the witness's threads (one per CPU) each see a stall of the
+/// whole machine, so overlapping stalls are one.
+struct StallSpan {
+  double start_s = 0.0, end_s = 0.0;
+  double length_s() const { return end_s - start_s; }
 };
 
-StallAllowance StallsIn(const SoakInput& in, const SoakData& d, double lo, double hi) {
-  StallAllowance a;
-  const double period_s = ToSeconds(d.a.period_us);
-  const long long loops = d.run.followers + 1;
-  for (const SoakStall& s : in.machine_stalls) {
-    const bool in_reach = s.start_s >= lo - kHealthReachS &&
-                          (s.start_s < lo || InWindow(s.start_s, lo, hi, d.end_s));
-    if (!in_reach) continue;
-    ++a.stalls;
-    if (a.worst == nullptr || s.length_s > a.worst->length_s) a.worst = &s;
-    if (!(period_s > 0.0)) continue;
-    const long long ticks = loops * (static_cast<long long>(std::ceil(s.length_s / period_s)) + 1);
-    if (s.length_s >= 0.5 * in.targets.lateness_p99_max_s) a.late_ticks += ticks;
-    if (s.length_s >= 0.5 * period_s) a.overrun_ticks += ticks;
+std::vector<StallSpan> MergedStalls(const SoakInput& in) {
+  std::vector<StallSpan> v;
+  if (!in.machine_watched) return v;
+  for (const SoakStall& s : in.machine_stalls) v.push_back({s.start_s, s.start_s + s.length_s});
+  std::sort(v.begin(), v.end(),
+            [](const StallSpan& a, const StallSpan& b) { return a.start_s < b.start_s; });
+  std::vector<StallSpan> out;
+  for (const StallSpan& s : v) {
+    if (!out.empty() && s.start_s <= out.back().end_s) {
+      out.back().end_s = std::max(out.back().end_s, s.end_s);
+    } else {
+      out.push_back(s);
+    }
   }
-  return a;
+  return out;
 }
 
-nlohmann::ordered_json StallJson(const StallAllowance& a) {
+/// What the stalls of at least `min_s` overlapping [from_s, to_s] can do to one process:
+/// `ticks_of(length)` ticks each, late by at most twice its length (the stall covering at
+/// least half of the time a tick lost, as shoal run's verdict asks).
+struct StallReach {
+  long long ticks = 0;
+  double latest_s = 0.0;
+};
+
+template <typename TicksOf>
+StallReach ReachOf(const std::vector<StallSpan>& spans, double from_s, double to_s, double min_s,
+                   TicksOf ticks_of) {
+  StallReach r;
+  auto it = std::upper_bound(spans.begin(), spans.end(), from_s,
+                             [](double t, const StallSpan& s) { return t < s.end_s; });
+  for (; it != spans.end() && it->start_s - kWitnessLeadS <= to_s; ++it) {
+    if (it->length_s() < min_s) continue;
+    r.ticks += ticks_of(it->length_s());
+    r.latest_s = std::max(r.latest_s, 2.0 * it->length_s());
+  }
+  return r;
+}
+
+/// A phase's timing figures without what the machine's stalls account for (definitions
+/// in soak_analysis.h), and the stalls within its reach.
+struct MachineAccount {
+  long long stall_count = 0;
+  const StallSpan* worst = nullptr;
+  long long late_ticks = 0, overruns = 0, late_releases = 0, delay_errors = 0;  // excused
+  double lateness_p99_s = 0.0, release_error_p99_s = 0.0;
+  long long overruns_left = 0;
+  std::optional<double> delay_error_p99_s;
+};
+
+void AccountLoops(const SoakData& d, const std::vector<StallSpan>& spans, const SoakTargets& t,
+                  double lo, double hi, MachineAccount* m) {
+  const double period_s = ToSeconds(d.a.period_us);
+  if (!(period_s > 0.0)) return;
+  auto ticks = [&](double len) {
+    return static_cast<long long>(std::ceil(len / period_s - 1e-9)) + 1;
+  };
+  WindowLateness loop, release;
+  for (std::size_t k = 0; k < d.run.health.size(); ++k) {
+    const HealthRecord& h = d.run.health[k];
+    const double to = ToSeconds(h.utime), from = d.health_from_s[k];
+    if (!InWindow(to, lo, hi, d.end_s)) continue;
+    if (h.process_id < 0) {
+      // Releases come at the report's own rate: those due in a stall or a period before it.
+      const double rate = std::max<double>(0.0, h.lateness_window_count) / std::max(1e-3, to - from);
+      const StallReach r = ReachOf(spans, from, to, 0.5 * t.delay_error_p99_max_s, [&](double len) {
+        return static_cast<long long>(std::ceil((len + period_s) * rate));
+      });
+      m->late_releases += release.Add(h, r.ticks, t.delay_error_p99_max_s, r.latest_s);
+      continue;
+    }
+    const StallReach late = ReachOf(spans, from, to, 0.5 * t.lateness_p99_max_s, ticks);
+    m->late_ticks += loop.Add(h, late.ticks, t.lateness_p99_max_s, late.latest_s);
+    const StallReach over = ReachOf(spans, from, to, 0.5 * period_s, ticks);
+    const long long excused = std::min<long long>(d.overrun_increase[k], over.ticks);
+    m->overruns += excused;
+    m->overruns_left += d.overrun_increase[k] - excused;
+  }
+  m->lateness_p99_s = loop.P99();
+  m->release_error_p99_s = release.P99();
+}
+
+/// Delivered messages whose lateness beyond the target a stall covers at least half of.
+void AccountDeliveries(const SoakData& d, const std::vector<StallSpan>& spans, double target_s,
+                       double lo, double hi, MachineAccount* m) {
+  std::vector<double> err;
+  auto e = std::lower_bound(d.delay_errors.begin(), d.delay_errors.end(), lo,
+                            [](const DelayError& x, double t) { return x.send_s < t; });
+  for (; e != d.delay_errors.end() && InWindow(e->send_s, lo, hi, d.end_s); ++e) {
+    bool excused = false;
+    if (e->error_s > target_s) {
+      const double a = e->due_s, b = e->due_s + e->error_s;
+      auto it = std::upper_bound(spans.begin(), spans.end(), a,
+                                 [](double t, const StallSpan& s) { return t < s.end_s; });
+      for (; it != spans.end() && it->start_s - kWitnessLeadS <= b && !excused; ++it) {
+        const double covered = std::min(b, it->end_s) - std::max(a, it->start_s - kWitnessLeadS);
+        excused = covered >= 0.5 * e->error_s;
+      }
+    }
+    if (excused) {
+      ++m->delay_errors;
+    } else {
+      err.push_back(e->error_s);
+    }
+  }
+  if (!err.empty()) m->delay_error_p99_s = QuantilesOf(&err).p99;
+}
+
+MachineAccount AccountForStalls(const SoakData& d, const std::vector<StallSpan>& spans,
+                                const SoakTargets& t, double lo, double hi) {
+  MachineAccount m;
+  for (const StallSpan& s : spans) {
+    const bool before = s.end_s < lo - kHealthReachS;
+    const bool after = s.start_s >= hi && !(hi >= d.end_s && s.start_s <= hi);
+    if (before || after) continue;
+    ++m.stall_count;
+    if (m.worst == nullptr || s.length_s() > m.worst->length_s()) m.worst = &s;
+  }
+  AccountLoops(d, spans, t, lo, hi, &m);
+  AccountDeliveries(d, spans, t.delay_error_p99_max_s, lo, hi, &m);
+  return m;
+}
+
+nlohmann::ordered_json MachineJson(const MachineAccount& m) {
   nlohmann::ordered_json j;
-  j["stalls"] = a.stalls;
-  j["worst_stall_s"] = a.worst ? nlohmann::ordered_json(a.worst->length_s) : nlohmann::ordered_json();
-  j["worst_stall_at_s"] = a.worst ? nlohmann::ordered_json(a.worst->start_s) : nlohmann::ordered_json();
-  j["late_ticks_accounted"] = a.late_ticks;
-  j["overruns_accounted"] = a.overrun_ticks;
+  j["stall_count"] = m.stall_count;
+  j["worst_stall_s"] = m.worst ? nlohmann::ordered_json(m.worst->length_s()) : nlohmann::ordered_json();
+  j["worst_stall_at_s"] = m.worst ? nlohmann::ordered_json(m.worst->start_s) : nlohmann::ordered_json();
+  j["late_ticks_accounted"] = m.late_ticks;
+  j["overruns_accounted"] = m.overruns;
+  j["late_releases_accounted"] = m.late_releases;
+  j["delay_errors_accounted"] = m.delay_errors;
   return j;
 }
 
-/// Real time: a phase's loop and channel timing against the targets. The loop's sentences
-/// say so when the machine's stalls account for the miss (*machine_limited).
-void PhaseTargets(const SoakTargets& t, const Window& w, const StallAllowance& a,
+/// Every timing target met once what the machine accounts for is left out.
+bool MetWithout(const SoakTargets& t, const MachineAccount& m) {
+  return m.overruns_left <= t.overruns_max && !(m.lateness_p99_s > t.lateness_p99_max_s) &&
+         !(m.release_error_p99_s > t.delay_error_p99_max_s) &&
+         !(m.delay_error_p99_s && *m.delay_error_p99_s > t.delay_error_p99_max_s);
+}
+
+/// Real time: a phase's loop and channel timing against the targets. Each sentence says so
+/// when the machine's stalls account for every miss (*machine_limited).
+void PhaseTargets(const SoakTargets& t, const Window& w, const MachineAccount* m,
                   std::vector<std::string>* why, bool* machine_limited) {
-  const bool late = w.lateness_p99_s > t.lateness_p99_max_s;
-  const bool overran = w.overruns > t.overruns_max;
-  const bool channel_ok = !(w.release_error_p99_s > t.delay_error_p99_max_s) &&
-                    !(w.delay_error_p99_s && *w.delay_error_p99_s > t.delay_error_p99_max_s);
-  *machine_limited = (late || overran) && channel_ok && a.worst != nullptr &&
-                     w.overruns - a.overrun_ticks <= t.overruns_max &&
-                     !(w.loop.P99Without(a.late_ticks) > t.lateness_p99_max_s);
-  std::string machine;
-  if (*machine_limited) {
-    machine = "; the machine itself stalled " + std::to_string(a.stalls) +
-              " time(s) within the phase (worst " + Num(a.worst->length_s * 1e3) +
-              " ms, at t = " + Num(a.worst->start_s) + " s), which accounts for it";
-  }
-  if (overran) {
+  const std::size_t before = why->size();
+  if (w.overruns > t.overruns_max) {
     why->push_back(std::to_string(w.overruns) + " control ticks overran their period" +
                    (t.overruns_max > 0 ? " (at most " + std::to_string(t.overruns_max) + ")"
-                                       : std::string()) + machine);
+                                       : std::string()));
   }
-  if (late) {
+  if (w.lateness_p99_s > t.lateness_p99_max_s) {
     why->push_back("loop lateness p99 " + Num(w.lateness_p99_s * 1e3) + " ms > target " +
-                   Num(t.lateness_p99_max_s * 1e3) + " ms" + machine);
+                   Num(t.lateness_p99_max_s * 1e3) + " ms");
   }
   if (w.release_error_p99_s > t.delay_error_p99_max_s) {
     why->push_back("channel release error p99 " + Num(w.release_error_p99_s * 1e3) +
@@ -430,10 +561,19 @@ void PhaseTargets(const SoakTargets& t, const Window& w, const StallAllowance& a
     why->push_back("channel delay error p99 " + Num(*w.delay_error_p99_s * 1e3) +
                    " ms > target " + Num(t.delay_error_p99_max_s * 1e3) + " ms");
   }
+  *machine_limited = why->size() > before && m != nullptr && m->worst != nullptr &&
+                     MetWithout(t, *m);
+  if (!*machine_limited) return;
+  const std::string text = "; the machine itself stalled " + std::to_string(m->stall_count) +
+                           " time(s) within the phase's reach (worst " +
+                           Num(m->worst->length_s() * 1e3) + " ms, at t = " +
+                           Num(m->worst->start_s) + " s), which accounts for it";
+  for (std::size_t k = before; k < why->size(); ++k) (*why)[k] += text;
 }
 
 /// `*other_why`: the phase's sentences the machine does not account for.
-SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, int index,
+SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in,
+                           const std::vector<StallSpan>& spans, int index,
                            std::size_t* other_why) {
   SoakPhaseResult r;
   r.index = index;
@@ -448,10 +588,14 @@ SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, int index,
   r.metrics["states_expected"] = w.states_expected;
   std::size_t timing_why = 0;  // sentences that the machine accounts for
   if (in.engine == "realtime") {
-    const StallAllowance a = StallsIn(in, d, r.phase.start_s, r.phase.end_s);
-    if (in.machine_watched) r.machine = StallJson(a);
-    PhaseTargets(in.targets, w, a, &r.why, &r.timing_machine_limited);
-    if (r.timing_machine_limited) timing_why = r.why.size();
+    std::optional<MachineAccount> m;
+    if (in.machine_watched) {
+      m = AccountForStalls(d, spans, in.targets, r.phase.start_s, r.phase.end_s);
+      r.machine = MachineJson(*m);
+    }
+    const std::size_t before = r.why.size();
+    PhaseTargets(in.targets, w, m ? &*m : nullptr, &r.why, &r.timing_machine_limited);
+    if (r.timing_machine_limited) timing_why = r.why.size() - before;
   }
   for (const SoakCriterion& c : in.criteria) {
     const std::string miss = CheckCriterion(c, r.metrics);
@@ -548,6 +692,7 @@ bool LoadSoakData(const SoakInput& in, SoakData* d, std::string* error) {
   d->samples = CompleteSamples(d->run, d->a);
   d->overrun_increase = OverrunIncreases(d->run.health);
   d->delay_errors = DelayErrors(d->run, d->a);
+  d->health_from_s = HealthStarts(d->run.health);
   d->end_s = d->a.bounds.expected_end_us >= 0 ? ToSeconds(d->a.bounds.expected_end_us) : 0.0;
   return in.resources_csv.empty() || ReadResources(in.resources_csv, &d->resources, error);
 }
@@ -620,9 +765,10 @@ bool AnalyseSoak(const SoakInput& in, SoakResult* out, std::string* error) {
   }
   const std::size_t other_reasons = out->reasons.size();
   std::size_t not_machine = 0;  // phase sentences the machine does not account for
+  const std::vector<StallSpan> spans = MergedStalls(in);
   for (int k = 0; k < static_cast<int>(in.phases.size()); ++k) {
     std::size_t other = 0;
-    out->phases.push_back(JudgePhase(d, in, k, &other));
+    out->phases.push_back(JudgePhase(d, in, spans, k, &other));
     not_machine += other;
     const SoakPhaseResult& p = out->phases.back();
     for (const std::string& w : p.why) out->reasons.push_back(PhaseName(p) + ": " + w);

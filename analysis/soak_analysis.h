@@ -43,18 +43,25 @@
 // targets.delay_error_p99_max_s (shoal run reports the release error as
 // channel.delay_error_p99_s); a phase that does not re-converge or misses a criterion.
 // - The machine's own stalls (real time, when shoal run's witness watched: SoakInput's
-//   machine_stalls): those that began within a phase's reach, from a second before it
-//   (the reach of its first health reports) to its end. A stall of length L can delay
-//   ceil(L / period) + 1 ticks of each loop (the leader and every vehicle: the tick due
-//   before it, still waiting for a CPU, and those due during it); such ticks of stalls of
-//   at least half the lateness target can be late beyond it, of stalls of at least half a
-//   period can overrun (once the machine runs again every loop it held queues for the
-//   CPUs, so a loop loses more than the stall). A phase's timing is machine-limited when
-//   it missed the loop lateness or overrun target but would have met every timing target
-//   without that many of its latest ticks and overruns: its loop lateness p99 of the
-//   window's samples less that many from the top, its overruns less that many. The
-//   channel's delay and release errors are not excused. The verdict still fails on it;
-//   the phase and the verdict say that the machine accounts for the miss.
+//   machine_stalls): overlapping stalls (one per CPU of the same stall of the machine) are
+//   one; a stall is taken to begin up to the witness's period (2 ms) before it noticed it.
+//   Each health report covers the time since its process's previous report; the stalls
+//   overlapping that time account, in that report, for
+//   - a loop's (the leader's, a vehicle's) ticks late beyond the lateness target: up to
+//     ceil(L / period) + 1 per stall of length L of at least half the target (the tick due
+//     just before it, still waiting for a CPU, and those due during it), each late by at
+//     most 2 L (the stall covering at least half of what the tick lost, as shoal run's
+//     verdict asks: once the machine runs again every loop it held queues for the CPUs);
+//   - a loop's overruns: up to ceil(L / period) + 1 per stall of at least half a period;
+//   - the emulator's releases late beyond the delay target: up to (L + period) times the
+//     report's release rate per stall of at least half the target, late by at most 2 L;
+//   and a delivered message's delay error beyond the target is accounted for when one stall
+//   covers at least half of its lateness (from its due time on). A phase's timing is
+//   machine-limited when it missed a timing target but meets every one without what the
+//   stalls account for: the p99s of the samples left, the overruns left. The verdict still
+//   fails on it; the phase (and the verdict, when nothing else failed) says that the
+//   machine accounts for the miss. A phase's `machine` counts the stalls from a second
+//   before it (the reach of its first reports) to its end.
 #pragma once
 
 #include <optional>
@@ -140,8 +147,8 @@ struct SoakPhaseResult {
   bool pass = true;
   std::vector<std::string> why;
   /// The machine's stalls within the phase's reach (definitions above): how many, the
-  /// worst and when it began, and the ticks they could make late beyond the lateness target
-  /// and overrun. Null when the machine was not watched.
+  /// worst and when it began, and what they account for (late ticks, overruns, late
+  /// releases, delay errors). Null when the machine was not watched.
   nlohmann::ordered_json machine;
   /// The phase missed its loop timing targets only by what the machine's stalls account for.
   bool timing_machine_limited = false;

@@ -258,8 +258,9 @@ TEST(SoakWindow, APhaseFailsOnMoreOverrunsThanItsTargetAllows) {
 }
 
 // Two phases of 10 s at 50 Hz (leader and two vehicles: three loops); in the second, the
-// report at 15 s holds 6 ticks of each loop 100 ms late and each loop overran 4 ticks: 18
-// of the phase's 1500 loop samples, above its p99 rank (1485), and 12 overruns.
+// report at 15 s (covering 14-15 s) holds 6 ticks of each loop 100 ms late and each loop
+// overran 4 ticks: 18 of the phase's 1650 loop samples (reports at 10-20 s), above its p99
+// rank (1633), and 12 overruns.
 std::string WriteStalledLog() {
   const std::string path = Tmp("stalled.lcmlog");
   LogWriter log(path);
@@ -285,10 +286,12 @@ std::string WriteStalledLog() {
 }
 
 // A phase whose loops were late and overran where the machine stalled says that the stall
-// accounts for it, only when the stall could have delayed that many ticks: 100 ms at a
-// 20 ms period, 6 ticks of each of the 3 loops; a 30 ms stall, 3 of each, not the 12
-// overruns. A stall outside the phase's reach, or an unwatched machine, accounts for
-// nothing. The phase fails either way.
+// accounts for it only when the stall overlaps the reports holding those ticks and could
+// have delayed that many of them that late: 99 ms at a 20 ms period, 6 ticks of each loop,
+// up to 198 ms late. A 30 ms stall accounts for 3 overruns of each loop (not 4) and for no
+// tick 100 ms late; a 45 ms one for every overrun but not for the lateness. A stall the
+// witness saw on both CPUs is one. A stall in another report's time, or an unwatched
+// machine, accounts for nothing. The phase fails either way.
 TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
   SoakInput in;
   in.log = WriteStalledLog();
@@ -315,45 +318,53 @@ TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
     }
     return out;
   };
-  const SoakResult held = judge(true, {{14.5, 0.100}});
+  const SoakResult held = judge(true, {{14.5, 0.099}, {14.501, 0.098}});  // both CPUs
   ASSERT_EQ(held.phases.size(), 2u);
   const SoakPhaseResult& second = held.phases[1];
   EXPECT_EQ(second.metrics["overruns"].get<long long>(), 12);
   EXPECT_EQ(second.metrics["lateness_p99_s"].get<double>(), 0.100);
   EXPECT_FALSE(second.pass);
   EXPECT_TRUE(second.timing_machine_limited);
-  EXPECT_EQ(second.machine["stalls"], 1);
-  EXPECT_EQ(second.machine["worst_stall_s"], 0.100);
+  EXPECT_EQ(second.machine["stall_count"], 1);
+  EXPECT_NEAR(second.machine["worst_stall_s"].get<double>(), 0.099, 1e-9);
   EXPECT_EQ(second.machine["worst_stall_at_s"], 14.5);
   EXPECT_EQ(second.machine["late_ticks_accounted"], 18);
-  EXPECT_EQ(second.machine["overruns_accounted"], 18);
+  EXPECT_EQ(second.machine["overruns_accounted"], 12);
+  EXPECT_EQ(second.machine["late_releases_accounted"], 0);
+  EXPECT_EQ(second.machine["delay_errors_accounted"], 0);
   const std::vector<std::string> why = timing_why(second);
   ASSERT_EQ(why.size(), 2u) << ::testing::PrintToString(second.why);
   for (const std::string& w : why) {
-    EXPECT_NE(w.find("; the machine itself stalled 1 time(s) within the phase (worst 100 ms, "
-                     "at t = 14.5 s), which accounts for it"),
+    EXPECT_NE(w.find("; the machine itself stalled 1 time(s) within the phase's reach (worst "
+                     "99 ms, at t = 14.5 s), which accounts for it"),
               std::string::npos) << w;
   }
+  // Its re-convergence failed too (the log holds no vehicle state): not the machine's.
+  EXPECT_GT(second.why.size(), why.size());
   EXPECT_FALSE(held.phases[0].timing_machine_limited);
-  EXPECT_EQ(held.phases[0].machine["stalls"], 0);
-  // The log holds no vehicle state: every phase fails on re-convergence too, which the
-  // machine does not account for.
+  EXPECT_EQ(held.phases[0].machine["stall_count"], 0);
   EXPECT_FALSE(held.pass);
   EXPECT_FALSE(held.timing_machine_limited);
 
   const SoakResult shorter = judge(true, {{14.5, 0.030}});
   EXPECT_FALSE(shorter.phases[1].timing_machine_limited);
-  EXPECT_EQ(shorter.phases[1].machine["late_ticks_accounted"], 9);
+  EXPECT_EQ(shorter.phases[1].machine["late_ticks_accounted"], 0);
   EXPECT_EQ(shorter.phases[1].machine["overruns_accounted"], 9);
   for (const std::string& w : timing_why(shorter.phases[1])) {
     EXPECT_EQ(w.find("machine"), std::string::npos) << w;
   }
-  // Within the second before the phase (its first reports' reach): counted; before: not.
-  EXPECT_TRUE(judge(true, {{9.2, 0.100}}).phases[1].timing_machine_limited);
-  const SoakResult before = judge(true, {{8.5, 0.100}});
-  EXPECT_FALSE(before.phases[1].timing_machine_limited);
-  EXPECT_EQ(before.phases[1].machine["stalls"], 0);
-  const SoakResult unwatched = judge(false, {});
+  const SoakResult overruns_only = judge(true, {{14.5, 0.045}});
+  EXPECT_EQ(overruns_only.phases[1].machine["overruns_accounted"], 12);
+  EXPECT_EQ(overruns_only.phases[1].machine["late_ticks_accounted"], 0);
+  EXPECT_FALSE(overruns_only.phases[1].timing_machine_limited);
+  // Within the phase's reach (the report at 10 s covers 9-10 s) but not in the time of the
+  // report that holds the late ticks.
+  const SoakResult elsewhere = judge(true, {{9.2, 0.099}});
+  EXPECT_EQ(elsewhere.phases[1].machine["stall_count"], 1);
+  EXPECT_EQ(elsewhere.phases[1].machine["late_ticks_accounted"], 0);
+  EXPECT_FALSE(elsewhere.phases[1].timing_machine_limited);
+  EXPECT_EQ(judge(true, {{8.5, 0.099}}).phases[1].machine["stall_count"], 0);
+  const SoakResult unwatched = judge(false, {{14.5, 0.099}});
   EXPECT_FALSE(unwatched.phases[1].timing_machine_limited);
   EXPECT_TRUE(unwatched.phases[1].machine.is_null());
 }
