@@ -220,29 +220,15 @@ struct WindowLateness {
   bool all_windowed = true;     // every report carried its window (health2_t)
   double since_start_p99 = 0.0;  // older logs: the largest since-start p99 reported
 
-  /// Adds a report's samples less up to `excuse` of those beyond `target_s` and not
-  /// beyond `latest_s` (the latest first): those the machine's stalls account for. The
-  /// number left out.
-  long long Add(const HealthRecord& h, long long excuse = 0, double target_s = 0.0,
-                double latest_s = 0.0) {
+  void Add(const HealthRecord& h) {
     since_start_p99 = std::max(since_start_p99, h.lateness_p99_s);
     if (h.lateness_window_count < 0) {
       all_windowed = false;
-      return 0;
+      return;
     }
-    long long excused = 0;
-    for (auto b = h.lateness_window.rbegin(); b != h.lateness_window.rend(); ++b) {
-      const bool beyond = LatenessBins::UpperS(b->bin) > target_s;
-      const bool explained = b->bin == 0 || LatenessBins::UpperS(b->bin - 1) <= latest_s;
-      const long long take = beyond && explained && excuse > excused
-                                 ? std::min<long long>(excuse - excused, b->count)
-                                 : 0;
-      bins[b->bin] += b->count - take;
-      excused += take;
-    }
-    count += h.lateness_window_count - excused;
+    for (const LatenessBinCount& b : h.lateness_window) bins[b.bin] += b.count;
+    count += h.lateness_window_count;
     max_s = std::max(max_s, h.lateness_window_max_s);
-    return excused;
   }
   double P99() const {
     if (!all_windowed) return since_start_p99;
@@ -383,103 +369,175 @@ std::string CheckCriterion(const SoakCriterion& c, const nlohmann::ordered_json&
   return "";
 }
 
-/// How far back of a window its health reports reach: they come once a second, each with
-/// the samples since the one before.
+/// How far back of a window its health reports reach when it has none: they come once a
+/// second, each with the samples since the one before.
 constexpr double kHealthReachS = 1.0;
-/// The witness notices a stall at its next deadline: up to its period (2 ms,
-/// launcher/machine_witness.h) after the stall began.
+/// The witness notices a stall at its next deadline: a stall it dates from a missed
+/// deadline began up to its period (2 ms, launcher/machine_witness.h) before.
 constexpr double kWitnessLeadS = 0.002;
 
 /// One stall of the machine: the witness's threads (one per CPU) each see a stall of the
-/// whole machine, so overlapping stalls are one.
+/// whole machine, so overlapping stalls are one. Its span is their union; what it can do
+/// to a process is the longest one's (the union of stalls on different CPUs is longer
+/// than what any process lost).
 struct StallSpan {
   double start_s = 0.0, end_s = 0.0;
-  double length_s() const { return end_s - start_s; }
+  double longest_s = 0.0, longest_start_s = 0.0;
 };
 
 std::vector<StallSpan> MergedStalls(const SoakInput& in) {
-  std::vector<StallSpan> v;
-  if (!in.machine_watched) return v;
-  for (const SoakStall& s : in.machine_stalls) v.push_back({s.start_s, s.start_s + s.length_s});
+  std::vector<SoakStall> v;
+  if (in.machine_watched) v = in.machine_stalls;
   std::sort(v.begin(), v.end(),
-            [](const StallSpan& a, const StallSpan& b) { return a.start_s < b.start_s; });
+            [](const SoakStall& a, const SoakStall& b) { return a.start_s < b.start_s; });
   std::vector<StallSpan> out;
-  for (const StallSpan& s : v) {
-    if (!out.empty() && s.start_s <= out.back().end_s) {
-      out.back().end_s = std::max(out.back().end_s, s.end_s);
-    } else {
-      out.push_back(s);
+  for (const SoakStall& s : v) {
+    const double end = s.start_s + s.length_s;
+    if (out.empty() || s.start_s > out.back().end_s) {
+      out.push_back({s.start_s, end, s.length_s, s.start_s});
+      continue;
+    }
+    StallSpan& m = out.back();
+    m.end_s = std::max(m.end_s, end);
+    if (s.length_s > m.longest_s) {
+      m.longest_s = s.length_s;
+      m.longest_start_s = s.start_s;
     }
   }
   return out;
 }
 
-/// What the stalls of at least `min_s` overlapping [from_s, to_s] can do to one process:
-/// `ticks_of(length)` ticks each, late by at most twice its length (the stall covering at
-/// least half of the time a tick lost, as shoal run's verdict asks).
-struct StallReach {
-  long long ticks = 0;
+/// The spans overlapping [from_s, to_s] (a stall taken to begin kWitnessLeadS early): the
+/// index of the first, and one past the last. Spans do not overlap, so their ends are in
+/// order too.
+std::pair<std::size_t, std::size_t> Overlapping(const std::vector<StallSpan>& spans,
+                                                double from_s, double to_s) {
+  auto first = std::upper_bound(spans.begin(), spans.end(), from_s,
+                                [](double t, const StallSpan& s) { return t < s.end_s; });
+  auto last = first;
+  while (last != spans.end() && last->start_s - kWitnessLeadS <= to_s) ++last;
+  return {static_cast<std::size_t>(first - spans.begin()),
+          static_cast<std::size_t>(last - spans.begin())};
+}
+
+/// What one stall may still account for in one process: ticks, each late by at most
+/// `latest_s` (twice the stall: it covers at least half of what a tick lost, as shoal
+/// run's verdict asks). A stall that overlaps two of a process's reports gives its ticks
+/// once, to the two together.
+struct Allowance {
   double latest_s = 0.0;
+  long long* left = nullptr;
 };
 
-template <typename TicksOf>
-StallReach ReachOf(const std::vector<StallSpan>& spans, double from_s, double to_s, double min_s,
-                   TicksOf ticks_of) {
-  StallReach r;
-  auto it = std::upper_bound(spans.begin(), spans.end(), from_s,
-                             [](double t, const StallSpan& s) { return t < s.end_s; });
-  for (; it != spans.end() && it->start_s - kWitnessLeadS <= to_s; ++it) {
-    if (it->length_s() < min_s) continue;
-    r.ticks += ticks_of(it->length_s());
-    r.latest_s = std::max(r.latest_s, 2.0 * it->length_s());
+/// Adds a report's lateness samples to `w`, less those beyond `target_s` that the
+/// allowances account for: from the latest sample down, each taken from a stall that could
+/// have made it that late. The number left out.
+long long AddExcusing(const HealthRecord& h, std::vector<Allowance> allowances, double target_s,
+                      WindowLateness* w) {
+  if (h.lateness_window_count < 0 || allowances.empty()) {
+    w->Add(h);
+    return 0;
   }
-  return r;
+  std::sort(allowances.begin(), allowances.end(),
+            [](const Allowance& a, const Allowance& b) { return a.latest_s > b.latest_s; });
+  HealthRecord kept = h;
+  kept.lateness_window.clear();
+  std::vector<long long*> pool;
+  std::size_t next = 0;
+  long long excused = 0;
+  for (auto b = h.lateness_window.rbegin(); b != h.lateness_window.rend(); ++b) {
+    // No sample of the bin is later than its upper edge, nor than the report's largest.
+    const double latest = std::min(LatenessBins::UpperS(b->bin), h.lateness_window_max_s);
+    while (next < allowances.size() && allowances[next].latest_s >= latest) {
+      pool.push_back(allowances[next++].left);
+    }
+    long long take = 0;
+    for (std::size_t k = 0; k < pool.size() && LatenessBins::UpperS(b->bin) > target_s &&
+                            take < b->count; ++k) {
+      const long long t = std::min(*pool[k], b->count - take);
+      *pool[k] -= t;
+      take += t;
+    }
+    if (b->count > take) {
+      kept.lateness_window.push_back({b->bin, static_cast<std::int32_t>(b->count - take)});
+    }
+    excused += take;
+  }
+  std::reverse(kept.lateness_window.begin(), kept.lateness_window.end());
+  kept.lateness_window_count -= excused;
+  w->Add(kept);
+  return excused;
 }
 
 /// A phase's timing figures without what the machine's stalls account for (definitions
 /// in soak_analysis.h), and the stalls within its reach.
 struct MachineAccount {
+  bool accounted = false;  // the figures below were measured
   long long stall_count = 0;
   const StallSpan* worst = nullptr;
   long long late_ticks = 0, overruns = 0, late_releases = 0, delay_errors = 0;  // excused
   double lateness_p99_s = 0.0, release_error_p99_s = 0.0;
   long long overruns_left = 0;
   std::optional<double> delay_error_p99_s;
+  double reach_s = 0.0;  // the earliest time the phase's reports cover
 };
+
+/// Per process and stall, what the stall may still account for: late ticks (or late
+/// releases) and overruns.
+using Allowances = std::map<std::pair<int, std::size_t>, std::array<long long, 2>>;
+
+void AccountReport(const SoakData& d, const std::vector<StallSpan>& spans, const SoakTargets& t,
+                   std::size_t k, Allowances* left, WindowLateness* loop,
+                   WindowLateness* release, MachineAccount* m) {
+  const HealthRecord& h = d.run.health[k];
+  const double period_s = ToSeconds(d.a.period_us);
+  const double to = ToSeconds(h.utime), from = d.health_from_s[k];
+  const bool emulator = h.process_id < 0;
+  // A loop: the tick due just before the stall, still waiting for a CPU, and those due
+  // during it. The emulator: the releases due during it, at the report's own rate.
+  const double rate = std::max<double>(0.0, h.lateness_window_count) / std::max(1e-3, to - from);
+  const double target = emulator ? t.delay_error_p99_max_s : t.lateness_p99_max_s;
+  std::vector<Allowance> late;
+  long long overruns = d.overrun_increase[k];
+  const auto [first, last] = Overlapping(spans, from, to);
+  for (std::size_t s = first; s < last; ++s) {
+    const double len = spans[s].longest_s;
+    auto [it, fresh] = left->try_emplace({h.process_id, s});
+    if (fresh) {
+      const long long ticks =
+          emulator ? static_cast<long long>(std::ceil((len + kWitnessLeadS) * rate))
+                   : static_cast<long long>(std::ceil(len / period_s - 1e-9)) + 1;
+      it->second = {len >= 0.5 * target ? ticks : 0,
+                    !emulator && len >= 0.5 * period_s ? ticks : 0};
+    }
+    late.push_back({2.0 * len, &it->second[0]});
+    const long long excused = std::min(overruns, it->second[1]);
+    it->second[1] -= excused;
+    overruns -= excused;
+    m->overruns += excused;
+  }
+  m->overruns_left += overruns;
+  const long long excused = AddExcusing(h, late, target, emulator ? release : loop);
+  (emulator ? m->late_releases : m->late_ticks) += excused;
+}
 
 void AccountLoops(const SoakData& d, const std::vector<StallSpan>& spans, const SoakTargets& t,
                   double lo, double hi, MachineAccount* m) {
-  const double period_s = ToSeconds(d.a.period_us);
-  if (!(period_s > 0.0)) return;
-  auto ticks = [&](double len) {
-    return static_cast<long long>(std::ceil(len / period_s - 1e-9)) + 1;
-  };
+  if (!(d.a.period_us > 0)) return;
+  Allowances left;
   WindowLateness loop, release;
+  m->reach_s = lo - kHealthReachS;
   for (std::size_t k = 0; k < d.run.health.size(); ++k) {
-    const HealthRecord& h = d.run.health[k];
-    const double to = ToSeconds(h.utime), from = d.health_from_s[k];
-    if (!InWindow(to, lo, hi, d.end_s)) continue;
-    if (h.process_id < 0) {
-      // Releases come at the report's own rate: those due in a stall or a period before it.
-      const double rate = std::max<double>(0.0, h.lateness_window_count) / std::max(1e-3, to - from);
-      const StallReach r = ReachOf(spans, from, to, 0.5 * t.delay_error_p99_max_s, [&](double len) {
-        return static_cast<long long>(std::ceil((len + period_s) * rate));
-      });
-      m->late_releases += release.Add(h, r.ticks, t.delay_error_p99_max_s, r.latest_s);
-      continue;
-    }
-    const StallReach late = ReachOf(spans, from, to, 0.5 * t.lateness_p99_max_s, ticks);
-    m->late_ticks += loop.Add(h, late.ticks, t.lateness_p99_max_s, late.latest_s);
-    const StallReach over = ReachOf(spans, from, to, 0.5 * period_s, ticks);
-    const long long excused = std::min<long long>(d.overrun_increase[k], over.ticks);
-    m->overruns += excused;
-    m->overruns_left += d.overrun_increase[k] - excused;
+    if (!InWindow(ToSeconds(d.run.health[k].utime), lo, hi, d.end_s)) continue;
+    m->reach_s = std::min(m->reach_s, d.health_from_s[k]);
+    AccountReport(d, spans, t, k, &left, &loop, &release, m);
   }
   m->lateness_p99_s = loop.P99();
   m->release_error_p99_s = release.P99();
+  m->accounted = true;
 }
 
-/// Delivered messages whose lateness beyond the target a stall covers at least half of.
+/// Delivered messages whose lateness beyond the target one stall covers at least half of.
 void AccountDeliveries(const SoakData& d, const std::vector<StallSpan>& spans, double target_s,
                        double lo, double hi, MachineAccount* m) {
   std::vector<double> err;
@@ -489,10 +547,11 @@ void AccountDeliveries(const SoakData& d, const std::vector<StallSpan>& spans, d
     bool excused = false;
     if (e->error_s > target_s) {
       const double a = e->due_s, b = e->due_s + e->error_s;
-      auto it = std::upper_bound(spans.begin(), spans.end(), a,
-                                 [](double t, const StallSpan& s) { return t < s.end_s; });
-      for (; it != spans.end() && it->start_s - kWitnessLeadS <= b && !excused; ++it) {
-        const double covered = std::min(b, it->end_s) - std::max(a, it->start_s - kWitnessLeadS);
+      const auto [first, last] = Overlapping(spans, a, b);
+      for (std::size_t s = first; s < last && !excused; ++s) {
+        const double from = spans[s].longest_start_s - kWitnessLeadS;
+        const double covered = std::min(b, from + spans[s].longest_s + kWitnessLeadS) -
+                               std::max(a, from);
         excused = covered >= 0.5 * e->error_s;
       }
     }
@@ -508,23 +567,23 @@ void AccountDeliveries(const SoakData& d, const std::vector<StallSpan>& spans, d
 MachineAccount AccountForStalls(const SoakData& d, const std::vector<StallSpan>& spans,
                                 const SoakTargets& t, double lo, double hi) {
   MachineAccount m;
-  for (const StallSpan& s : spans) {
-    const bool before = s.end_s < lo - kHealthReachS;
-    const bool after = s.start_s >= hi && !(hi >= d.end_s && s.start_s <= hi);
-    if (before || after) continue;
-    ++m.stall_count;
-    if (m.worst == nullptr || s.length_s() > m.worst->length_s()) m.worst = &s;
-  }
   AccountLoops(d, spans, t, lo, hi, &m);
   AccountDeliveries(d, spans, t.delay_error_p99_max_s, lo, hi, &m);
+  const auto [first, last] = Overlapping(spans, m.reach_s, hi);
+  for (std::size_t s = first; s < last; ++s) {
+    ++m.stall_count;
+    if (m.worst == nullptr || spans[s].longest_s > m.worst->longest_s) m.worst = &spans[s];
+  }
   return m;
 }
 
-nlohmann::ordered_json MachineJson(const MachineAccount& m) {
+nlohmann::ordered_json MachineJson(const MachineAccount& m, bool complete) {
   nlohmann::ordered_json j;
+  j["complete"] = complete;
   j["stall_count"] = m.stall_count;
-  j["worst_stall_s"] = m.worst ? nlohmann::ordered_json(m.worst->length_s()) : nlohmann::ordered_json();
-  j["worst_stall_at_s"] = m.worst ? nlohmann::ordered_json(m.worst->start_s) : nlohmann::ordered_json();
+  j["worst_stall_s"] = m.worst ? nlohmann::ordered_json(m.worst->longest_s) : nlohmann::ordered_json();
+  j["worst_stall_at_s"] =
+      m.worst ? nlohmann::ordered_json(m.worst->longest_start_s) : nlohmann::ordered_json();
   j["late_ticks_accounted"] = m.late_ticks;
   j["overruns_accounted"] = m.overruns;
   j["late_releases_accounted"] = m.late_releases;
@@ -534,7 +593,8 @@ nlohmann::ordered_json MachineJson(const MachineAccount& m) {
 
 /// Every timing target met once what the machine accounts for is left out.
 bool MetWithout(const SoakTargets& t, const MachineAccount& m) {
-  return m.overruns_left <= t.overruns_max && !(m.lateness_p99_s > t.lateness_p99_max_s) &&
+  return m.accounted && m.overruns_left <= t.overruns_max &&
+         !(m.lateness_p99_s > t.lateness_p99_max_s) &&
          !(m.release_error_p99_s > t.delay_error_p99_max_s) &&
          !(m.delay_error_p99_s && *m.delay_error_p99_s > t.delay_error_p99_max_s);
 }
@@ -566,8 +626,8 @@ void PhaseTargets(const SoakTargets& t, const Window& w, const MachineAccount* m
   if (!*machine_limited) return;
   const std::string text = "; the machine itself stalled " + std::to_string(m->stall_count) +
                            " time(s) within the phase's reach (worst " +
-                           Num(m->worst->length_s() * 1e3) + " ms, at t = " +
-                           Num(m->worst->start_s) + " s), which accounts for it";
+                           Num(m->worst->longest_s * 1e3) + " ms, at t = " +
+                           Num(m->worst->longest_start_s) + " s), which accounts for it";
   for (std::size_t k = before; k < why->size(); ++k) (*why)[k] += text;
 }
 
@@ -591,7 +651,7 @@ SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in,
     std::optional<MachineAccount> m;
     if (in.machine_watched) {
       m = AccountForStalls(d, spans, in.targets, r.phase.start_s, r.phase.end_s);
-      r.machine = MachineJson(*m);
+      r.machine = MachineJson(*m, r.phase.end_s <= in.machine_complete_until_s);
     }
     const std::size_t before = r.why.size();
     PhaseTargets(in.targets, w, m ? &*m : nullptr, &r.why, &r.timing_machine_limited);

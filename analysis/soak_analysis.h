@@ -43,27 +43,34 @@
 // targets.delay_error_p99_max_s (shoal run reports the release error as
 // channel.delay_error_p99_s); a phase that does not re-converge or misses a criterion.
 // - The machine's own stalls (real time, when shoal run's witness watched: SoakInput's
-//   machine_stalls): overlapping stalls (one per CPU of the same stall of the machine) are
-//   one; a stall is taken to begin up to the witness's period (2 ms) before it noticed it.
-//   Each health report covers the time since its process's previous report; the stalls
-//   overlapping that time account, in that report, for
-//   - a loop's (the leader's, a vehicle's) ticks late beyond the lateness target: up to
-//     ceil(L / period) + 1 per stall of length L of at least half the target (the tick due
-//     just before it, still waiting for a CPU, and those due during it), each late by at
-//     most 2 L (the stall covering at least half of what the tick lost, as shoal run's
-//     verdict asks: once the machine runs again every loop it held queues for the CPUs);
-//   - a loop's overruns: up to ceil(L / period) + 1 per stall of at least half a period;
-//   - the emulator's releases late beyond the delay target: up to (L + period) times the
-//     report's release rate per stall of at least half the target, late by at most 2 L;
-//   and a delivered message's delay error beyond the target is accounted for when one stall
-//   covers at least half of its lateness (from its due time on). A phase's timing is
-//   machine-limited when it missed a timing target but meets every one without what the
-//   stalls account for: the p99s of the samples left, the overruns left. The verdict still
-//   fails on it; the phase (and the verdict, when nothing else failed) says that the
-//   machine accounts for the miss. A phase's `machine` counts the stalls from a second
-//   before it (the reach of its first reports) to its end.
+//   machine_stalls): overlapping stalls (each CPU's thread sees a stall of the whole
+//   machine) are one, as long as the longest of them (L below); a stall is taken to have
+//   begun up to the witness's period (2 ms) before the deadline it dates it from. Each
+//   health report covers the time since its process's previous report; a stall
+//   overlapping that time accounts, in that process and once over all its reports, for
+//   - ticks of a loop (the leader, a vehicle) late beyond the lateness target: up to
+//     ceil(L / period) + 1 (the tick due just before it, still waiting for a CPU, and those
+//     due during it) if L is at least half the target;
+//   - overruns of a loop: up to as many, if L is at least half a period;
+//   - the emulator's releases late beyond the delay target: up to (L + 2 ms) times the
+//     report's release rate, if L is at least half the target;
+//   each tick or release late by at most 2 L (the stall covering at least half of what it
+//   lost, as shoal run's verdict asks: once the machine runs again every loop it held
+//   queues for the CPUs), judged by its histogram bin's upper edge (or the report's
+//   largest sample); the latest samples are matched first, each to a stall that could
+//   have made it that late. A delivered message's delay error beyond the target is
+//   accounted for when one stall covers at least half of its lateness (from its due time
+//   on). A phase's timing is machine-limited when it missed a timing target but meets every
+//   one without what the stalls account for: the p99s of the samples left, the overruns
+//   left. The verdict still fails on it; the phase (and the verdict, when nothing else
+//   failed) says that the machine accounts for the miss. A [pass] criterion on a timing
+//   metric is judged on the figures as measured. A phase's `machine` counts the stalls
+//   from the earliest time its reports cover (a second before it) to its end; it is not
+//   complete when the witness's threads had run out of room for stalls (kStallRoom each)
+//   before the phase's end.
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -116,7 +123,10 @@ struct SoakInput {
   SoakTargets targets;
   std::string engine = "lockstep";  // "lockstep" or "realtime"
   bool machine_watched = false;     // the witness watched the whole run
-  std::vector<SoakStall> machine_stalls;  // what it saw, in order of start
+  std::vector<SoakStall> machine_stalls;  // what it saw, every CPU's
+  /// The witness kept every stall it saw up to this time (mission time): after it, a
+  /// thread that ran out of room dropped some. Phases ending later say so.
+  double machine_complete_until_s = std::numeric_limits<double>::infinity();
 };
 
 struct SoakProcessUse {
@@ -150,7 +160,7 @@ struct SoakPhaseResult {
   /// worst and when it began, and what they account for (late ticks, overruns, late
   /// releases, delay errors). Null when the machine was not watched.
   nlohmann::ordered_json machine;
-  /// The phase missed its loop timing targets only by what the machine's stalls account for.
+  /// The phase missed its timing targets only by what the machine's stalls account for.
   bool timing_machine_limited = false;
 };
 

@@ -14,9 +14,6 @@
 namespace shoal {
 namespace {
 
-// Stalls one thread keeps: a machine that stalls every few seconds fills it in hours; one
-// that stalls more often than that has said what it is long before.
-constexpr std::size_t kStallRoom = 4096;
 }  // namespace
 
 std::vector<int> AllowedCpus() {

@@ -21,6 +21,10 @@ inline constexpr int kMaxWatchedCpus = 256;
 /// kernel does not say.
 std::vector<int> AllowedCpus();
 
+/// Stalls one thread keeps: a machine that stalls every few seconds fills it in hours; one
+/// that stalls more often than that has said what it is long before.
+inline constexpr std::size_t kStallRoom = 4096;
+
 /// One stall: from `start_s` (mission time, s) for `length_s`, on CPU `cpu`.
 struct MachineStall {
   double start_s = 0.0;

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 
 #include "analysis/soak_analysis.h"
 #include "analysis/verdict.h"
@@ -243,8 +244,18 @@ SoakInput InputOf(const Planned& p, const LaunchResult& launch, nlohmann::json r
   in.targets.overruns_max = p.campaign.soak.overruns_max;
   in.engine = EngineName(p.campaign.engine);
   in.machine_watched = launch.machine.watched;
+  std::map<int, std::pair<std::size_t, double>> per_cpu;  // stalls kept, the last one's start
   for (const MachineStall& s : launch.machine.stalls) {
     in.machine_stalls.push_back({s.start_s, s.length_s});
+    auto& [kept, last] = per_cpu[s.cpu];
+    ++kept;
+    last = std::max(last, s.start_s);
+  }
+  // A thread that filled its room dropped what came after its last stall kept.
+  for (const auto& [cpu, c] : per_cpu) {
+    if (launch.machine.stalls_not_kept > 0 && c.first >= kStallRoom) {
+      in.machine_complete_until_s = std::min(in.machine_complete_until_s, c.second);
+    }
   }
   return in;
 }

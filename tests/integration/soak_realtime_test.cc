@@ -118,8 +118,8 @@ TEST(SoakRealtime, AShortSoakPassesWithEveryRealTimePartOfItsVerdict) {
     EXPECT_EQ(p.at("pass").get<bool>(), !stalled) << p.dump();
     EXPECT_GT(pm.at("lateness_p99_s").get<double>(), 0.0) << p.dump();
     EXPECT_GT(pm.at("release_error_p99_s").get<double>(), 0.0) << p.dump();
-    EXPECT_LE(pm.at("release_error_p99_s").get<double>(), 0.02) << p.dump();
     if (!stalled) {
+      EXPECT_LE(pm.at("release_error_p99_s").get<double>(), 0.02) << p.dump();
       EXPECT_LE(pm.at("lateness_p99_s").get<double>(), 0.02) << p.dump();
       EXPECT_LE(pm.at("overruns").get<long long>(), 5) << p.dump();
     }

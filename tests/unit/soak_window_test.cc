@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <random>
 #include <string>
@@ -257,12 +258,15 @@ TEST(SoakWindow, APhaseFailsOnMoreOverrunsThanItsTargetAllows) {
   }
 }
 
-// Two phases of 10 s at 50 Hz (leader and two vehicles: three loops); in the second, the
-// report at 15 s (covering 14-15 s) holds 6 ticks of each loop 100 ms late and each loop
-// overran 4 ticks: 18 of the phase's 1650 loop samples (reports at 10-20 s), above its p99
-// rank (1633), and 12 overruns.
-std::string WriteStalledLog() {
-  const std::string path = Tmp("stalled.lcmlog");
+// Two phases of 10 s at 50 Hz (leader and two vehicles: three loops). In the second, each
+// report at a time in `held` (the report at 15 s covers 14-15 s) holds `late` ticks of each
+// loop 100 ms late, 4 more overruns of each, and 8 of the emulator's releases 50 ms late.
+// The phase has 1650 loop samples (reports at 10-20 s; its p99 is beyond the 1633 earliest)
+// and 550 release samples (p99 beyond the 544 earliest). With `states`, every vehicle's
+// state at every tick, the formation exact.
+std::string WriteStalledLog(const std::string& name, const std::vector<int>& held, int late,
+                            bool states = false) {
+  const std::string path = Tmp(name + ".lcmlog");
   LogWriter log(path);
   run_status_t st;
   st.utime = 0;
@@ -273,67 +277,99 @@ std::string WriteStalledLog() {
   st.followers = 2;
   log.Write(channels::Status(), 0, st);
   std::vector<Process> procs = {{0, {}}, {1, {}}, {2, {}}, {kEmulatorId, {}}};
+  for (Micros t = 0; states && t <= 20000000; t += 20000) {
+    const Vec5 still = Vec5::Zero();
+    const Vec3 at[] = {Vec3::Zero(), Vec3(6, 0, 0), Vec3(0, 6, 0)};
+    for (int id = 0; id < 3; ++id) {
+      StateMsg m;
+      m.vehicle_id = id;
+      m.seq = static_cast<std::int32_t>(t / 20000);
+      m.utime = t;
+      m.eta = still;
+      m.eta.head<3>() = at[id];
+      m.eta_dot = still;
+      m.nu = still;
+      m.flags = id == 0 ? StateMsg::kFlagLeader : 0;
+      log.Write(channels::State(id), t, ToLcm(m));
+    }
+  }
+  int overruns = 0;
   for (int s = 1; s <= 20; ++s) {
+    const bool stalled = std::find(held.begin(), held.end(), s) != held.end();
+    overruns += stalled ? 4 : 0;
     for (Process& p : procs) {
-      const bool held = s == 15 && p.id != kEmulatorId;
-      for (int k = 0; k < 50; ++k) p.stats.Add(held && k < 6 ? 0.100 : 200e-6);
+      const bool emulator = p.id == kEmulatorId;
+      for (int k = 0; k < 50; ++k) {
+        const bool slow = stalled && k < (emulator ? 8 : late);
+        p.stats.Add(slow ? (emulator ? 0.050 : 0.100) : 200e-6);
+      }
       health2_t h = p.Report(s * 1000000LL);
-      h.overruns = (p.id != kEmulatorId && s >= 15) ? 4 : 0;
+      h.overruns = emulator ? 0 : overruns;
       log.Write(channels::Health(p.id), s * 1000000LL, h);
     }
   }
   return path;
 }
 
-// A phase whose loops were late and overran where the machine stalled says that the stall
-// accounts for it only when the stall overlaps the reports holding those ticks and could
-// have delayed that many of them that late: 99 ms at a 20 ms period, 6 ticks of each loop,
-// up to 198 ms late. A 30 ms stall accounts for 3 overruns of each loop (not 4) and for no
-// tick 100 ms late; a 45 ms one for every overrun but not for the lateness. A stall the
-// witness saw on both CPUs is one. A stall in another report's time, or an unwatched
-// machine, accounts for nothing. The phase fails either way.
-TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
+struct StallCase {
   SoakInput in;
-  in.log = WriteStalledLog();
-  in.phases = {{0.0, 10.0, "first"}, {10.0, 20.0, "second"}};
-  in.settle_s = 1.0;
-  in.engine = "realtime";
-  in.report = nlohmann::json::object();
-  in.targets.lateness_p99_max_s = 0.002;
-  in.targets.overruns_max = 0;
-  auto judge = [&](bool watched, std::vector<SoakStall> stalls) {
+  explicit StallCase(const std::string& log) {
+    in.log = log;
+    in.phases = {{0.0, 10.0, "first"}, {10.0, 20.0, "second"}};
+    in.settle_s = 1.0;
+    in.engine = "realtime";
+    in.report = nlohmann::json::object();
+    in.targets.lateness_p99_max_s = 0.002;
+    in.targets.delay_error_p99_max_s = 0.001;
+    in.targets.overruns_max = 0;
+  }
+  SoakResult Judge(bool watched, std::vector<SoakStall> stalls) {
     in.machine_watched = watched;
     in.machine_stalls = std::move(stalls);
     SoakResult r;
     std::string error;
     EXPECT_TRUE(AnalyseSoak(in, &r, &error)) << error;
     return r;
-  };
-  auto timing_why = [](const SoakPhaseResult& p) {
-    std::vector<std::string> out;
-    for (const std::string& w : p.why) {
-      if (w.find("overran") != std::string::npos || w.find("lateness") != std::string::npos) {
-        out.push_back(w);
-      }
+  }
+};
+
+std::vector<std::string> TimingWhy(const SoakPhaseResult& p) {
+  std::vector<std::string> out;
+  for (const std::string& w : p.why) {
+    if (w.find("overran") != std::string::npos || w.find("p99") != std::string::npos) {
+      out.push_back(w);
     }
-    return out;
-  };
-  const SoakResult held = judge(true, {{14.5, 0.099}, {14.501, 0.098}});  // both CPUs
+  }
+  return out;
+}
+
+// A phase late where the machine stalled says that the stall accounts for it only when the
+// stall overlaps the reports holding those ticks and could have delayed that many of them
+// that late: 99 ms at a 20 ms period, 6 ticks of each loop, up to 198 ms late; at the
+// reports' 50 releases a second, 6 releases. A 30 ms stall accounts for 3 overruns of each
+// loop (not 4) and for no tick 100 ms late; a 45 ms one for every overrun but not for the
+// lateness. A stall the witness saw on both CPUs is one. A stall in another report's time,
+// or an unwatched machine, accounts for nothing. The phase fails either way.
+TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
+  StallCase c(WriteStalledLog("stalled", {15}, 6));
+  const SoakResult held = c.Judge(true, {{14.5, 0.099}, {14.501, 0.098}});  // both CPUs
   ASSERT_EQ(held.phases.size(), 2u);
   const SoakPhaseResult& second = held.phases[1];
   EXPECT_EQ(second.metrics["overruns"].get<long long>(), 12);
   EXPECT_EQ(second.metrics["lateness_p99_s"].get<double>(), 0.100);
+  EXPECT_EQ(second.metrics["release_error_p99_s"].get<double>(), 0.050);
   EXPECT_FALSE(second.pass);
-  EXPECT_TRUE(second.timing_machine_limited);
+  EXPECT_TRUE(second.timing_machine_limited) << ::testing::PrintToString(second.why);
+  EXPECT_EQ(second.machine["complete"], true);
   EXPECT_EQ(second.machine["stall_count"], 1);
-  EXPECT_NEAR(second.machine["worst_stall_s"].get<double>(), 0.099, 1e-9);
+  EXPECT_EQ(second.machine["worst_stall_s"], 0.099);
   EXPECT_EQ(second.machine["worst_stall_at_s"], 14.5);
   EXPECT_EQ(second.machine["late_ticks_accounted"], 18);
   EXPECT_EQ(second.machine["overruns_accounted"], 12);
-  EXPECT_EQ(second.machine["late_releases_accounted"], 0);
+  EXPECT_EQ(second.machine["late_releases_accounted"], 6);
   EXPECT_EQ(second.machine["delay_errors_accounted"], 0);
-  const std::vector<std::string> why = timing_why(second);
-  ASSERT_EQ(why.size(), 2u) << ::testing::PrintToString(second.why);
+  const std::vector<std::string> why = TimingWhy(second);
+  ASSERT_EQ(why.size(), 3u) << ::testing::PrintToString(second.why);
   for (const std::string& w : why) {
     EXPECT_NE(w.find("; the machine itself stalled 1 time(s) within the phase's reach (worst "
                      "99 ms, at t = 14.5 s), which accounts for it"),
@@ -346,27 +382,77 @@ TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
   EXPECT_FALSE(held.pass);
   EXPECT_FALSE(held.timing_machine_limited);
 
-  const SoakResult shorter = judge(true, {{14.5, 0.030}});
+  const SoakResult shorter = c.Judge(true, {{14.5, 0.030}, {14.51, 0.025}});
   EXPECT_FALSE(shorter.phases[1].timing_machine_limited);
   EXPECT_EQ(shorter.phases[1].machine["late_ticks_accounted"], 0);
   EXPECT_EQ(shorter.phases[1].machine["overruns_accounted"], 9);
-  for (const std::string& w : timing_why(shorter.phases[1])) {
+  for (const std::string& w : TimingWhy(shorter.phases[1])) {
     EXPECT_EQ(w.find("machine"), std::string::npos) << w;
   }
-  const SoakResult overruns_only = judge(true, {{14.5, 0.045}});
+  const SoakResult overruns_only = c.Judge(true, {{14.5, 0.045}});
   EXPECT_EQ(overruns_only.phases[1].machine["overruns_accounted"], 12);
   EXPECT_EQ(overruns_only.phases[1].machine["late_ticks_accounted"], 0);
   EXPECT_FALSE(overruns_only.phases[1].timing_machine_limited);
   // Within the phase's reach (the report at 10 s covers 9-10 s) but not in the time of the
   // report that holds the late ticks.
-  const SoakResult elsewhere = judge(true, {{9.2, 0.099}});
+  const SoakResult elsewhere = c.Judge(true, {{9.2, 0.099}});
   EXPECT_EQ(elsewhere.phases[1].machine["stall_count"], 1);
   EXPECT_EQ(elsewhere.phases[1].machine["late_ticks_accounted"], 0);
   EXPECT_FALSE(elsewhere.phases[1].timing_machine_limited);
-  EXPECT_EQ(judge(true, {{8.5, 0.099}}).phases[1].machine["stall_count"], 0);
-  const SoakResult unwatched = judge(false, {{14.5, 0.099}});
+  EXPECT_EQ(c.Judge(true, {{8.5, 0.099}}).phases[1].machine["stall_count"], 0);
+  const SoakResult unwatched = c.Judge(false, {{14.5, 0.099}});
   EXPECT_FALSE(unwatched.phases[1].timing_machine_limited);
   EXPECT_TRUE(unwatched.phases[1].machine.is_null());
+  // Stalls the witness dropped for want of room after 12 s: the second phase says so.
+  c.in.machine_complete_until_s = 12.0;
+  EXPECT_EQ(c.Judge(true, {{14.5, 0.099}}).phases[1].machine["complete"], false);
+}
+
+// A stall gives each loop its ticks once: across the two reports it overlaps (6 of the 12
+// late ticks of each loop, 6 of its 8 overruns), and not lent to ticks later than short
+// stalls could make them (ten 3 ms stalls beside a 99 ms one account for no tick 100 ms
+// late).
+TEST(SoakWindow, AStallAccountsForItsTicksOnce) {
+  StallCase across(WriteStalledLog("stalled_across", {15, 16}, 6));
+  const SoakResult a = across.Judge(true, {{14.95, 0.099}});
+  EXPECT_EQ(a.phases[1].machine["late_ticks_accounted"], 18);
+  EXPECT_EQ(a.phases[1].machine["overruns_accounted"], 18);
+  EXPECT_FALSE(a.phases[1].timing_machine_limited);
+
+  StallCase pooled(WriteStalledLog("stalled_pooled", {15}, 12));
+  std::vector<SoakStall> stalls = {{14.1, 0.099}};
+  for (int k = 0; k < 10; ++k) stalls.push_back({14.3 + 0.05 * k, 0.003});
+  const SoakResult p = pooled.Judge(true, stalls);
+  EXPECT_EQ(p.phases[1].machine["stall_count"], 11);
+  EXPECT_EQ(p.phases[1].machine["late_ticks_accounted"], 18);
+  EXPECT_FALSE(p.phases[1].timing_machine_limited);
+}
+
+// With nothing else wrong (every process ran, every state logged, the formation held, no
+// memory growth), a soak that missed only timing the machine's stalls account for says so
+// as a whole; one stall too short to account for it, and the verdict is a plain failure.
+TEST(SoakWindow, AVerdictFailedOnlyWhereTheMachineStalledSaysSo) {
+  StallCase c(WriteStalledLog("stalled_clean", {15}, 6, true));
+  c.in.report = {{"all_processes_ok", true}, {"log_complete", true}};
+  c.in.resources_csv = Tmp("stalled_clean_resources.csv");
+  std::ofstream(c.in.resources_csv)
+      << "sim_time_s,wall_time_s,process,pid,rss_kib,cpu_s\n"
+         "0,0,vehicle 1,100,5000,0\n12,12,vehicle 1,100,5000,0.1\n20,20,vehicle 1,100,5000,0.2\n";
+  const SoakResult stalled = c.Judge(true, {{14.5, 0.099}});
+  EXPECT_FALSE(stalled.pass);
+  EXPECT_TRUE(stalled.timing_machine_limited) << ::testing::PrintToString(stalled.reasons);
+  EXPECT_EQ(stalled.reasons.size(), 3u) << ::testing::PrintToString(stalled.reasons);
+  EXPECT_TRUE(stalled.phases[0].pass) << ::testing::PrintToString(stalled.phases[0].why);
+  EXPECT_TRUE(stalled.phases[1].metrics["reconverged"].get<bool>());
+  const nlohmann::ordered_json j = SoakJson(stalled);
+  EXPECT_EQ(j["verdict"], "fail");
+  EXPECT_EQ(j["timing_machine_limited"], true);
+  EXPECT_EQ(j["phases"][1]["timing_machine_limited"], true);
+  const SoakResult plain = c.Judge(true, {{14.5, 0.030}});
+  EXPECT_FALSE(plain.pass);
+  EXPECT_FALSE(plain.timing_machine_limited);
+  const SoakResult quiet = c.Judge(true, {});
+  EXPECT_FALSE(quiet.timing_machine_limited);
 }
 
 TEST(SoakWindow, ReportsKeepTheirWindowAndADamagedHistogramIsRejected) {
