@@ -451,9 +451,10 @@ long long AddExcusing(const HealthRecord& h, std::vector<Allowance> allowances, 
     while (next < allowances.size() && allowances[next].latest_s >= latest) {
       pool.push_back(allowances[next++].left);
     }
+    // From the stall least able to make a sample late: the longer ones may still be
+    // needed for later samples of the process's next report.
     long long take = 0;
-    for (std::size_t k = 0; k < pool.size() && LatenessBins::UpperS(b->bin) > target_s &&
-                            take < b->count; ++k) {
+    for (std::size_t k = pool.size(); k-- > 0 && latest > target_s && take < b->count;) {
       const long long t = std::min(*pool[k], b->count - take);
       *pool[k] -= t;
       take += t;
@@ -479,7 +480,8 @@ struct MachineAccount {
   double lateness_p99_s = 0.0, release_error_p99_s = 0.0;
   long long overruns_left = 0;
   std::optional<double> delay_error_p99_s;
-  double reach_s = 0.0;  // the earliest time the phase's reports cover
+  double reach_s = 0.0;      // the earliest time the phase's reports cover
+  double reach_end_s = 0.0;  // the latest: its end, or an accounted delivery's arrival
 };
 
 /// Per process and stall, what the stall may still account for: late ticks (or late
@@ -521,23 +523,24 @@ void AccountReport(const SoakData& d, const std::vector<StallSpan>& spans, const
   (emulator ? m->late_releases : m->late_ticks) += excused;
 }
 
+/// `left` is the whole run's: a stall across two phases gives its ticks once.
 void AccountLoops(const SoakData& d, const std::vector<StallSpan>& spans, const SoakTargets& t,
-                  double lo, double hi, MachineAccount* m) {
-  if (!(d.a.period_us > 0)) return;
-  Allowances left;
-  WindowLateness loop, release;
+                  double lo, double hi, Allowances* left, MachineAccount* m) {
   m->reach_s = lo - kHealthReachS;
+  if (!(d.a.period_us > 0)) return;
+  WindowLateness loop, release;
   for (std::size_t k = 0; k < d.run.health.size(); ++k) {
     if (!InWindow(ToSeconds(d.run.health[k].utime), lo, hi, d.end_s)) continue;
     m->reach_s = std::min(m->reach_s, d.health_from_s[k]);
-    AccountReport(d, spans, t, k, &left, &loop, &release, m);
+    AccountReport(d, spans, t, k, left, &loop, &release, m);
   }
   m->lateness_p99_s = loop.P99();
   m->release_error_p99_s = release.P99();
   m->accounted = true;
 }
 
-/// Delivered messages whose lateness beyond the target one stall covers at least half of.
+/// Delivered messages late beyond the target whose lateness (from their due time on) one
+/// stall covers at least half of.
 void AccountDeliveries(const SoakData& d, const std::vector<StallSpan>& spans, double target_s,
                        double lo, double hi, MachineAccount* m) {
   std::vector<double> err;
@@ -557,6 +560,7 @@ void AccountDeliveries(const SoakData& d, const std::vector<StallSpan>& spans, d
     }
     if (excused) {
       ++m->delay_errors;
+      m->reach_end_s = std::max(m->reach_end_s, e->due_s + e->error_s);
     } else {
       err.push_back(e->error_s);
     }
@@ -564,12 +568,20 @@ void AccountDeliveries(const SoakData& d, const std::vector<StallSpan>& spans, d
   if (!err.empty()) m->delay_error_p99_s = QuantilesOf(&err).p99;
 }
 
-MachineAccount AccountForStalls(const SoakData& d, const std::vector<StallSpan>& spans,
-                                const SoakTargets& t, double lo, double hi) {
+/// The stalls the witness saw over the run, and what each may still account for.
+struct MachineRecord {
+  std::vector<StallSpan> spans;
+  Allowances left;
+};
+
+MachineAccount AccountForStalls(const SoakData& d, MachineRecord* rec, const SoakTargets& t,
+                                double lo, double hi) {
   MachineAccount m;
-  AccountLoops(d, spans, t, lo, hi, &m);
-  AccountDeliveries(d, spans, t.delay_error_p99_max_s, lo, hi, &m);
-  const auto [first, last] = Overlapping(spans, m.reach_s, hi);
+  m.reach_end_s = hi;
+  AccountLoops(d, rec->spans, t, lo, hi, &rec->left, &m);
+  AccountDeliveries(d, rec->spans, t.delay_error_p99_max_s, lo, hi, &m);
+  const std::vector<StallSpan>& spans = rec->spans;
+  const auto [first, last] = Overlapping(spans, m.reach_s, m.reach_end_s);
   for (std::size_t s = first; s < last; ++s) {
     ++m.stall_count;
     if (m.worst == nullptr || spans[s].longest_s > m.worst->longest_s) m.worst = &spans[s];
@@ -632,9 +644,8 @@ void PhaseTargets(const SoakTargets& t, const Window& w, const MachineAccount* m
 }
 
 /// `*other_why`: the phase's sentences the machine does not account for.
-SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in,
-                           const std::vector<StallSpan>& spans, int index,
-                           std::size_t* other_why) {
+SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in, MachineRecord* machine,
+                           int index, std::size_t* other_why) {
   SoakPhaseResult r;
   r.index = index;
   r.phase = in.phases[static_cast<std::size_t>(index)];
@@ -650,7 +661,7 @@ SoakPhaseResult JudgePhase(const SoakData& d, const SoakInput& in,
   if (in.engine == "realtime") {
     std::optional<MachineAccount> m;
     if (in.machine_watched) {
-      m = AccountForStalls(d, spans, in.targets, r.phase.start_s, r.phase.end_s);
+      m = AccountForStalls(d, machine, in.targets, r.phase.start_s, r.phase.end_s);
       r.machine = MachineJson(*m, r.phase.end_s <= in.machine_complete_until_s);
     }
     const std::size_t before = r.why.size();
@@ -825,10 +836,10 @@ bool AnalyseSoak(const SoakInput& in, SoakResult* out, std::string* error) {
   }
   const std::size_t other_reasons = out->reasons.size();
   std::size_t not_machine = 0;  // phase sentences the machine does not account for
-  const std::vector<StallSpan> spans = MergedStalls(in);
+  MachineRecord machine{MergedStalls(in), {}};
   for (int k = 0; k < static_cast<int>(in.phases.size()); ++k) {
     std::size_t other = 0;
-    out->phases.push_back(JudgePhase(d, in, spans, k, &other));
+    out->phases.push_back(JudgePhase(d, in, &machine, k, &other));
     not_machine += other;
     const SoakPhaseResult& p = out->phases.back();
     for (const std::string& w : p.why) out->reasons.push_back(PhaseName(p) + ": " + w);

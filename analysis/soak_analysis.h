@@ -62,7 +62,8 @@
 //   accounted for when one stall covers at least half of its lateness (from its due time
 //   on). A phase's timing is machine-limited when it missed a timing target but meets every
 //   one without what the stalls account for: the p99s of the samples left, the overruns
-//   left. The verdict still fails on it; the phase (and the verdict, when nothing else
+//   left. A stall gives its ticks once over the whole run, so a stall across two phases
+//   too. The verdict still fails on it; the phase (and the verdict, when nothing else
 //   failed) says that the machine accounts for the miss. A [pass] criterion on a timing
 //   metric is judged on the figures as measured. A phase's `machine` counts the stalls
 //   from the earliest time its reports cover (a second before it) to its end; it is not
@@ -156,9 +157,10 @@ struct SoakPhaseResult {
   nlohmann::ordered_json metrics;
   bool pass = true;
   std::vector<std::string> why;
-  /// The machine's stalls within the phase's reach (definitions above): how many, the
-  /// worst and when it began, and what they account for (late ticks, overruns, late
-  /// releases, delay errors). Null when the machine was not watched.
+  /// The machine's stalls within the phase's reach (definitions above): whether the
+  /// witness kept every one (complete), how many, the worst and when it began, and what
+  /// they account for (late ticks, overruns, late releases, delay errors). Null when the
+  /// machine was not watched.
   nlohmann::ordered_json machine;
   /// The phase missed its timing targets only by what the machine's stalls account for.
   bool timing_machine_limited = false;

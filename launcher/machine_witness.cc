@@ -12,9 +12,6 @@
 #include "runtime/clock.h"
 
 namespace shoal {
-namespace {
-
-}  // namespace
 
 std::vector<int> AllowedCpus() {
   std::vector<int> cpus;

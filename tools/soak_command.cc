@@ -19,6 +19,7 @@
 #include "analysis/verdict.h"
 #include "campaign/plan.h"
 #include "campaign/soak_plan.h"
+#include "launcher/machine_witness.h"
 #include "launcher/run_report.h"
 #include "runtime/clocked_node.h"
 #include "runtime/process.h"

@@ -389,10 +389,17 @@ TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
   for (const std::string& w : TimingWhy(shorter.phases[1])) {
     EXPECT_EQ(w.find("machine"), std::string::npos) << w;
   }
+  // Two 30 ms stalls on two CPUs, overlapping: one stall of 30 ms, not of their 50 ms union.
+  EXPECT_EQ(c.Judge(true, {{14.5, 0.030}, {14.52, 0.030}}).phases[1].machine["overruns_accounted"],
+            9);
   const SoakResult overruns_only = c.Judge(true, {{14.5, 0.045}});
   EXPECT_EQ(overruns_only.phases[1].machine["overruns_accounted"], 12);
   EXPECT_EQ(overruns_only.phases[1].machine["late_ticks_accounted"], 0);
   EXPECT_FALSE(overruns_only.phases[1].timing_machine_limited);
+  // 48 ms: ticks up to 96 ms late, and the 100 ms ones are in a bin that reaches beyond.
+  EXPECT_EQ(c.Judge(true, {{14.5, 0.048}}).phases[1].machine["late_ticks_accounted"], 0);
+  // 97 ms: (97 + 2) ms of releases at 50 a second, 5 of them.
+  EXPECT_EQ(c.Judge(true, {{14.5, 0.097}}).phases[1].machine["late_releases_accounted"], 5);
   // Within the phase's reach (the report at 10 s covers 9-10 s) but not in the time of the
   // report that holds the late ticks.
   const SoakResult elsewhere = c.Judge(true, {{9.2, 0.099}});
@@ -409,15 +416,25 @@ TEST(SoakWindow, TheMachinesOwnStallAccountsForTheLateTicksItCouldHaveDelayed) {
 }
 
 // A stall gives each loop its ticks once: across the two reports it overlaps (6 of the 12
-// late ticks of each loop, 6 of its 8 overruns), and not lent to ticks later than short
-// stalls could make them (ten 3 ms stalls beside a 99 ms one account for no tick 100 ms
-// late).
+// late ticks of each loop, 6 of its 8 overruns), also when they are in two phases, and
+// not lent to ticks later than short stalls could make them (ten 3 ms stalls beside a
+// 99 ms one account for no tick 100 ms late).
 TEST(SoakWindow, AStallAccountsForItsTicksOnce) {
   StallCase across(WriteStalledLog("stalled_across", {15, 16}, 6));
   const SoakResult a = across.Judge(true, {{14.95, 0.099}});
   EXPECT_EQ(a.phases[1].machine["late_ticks_accounted"], 18);
   EXPECT_EQ(a.phases[1].machine["overruns_accounted"], 18);
   EXPECT_FALSE(a.phases[1].timing_machine_limited);
+
+  StallCase phases(WriteStalledLog("stalled_phases", {9, 10}, 6));
+  const SoakResult two = phases.Judge(true, {{8.98, 0.099}});
+  EXPECT_EQ(two.phases[0].machine["late_ticks_accounted"], 18);
+  EXPECT_EQ(two.phases[0].machine["overruns_accounted"], 12);
+  EXPECT_EQ(two.phases[0].machine["late_releases_accounted"], 6);
+  EXPECT_EQ(two.phases[1].machine["stall_count"], 1);
+  EXPECT_EQ(two.phases[1].machine["late_ticks_accounted"], 0);
+  EXPECT_EQ(two.phases[1].machine["overruns_accounted"], 6);
+  EXPECT_EQ(two.phases[1].machine["late_releases_accounted"], 0);
 
   StallCase pooled(WriteStalledLog("stalled_pooled", {15}, 12));
   std::vector<SoakStall> stalls = {{14.1, 0.099}};
