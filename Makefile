@@ -30,9 +30,12 @@ PYTHON_PACKAGES := python3-pandas
 # make test starts processes through a real ssh (tests/netns/ssh_hosts_test.sh): OpenSSH's
 # server and client; the test runs its own sshd with its own config, keys and port.
 SSH_PACKAGES := openssh-server openssh-client
+# make test counts the instructions a lockstep run's roles execute per tick at 5 and 64
+# followers (tests/scale/, bench/scale_work.sh): valgrind's callgrind.
+SCALE_PACKAGES := valgrind
 PACKAGES = $(DEB_PACKAGES)
 test: PACKAGES = $(DEB_PACKAGES) $(FUZZ_PACKAGES) $(SLURM_PACKAGES) $(JAVA_PACKAGES) \
-  $(PYTHON_PACKAGES) $(SSH_PACKAGES)
+  $(PYTHON_PACKAGES) $(SSH_PACKAGES) $(SCALE_PACKAGES)
 test: CMAKE_FLAGS += -DSHOAL_REQUIRE_JAVA=ON
 # Executions per fuzz target in make test (a few seconds each; bench/fuzz.sh 10000000 is
 # the campaign of docs/benchmarks.md).
