@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Benchmark: the work each role of a lockstep run does per tick against the number of
 # followers, counted in user-space instructions (valgrind callgrind), not timed: what
-# Shoal's code asks of the CPU, the same on any x86-64 machine, apart from the waits
+# Shoal's code asks of the CPU, close on any x86-64 machine for the same build (the
+# compiler, glibc and the string functions it picks for the CPU move it a little), apart
+# from the waits
 # (the clock master's polls of the logger's count, the logger's own loop) whose number
 # depends on how fast the others are. bench/scale.sh times the same runs; the two together
 # tell Shoal's work from what the host charges for it (a switch between processes, lines
@@ -27,8 +29,11 @@ here=$(cd "$(dirname "$0")" && pwd)
 shoal="$build/tools/shoal"
 [ -x "$shoal" ] || { echo "bench: $shoal not built" >&2; exit 2; }
 command -v valgrind > /dev/null || { echo "bench: valgrind not installed" >&2; exit 2; }
-awk -v a="$d1" -v b="$d2" 'BEGIN { exit !(a > 0 && b > a) }' ||
-  { echo "bench: D2 ($d2) must be longer than D1 ($d1)" >&2; exit 2; }
+[[ $d1 =~ ^[1-9][0-9]*$ && $d2 =~ ^[1-9][0-9]*$ ]] ||
+  { echo "bench: D1 and D2 are whole seconds (got $d1 and $d2)" >&2; exit 2; }
+[ "$d2" -gt "$d1" ] || { echo "bench: D2 ($d2) must be longer than D1 ($d1)" >&2; exit 2; }
+# bench/scale_scenario.sh's control rate: a run of D s has D * 50 ticks.
+readonly RATE_HZ=50
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 
@@ -53,12 +58,21 @@ one_run() {
     /^start .channel emulator. / { lead = emulator }
     /\/usr\/bin\/lcm-logger / { sub(/\/usr\/bin\/lcm-logger/, logger) }
     { print }' "$run/printed.sh" > "$run/run.sh"
-  local wrapped
-  wrapped=$(grep -c "tool=callgrind" "$run/run.sh" || true)
-  [ "$wrapped" = 3 ] || { echo "bench: found $wrapped of the 3 commands to wrap" >&2; exit 2; }
+  # Each wrapped line must start its own program, not an argument of it.
+  local prog
+  for prog in "vehicle.out [^ ]*/shoal_vehicle " "emulator.out [^ ]*/shoal_channel_emulator " \
+              "logger.out /usr/bin/lcm-logger "; do
+    grep -q "callgrind-out-file=[^ ]*/$prog" "$run/run.sh" ||
+      { echo "bench: the script's command for ${prog%%.out*} was not wrapped" >&2; exit 2; }
+  done
   (cd "$run" && bash run.sh > run.out 2>&1) || {
     echo "bench: the run of $n followers, $d s failed:" >&2
     tail -5 "$run/run.out" >&2
+    local f
+    for f in "$run"/run.lcmlog.d/emulator.txt "$run"/run.lcmlog.d/vehicle1.txt \
+             "$run"/run.lcmlog.d/logger.txt; do
+      [ -f "$f" ] && { echo "--- $f" >&2; tail -5 "$f" >&2; }
+    done
     exit 1
   }
   for role in vehicle emulator logger; do
@@ -78,11 +92,11 @@ for n in $ns; do
   for role in vehicle emulator logger; do
     a=$(instructions "$dir/${n}_$d1/$role.out")
     b=$(instructions "$dir/${n}_$d2/$role.out")
-    row="$row,$(awk -v a="$a" -v b="$b" -v t=$(( (d2 - d1) * 50 )) 'BEGIN {printf "%.0f", (b - a) / t}')"
+    row="$row,$(awk -v a="$a" -v b="$b" -v t=$(( (d2 - d1) * RATE_HZ )) 'BEGIN {printf "%.0f", (b - a) / t}')"
   done
   echo "$row" | awk -F, -v OFS=, '{print $0, sprintf("%.0f", ($1 * $2 + $3 + $4) / $1)}' >> "$out"
 done
-column -s, -t "$out"
+column -s, -t "$out" 2> /dev/null || cat "$out"
 # Each role's dearest size over its cheapest (per follower for the whole run).
 awk -F, 'NR > 1 {
     for (c = 2; c <= 5; c++) {
@@ -92,6 +106,7 @@ awk -F, 'NR > 1 {
     }
   }
   END {
+    for (c = 2; c <= 5; c++) if (lo[c] <= 0) { print "bench: a count of 0 instructions a tick"; exit 1 }
     printf "dearest / cheapest size: one vehicle %.2f, emulator per follower %.2f, " \
            "logger per follower %.2f, all three per follower %.2f\n",
            hi[2] / lo[2], hi[3] / lo[3], hi[4] / lo[4], hi[5] / lo[5]

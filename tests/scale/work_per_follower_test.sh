@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The work of a lockstep run grows with its links, not with its vehicles squared: at a
 # fixed two in-links per follower (bench/scale_scenario.sh), one vehicle executes as many
-# instructions per tick among 64 followers as among 5, and the vehicles, the channel
-# emulator and lcm-logger together no more per follower, within 20 %. Counted by
-# bench/scale_work.sh (callgrind: user-space instructions, the same on any x86-64
-# machine), not timed; what a host charges for a switch among more processes is
+# instructions per tick among 64 followers as among 5 (no more than 5 % above), and the
+# channel emulator, lcm-logger and the three together no more than 20 % more per follower.
+# Counted by bench/scale_work.sh (callgrind: user-space instructions, close on any x86-64
+# machine for the same build), not timed; what a host charges for a switch among more processes is
 # bench/scale.sh's to measure. A vehicle that heard every state, or an emulator or logger
 # whose work per message grew with the swarm, fails here.
 #
