@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -11,6 +12,7 @@
 
 #include "runtime/channels.h"
 #include "runtime/messages.h"
+#include "runtime/overrun_note.h"
 #include "scenario/loader.h"
 
 namespace shoal {
@@ -718,9 +720,11 @@ void ChannelEmulatorApp::ReleaseDue(Micros due) {
   const std::int64_t due_ns = t0_ns_ + due * 1000;
   for (int id : released_to_) bundled_[id] = 0;
   released_to_.clear();
+  bool any = false;
   batch_.Begin();
   channel_.DeliverDue(due, [&](int receiver, const Datagram& d) {
     Bus* b = vbus_[receiver];
+    any = true;
     if (b == bus_) {
       b->PublishRaw(rx_channels_[receiver], d.raw.data(), static_cast<int>(d.raw.size()));
       release_error_.Add(static_cast<double>(MonotonicNs() - due_ns) * 1e-9);
@@ -738,6 +742,17 @@ void ChannelEmulatorApp::ReleaseDue(Micros due) {
   for (int id : released_to_) {
     for (int k = 0; k < bundled_[id]; ++k) release_error_.Add(error);
   }
+  // The instant's latest message left no later than `error` after it was due.
+  if (any && error > kLateReleaseNoteS) NoteLateRelease(due_ns, due, error);
+}
+
+void ChannelEmulatorApp::NoteLateRelease(std::int64_t due_ns, Micros due, double late_s) {
+  // Written once the release is already late: the write delays nothing that was on time.
+  if (late_release_notes_ > kOverrunNotes) return;
+  const std::string line = ++late_release_notes_ > kOverrunNotes
+                               ? std::string(kLateReleaseNotesEnd)
+                               : FormatLateReleaseNote(due_ns, ToSeconds(due), late_s);
+  std::fprintf(stderr, "%s\n", line.c_str());
 }
 
 std::pair<double, double> ChannelEmulatorApp::DelayBounds() const {

@@ -22,36 +22,43 @@ std::string ProcessName(int id) {
   return id == 0 ? "leader" : "vehicle " + std::to_string(id);
 }
 
-/// The overrun notes of the leader or a vehicle (runtime/overrun_note.h) from its output
-/// file; false when it has none to read, or wrote that more followed than it noted.
+/// The overrun notes of the leader or a vehicle, or the channel emulator's notes of its
+/// late releases (runtime/overrun_note.h), from its output file; false when it has none
+/// to read, or wrote that more followed than it noted.
 bool ReadOverrunNotes(const LaunchResult& l, int id, std::vector<OverrunNote>* notes) {
-  const std::string tag = id == 0 ? "leader" : "vehicle" + std::to_string(id);
+  const bool emulator = id == kEmulatorId;
+  const std::string tag = emulator ? "emulator" : id == 0 ? "leader" : "vehicle" + std::to_string(id);
+  const std::string prefix = emulator ? "late release:" : "overrun:";
   std::ifstream in(l.process_output_dir + "/" + tag + ".txt");
   if (!in) return false;
   std::string line;
   while (std::getline(in, line)) {
-    if (line.rfind("overrun:", 0) != 0) continue;
+    if (line.rfind(prefix, 0) != 0) continue;
     OverrunNote n;
     // More than it noted, or a note another thread's output cut into: one not judged.
-    if (line == kOverrunNotesEnd || !ParseOverrunNote(line, &n)) return false;
+    const bool read = emulator ? line != kLateReleaseNotesEnd && ParseLateReleaseNote(line, &n)
+                               : line != kOverrunNotesEnd && ParseOverrunNote(line, &n);
+    if (!read) return false;
     if (l.t0_monotonic_ns > 0) n.due_s = (n.due_ns - l.t0_monotonic_ns) * 1e-9;
     notes->push_back(n);
   }
   return true;
 }
 
-/// The machine's worst stall among those that account for each overrun of process `id`:
-/// a stall that covers at least half the time the tick lost (from when it was due to when
-/// its step ended). nullptr when one overrun has none; when the process noted fewer
-/// overruns than it counted (more than kOverrunNotes) or a note cannot be read; for a
-/// process that was started again (its last report is the new process's, whose notes are
-/// in another file); for the channel emulator (its releases are not noted); or when the
-/// witness cannot speak for the process. Half: once the machine runs again, every loop it
-/// held wakes at once and queues for the CPUs, so a loop loses more than the stall. A
-/// stall that covers less of the lost time (the process stopped, or stuck in its own work,
-/// for the rest) does not account for it.
+/// The machine's worst stall among those that account for each overrun of process `id`
+/// (for the channel emulator: each release later than the verdict's limit): a stall that
+/// covers at least half the time the tick lost (from when it was due to when its step
+/// ended; for a release, to when it went out). nullptr when one overrun has none; when
+/// the process noted fewer overruns than it counted (more than kOverrunNotes) or a note
+/// cannot be read; when the emulator noted no late release (a build that did not note
+/// them); for a process that was started again (its last report is the new process's,
+/// whose notes are in another file); or when the witness cannot speak for the process.
+/// Half: once the machine runs again, every loop it held wakes at once and queues for the
+/// CPUs, so a loop loses more than the stall. A stall that covers less of the lost time
+/// (the process stopped, or stuck in its own work, for the rest) does not account for it.
 const MachineStall* MachineExplains(const LaunchResult& l, int id, std::int64_t overruns) {
-  if (!l.machine.watched || id == kEmulatorId || overruns <= 0 ||
+  const std::int64_t needed = id == kEmulatorId ? 1 : overruns;
+  if (!l.machine.watched || needed <= 0 ||
       std::find(l.unwatched_ids.begin(), l.unwatched_ids.end(), id) != l.unwatched_ids.end()) {
     return nullptr;
   }
@@ -59,7 +66,7 @@ const MachineStall* MachineExplains(const LaunchResult& l, int id, std::int64_t 
     if (r.process == ProcessName(id)) return nullptr;
   }
   std::vector<OverrunNote> notes;
-  if (!ReadOverrunNotes(l, id, &notes) || static_cast<std::int64_t>(notes.size()) < overruns) {
+  if (!ReadOverrunNotes(l, id, &notes) || static_cast<std::int64_t>(notes.size()) < needed) {
     return nullptr;
   }
   const MachineStall* worst = nullptr;
@@ -87,15 +94,18 @@ void JudgeTiming(const RunAnalysis& a, double period_s, RunReport* r) {
                           p.id == kEmulatorId ? "release error" : "loop lateness",
                           h.lateness_p99_s * 1e3, kMaxLatenessP99S * 1e3);
     // Where the limit is shorter than a period, a loop can be late beyond it without
-    // overrunning: ticks no note names.
-    const bool noted = h.lateness_p99_s <= kMaxLatenessP99S || period_s <= kMaxLatenessP99S;
+    // overrunning: ticks no note names. The emulator notes every release later than it.
+    static_assert(kLateReleaseNoteS <= kMaxLatenessP99S, "a release over the limit is noted");
+    const bool noted = p.id == kEmulatorId || h.lateness_p99_s <= kMaxLatenessP99S ||
+                       period_s <= kMaxLatenessP99S;
     const MachineStall* s = noted ? MachineExplains(r->launch, p.id, h.overruns) : nullptr;
     if (s != nullptr) {
       ++machines;
       std::snprintf(text + n, sizeof(text) - n,
-                    "; the machine itself stalled for at least half of each overrun (worst "
+                    "; the machine itself stalled for at least half of each %s (worst "
                     "%.1f ms, at t = %.3f s)",
-                    s->length_s * 1e3, s->start_s);
+                    p.id == kEmulatorId ? "late release" : "overrun", s->length_s * 1e3,
+                    s->start_s);
     }
     r->timing_problems.push_back(text);
   }

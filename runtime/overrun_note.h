@@ -53,4 +53,36 @@ inline bool ParseOverrunNote(const std::string& line, OverrunNote* n) {
   return true;
 }
 
+/// The channel emulator's counterpart: in real time it notes each release instant whose
+/// messages left more than kLateReleaseNoteS after they were due (the run verdict's limit
+/// on the release error's p99, launcher/run_report.h), at most kOverrunNotes of them, so
+/// that the verdict can tell releases the machine held from those the emulator was late
+/// for on its own. Read back into an OverrunNote: tick 0, woke_s and done_s the lateness.
+inline constexpr double kLateReleaseNoteS = 0.02;
+inline constexpr const char* kLateReleaseNotesEnd =
+    "late release: more than the notes above follow";
+
+inline std::string FormatLateReleaseNote(std::int64_t due_ns, double due_s, double late_s) {
+  char text[128];
+  std::snprintf(text, sizeof(text),
+                "late release: due at t = %.6f s (CLOCK_MONOTONIC %lld ns), sent %.3f ms late",
+                due_s, static_cast<long long>(due_ns), late_s * 1e3);
+  return text;
+}
+
+/// `line` without its newline; false unless it is a note of FormatLateReleaseNote's.
+inline bool ParseLateReleaseNote(const std::string& line, OverrunNote* n) {
+  long long due_ns = 0;
+  double due = 0, late_ms = 0;
+  int end = 0;
+  if (std::sscanf(line.c_str(),
+                  "late release: due at t = %lf s (CLOCK_MONOTONIC %lld ns), sent %lf ms late%n",
+                  &due, &due_ns, &late_ms, &end) != 3 ||
+      end != static_cast<int>(line.size())) {
+    return false;
+  }
+  *n = {0, due_ns, due, late_ms * 1e-3, late_ms * 1e-3};
+  return true;
+}
+
 }  // namespace shoal

@@ -134,6 +134,21 @@ struct TimedRun {
     h.lateness_p99_s = p99_s;
     analysis.processes.push_back({id, 5, h});
   }
+  /// The channel emulator released late at each of `due_s`, each `late_s` after it was
+  /// due; `end`: then wrote that more followed.
+  void LateReleases(std::vector<double> due_s, double late_s = 0.05, bool end = false) {
+    std::ofstream out(dir + "/emulator.txt");
+    out << "shoal_channel_emulator: SCHED_OTHER, nice -10\n";
+    for (const double d : due_s) {
+      out << FormatLateReleaseNote(static_cast<std::int64_t>((1000 + d) * 1e9), d, late_s)
+          << "\n";
+    }
+    if (end) out << kLateReleaseNotesEnd << "\n";
+    HealthRecord h;
+    h.process_id = kEmulatorId;
+    h.lateness_p99_s = late_s;
+    analysis.processes.push_back({kEmulatorId, 5, h});
+  }
   void Stall(double start_s, double length_s) {
     report.launch.machine.stalls.push_back({start_s, length_s, 0});
   }
@@ -274,10 +289,62 @@ TEST(MachineTiming, OneProblemNotTheMachinesIsEnoughToSaySo) {
   EXPECT_FALSE(r.report.timing_machine_limited);
 }
 
-TEST(MachineTiming, NeverTheEmulatorsNorWhereTheWitnessCannotSpeak) {
+TEST(LateReleaseNote, ReadsBackWhatItWrites) {
+  const std::string line = FormatLateReleaseNote(123456789012345, 2.551, 0.0512);
+  EXPECT_EQ(line, "late release: due at t = 2.551000 s (CLOCK_MONOTONIC 123456789012345 ns), "
+                  "sent 51.200 ms late");
+  OverrunNote back;
+  ASSERT_TRUE(ParseLateReleaseNote(line, &back));
+  EXPECT_EQ(back.due_ns, 123456789012345);
+  EXPECT_NEAR(back.due_s, 2.551, 1e-9);
+  EXPECT_NEAR(back.done_s, 0.0512, 1e-9);
+  EXPECT_FALSE(ParseLateReleaseNote(line + " and more", &back));
+  EXPECT_FALSE(ParseLateReleaseNote(kLateReleaseNotesEnd, &back));
+  EXPECT_FALSE(ParseOverrunNote(line, &back));
+}
+
+TEST(MachineTiming, LateReleasesTheMachineStalledThroughAreTheMachines) {
+  TimedRun r;
+  r.LateReleases({2.55, 2.57});
+  r.Overruns(2, {2.55});
+  r.Stall(2.548, 0.102);
+  r.Judge();
+  ASSERT_EQ(r.report.timing_problems.size(), 2u);
+  EXPECT_NE(r.report.timing_problems[0].find("channel emulator: 0 overruns, release error p99 "
+                                             "50.0 ms (limits: 0 overruns, p99 20 ms); the "
+                                             "machine itself stalled for at least half of each "
+                                             "late release (worst 102.0 ms, at t = 2.548 s)"),
+            std::string::npos)
+      << r.report.timing_problems[0];
+  EXPECT_TRUE(r.report.timing_machine_limited);
+}
+
+TEST(MachineTiming, AnEmulatorLateWithoutAStallOrUnnotedIsNotTheMachines) {
+  // A late release a stall does not cover; none noted (a build that did not note them);
+  // more late releases than noted.
   for (const int c : {0, 1, 2}) {
     TimedRun r;
-    r.Overruns(c == 2 ? kEmulatorId : 3, {1.5});
+    if (c == 0) r.LateReleases({2.55, 4.0});
+    if (c == 1) r.LateReleases({});
+    if (c == 2) r.LateReleases({2.55}, 0.05, true);
+    r.Stall(2.548, 0.102);
+    r.Judge();
+    ASSERT_EQ(r.report.timing_problems.size(), 1u) << c;
+    EXPECT_EQ(r.report.timing_problems[0].find("machine"), std::string::npos)
+        << c << ": " << r.report.timing_problems[0];
+    EXPECT_FALSE(r.report.timing_machine_limited) << c;
+  }
+}
+
+TEST(MachineTiming, NeverWhereTheWitnessCannotSpeak) {
+  for (const int c : {0, 1, 2}) {
+    TimedRun r;
+    if (c == 2) {
+      r.LateReleases({1.5});
+      r.report.launch.unwatched_ids = {kEmulatorId};
+    } else {
+      r.Overruns(3, {1.5});
+    }
     r.Stall(1.50, 0.030);
     if (c == 0) r.report.launch.unwatched_ids = {3};     // on a host with another kernel
     if (c == 1) r.report.launch.machine.watched = false;  // no real-time priority
