@@ -315,12 +315,6 @@ void ChannelEmulatorApp::ReleaseWindow() {
   // process every vehicle waits for).
   std::vector<std::size_t>& next = next_delivery_;
   next.resize(static_cast<std::size_t>(n_ + 1));
-  // The bundles leave in chunks of 1, 2, 4, ... buses, each in one system call: the first
-  // vehicles step the window on the other CPU while the emulator builds and signs the
-  // bundles of the rest (building and signing them is most of what the vehicles wait for
-  // between two windows: docs/benchmarks.md). Chunks that double keep that CPU fed with a
-  // few system calls a window.
-  std::size_t chunk = 1, in_chunk = 0, groups_left = bus_groups_.size();
   batch_.Begin();
   for (const std::vector<int>& group : bus_groups_) {
     Bus* b = vbus_[group[0]];
@@ -345,12 +339,6 @@ void ChannelEmulatorApp::ReleaseWindow() {
     c.n_deliveries = static_cast<std::int32_t>(c.delivery_receiver.size());
     b->Publish(channels::Clock(), c);
     if (b != bus_) b->EndBundle();
-    if (--groups_left > 0 && ++in_chunk == chunk) {
-      batch_.Flush();
-      batch_.Begin();
-      in_chunk = 0;
-      chunk *= 2;
-    }
   }
   batch_.Flush();
   tick_ = win_last_;
@@ -575,24 +563,19 @@ int ChannelEmulatorApp::RunLockstep() {
   // Each vehicle still applies each tick's deliveries (those the tick lists) and steps the
   // ticks one by one in order, so every process computes exactly what it computes with one
   // round trip per tick (and what shoal sim does).
-  // When the logger hears the processes only through this one (an uplink, and no vehicle
-  // on the logger's bus), the next window is released as soon as this one's states are in
-  // the channel, before this window's decisions go to the logger: the vehicles step it
-  // while the emulator publishes them, and what the logger hears keeps its order. Else
-  // the next window's states or deliveries would reach the log before these decisions.
-  const bool release_early = uplink_ != nullptr && !shared_has_vehicles_;
-  bool released_early = false;  // the window from k went out in the iteration before
-  for (std::int64_t k = start_tick_; k <= final_tick_;) {
+  for (std::int64_t k = start_tick_; k <= final_tick_; k = win_last_ + 1) {
     if (StopRequested()) {
       PublishEvents();
       PublishStatus(RunState::kInterrupted, "");
       return 1;
     }
-    if (!released_early) OpenWindow(k);
+    win_first_ = k;
+    win_last_ = WindowLast(k);
+    CountWindow();
+    std::fill(got_tick_.begin(), got_tick_.end(), false);
     const std::int64_t released = bus_->sent();
     const std::uint64_t queued = progress_ ? progress_->queued() : 0;
-    if (!released_early) ReleaseWindow();
-    released_early = false;
+    ReleaseWindow();
     running_ = true;
     // The window's record -- the logger's copy of its clock (when no vehicle shares the
     // logger's bus: the window, without the lists), the states the uplink brings, the
@@ -612,12 +595,6 @@ int ChannelEmulatorApp::RunLockstep() {
     if (w == WindowWait::kTimedOut) DeclareSilentLost();
     SubmitWindow();
     AwaitRecorder(released, queued);
-    k = win_last_ + 1;
-    if (release_early && k <= final_tick_ && !StopRequested()) {
-      OpenWindow(k);
-      ReleaseWindow();
-      released_early = true;
-    }
     PublishEvents();
   }
   DrainRecorder();
@@ -642,13 +619,6 @@ std::int64_t ChannelEmulatorApp::WindowBefore(std::int64_t next) const {
   std::int64_t first = 0;
   for (std::int64_t k = 0; k < next; k = WindowLast(k) + 1) first = k;
   return first;
-}
-
-void ChannelEmulatorApp::OpenWindow(std::int64_t first) {
-  win_first_ = first;
-  win_last_ = WindowLast(first);
-  CountWindow();
-  std::fill(got_tick_.begin(), got_tick_.end(), false);
 }
 
 void ChannelEmulatorApp::CountWindow() {

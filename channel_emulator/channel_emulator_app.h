@@ -202,8 +202,6 @@ class ChannelEmulatorApp {
   // The first tick of the window that ends just before `next`, on the run's windows from
   // tick 0 (the window an emulator before a restart released last).
   std::int64_t WindowBefore(std::int64_t next) const;
-  /// The window from `first` becomes the current one: its bounds, counted, no state yet.
-  void OpenWindow(std::int64_t first);
   void CountWindow();  // the window [win_first_, win_last_] is released
   std::int64_t max_window_ = 1, min_window_ = 1;
   std::int64_t windows_ = 0, shortest_ = 0, longest_ = 0;  // released so far
