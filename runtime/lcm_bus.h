@@ -21,10 +21,12 @@
 #include <regex>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "lcmtypes/wire.h"
 #include "runtime/bus_auth.h"
+#include "runtime/state_wire.h"
 #include "runtime/udpm_receiver.h"
 #include "runtime/udpm_sender.h"
 
@@ -97,10 +99,16 @@ class Bus {
 
   template <typename Msg>
   bool Publish(const std::string& channel, const Msg& msg) {
-    const int size = msg.getEncodedSize();
-    if (static_cast<int>(buf_.size()) < size) buf_.resize(size);
-    if (msg.encode(buf_.data(), 0, size) != size) return false;
-    return PublishRaw(channel, buf_.data(), size);
+    if constexpr (std::is_same_v<Msg, vehicle_state_t>) {
+      if (static_cast<int>(buf_.size()) < state_wire::kBytes) buf_.resize(state_wire::kBytes);
+      state_wire::Encode(msg, buf_.data());
+      return PublishRaw(channel, buf_.data(), state_wire::kBytes);
+    } else {
+      const int size = msg.getEncodedSize();
+      if (static_cast<int>(buf_.size()) < size) buf_.resize(size);
+      if (msg.encode(buf_.data(), 0, size) != size) return false;
+      return PublishRaw(channel, buf_.data(), size);
+    }
   }
 
  private:
@@ -314,14 +322,18 @@ template <typename Msg>
 bool Decode(const void* data, int size, Msg* out) {
   if (data == nullptr || size < 8) return false;
   const auto* bytes = static_cast<const unsigned char*>(data);
-  if (!ArrayCountsFit<Msg>(bytes, size) || !StringLengthsFit<Msg>(bytes, size)) return false;
-  // The checks above refuse the string lengths <= 0 on which LCM's generated decoder
-  // throws std::length_error; the catch keeps any exception they do not foresee (an
-  // allocation failure) from terminating a process inside its LCM handler.
-  try {
-    return out->decode(data, 0, size) == size;
-  } catch (...) {
-    return false;
+  if constexpr (std::is_same_v<Msg, vehicle_state_t>) {
+    return state_wire::Decode(bytes, size, out);
+  } else {
+    if (!ArrayCountsFit<Msg>(bytes, size) || !StringLengthsFit<Msg>(bytes, size)) return false;
+    // The checks above refuse the string lengths <= 0 on which LCM's generated decoder
+    // throws std::length_error; the catch keeps any exception they do not foresee (an
+    // allocation failure) from terminating a process inside its LCM handler.
+    try {
+      return out->decode(data, 0, size) == size;
+    } catch (...) {
+      return false;
+    }
   }
 }
 
