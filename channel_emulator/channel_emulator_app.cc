@@ -690,14 +690,14 @@ void ChannelEmulatorApp::ReleaseDue(Micros due) {
   const std::int64_t due_ns = t0_ns_ + due * 1000;
   for (int id : released_to_) bundled_[id] = 0;
   released_to_.clear();
-  bool any = false;
+  std::int64_t last_sent_ns = -1;  // when the instant's last message went out
   batch_.Begin();
   channel_.DeliverDue(due, [&](int receiver, const Datagram& d) {
     Bus* b = vbus_[receiver];
-    any = true;
     if (b == bus_) {
       b->PublishRaw(rx_channels_[receiver], d.raw.data(), static_cast<int>(d.raw.size()));
-      release_error_.Add(static_cast<double>(MonotonicNs() - due_ns) * 1e-9);
+      last_sent_ns = MonotonicNs();
+      release_error_.Add(static_cast<double>(last_sent_ns - due_ns) * 1e-9);
       return;
     }
     if (bundled_[receiver]++ == 0) {
@@ -708,21 +708,19 @@ void ChannelEmulatorApp::ReleaseDue(Micros due) {
   });
   for (int id : released_to_) vbus_[id]->EndBundle();
   batch_.Flush();
-  const double error = static_cast<double>(MonotonicNs() - due_ns) * 1e-9;
-  for (int id : released_to_) {
-    for (int k = 0; k < bundled_[id]; ++k) release_error_.Add(error);
+  if (!released_to_.empty()) {
+    last_sent_ns = MonotonicNs();
+    const double error = static_cast<double>(last_sent_ns - due_ns) * 1e-9;
+    for (int id : released_to_) {
+      for (int k = 0; k < bundled_[id]; ++k) release_error_.Add(error);
+    }
   }
-  // The instant's latest message left no later than `error` after it was due.
-  if (any && error > kLateReleaseNoteS) NoteLateRelease(due_ns, due, error);
+  // Written once the release is already late: the write delays nothing that was on time.
+  if (last_sent_ns >= 0) WriteNote(late_releases_.Add(due_ns, ToSeconds(due), last_sent_ns));
 }
 
-void ChannelEmulatorApp::NoteLateRelease(std::int64_t due_ns, Micros due, double late_s) {
-  // Written once the release is already late: the write delays nothing that was on time.
-  if (late_release_notes_ > kOverrunNotes) return;
-  const std::string line = ++late_release_notes_ > kOverrunNotes
-                               ? std::string(kLateReleaseNotesEnd)
-                               : FormatLateReleaseNote(due_ns, ToSeconds(due), late_s);
-  std::fprintf(stderr, "%s\n", line.c_str());
+void ChannelEmulatorApp::WriteNote(const std::string& line) {
+  if (!line.empty()) std::fprintf(stderr, "%s\n", line.c_str());
 }
 
 std::pair<double, double> ChannelEmulatorApp::DelayBounds() const {
@@ -814,6 +812,7 @@ int ChannelEmulatorApp::RunRealtime() {
     AwaitRealtime(wake_ns, due, drain_ns, &drained_ns);
   }
   if (uplink_ != nullptr) bus_->EndBundle();
+  WriteNote(late_releases_.Finish());
   PublishEvents();
   PublishHealth((MonotonicNs() - t0_ns_) / 1000);
   PublishStatus(StopRequested() ? RunState::kInterrupted : RunState::kFinished, "");

@@ -16,6 +16,7 @@
 #include "core/scenario.h"
 #include "runtime/clock.h"
 #include "runtime/lcm_bus.h"
+#include "runtime/overrun_note.h"
 #include "runtime/udpm_sender.h"
 #include "runtime/lcm_queue_shim.h"
 #include "runtime/messages.h"
@@ -217,10 +218,10 @@ class ChannelEmulatorApp {
   std::int32_t clock_seq_ = 0, health_seq_ = 0, status_seq_ = 0;
   EmulatorCounters counters_;
   LatenessStats release_error_;  // realtime: release time - due time
-  /// Real time: a release instant later than kLateReleaseNoteS, on stderr
-  /// (runtime/overrun_note.h), for the run's verdict.
-  void NoteLateRelease(std::int64_t due_ns, Micros due, double late_s);
-  int late_release_notes_ = 0;
+  /// Real time: the releases later than kLateReleaseNoteS, noted on stderr for the run's
+  /// verdict (runtime/overrun_note.h).
+  LateReleaseNotes late_releases_;
+  void WriteNote(const std::string& line);
   std::unique_ptr<RecorderGate> recorder_;
   std::unique_ptr<RecorderProgress> progress_;
   std::int64_t recorder_queue_ = 0;

@@ -46,13 +46,13 @@ bool ReadOverrunNotes(const LaunchResult& l, int id, std::vector<OverrunNote>* n
 }
 
 /// The machine's worst stall among those that account for each overrun of process `id`
-/// (for the channel emulator: each release later than the verdict's limit): a stall that
-/// covers at least half the time the tick lost (from when it was due to when its step
-/// ended; for a release, to when it went out). nullptr when one overrun has none; when
-/// the process noted fewer overruns than it counted (more than kOverrunNotes) or a note
-/// cannot be read; when the emulator noted no late release (a build that did not note
-/// them); for a process that was started again (its last report is the new process's,
-/// whose notes are in another file); or when the witness cannot speak for the process.
+/// (for the channel emulator: each note of its late releases): a stall that covers at
+/// least half the time the tick lost (from when it was due to when its step ended; for a
+/// note, from its first release's due time to when its last went out). nullptr when one
+/// overrun has none; when the process noted fewer overruns than it counted (more than
+/// kOverrunNotes) or a note cannot be read; when the emulator noted no late release; for
+/// a process that was started again (its last report is the new process's, whose notes
+/// are in another file); or when the witness cannot speak for the process.
 /// Half: once the machine runs again, every loop it held wakes at once and queues for the
 /// CPUs, so a loop loses more than the stall. A stall that covers less of the lost time
 /// (the process stopped, or stuck in its own work, for the rest) does not account for it.

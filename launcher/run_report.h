@@ -41,8 +41,9 @@ struct RunReport {
   bool timing_ok = true;
   std::vector<std::string> timing_problems;
   /// Real time: timing_ok is false, and the machine itself stalled for at least half of
-  /// every overrun of every process named in timing_problems (launch.machine,
-  /// JudgeTiming): the run's timing is what this machine allows.
+  /// every overrun (the emulator's: every late release) of every process named in
+  /// timing_problems (launch.machine, JudgeTiming): the run's timing is what this machine
+  /// allows.
   bool timing_machine_limited = false;
   /// The log was read with the run's key: what did not authenticate (forged, another
   /// run's) was dropped before anything above counted it (docs/run.md).
@@ -92,11 +93,12 @@ std::string FifoHint(const RunReport& r, const LoopPlacement& p);
 /// timing_problems, slow_loops and timing_machine_limited. The problem of the leader or a
 /// vehicle whose every overrun, as it noted them in its output file
 /// (runtime/overrun_note.h), the machine itself accounts for (r->launch.machine: a stall
-/// covering at least half the time the tick lost) says so. At 50 Hz, where the
-/// limit is a period, a loop cannot be late beyond it without overrunning, so its
+/// covering at least half the time the tick lost) says so; so does the channel
+/// emulator's when the machine accounts for every late release it noted. At 50 Hz, where
+/// the limit is a period, a loop cannot be late beyond it without overrunning, so its
 /// lateness p99 beyond the limit is then the machine's too; at lower rates such a problem
-/// is not put on the machine. The channel emulator's, a restarted process's and a
-/// process's on another kernel (launch.unwatched_ids) never are.
+/// is not put on the machine. A restarted process's and a process's on another kernel
+/// (launch.unwatched_ids) never are.
 void JudgeTiming(const RunAnalysis& a, double period_s, RunReport* r);
 
 /// Reads the run's log (launch.log) and builds the report.

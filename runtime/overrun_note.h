@@ -53,11 +53,12 @@ inline bool ParseOverrunNote(const std::string& line, OverrunNote* n) {
   return true;
 }
 
-/// The channel emulator's counterpart: in real time it notes each release instant whose
-/// messages left more than kLateReleaseNoteS after they were due (the run verdict's limit
-/// on the release error's p99, launcher/run_report.h), at most kOverrunNotes of them, so
-/// that the verdict can tell releases the machine held from those the emulator was late
-/// for on its own. Read back into an OverrunNote: tick 0, woke_s and done_s the lateness.
+/// The channel emulator's counterpart: in real time it notes its releases whose messages
+/// left more than kLateReleaseNoteS after they were due (the run verdict's limit on the
+/// release error's p99, launcher/run_report.h), at most kOverrunNotes notes, so that the
+/// verdict can tell releases the machine held from those the emulator was late for on its
+/// own (LateReleaseNotes). Read back into an OverrunNote: tick 0, woke_s and done_s the
+/// time from the first release the note covers until its last went out.
 inline constexpr double kLateReleaseNoteS = 0.02;
 inline constexpr const char* kLateReleaseNotesEnd =
     "late release: more than the notes above follow";
@@ -84,5 +85,45 @@ inline bool ParseLateReleaseNote(const std::string& line, OverrunNote* n) {
   *n = {0, due_ns, due, late_ms * 1e-3, late_ms * 1e-3};
   return true;
 }
+
+/// Late releases gathered into notes. A stall holds back every release due while it lasts,
+/// and under a delay model that gives each message its own delay that is one release per
+/// message (thousands a second at 64 followers): a late release due before the open
+/// note's last one went out joins that note, so that one stall is one note, as it is one
+/// overrun per loop.
+class LateReleaseNotes {
+ public:
+  /// A release due at due_ns (CLOCK_MONOTONIC; due_s from tick 0) whose last message went
+  /// out at sent_ns. Returns a line to write (the note it closed), or "".
+  std::string Add(std::int64_t due_ns, double due_s, std::int64_t sent_ns) {
+    if (static_cast<double>(sent_ns - due_ns) <= kLateReleaseNoteS * 1e9) return "";
+    if (open_ && due_ns <= sent_ns_) {
+      sent_ns_ = sent_ns > sent_ns_ ? sent_ns : sent_ns_;
+      return "";
+    }
+    std::string line = Finish();
+    open_ = true;
+    due_ns_ = due_ns;
+    due_s_ = due_s;
+    sent_ns_ = sent_ns;
+    return line;
+  }
+  /// The open note's line (then closed), or "" if none is open or the notes are spent:
+  /// kOverrunNotes notes, then kLateReleaseNotesEnd once.
+  std::string Finish() {
+    if (!open_) return "";
+    open_ = false;
+    if (written_ > kOverrunNotes) return "";
+    return ++written_ > kOverrunNotes
+               ? std::string(kLateReleaseNotesEnd)
+               : FormatLateReleaseNote(due_ns_, due_s_, static_cast<double>(sent_ns_ - due_ns_) * 1e-9);
+  }
+
+ private:
+  bool open_ = false;
+  std::int64_t due_ns_ = 0, sent_ns_ = 0;
+  double due_s_ = 0.0;
+  int written_ = 0;
+};
 
 }  // namespace shoal

@@ -135,12 +135,15 @@ struct TimedRun {
     analysis.processes.push_back({id, 5, h});
   }
   /// The channel emulator released late at each of `due_s`, each `late_s` after it was
-  /// due; `end`: then wrote that more followed.
-  void LateReleases(std::vector<double> due_s, double late_s = 0.05, bool end = false) {
+  /// due; `end`: then wrote that more followed. The notes' seconds from tick 0 are off by
+  /// `skew_s` (their CLOCK_MONOTONIC times right, tick 0 at 1000 s).
+  void LateReleases(std::vector<double> due_s, double late_s = 0.05, bool end = false,
+                    double skew_s = 0.0) {
     std::ofstream out(dir + "/emulator.txt");
     out << "shoal_channel_emulator: SCHED_OTHER, nice -10\n";
     for (const double d : due_s) {
-      out << FormatLateReleaseNote(static_cast<std::int64_t>((1000 + d) * 1e9), d, late_s)
+      out << FormatLateReleaseNote(static_cast<std::int64_t>((1000 + d) * 1e9), d + skew_s,
+                                   late_s)
           << "\n";
     }
     if (end) out << kLateReleaseNotesEnd << "\n";
@@ -303,9 +306,47 @@ TEST(LateReleaseNote, ReadsBackWhatItWrites) {
   EXPECT_FALSE(ParseOverrunNote(line, &back));
 }
 
+TEST(LateReleaseNotes, OneStallIsOneNote) {
+  constexpr std::int64_t kMs = 1000000, kT0 = 1000000 * kMs;  // tick 0 at 1000 s
+  LateReleaseNotes notes;
+  std::vector<std::string> lines;
+  const auto add = [&](std::int64_t due_ms, std::int64_t sent_ms) {
+    const std::string line = notes.Add(kT0 + due_ms * kMs, due_ms * 1e-3, kT0 + sent_ms * kMs);
+    if (!line.empty()) lines.push_back(line);
+  };
+  add(1000, 1005);  // on time
+  // A stall from 2,550 to 2,650 ms: every release due then goes out after it, one per
+  // message; those due before 2,630 ms are more than 20 ms late.
+  for (std::int64_t due = 2550; due < 2650; ++due) add(due, 2651 + (due - 2550) / 20);
+  EXPECT_TRUE(lines.empty());  // the note stays open while releases join it
+  add(4000, 4030);              // another, on its own
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0], FormatLateReleaseNote(kT0 + 2550 * kMs, 2.55, 0.105));
+  EXPECT_EQ(notes.Finish(), FormatLateReleaseNote(kT0 + 4000 * kMs, 4.0, 0.030));
+  EXPECT_EQ(notes.Finish(), "");
+}
+
+TEST(LateReleaseNotes, AtMostTheCapThenOneLineSayingMoreFollowed) {
+  LateReleaseNotes notes;
+  std::vector<std::string> lines;
+  for (int k = 0; k < kOverrunNotes + 5; ++k) {
+    const std::int64_t due = (2000 + 100 * k) * 1000000LL;  // 100 ms apart, 30 ms late
+    const std::string line = notes.Add(due, due * 1e-9, due + 30000000);
+    if (!line.empty()) lines.push_back(line);
+  }
+  const std::string last = notes.Finish();
+  if (!last.empty()) lines.push_back(last);
+  ASSERT_EQ(static_cast<int>(lines.size()), kOverrunNotes + 1);
+  EXPECT_EQ(lines.back(), kLateReleaseNotesEnd);
+  OverrunNote n;
+  EXPECT_TRUE(ParseLateReleaseNote(lines[kOverrunNotes - 1], &n));
+}
+
 TEST(MachineTiming, LateReleasesTheMachineStalledThroughAreTheMachines) {
   TimedRun r;
-  r.LateReleases({2.55, 2.57});
+  // Judged on the notes' CLOCK_MONOTONIC times, as the loops' are.
+  r.report.launch.t0_monotonic_ns = 1000000000000;
+  r.LateReleases({2.55, 2.57}, 0.05, false, 5.0);
   r.Overruns(2, {2.55});
   r.Stall(2.548, 0.102);
   r.Judge();
@@ -320,12 +361,11 @@ TEST(MachineTiming, LateReleasesTheMachineStalledThroughAreTheMachines) {
 }
 
 TEST(MachineTiming, AnEmulatorLateWithoutAStallOrUnnotedIsNotTheMachines) {
-  // A late release a stall does not cover; none noted (a build that did not note them);
-  // more late releases than noted.
+  // A late release a stall does not cover; none noted; more late releases than noted.
   for (const int c : {0, 1, 2}) {
     TimedRun r;
     if (c == 0) r.LateReleases({2.55, 4.0});
-    if (c == 1) r.LateReleases({});
+    if (c == 1) r.LateReleases({});  // an emulator that wrote no note
     if (c == 2) r.LateReleases({2.55}, 0.05, true);
     r.Stall(2.548, 0.102);
     r.Judge();

@@ -41,8 +41,7 @@ std::vector<unsigned char> ByHand(const vehicle_state_t& m) {
   return out;
 }
 
-// What Decode took before it decoded this type by hand: the generated decoder, the whole
-// message and nothing more.
+// What Decode takes with the generated decoder: the whole message and nothing more.
 bool GeneratedDecode(const std::vector<unsigned char>& b, vehicle_state_t* m) {
   return b.size() >= 8 && m->decode(b.data(), 0, static_cast<int>(b.size())) ==
                               static_cast<int>(b.size());
@@ -97,7 +96,8 @@ TEST(StateWire, TakesAndRefusesWhatTheGeneratedDecoderDid) {
   }
   // As sent, and most single flipped bits (all but those in the fingerprint).
   EXPECT_GT(taken, 1400);
-  EXPECT_FALSE(Decode(nullptr, state_wire::kBytes, static_cast<vehicle_state_t*>(nullptr)));
+  vehicle_state_t m{};
+  EXPECT_FALSE(state_wire::Decode(nullptr, state_wire::kBytes, &m));
 }
 
 TEST(StateWire, ABusPublishesWhatTheGeneratedEncoderWrites) {
