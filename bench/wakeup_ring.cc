@@ -12,12 +12,18 @@
 // read's address taken from the line before (as a process follows its pointers from one
 // heap structure to the next), so that no prefetcher can fetch a line ahead: a vehicle's
 // window, whose lines lie scattered over its heap, against the same lines read in order.
-// Prints, per N, the CPU time (user + system of all N) per hop and the wall time per hop,
-// medians over `rounds` measurements.
-// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB],
+// STREAM_KB: member 0 also writes every line of STREAM_KB * (N - 1) kB of its own memory once
+// a round, as the channel emulator and the logger go through every follower's messages
+// once a lockstep window, between two turns of each vehicle: what the others' turns then
+// cost shows what that pushes out of the caches.
+// Prints, per N, the CPU time (user + system of all N; with STREAM_KB, of the N - 1 others
+// only) per hop and the wall time per hop, medians over `rounds` measurements.
+// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB],
 //   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096;
 //   wakeup_ring "8 131" 100000 204800 3 2097152 (100 pages 2 MiB apart);
-//   wakeup_ring "8 131" 100000 21 5 chase (336 lines in a random order)
+//   wakeup_ring "8 131" 100000 21 5 chase (336 lines in a random order);
+//   taskset -c 0 wakeup_ring "9 34 66" 100000 21 3 64 43 18 (vehicles' turns on one CPU,
+//   with 18 kB a vehicle of others' traffic between them)
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -127,7 +133,7 @@ double ChildrenCpuSeconds() {
          static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
 }
 
-Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
+Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t stream_kb) {
   std::vector<int> rd(static_cast<std::size_t>(n)), wr(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
     int p[2];
@@ -147,6 +153,7 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
   getrusage(RUSAGE_SELF, &self0);
   const auto t0 = std::chrono::steady_clock::now();
   Working mine(touch, stride);
+  Working traffic(stream_kb * 1024 * static_cast<std::size_t>(n - 1), kLine);
   long token = 0;
   const int out = wr[static_cast<std::size_t>(1 % n)], in = rd[0];
   for (long h = 0; h < hops; h += n) {
@@ -154,6 +161,7 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
     if (read(in, &token, sizeof(token)) != sizeof(token)) std::exit(2);
     mine.Turn();
     ReadShared();
+    traffic.Turn();
   }
   const auto t1 = std::chrono::steady_clock::now();
   rusage self1{};
@@ -171,9 +179,13 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
   const double self_cpu =
       secs(self1.ru_utime) - secs(self0.ru_utime) + secs(self1.ru_stime) - secs(self0.ru_stime);
   // The children's CPU includes their last hop and exit: small against `hops`.
-  const double cpu = ChildrenCpuSeconds() - cpu0 + self_cpu;
+  const double children_cpu = ChildrenCpuSeconds() - cpu0;
   const long done = (hops + n - 1) / n * n;
-  return {cpu / static_cast<double>(done) * 1e6,
+  // With traffic, member 0's turns are not a vehicle's: the others' hops alone.
+  const double cpu_per_hop = stream_kb > 0
+                                 ? children_cpu / static_cast<double>(done / n * (n - 1))
+                                 : (children_cpu + self_cpu) / static_cast<double>(done);
+  return {cpu_per_hop * 1e6,
           std::chrono::duration<double, std::micro>(t1 - t0).count() / static_cast<double>(done)};
 }
 
@@ -182,11 +194,13 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride) {
 int main(int argc, char** argv) {
   if (argc > 1 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
     std::printf(
-        "usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB]\n"
+        "usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB]\n"
         "  e.g. wakeup_ring \"2 8 32 64 128\" 200000 16 5\n"
         "  STRIDE: bytes between touched bytes (64: every cache line, 4096: one line a page),\n"
         "  or chase: every line of TOUCH_KB in a random order, each address read from the last\n"
-        "  SHARED_KB: memory all processes share and read a line of each turn (as their code)\n");
+        "  SHARED_KB: memory all processes share and read a line of each turn (as their code)\n"
+        "  STREAM_KB: member 0 writes STREAM_KB * (N - 1) kB a round (as the emulator and the\n"
+        "  logger go through every follower's messages); the CPU figure is then the others'\n");
     return 0;
   }
   std::vector<int> ns;
@@ -212,6 +226,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "wakeup_ring: SHARED_KB must not be negative\n");
     return 2;
   }
+  const long stream_kb = argc > 7 ? std::atol(argv[7]) : 0;
+  if (stream_kb < 0) {
+    std::fprintf(stderr, "wakeup_ring: STREAM_KB must not be negative\n");
+    return 2;
+  }
   g_shared_bytes = static_cast<std::size_t>(shared_kb) * 1024;
   std::vector<unsigned char> shared(g_shared_bytes, 1);
   g_shared = shared.data();
@@ -219,7 +238,8 @@ int main(int argc, char** argv) {
   for (int n : ns) {
     std::vector<double> cpu, wall;
     for (int r = 0; r < rounds; ++r) {
-      const Result res = Ring(n, hops, touch, static_cast<std::size_t>(stride));
+      const Result res =
+          Ring(n, hops, touch, static_cast<std::size_t>(stride), static_cast<std::size_t>(stream_kb));
       cpu.push_back(res.cpu_us_per_hop);
       wall.push_back(res.wall_us_per_hop);
     }
