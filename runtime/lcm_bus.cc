@@ -83,11 +83,13 @@ bool LcmBus::AppendPart(const std::string& channel, const void* data, int size, 
 }
 
 void LcmBus::PrepareBundles() {
-  if (bundle_.capacity() >= static_cast<std::size_t>(bundle_wire::kMaxBytes)) return;
+  const std::size_t signed_max = static_cast<std::size_t>(bundle_wire::kMaxBytes) +
+                                 bus_auth::kTrailerBytes;
+  if (bundle_.capacity() >= signed_max) return;
   // The largest bundle's buffers, written once: as windows grow with the channel's delay,
   // buffers that grew with them would show as memory growth late in a long run (a soak's
-  // verdict), though nothing leaks.
-  bundle_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes), 0);
+  // verdict), though nothing leaks. A bundle is signed in place (PublishBundleSigned).
+  bundle_.assign(signed_max, 0);
   signed_.assign(static_cast<std::size_t>(bundle_wire::kMaxBytes) + bus_auth::kTrailerBytes, 0);
 }
 
@@ -127,7 +129,7 @@ bool LcmBus::FlushBundle() {
   } else if (bundle_parts_ > 1 && recordable_) {
     ok = Send(bundle_wire::kChannel, bundle_.data(), static_cast<int>(bundle_.size()));
   } else if (bundle_parts_ > 1) {
-    ok = PublishSigned(bundle_wire::kChannel, bundle_.data(), static_cast<int>(bundle_.size()));
+    ok = PublishBundleSigned();
   }
   bundle_parts_ = 0;
   bundle_.resize(sizeof(bundle_wire::kMagic));
@@ -141,6 +143,15 @@ bool LcmBus::PublishSigned(const std::string& channel, const void* data, int siz
   if (size > 0) std::memcpy(signed_.data(), data, static_cast<std::size_t>(size));
   auth_->Sign(channel, data, size, signed_.data() + size);
   return Send(channel, signed_.data(), static_cast<int>(signed_.size()));
+}
+
+bool LcmBus::PublishBundleSigned() {
+  const std::size_t size = bundle_.size();
+  if (!auth_) return Send(bundle_wire::kChannel, bundle_.data(), static_cast<int>(size));
+  bundle_.resize(size + bus_auth::kTrailerBytes);  // within its capacity: no copy
+  auth_->Sign(bundle_wire::kChannel, bundle_.data(), static_cast<int>(size),
+              bundle_.data() + size);
+  return Send(bundle_wire::kChannel, bundle_.data(), static_cast<int>(bundle_.size()));
 }
 
 void LcmBus::Sub::On(const lcm::ReceiveBuffer* rb, const std::string& channel) {

@@ -175,6 +175,11 @@ class LcmBus : public Bus {
   bool AppendPart(const std::string& channel, const void* data, int size, int trailer);
   /// Signs (with a key) and publishes one message.
   bool PublishSigned(const std::string& channel, const void* data, int size);
+  /// The bundle being flushed, signed where it lies: its trailer is appended to bundle_
+  /// (whose capacity holds it) rather than the bundle copied next to one. The channel
+  /// emulator sends a bundle to every vehicle each window, and a copy of each is lines
+  /// that pass through the caches the vehicles share.
+  bool PublishBundleSigned();
   /// A bundle received: verified as one message, then each part to the subscriptions whose
   /// pattern matches its channel, in order.
   void OnBundle(const lcm::ReceiveBuffer* rb, const std::string& channel);
@@ -202,7 +207,8 @@ class LcmBus : public Bus {
   bool recordable_ = false;  // the open bundle's parts are signed each (kMagicRecordable)
   int bundle_depth_ = 0;    // BeginBundle calls not yet ended
   int bundle_parts_ = 0;
-  std::vector<unsigned char> bundle_;  // kBundleMagic, then the parts (bundle_wire below)
+  // kBundleMagic, then the parts (bundle_wire below); its capacity holds a trailer more
+  std::vector<unsigned char> bundle_;
   std::map<std::string, std::vector<Sub*>, std::less<>> routes_;  // SubsFor's memory
 };
 
