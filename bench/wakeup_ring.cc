@@ -12,12 +12,13 @@
 // read's address taken from the line before (as a process follows its pointers from one
 // heap structure to the next), so that no prefetcher can fetch a line ahead: a vehicle's
 // window, whose lines lie scattered over its heap, against the same lines read in order.
-// STREAM_KB: member 0 also writes every line of STREAM_KB * (N - 1) kB of its own memory once
+// STREAM_KB: member 0 also writes every line of STREAM_KB * (N - 1) KiB of its own memory once
 // a round, as the channel emulator and the logger go through every follower's messages
 // once a lockstep window, between two turns of each vehicle: what the others' turns then
 // cost shows what that pushes out of the caches.
 // Prints, per N, the CPU time (user + system of all N; with STREAM_KB, of the N - 1 others
-// only) per hop and the wall time per hop, medians over `rounds` measurements.
+// only) per hop and the wall time per hop (member 0's traffic included), medians over
+// `rounds` measurements.
 // Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB],
 //   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096;
 //   wakeup_ring "8 131" 100000 204800 3 2097152 (100 pages 2 MiB apart);
@@ -52,7 +53,10 @@ struct Result {
 using Memory = std::unique_ptr<unsigned char[], void (*)(void*)>;
 Memory Zeroed(std::size_t bytes) {
   auto* p = static_cast<unsigned char*>(std::calloc(std::max<std::size_t>(bytes, 1), 1));
-  if (p == nullptr) std::exit(2);
+  if (p == nullptr) {
+    std::fprintf(stderr, "wakeup_ring: cannot allocate %zu bytes\n", bytes);
+    std::exit(2);
+  }
   return Memory(p, &std::free);
 }
 
@@ -199,8 +203,9 @@ int main(int argc, char** argv) {
         "  STRIDE: bytes between touched bytes (64: every cache line, 4096: one line a page),\n"
         "  or chase: every line of TOUCH_KB in a random order, each address read from the last\n"
         "  SHARED_KB: memory all processes share and read a line of each turn (as their code)\n"
-        "  STREAM_KB: member 0 writes STREAM_KB * (N - 1) kB a round (as the emulator and the\n"
-        "  logger go through every follower's messages); the CPU figure is then the others'\n");
+        "  STREAM_KB (0 to 1048576): member 0 writes STREAM_KB * (N - 1) KiB a round (as the\n"
+        "  emulator and the logger go through every follower's messages); the CPU figure is\n"
+        "  then the others', the wall figure includes member 0's traffic\n");
     return 0;
   }
   std::vector<int> ns;
@@ -227,8 +232,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   const long stream_kb = argc > 7 ? std::atol(argv[7]) : 0;
-  if (stream_kb < 0) {
-    std::fprintf(stderr, "wakeup_ring: STREAM_KB must not be negative\n");
+  if (stream_kb < 0 || stream_kb > 1048576) {
+    std::fprintf(stderr, "wakeup_ring: STREAM_KB must be 0 to 1048576\n");
     return 2;
   }
   g_shared_bytes = static_cast<std::size_t>(shared_kb) * 1024;

@@ -44,7 +44,8 @@ trap 'rm -rf "$dir"' EXIT
 # valgrind loads a position-independent program at 0x108000 (amd64), any other where it
 # was linked: the window's mark is its function's entry there. A link-time optimised build
 # makes it a local symbol (t), and GCC may split off its cold part ([clone .cold]).
-offset=$(nm -C "$program" | awk -v re="$mark_re" '$0 ~ re && !n++ {print $1}')
+# The pattern goes through the environment: awk -v would read its backslashes as escapes.
+offset=$(nm -C "$program" | re="$mark_re" awk '$0 ~ ENVIRON["re"] && !n++ {print $1}')
 [ -n "$offset" ] || { echo "bench: the window's function ($mark_re) not found in $program" >&2; exit 2; }
 base=0
 if readelf -h "$program" | grep -q 'Type:.*DYN'; then base=0x108000; fi

@@ -207,7 +207,8 @@ class LcmBus : public Bus {
   bool recordable_ = false;  // the open bundle's parts are signed each (kMagicRecordable)
   int bundle_depth_ = 0;    // BeginBundle calls not yet ended
   int bundle_parts_ = 0;
-  // kBundleMagic, then the parts (bundle_wire below); its capacity holds a trailer more
+  // bundle_wire::kMagic, then the parts (bundle_wire below); its capacity holds a trailer
+  // more
   std::vector<unsigned char> bundle_;
   std::map<std::string, std::vector<Sub*>, std::less<>> routes_;  // SubsFor's memory
 };
