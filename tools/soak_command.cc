@@ -23,6 +23,7 @@
 #include "launcher/run_report.h"
 #include "runtime/clocked_node.h"
 #include "runtime/process.h"
+#include "runtime/stop_signals.h"
 #include "render/campaign_figures.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
@@ -294,6 +295,10 @@ int RunSoak(const SoakOptions& opt) {
     return kExitBadInput;
   }
   if (show) std::fprintf(stderr, "\r%140s\r", "");
+  // The run's own handlers ended with it: a Ctrl-C while its log is judged, its verdict
+  // written and its figure drawn (seconds, after hours of soak) waits for them rather than
+  // killing the command with nothing written. The verdict is of the run, which had ended.
+  const StopSignals judging;
   const bool interrupted = launch.interrupted;
   const RunReport report = MakeRunReport(p.plan.scenario, launch);
   const nlohmann::ordered_json run_json = RunReportJson(report);

@@ -139,11 +139,13 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
 }
 
 TEST(SoakCli, CtrlCKeepsTheJudgementOfWhatRanAndLeavesNoProcess) {
-  const std::string dir = WriteCampaign("cut", Steps("0.1, 0.2, 0.1", "600", "300"));
+  // Phases long enough that the run is still going after 4 s on a host that runs Example 2
+  // in lockstep at 2,000x (9,000 s of mission); the interrupt ends it there.
+  const std::string dir = WriteCampaign("cut", Steps("0.1, 0.2, 0.1", "3000", "300"));
   const pid_t pid = StartShoal("soak " + dir + "/cut.toml --out " + dir + "/out", dir + "/cut.log");
   std::this_thread::sleep_for(std::chrono::seconds(4));
   kill(pid, SIGINT);
-  EXPECT_EQ(WaitExit(pid, 30, nullptr), 130) << ReadFile(dir + "/cut.log");
+  ASSERT_EQ(WaitExit(pid, 30, nullptr), 130) << ReadFile(dir + "/cut.log");
   const ojson soak = ParseJson(ReadFile(dir + "/out/soak.json"));
   EXPECT_EQ(soak["verdict"], "fail");
   EXPECT_TRUE(soak["interrupted"].get<bool>());
