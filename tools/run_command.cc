@@ -9,6 +9,7 @@
 #include "launcher/launch_script.h"
 #include "launcher/run_report.h"
 #include "runtime/clocked_node.h"
+#include "runtime/stop_signals.h"
 #include "scenario/loader.h"
 #include "tools/json_text.h"
 
@@ -108,6 +109,9 @@ int RunRun(const RunOptions& opt) {
     return kExitBadInput;
   }
   if (show) std::fprintf(stderr, "\r%110s\r", "");
+  // The run's own handlers ended with it: a Ctrl-C while a long run's log is read for
+  // the report waits for the report rather than killing the command before it prints.
+  const StopSignals reporting;
   RunReport report = MakeRunReport(s, std::move(launch));
   LoopPlacement placement;
   placement.staggered = launch_options.stagger;

@@ -543,6 +543,37 @@ TEST(Sil, SigintStopsEverythingWithinTwoSecondsWithAReadableLog) {
   EXPECT_GT(events, states);
 }
 
+// The processes shoal run started and still has (its children), read from /proc.
+int ChildrenOf(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/task/" + std::to_string(pid) + "/children");
+  int n = 0;
+  for (std::string child; in >> child;) ++n;
+  return n;
+}
+
+// A run's report reads its whole log (seconds for a long run) after every process has
+// ended; a Ctrl-C then waits for the report instead of killing shoal run before it prints.
+TEST(Sil, CtrlCAfterTheRunEndedWaitsForItsReport) {
+  const std::string out = TmpPath("sil_report_sigint.out");
+  const pid_t pid = StartShoal("run " + kExample2 + " --duration 3000 --quiet --out " +
+                                   TmpPath("sil_report_sigint.lcmlog"), out);
+  const auto t0 = std::chrono::steady_clock::now();
+  bool started = false, ended = false;
+  while (!ended && std::chrono::steady_clock::now() - t0 < std::chrono::seconds(120)) {
+    const int children = ChildrenOf(pid);
+    started = started || children >= 7;  // emulator, leader, 5 vehicles (and the logger)
+    ended = started && children == 0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  ASSERT_TRUE(ended) << ReadFile(out);
+  // Past the run's own handlers, which end moments after its last process.
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  kill(pid, SIGINT);
+  const int status = WaitExit(pid, 120, nullptr);
+  EXPECT_TRUE(status == 0 || status == 1) << "exit " << status << "\n" << ReadFile(out);
+  EXPECT_NE(ReadFile(out).find("converged:"), std::string::npos) << ReadFile(out);
+}
+
 TEST(Sil, KillingShoalRunLeavesNoOrphans) {
   const int port = 31131;
   const pid_t pid = StartShoal("run " + kExample2 + " --duration 100000 --out " +
