@@ -72,7 +72,7 @@ one_run() {
         ticks = (t1[p] - t0[p]) * 50
         s[r[p]] += (last[p] - first[p]) / ticks; w[r[p]] += (l_cs[p] - f_cs[p]) / ticks; c[r[p]]++
       }
-      printf "%.1f,%.1f,%.1f %.2f,%.1f,%.1f\n",
+      printf "%.3f,%.1f,%.1f %.2f,%.1f,%.1f\n",
         c["vehicle"] ? 1e6 * s["vehicle"] / c["vehicle"] : -1,
         1e6 * s["channel emulator"], 1e6 * s["lcm-logger"],
         c["vehicle"] ? w["vehicle"] / c["vehicle"] : -1, w["channel emulator"], w["lcm-logger"]

@@ -132,7 +132,13 @@ void ChannelEmulatorApp::Init() {
                                  });
   }
   rx_bus()->Subscribe(channels::kStatePattern, [this](const std::string& ch, const void* d, int n) {
-    Enqueue(false, ch, d, n);
+    if (mode_ == Mode::kLockstep) {
+      // Only kept for the window's release, which comes after the handlers (and after the
+      // uplink's bundle is passed on): taken where it lies, without an inbox copy.
+      OnState(ch, n > 0 ? static_cast<const unsigned char*>(d) : nullptr, n > 0 ? n : 0);
+    } else {
+      Enqueue(false, ch, d, n);
+    }
   });
   rx_bus()->Subscribe(channels::Status(), [this](const std::string& ch, const void* d, int n) {
     Enqueue(true, ch, d, n);

@@ -3,9 +3,10 @@
 // message, unchanged, on SHOAL_RX_<receiver>; every decision is published on
 // SHOAL_CHANNEL. In lockstep it is also the clock master.
 //
-// LCM handlers only copy the message into an inbox and return; HandleBus() then applies
-// the inbox in arrival order (the channel's decisions are taken there, outside any
-// handler).
+// LCM handlers copy the message into an inbox and return; HandleBus() then applies the
+// inbox in arrival order (the channel's decisions are taken there, outside any handler).
+// A lockstep state is the exception: its handler checks it and keeps it for its window,
+// straight from where it was received, as nothing is decided until the window is whole.
 #pragma once
 
 #include <memory>

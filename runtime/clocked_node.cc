@@ -73,6 +73,15 @@ void ClockedNode::Init() {
 }
 
 void ClockedNode::SubscribeInput(const std::string& channel, int kind) {
+  if (kind >= kFirstInputKind && mode_ == Mode::kLockstep) {
+    // Held by the app where it lies; what it completes is stepped after the handlers.
+    rx_bus_->Subscribe(channel, [this, kind](const std::string&, const void* d, int n) {
+      const bool may_complete = OnInput(kind, n > 0 ? static_cast<const unsigned char*>(d) : nullptr,
+                                        n > 0 ? n : 0);
+      input_held_ = input_held_ || may_complete;
+    });
+    return;
+  }
   rx_bus_->Subscribe(
       channel, [this, kind](const std::string&, const void* d, int n) { Enqueue(kind, d, n); });
 }
@@ -90,7 +99,7 @@ int ClockedNode::HandleBus(int timeout_ms, std::int64_t arrived_by_ns) {
   const int handled = rx_bus_->Handle(timeout_ms);
   // What the inbox's ticks publish goes out together after it (BundlePublishes).
   const bool bundle = bundle_publishes_ && mode_ == Mode::kLockstep && !checkpoint_ &&
-                      inbox_size_ > 0;
+                      (inbox_size_ > 0 || input_held_);
   if (bundle) bus_->BeginBundle(/*recordable=*/true);
   // Applied in arrival order, each as its handler would have done it: entries stay in
   // place (their buffers are reused); what arrived too late moves to the front, in order,
@@ -112,6 +121,12 @@ int ClockedNode::HandleBus(int timeout_ms, std::int64_t arrived_by_ns) {
     } else if (OnInput(in.kind, data, size) && mode_ == Mode::kLockstep) {
       StepWhatIsDue();
     }
+  }
+  // Inputs held by their handlers: the clock may have come first (its ticks then wait for
+  // them), or in this very batch, before or after them.
+  if (input_held_) {
+    input_held_ = false;
+    StepWhatIsDue();
   }
   counters_.held_to_next_tick += static_cast<std::int64_t>(kept);
   inbox_size_ = kept;

@@ -5,9 +5,12 @@
 // and publishing the process's state, health and status. What a tick computes is the
 // derived app's (vehicle/vehicle_app.h, leader/leader_app.h).
 //
-// LCM handlers only copy the message into an inbox and return; HandleBus() then decodes
-// and applies the inbox in arrival order, stepping whatever became due after each
-// message, outside any handler.
+// LCM handlers copy the message into an inbox and return; HandleBus() then decodes and
+// applies the inbox in arrival order, stepping whatever became due after each message,
+// outside any handler. The one exception is a lockstep input (a delivery), which its
+// handler decodes and holds where it was received, as it only waits there for the tick
+// that lists it: a copy of every delivery, and its lines, is saved in the window every
+// vehicle takes its turn for.
 #pragma once
 
 #include <cstdint>
@@ -118,8 +121,10 @@ class ClockedNode {
 
   /// The app's own subscriptions (SubscribeInput), made by Init before the clock's.
   virtual void SubscribeInputs() {}
-  /// Applies one message of the inbox (kind >= kFirstInputKind), outside any handler.
-  /// Returns whether it may have completed a lockstep tick (then due ticks are stepped).
+  /// Applies one input (kind >= kFirstInputKind): in real time from the inbox, outside any
+  /// handler; in lockstep from its handler, with the bytes as received, so it must only
+  /// decode and hold it (publish nothing). Returns whether it may have completed a
+  /// lockstep tick (then due ticks are stepped, after the handlers).
   virtual bool OnInput(int kind, const unsigned char* data, int size);
   /// Lockstep: applies exactly `listed`, in order, if every one of them is here, and
   /// returns nullptr; else applies nothing and returns the first one missing.
@@ -212,6 +217,7 @@ class ClockedNode {
   const std::string state_channel_, health_channel_;
   std::vector<Inbound> inbox_;  // entries [0, inbox_size_) are pending; kept for reuse
   std::size_t inbox_size_ = 0;
+  bool input_held_ = false;  // lockstep: an input's handler may have completed a tick
   std::int64_t next_tick_ = 0;           // the tick to step next
   std::vector<DueTick> due_;    // lockstep: ticks announced, not yet stepped (a ring)
   std::size_t due_count_ = 0;   // of them
