@@ -157,7 +157,9 @@ void ChannelEmulatorApp::Enqueue(bool status, const std::string& channel, const 
 
 int ChannelEmulatorApp::HandleBus(int timeout_ms) {
   // What the uplink brings is passed on before any of it is applied: before the window it
-  // completes is released and the recorder's gate is waited for.
+  // completes is released and the recorder's gate is waited for. (A lockstep state is kept
+  // for its window during the dispatch, after it was passed on: its subscription is the
+  // later one.)
   if (uplink_ != nullptr) bus_->BeginBundle(/*recordable=*/true);
   const int handled = rx_bus()->Handle(timeout_ms);
   if (uplink_ != nullptr) bus_->EndBundle();

@@ -109,7 +109,8 @@ class ChannelEmulatorApp {
   };
   void Enqueue(bool status, const std::string& channel, const void* data, int size);
   /// Dispatches what the shared bus has (waiting at most timeout_ms for the first
-  /// message), then applies it in arrival order. Returns bus_->Handle's result.
+  /// message), then applies the inbox in arrival order (lockstep states were kept by their
+  /// handlers, during the dispatch). Returns bus_->Handle's result.
   int HandleBus(int timeout_ms);
   void OnState(const std::string& channel, const unsigned char* data, int size);
   void OnStatus(const unsigned char* data, int size);

@@ -73,8 +73,11 @@ void ClockedNode::Init() {
 }
 
 void ClockedNode::SubscribeInput(const std::string& channel, int kind) {
-  if (kind >= kFirstInputKind && mode_ == Mode::kLockstep) {
-    // Held by the app where it lies; what it completes is stepped after the handlers.
+  if (kind >= kFirstInputKind && mode_ == Mode::kLockstep && !checkpoint_) {
+    // Held by the app where it lies; what it completes is stepped after the handlers. Not
+    // with restarts: there the emulator's statuses come through the inbox, and a "ready"
+    // must name the tick after those the deliveries before it completed, as in arrival
+    // order.
     rx_bus_->Subscribe(channel, [this, kind](const std::string&, const void* d, int n) {
       const bool may_complete = OnInput(kind, n > 0 ? static_cast<const unsigned char*>(d) : nullptr,
                                         n > 0 ? n : 0);

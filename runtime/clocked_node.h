@@ -7,10 +7,11 @@
 //
 // LCM handlers copy the message into an inbox and return; HandleBus() then decodes and
 // applies the inbox in arrival order, stepping whatever became due after each message,
-// outside any handler. The one exception is a lockstep input (a delivery), which its
-// handler decodes and holds where it was received, as it only waits there for the tick
-// that lists it: a copy of every delivery, and its lines, is saved in the window every
-// vehicle takes its turn for.
+// outside any handler. A lockstep input (a delivery; not in runs with restarts) is the
+// exception: its handler decodes it where it was received and holds it for the tick that
+// lists it, and what it completes is stepped after the handlers. That saves a copy of
+// every delivery in each vehicle's window, whose every line is fetched again each turn
+// once many processes share a CPU.
 #pragma once
 
 #include <cstdint>
@@ -57,7 +58,9 @@ class ClockedNode {
   int Run();
   /// Dispatches what the receive bus has (waiting at most timeout_ms for the first
   /// message), then applies it in arrival order, stepping (lockstep) what became due after
-  /// each message. An input that reached the host after `arrived_by_ns` (CLOCK_MONOTONIC;
+  /// each message; lockstep deliveries, held by their handlers, count as arrived before
+  /// the first message applied (a tick's step does not depend on when its deliveries
+  /// came), and what they complete is stepped at the end. An input that reached the host after `arrived_by_ns` (CLOCK_MONOTONIC;
   /// known when the bus records arrivals) is not applied but kept, in order, for the next
   /// call. Returns the number of messages handled, -1 on a bus error.
   static constexpr std::int64_t kAnyArrival = INT64_MAX;
@@ -121,9 +124,9 @@ class ClockedNode {
 
   /// The app's own subscriptions (SubscribeInput), made by Init before the clock's.
   virtual void SubscribeInputs() {}
-  /// Applies one input (kind >= kFirstInputKind): in real time from the inbox, outside any
-  /// handler; in lockstep from its handler, with the bytes as received, so it must only
-  /// decode and hold it (publish nothing). Returns whether it may have completed a
+  /// Applies one input (kind >= kFirstInputKind): in real time (and with restarts) from the
+  /// inbox, outside any handler; in lockstep from its handler, with the bytes as received,
+  /// so it must only decode and hold it (publish nothing). Returns whether it may have completed a
   /// lockstep tick (then due ticks are stepped, after the handlers).
   virtual bool OnInput(int kind, const unsigned char* data, int size);
   /// Lockstep: applies exactly `listed`, in order, if every one of them is here, and

@@ -122,15 +122,27 @@ TEST(VehicleAppLockstep, AppliesTheListedDeliveriesWhateverOrderTheyArriveIn) {
   EXPECT_EQ(r.node.follower().counters().msgs_received, n - kLag);
 }
 
-// LCM handlers copy the message and return: the bus's own dispatch steps nothing; the
-// app's HandleBus applies what was copied, outside the handlers, and steps.
-TEST(VehicleAppLockstep, HandlersOnlyCopyTheStepHappensAfterDispatch) {
+// LCM handlers step nothing: the bus's own dispatch copies a clock message, or holds a
+// delivery where it was received; the app's HandleBus applies the copies and steps what is
+// complete, outside the handlers.
+TEST(VehicleAppLockstep, HandlersStepNothingTheStepHappensAfterDispatch) {
   Rig r;
   r.bus.Publish(channels::Clock(), Tick(r.s, 0, {}));
   ASSERT_EQ(r.bus.Handle(0), 1);  // the handler ran: the message is copied, not applied
   EXPECT_EQ(r.ticks(), 0);
   EXPECT_EQ(r.node.HandleBus(0), 0);  // nothing new on the bus; the copy is applied now
   EXPECT_EQ(r.ticks(), 1);
+  // Tick 1 lists a delivery that has not come yet: it waits for it.
+  r.sent.push_back(r.leader.Tick(0));
+  r.bus.Publish(channels::Clock(), Tick(r.s, 1, {r.sent[0]}));
+  r.Pump();
+  EXPECT_EQ(r.ticks(), 1);
+  r.bus.Publish(channels::Rx(kId), ToLcm(r.sent[0]));
+  ASSERT_EQ(r.bus.Handle(0), 1);  // the delivery is held by its handler, nothing stepped
+  EXPECT_EQ(r.ticks(), 1);
+  EXPECT_EQ(r.node.HandleBus(0), 0);  // the tick it completed is stepped after the dispatch
+  EXPECT_EQ(r.ticks(), 2);
+  EXPECT_EQ(r.node.follower().counters().msgs_received, 1);
   EXPECT_EQ(r.node.counters().bad_clock, 0);
 }
 
