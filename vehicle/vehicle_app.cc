@@ -61,8 +61,21 @@ bool VehicleApp::OnInput(int /*kind*/, const unsigned char* data, int size) {
     return false;
   }
   if (held_.size() >= kMaxHeldDeliveries) DropHeld(0);
-  held_.push_back(Held{msg, DeliveryDigest(data, size)});
+  held_.push_back(Held{msg.vehicle_id, msg.seq, msg.utime, DeliveryDigest(data, size), msg.eta,
+                       msg.eta_dot});
   return true;
+}
+
+StateMsg VehicleApp::Unheld(const Held& h) {
+  // The other numbers stay zero: Receive and Check read only these, and the held message's
+  // own were finite.
+  StateMsg m;
+  m.vehicle_id = h.sender;
+  m.seq = h.seq;
+  m.utime = h.utime;
+  m.eta = h.eta;
+  m.eta_dot = h.eta_dot;
+  return m;
 }
 
 const ClockedNode::Delivery* VehicleApp::ApplyListed(const std::vector<Delivery>& listed) {
@@ -72,7 +85,7 @@ const ClockedNode::Delivery* VehicleApp::ApplyListed(const std::vector<Delivery>
   for (const Delivery& want : listed) {
     std::size_t k = 0;
     while (k < held_.size() &&
-           (held_[k].msg.vehicle_id != want.sender || held_[k].msg.seq != want.seq ||
+           (held_[k].sender != want.sender || held_[k].seq != want.seq ||
             held_[k].digest != want.digest || std::find(at.begin(), at.end(), k) != at.end())) {
       ++k;
     }
@@ -80,11 +93,20 @@ const ClockedNode::Delivery* VehicleApp::ApplyListed(const std::vector<Delivery>
     at.push_back(k);
   }
   follower_.BeginTick(next_tick() * period_us());  // as shoal sim: before the deliveries
-  for (std::size_t k : at) follower_.Receive(held_[k].msg);
+  for (std::size_t k : at) follower_.Receive(Unheld(held_[k]));
+  if (at.empty()) return nullptr;
+  // The applied ones leave in one pass, the rest keeping their order: erasing them one by
+  // one moved the held deliveries behind each again.
   std::sort(at.begin(), at.end());
-  for (auto k = at.rbegin(); k != at.rend(); ++k) {
-    held_.erase(held_.begin() + static_cast<std::ptrdiff_t>(*k));
+  std::size_t kept = at.front();
+  for (std::size_t k = at.front(), a = 0; k < held_.size(); ++k) {
+    if (a < at.size() && at[a] == k) {
+      ++a;
+    } else {
+      held_[kept++] = held_[k];
+    }
   }
+  held_.resize(kept);
   return nullptr;
 }
 
@@ -93,7 +115,7 @@ void VehicleApp::AfterLockstepStep(std::int64_t tick) {
   // period) is dropped and counted.
   const Micros oldest_listable = tick * period_us() - listable_us_;
   for (std::size_t k = 0; k < held_.size();) {
-    if (held_[k].msg.utime < oldest_listable) {
+    if (held_[k].utime < oldest_listable) {
       DropHeld(k);
     } else {
       ++k;
@@ -103,7 +125,7 @@ void VehicleApp::AfterLockstepStep(std::int64_t tick) {
 
 void VehicleApp::DropHeld(std::size_t k) {
   // Never listed: old if older than what was applied (a replay), else unlisted.
-  if (follower_.Check(held_[k].msg) == RxResult::kOld) {
+  if (follower_.Check(Unheld(held_[k])) == RxResult::kOld) {
     follower_.CountRejected(RxResult::kOld);
   } else {
     ++rx_counters_.unlisted_rx;

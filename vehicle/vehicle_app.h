@@ -28,10 +28,18 @@ class VehicleApp : public ClockedNode {
 
  private:
   static constexpr int kRxKind = kFirstInputKind;
+  // What of a held delivery its tick uses: Follower::Receive takes only these (every
+  // number of the message was checked finite when it was held). Half a StateMsg, so a
+  // window's held deliveries fill half the cache lines.
   struct Held {
-    StateMsg msg;
+    std::int32_t sender = 0;
+    std::int32_t seq = 0;
+    Micros utime = 0;
     std::int64_t digest = 0;  // DeliveryDigest of the bytes received
+    Vec5 eta = Vec5::Zero();
+    Vec5 eta_dot = Vec5::Zero();
   };
+  static StateMsg Unheld(const Held& h);
 
   void SubscribeInputs() override;
   bool OnInput(int kind, const unsigned char* data, int size) override;
