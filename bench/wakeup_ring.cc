@@ -16,24 +16,35 @@
 // a round, as the channel emulator and the logger go through every follower's messages
 // once a lockstep window, between two turns of each vehicle: what the others' turns then
 // cost shows what that pushes out of the caches.
-// Prints, per N, the CPU time (user + system of all N; with STREAM_KB, of the N - 1 others
-// only) per hop and the wall time per hop (member 0's traffic included), medians over
-// `rounds` measurements.
-// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB],
+// PAUSE_US: member 0 also sleeps PAUSE_US once a round before passing the token on, so
+// that the time between two turns of each member grows by that much with nothing else
+// touched in it, as a vehicle's turns lie further apart in a larger swarm (a window of 128
+// followers lasts about ten times one of 16). The ring then holds a 0 us CPU-latency
+// request (/dev/cpu_dma_latency, as shoal run does as root), so the idle CPUs poll through
+// the pause as they do in a run.
+// Prints, per N, the CPU time (user + system of all N; with STREAM_KB or PAUSE_US, of the
+// N - 1 others only) per hop and the wall time per hop (member 0's traffic and pause
+// included), medians over `rounds` measurements.
+// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB] [PAUSE_US],
 //   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096;
 //   wakeup_ring "8 131" 100000 204800 3 2097152 (100 pages 2 MiB apart);
 //   wakeup_ring "8 131" 100000 21 5 chase (336 lines in a random order);
 //   taskset -c 0 wakeup_ring "9 34 66" 100000 21 3 64 43 18 (vehicles' turns on one CPU,
-//   with 18 kB a vehicle of others' traffic between them)
+//   with 18 kB a vehicle of others' traffic between them);
+//   wakeup_ring "9" 20000 21 3 chase 43 0 3000 (a member's turns 3 ms further apart)
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdint>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <sstream>
 #include <memory>
 #include <string>
@@ -137,7 +148,8 @@ double ChildrenCpuSeconds() {
          static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
 }
 
-Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t stream_kb) {
+Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t stream_kb,
+            long pause_us) {
   std::vector<int> rd(static_cast<std::size_t>(n)), wr(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
     int p[2];
@@ -160,7 +172,9 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t
   Working traffic(stream_kb * 1024 * static_cast<std::size_t>(n - 1), kLine);
   long token = 0;
   const int out = wr[static_cast<std::size_t>(1 % n)], in = rd[0];
+  const timespec pause{pause_us / 1000000, pause_us % 1000000 * 1000};
   for (long h = 0; h < hops; h += n) {
+    if (pause_us > 0) nanosleep(&pause, nullptr);
     if (write(out, &token, sizeof(token)) != sizeof(token)) std::exit(2);
     if (read(in, &token, sizeof(token)) != sizeof(token)) std::exit(2);
     mine.Turn();
@@ -185,12 +199,24 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t
   // The children's CPU includes their last hop and exit: small against `hops`.
   const double children_cpu = ChildrenCpuSeconds() - cpu0;
   const long done = (hops + n - 1) / n * n;
-  // With traffic, member 0's turns are not a vehicle's: the others' hops alone.
-  const double cpu_per_hop = stream_kb > 0
+  // With traffic or a pause, member 0's turns are not a vehicle's: the others' hops alone.
+  const double cpu_per_hop = stream_kb > 0 || pause_us > 0
                                  ? children_cpu / static_cast<double>(done / n * (n - 1))
                                  : (children_cpu + self_cpu) / static_cast<double>(done);
   return {cpu_per_hop * 1e6,
           std::chrono::duration<double, std::micro>(t1 - t0).count() / static_cast<double>(done)};
+}
+
+// A 0 us CPU-latency request, held while the descriptor is open: idle CPUs poll rather than
+// halt, as in a run of shoal run as root. Returns the descriptor, or -1 (and says so).
+int HoldCpusPolling() {
+  const int fd = open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+  const std::int32_t zero = 0;
+  if (fd < 0 || write(fd, &zero, sizeof(zero)) != sizeof(zero)) {
+    std::fprintf(stderr, "wakeup_ring: no 0 us CPU-latency request (%s): idle CPUs may halt\n",
+                 std::strerror(errno));
+  }
+  return fd;
 }
 
 }  // namespace
@@ -199,13 +225,17 @@ int main(int argc, char** argv) {
   if (argc > 1 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
     std::printf(
         "usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB]\n"
+        "                   [PAUSE_US]\n"
         "  e.g. wakeup_ring \"2 8 32 64 128\" 200000 16 5\n"
         "  STRIDE: bytes between touched bytes (64: every cache line, 4096: one line a page),\n"
         "  or chase: every line of TOUCH_KB in a random order, each address read from the last\n"
         "  SHARED_KB: memory all processes share and read a line of each turn (as their code)\n"
         "  STREAM_KB (0 to 1048576): member 0 writes STREAM_KB * (N - 1) KiB a round (as the\n"
         "  emulator and the logger go through every follower's messages); the CPU figure is\n"
-        "  then the others', the wall figure includes member 0's traffic\n");
+        "  then the others', the wall figure includes member 0's traffic\n"
+        "  PAUSE_US (0 to 1000000): member 0 sleeps that long once a round, the idle CPUs\n"
+        "  polling (a 0 us CPU-latency request, as root): the others' turns lie that much\n"
+        "  further apart; the CPU figure is then the others'\n");
     return 0;
   }
   std::vector<int> ns;
@@ -236,6 +266,12 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "wakeup_ring: STREAM_KB must be 0 to 1048576\n");
     return 2;
   }
+  const long pause_us = argc > 8 ? std::atol(argv[8]) : 0;
+  if (pause_us < 0 || pause_us > 1000000) {
+    std::fprintf(stderr, "wakeup_ring: PAUSE_US must be 0 to 1000000\n");
+    return 2;
+  }
+  const int latency_fd = pause_us > 0 ? HoldCpusPolling() : -1;
   g_shared_bytes = static_cast<std::size_t>(shared_kb) * 1024;
   std::vector<unsigned char> shared(g_shared_bytes, 1);
   g_shared = shared.data();
@@ -244,7 +280,8 @@ int main(int argc, char** argv) {
     std::vector<double> cpu, wall;
     for (int r = 0; r < rounds; ++r) {
       const Result res =
-          Ring(n, hops, touch, static_cast<std::size_t>(stride), static_cast<std::size_t>(stream_kb));
+          Ring(n, hops, touch, static_cast<std::size_t>(stride), static_cast<std::size_t>(stream_kb),
+               pause_us);
       cpu.push_back(res.cpu_us_per_hop);
       wall.push_back(res.wall_us_per_hop);
     }
@@ -253,5 +290,6 @@ int main(int argc, char** argv) {
     std::printf("%d,%.3f,%.3f\n", n, cpu[cpu.size() / 2], wall[wall.size() / 2]);
     std::fflush(stdout);
   }
+  if (latency_fd >= 0) close(latency_fd);
   return 0;
 }
