@@ -19,13 +19,14 @@
 // PAUSE_US: member 0 also sleeps PAUSE_US once a round before passing the token on, so
 // that the time between two turns of each member grows by that much with nothing else
 // touched in it, as a vehicle's turns lie further apart in a larger swarm (a window of 128
-// followers lasts about ten times one of 16). The ring then holds a 0 us CPU-latency
-// request (/dev/cpu_dma_latency, as shoal run does as root), so the idle CPUs poll through
-// the pause as they do in a run.
-// Prints, per N, the CPU time (user + system of all N; with STREAM_KB or PAUSE_US, of the
-// N - 1 others only) per hop and the wall time per hop (member 0's traffic and pause
+// followers lasts about ten times one of 16). Given (0 too, for the figure to compare
+// with), the ring holds a 0 us CPU-latency request (/dev/cpu_dma_latency, as shoal run does
+// as root), so the idle CPUs poll through the pause as they do in a run.
+// Prints, per N, the CPU time (user + system of all N; with STREAM_KB or PAUSE_US given, of
+// the N - 1 others only) per hop and the wall time per hop (member 0's traffic and pause
 // included), medians over `rounds` measurements.
-// Usage: wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB] [PAUSE_US],
+// Usage:
+//   wakeup_ring [NS] [HOPS] [TOUCH_KB] [ROUNDS] [STRIDE] [SHARED_KB] [STREAM_KB] [PAUSE_US],
 //   e.g. wakeup_ring "2 8 32 64 128" 200000 16 5; wakeup_ring "4 128" 100000 400 3 4096;
 //   wakeup_ring "8 131" 100000 204800 3 2097152 (100 pages 2 MiB apart);
 //   wakeup_ring "8 131" 100000 21 5 chase (336 lines in a random order);
@@ -39,8 +40,8 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstdint>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -148,6 +149,7 @@ double ChildrenCpuSeconds() {
          static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
 }
 
+// pause_us < 0: no pause, and the CPU figure is of all N unless there is traffic.
 Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t stream_kb,
             long pause_us) {
   std::vector<int> rd(static_cast<std::size_t>(n)), wr(static_cast<std::size_t>(n));
@@ -172,9 +174,10 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t
   Working traffic(stream_kb * 1024 * static_cast<std::size_t>(n - 1), kLine);
   long token = 0;
   const int out = wr[static_cast<std::size_t>(1 % n)], in = rd[0];
-  const timespec pause{pause_us / 1000000, pause_us % 1000000 * 1000};
+  const long sleep_us = std::max(pause_us, 0L);
+  const timespec pause{sleep_us / 1000000, sleep_us % 1000000 * 1000};
   for (long h = 0; h < hops; h += n) {
-    if (pause_us > 0) nanosleep(&pause, nullptr);
+    if (sleep_us > 0) nanosleep(&pause, nullptr);
     if (write(out, &token, sizeof(token)) != sizeof(token)) std::exit(2);
     if (read(in, &token, sizeof(token)) != sizeof(token)) std::exit(2);
     mine.Turn();
@@ -200,7 +203,7 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t
   const double children_cpu = ChildrenCpuSeconds() - cpu0;
   const long done = (hops + n - 1) / n * n;
   // With traffic or a pause, member 0's turns are not a vehicle's: the others' hops alone.
-  const double cpu_per_hop = stream_kb > 0 || pause_us > 0
+  const double cpu_per_hop = stream_kb > 0 || pause_us >= 0
                                  ? children_cpu / static_cast<double>(done / n * (n - 1))
                                  : (children_cpu + self_cpu) / static_cast<double>(done);
   return {cpu_per_hop * 1e6,
@@ -208,13 +211,21 @@ Result Ring(int n, long hops, std::size_t touch, std::size_t stride, std::size_t
 }
 
 // A 0 us CPU-latency request, held while the descriptor is open: idle CPUs poll rather than
-// halt, as in a run of shoal run as root. Returns the descriptor, or -1 (and says so).
+// halt, as in a run of shoal run as root. Returns the descriptor, or -1 (and says why).
 int HoldCpusPolling() {
   const int fd = open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
-  const std::int32_t zero = 0;
-  if (fd < 0 || write(fd, &zero, sizeof(zero)) != sizeof(zero)) {
-    std::fprintf(stderr, "wakeup_ring: no 0 us CPU-latency request (%s): idle CPUs may halt\n",
+  if (fd < 0) {
+    std::fprintf(stderr, "wakeup_ring: cannot open /dev/cpu_dma_latency (%s): idle CPUs may halt\n",
                  std::strerror(errno));
+    return -1;
+  }
+  const std::int32_t zero = 0;
+  const ssize_t n = write(fd, &zero, sizeof(zero));
+  if (n != static_cast<ssize_t>(sizeof(zero))) {
+    std::fprintf(stderr, "wakeup_ring: the 0 us CPU-latency request was refused (%s): idle CPUs "
+                 "may halt\n", n < 0 ? std::strerror(errno) : "short write");
+    close(fd);
+    return -1;
   }
   return fd;
 }
@@ -235,7 +246,8 @@ int main(int argc, char** argv) {
         "  then the others', the wall figure includes member 0's traffic\n"
         "  PAUSE_US (0 to 1000000): member 0 sleeps that long once a round, the idle CPUs\n"
         "  polling (a 0 us CPU-latency request, as root): the others' turns lie that much\n"
-        "  further apart; the CPU figure is then the others'\n");
+        "  further apart; given (0 too), the CPU figure is the others' and the wall figure\n"
+        "  includes the pause\n");
     return 0;
   }
   std::vector<int> ns;
@@ -266,12 +278,12 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "wakeup_ring: STREAM_KB must be 0 to 1048576\n");
     return 2;
   }
-  const long pause_us = argc > 8 ? std::atol(argv[8]) : 0;
-  if (pause_us < 0 || pause_us > 1000000) {
+  const long pause_us = argc > 8 ? std::atol(argv[8]) : -1;  // -1: not given
+  if (argc > 8 && (pause_us < 0 || pause_us > 1000000)) {
     std::fprintf(stderr, "wakeup_ring: PAUSE_US must be 0 to 1000000\n");
     return 2;
   }
-  const int latency_fd = pause_us > 0 ? HoldCpusPolling() : -1;
+  const int latency_fd = pause_us >= 0 ? HoldCpusPolling() : -1;
   g_shared_bytes = static_cast<std::size_t>(shared_kb) * 1024;
   std::vector<unsigned char> shared(g_shared_bytes, 1);
   g_shared = shared.data();
@@ -279,9 +291,8 @@ int main(int argc, char** argv) {
   for (int n : ns) {
     std::vector<double> cpu, wall;
     for (int r = 0; r < rounds; ++r) {
-      const Result res =
-          Ring(n, hops, touch, static_cast<std::size_t>(stride), static_cast<std::size_t>(stream_kb),
-               pause_us);
+      const Result res = Ring(n, hops, touch, static_cast<std::size_t>(stride),
+                              static_cast<std::size_t>(stream_kb), pause_us);
       cpu.push_back(res.cpu_us_per_hop);
       wall.push_back(res.wall_us_per_hop);
     }

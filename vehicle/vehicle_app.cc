@@ -67,8 +67,8 @@ bool VehicleApp::OnInput(int /*kind*/, const unsigned char* data, int size) {
 }
 
 StateMsg VehicleApp::Unheld(const Held& h) {
-  // The other numbers stay zero: Receive and Check read only these, and the held message's
-  // own were finite.
+  // The other numbers stay zero: Receive and Check use only these (Check's finiteness test
+  // also reads the zeros, which pass as the held message's own numbers did).
   StateMsg m;
   m.vehicle_id = h.sender;
   m.seq = h.seq;
@@ -95,8 +95,8 @@ const ClockedNode::Delivery* VehicleApp::ApplyListed(const std::vector<Delivery>
   follower_.BeginTick(next_tick() * period_us());  // as shoal sim: before the deliveries
   for (std::size_t k : at) follower_.Receive(Unheld(held_[k]));
   if (at.empty()) return nullptr;
-  // The applied ones leave in one pass, the rest keeping their order: erasing them one by
-  // one moved the held deliveries behind each again.
+  // The applied ones leave in one pass, the rest keeping their order (erasing each would
+  // move every delivery behind it again).
   std::sort(at.begin(), at.end());
   std::size_t kept = at.front();
   for (std::size_t k = at.front(), a = 0; k < held_.size(); ++k) {

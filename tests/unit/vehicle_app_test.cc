@@ -222,6 +222,40 @@ TEST(VehicleAppLockstep, AnOvertakenDeliveryIsCountedOldAndDoesNotBlockItsTick) 
   EXPECT_EQ(r.node.follower().state().eta, r.reference.state().eta);
 }
 
+// A tick that lists held deliveries out of their arrival order, with one held for a later
+// tick between them: both are applied in the listed order and leave the held list, and the
+// one between them is still held, and applied, at its own tick.
+TEST(VehicleAppLockstep, ListedOutOfArrivalOrderAroundOneHeldForLater) {
+  Rig r;
+  for (int k = 0; k < 6; ++k) r.sent.push_back(r.leader.Tick(k * r.s.period_us()));
+  StateMsg from3 = r.sent[0];  // follower 1 also hears follower 3 (Example 2)
+  from3.vehicle_id = 3;
+  from3.flags = 0;
+  from3.eta(0) -= 6.0;
+  from3.eta_dot(1) += 0.25;
+  // Held in this order: follower 3's, the leader's of tick 1 (for tick 4), the leader's of
+  // tick 0; tick 3 lists the last and the first, in that order.
+  for (const StateMsg& m : {from3, r.sent[1], r.sent[0]}) {
+    r.bus.Publish(channels::Rx(kId), ToLcm(m));
+  }
+  for (int k = 0; k < 6; ++k) {
+    std::vector<StateMsg> list;
+    if (k == 3) list = {r.sent[0], from3};
+    if (k == 4) list = {r.sent[1]};
+    for (const StateMsg& m : list) r.reference.Receive(m);
+    r.bus.Publish(channels::Clock(), Tick(r.s, k, list));
+    r.Pump();
+    r.reference.Tick(k * r.s.period_us());
+    ASSERT_EQ(r.ticks(), k + 1) << "tick " << k;
+    ASSERT_EQ(r.node.follower().state().eta, r.reference.state().eta) << "tick " << k;
+    ASSERT_EQ(r.node.follower().state().nu, r.reference.state().nu) << "tick " << k;
+  }
+  EXPECT_EQ(r.node.follower().counters().msgs_received, 3);
+  EXPECT_EQ(r.reference.counters().msgs_received, 3);
+  EXPECT_EQ(r.node.follower().counters().msgs_dropped_old, 0);
+  EXPECT_EQ(r.node.rx_counters().unlisted_rx, 0);
+}
+
 // A forged copy of an upcoming delivery (same sender and seq, other content) arriving
 // first is not the delivery: the tick's digest tells them apart.
 TEST(VehicleAppLockstep, AForgedCopyOfAListedDeliveryIsNotApplied) {
