@@ -14,6 +14,9 @@
 # L2's size, says when that begins. Its pages each cost a walk of the page tables when the
 # TLB no longer holds the process's translations. Kernel lines (socket, task, page tables)
 # are not counted.
+# CODE_ADDRESSES=FILE: also writes to FILE the first instruction run in each code line of the
+# counted windows, in the order first run, as offsets in the program's file where they lie
+# in the program (bench/window_code.sh).
 # Usage: bench/window_footprint.sh [BUILD_DIR] [N] [DURATION_S] [ROLE]
 #   e.g. bench/window_footprint.sh build 16 10; bench/window_footprint.sh build 64 6 emulator
 set -euo pipefail
@@ -63,10 +66,15 @@ grep -q "tool=lackey" "$dir/run.sh" || { echo "bench: $started not found in the 
 
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'); $(valgrind --version)"
 echo "command: $shoal run (scale_scenario.sh $n $dur) --mode lockstep --print-launch, $started under lackey"
-"$counter" "$mark" 20 < "$dir/trace" > "$dir/windows.txt" 2> "$dir/summary.txt" &
+"$counter" "$mark" 20 ${CODE_ADDRESSES:+"$dir/code.txt"} < "$dir/trace" > "$dir/windows.txt" \
+  2> "$dir/summary.txt" &
 counter_pid=$!
 status=0
 bash "$dir/run.sh" > "$dir/run.out" 2>&1 || status=$?
 wait "$counter_pid" || { cat "$dir/summary.txt" >&2; exit 1; }
 [ "$status" = 0 ] || { echo "bench: the run failed ($status):" >&2; tail -5 "$dir/run.out" >&2; exit 1; }
 echo "followers $n: $(cat "$dir/summary.txt")"
+if [ -n "${CODE_ADDRESSES:-}" ]; then
+  # From where valgrind loaded the program back to the addresses nm gives.
+  while read -r a; do printf '%x\n' $((0x$a - base)); done < "$dir/code.txt" > "$CODE_ADDRESSES"
+fi

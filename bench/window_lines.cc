@@ -6,14 +6,38 @@
 // that CPU's L2; the count does not depend on the machine or on what else runs. The pages
 // are what the window's address translations cover: each costs a walk of the page tables
 // when the TLB no longer holds the process's entries.
-// Usage: window_lines MARK_HEX [SKIP] < trace
+// Usage: window_lines MARK_HEX [SKIP [CODE_OUT]] < trace
 //   prints one row per window: window, data lines, code lines, data pages, code pages
-//   (SKIP first windows, default 20: the start-up's), then the medians on stderr.
+//   (SKIP first windows, default 20: the start-up's), then the medians on stderr. With
+//   CODE_OUT, also writes there, one per line in hexadecimal, for each code line the counted
+//   windows ran, the first instruction they ran in it, in the order they first ran it
+//   (bench/window_code.sh).
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <unordered_set>
 #include <vector>
+
+// The code lines of the counted windows in the order they first ran: those of a window are
+// kept only once it is complete (the mark ran again), so the exit's code, after the last
+// window, is not among them.
+struct CodeOrder {
+  std::unordered_set<unsigned long> seen, window_seen;
+  std::vector<unsigned long> order, window;
+
+  void Ran(unsigned long ip) {
+    if (window_seen.insert(ip >> 6).second) window.push_back(ip);
+  }
+  void WindowDone(bool counted) {
+    if (counted) {
+      for (unsigned long ip : window) {
+        if (seen.insert(ip >> 6).second) order.push_back(ip);
+      }
+    }
+    window.clear();
+    window_seen.clear();
+  }
+};
 
 namespace {
 std::size_t Median(std::vector<std::size_t> v) {
@@ -25,11 +49,13 @@ std::size_t Median(std::vector<std::size_t> v) {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: window_lines MARK_HEX [SKIP] < lackey-trace\n");
+    std::fprintf(stderr, "usage: window_lines MARK_HEX [SKIP [CODE_OUT]] < lackey-trace\n");
     return 2;
   }
   const unsigned long mark = std::strtoul(argv[1], nullptr, 16);
   const long skip = argc > 2 ? std::atol(argv[2]) : 20;
+  const char* code_out = argc > 3 ? argv[3] : nullptr;
+  CodeOrder code_order;
   std::unordered_set<unsigned long> data, code, pages, code_pages;
   std::vector<std::size_t> data_n, code_n, pages_n, code_pages_n;
   char line[256];
@@ -47,6 +73,7 @@ int main(int argc, char** argv) {
           pages_n.push_back(pages.size());
           code_pages_n.push_back(code_pages.size());
         }
+        code_order.WindowDone(window >= skip);
         ++window;
         data.clear();
         code.clear();
@@ -55,6 +82,7 @@ int main(int argc, char** argv) {
       }
       code.insert(ip >> 6);
       code_pages.insert(ip >> 12);
+      if (code_out != nullptr) code_order.Ran(ip);
     } else if (line[0] == ' ' && (line[1] == 'L' || line[1] == 'S' || line[1] == 'M')) {
       const unsigned long a = std::strtoul(line + 3, &end, 16);
       const long size = end != nullptr && *end == ',' ? std::strtol(end + 1, nullptr, 10) : 1;
@@ -68,6 +96,18 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "window_lines: no window: instruction %lx was executed %ld time(s)\n",
                  mark, window + 1);
     return 1;
+  }
+  if (code_out != nullptr) {
+    FILE* f = std::fopen(code_out, "w");
+    if (f == nullptr) {
+      std::perror(code_out);
+      return 1;
+    }
+    for (unsigned long ip : code_order.order) std::fprintf(f, "%lx\n", ip);
+    if (std::fclose(f) != 0) {
+      std::perror(code_out);
+      return 1;
+    }
   }
   std::fprintf(stderr,
                "windows %zu  median per window: data lines %zu, code lines %zu, data pages %zu, "
