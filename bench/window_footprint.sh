@@ -14,9 +14,9 @@
 # L2's size, says when that begins. Its pages each cost a walk of the page tables when the
 # TLB no longer holds the process's translations. Kernel lines (socket, task, page tables)
 # are not counted.
-# CODE_ADDRESSES=FILE: also writes to FILE the first instruction run in each code line of the
-# counted windows, in the order first run, as offsets in the program's file where they lie
-# in the program (bench/window_code.sh).
+# CODE_ADDRESSES=FILE: also writes to FILE the address of every instruction the counted
+# windows ran, in the order first run, as nm gives the program's addresses (those in the
+# libraries come out as numbers beyond the program's; bench/window_code.sh).
 # Usage: bench/window_footprint.sh [BUILD_DIR] [N] [DURATION_S] [ROLE]
 #   e.g. bench/window_footprint.sh build 16 10; bench/window_footprint.sh build 64 6 emulator
 set -euo pipefail

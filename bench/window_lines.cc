@@ -9,29 +9,30 @@
 // Usage: window_lines MARK_HEX [SKIP [CODE_OUT]] < trace
 //   prints one row per window: window, data lines, code lines, data pages, code pages
 //   (SKIP first windows, default 20: the start-up's), then the medians on stderr. With
-//   CODE_OUT, also writes there, one per line in hexadecimal, for each code line the counted
-//   windows ran, the first instruction they ran in it, in the order they first ran it
-//   (bench/window_code.sh).
+//   CODE_OUT, also writes there, one per line in hexadecimal, the address of every instruction
+//   the counted windows ran, in the order they first ran it (bench/window_code.sh).
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <unordered_set>
 #include <vector>
 
-// The code lines of the counted windows in the order they first ran: those of a window are
-// kept only once it is complete (the mark ran again), so the exit's code, after the last
-// window, is not among them.
+namespace {
+// The instructions of the counted windows in the order they first ran (by address: a
+// function of a few bytes can share its line with another). Those of a window are kept only
+// once it is complete (the mark ran again), so the exit's code, after the last window, is
+// not among them.
 struct CodeOrder {
   std::unordered_set<unsigned long> seen, window_seen;
   std::vector<unsigned long> order, window;
 
   void Ran(unsigned long ip) {
-    if (window_seen.insert(ip >> 6).second) window.push_back(ip);
+    if (window_seen.insert(ip).second) window.push_back(ip);
   }
   void WindowDone(bool counted) {
     if (counted) {
       for (unsigned long ip : window) {
-        if (seen.insert(ip >> 6).second) order.push_back(ip);
+        if (seen.insert(ip).second) order.push_back(ip);
       }
     }
     window.clear();
@@ -39,7 +40,6 @@ struct CodeOrder {
   }
 };
 
-namespace {
 std::size_t Median(std::vector<std::size_t> v) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
