@@ -863,8 +863,9 @@ void AddEmulatorOptions(CLI::App* app, EmulatorOptions* o) {
                   "receive the processes' messages on this LCM URL (where they publish, and "
                   "nobody else listens), and pass each that verified on to --lcm-url "
                   "unchanged, packed per batch, for the recorder (lcm-logger with "
-                  "runtime/lcm_queue_shim.c). shoal run gives it in lockstep without "
-                  "restarts: what is in flight to an emulator that dies is lost with it");
+                  "runtime/lcm_queue_shim.c). shoal run gives it, in both modes, with its per-vehicle "
+                  "URLs and without restarts: what is in flight to an emulator that dies is "
+                  "lost with it");
   app->add_option("--restart-note", o->restart_note,
                   "Replace an emulator that died (shoal run --restart on-failure): why and "
                   "when it ended, for the log");

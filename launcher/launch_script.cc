@@ -58,12 +58,13 @@ stop() {
 }
 
 # The run's processes first, the logger last (SIGINT: it flushes and closes the log), so
-# that it records everything they published; it drains its socket in between.
+# that it records everything they published; it drains its socket in between, also when
+# they all ended on their own (the emulator's last status is sent just before it exits).
 shut_down() {
   local pid left=()
   for pid in "${run_pids[@]}"; do if alive "$pid"; then left+=("$pid"); fi; done
-  if [ ${#left[@]} != 0 ]; then stop TERM 2 "${left[@]}"; sleep 0.2; fi
-  if [ -n "$logger_pid" ] && alive "$logger_pid"; then stop INT 2 "$logger_pid"; fi
+  if [ ${#left[@]} != 0 ]; then stop TERM 2 "${left[@]}"; fi
+  if [ -n "$logger_pid" ] && alive "$logger_pid"; then sleep 0.2; stop INT 2 "$logger_pid"; fi
 }
 trap 'echo "$0: interrupted: stopping the run" >&2; exit 130' INT
 trap 'echo "$0: terminated: stopping the run" >&2; exit 143' TERM
@@ -204,7 +205,8 @@ void WriteHeader(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::os
     << "# Exit status: 0 the emulator ended the run and every process ran to the end; 1 a\n"
     << "# process failed or the logger exited early; 2 multicast not kept on the host" 
     << (AnyAtSchedFifo(plan) ? ", or\n# SCHED_FIFO (--sched-fifo) not permitted here;" : ";")
-    << "\n# 130/143 interrupted. Judge the run with: shoal analyze <log>.\n"
+    << "\n# 130/143 interrupted. What the log holds (states logged of those expected, late\n"
+    << "# ticks, convergence): shoal analyze <log>.\n"
     << "set -euo pipefail\n";
 }
 

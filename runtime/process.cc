@@ -59,10 +59,13 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
   app->add_option("--set", opt->set,
                   "KEY=VALUE: change the scenario as shoal run was told to (repeatable)")
       ->allow_extra_args(false);
-  app->add_option("--lcm-url", opt->lcm_url, "LCM URL of the run's bus")->required();
+  app->add_option("--lcm-url", opt->lcm_url,
+                  "LCM URL this process publishes on: the run's bus, or the emulator's "
+                  "--uplink-url where it has one")
+      ->required();
   app->add_option("--rx-url", opt->rx_url,
                   "LCM URL on which this process receives (default: --lcm-url)");
-  app->add_option("--mode", opt->mode, "lockstep or realtime")
+  app->add_option("--mode", opt->mode, "lockstep (the default) or realtime")
       ->check(CLI::IsMember({ModeName(Mode::kLockstep), ModeName(Mode::kRealtime)}));
   app->add_option("--t0-ns", opt->t0_ns,
                   "realtime: CLOCK_MONOTONIC ns of tick 0 (this host only; shoal run's "
@@ -70,7 +73,16 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
   app->add_option("--t0-unix-ns", opt->t0_unix_ns,
                   "realtime: CLOCK_REALTIME ns (since 1970) of tick 0, shared by hosts whose "
                   "wall clocks agree; converted once at start to CLOCK_MONOTONIC");
-  app->add_option("--duration", opt->duration_s, "Simulated seconds (default: the scenario's)");
+  app->add_option("--duration", opt->duration_s, "Simulated seconds (default: the scenario's)")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            // As the scenario's run.duration_s: inf or 1e30 would count no tick.
+            char* end = nullptr;
+            const double v = std::strtod(text.c_str(), &end);
+            const bool ok = end != text.c_str() && *end == '\0' && v > 0 && v <= 1e9;
+            return ok ? std::string() : "must be a positive number of seconds, at most 1e9";
+          },
+          "SECONDS"));
   app->add_flag("--insecure", opt->insecure,
                 "Do not authenticate the bus's messages (else the run's key is read from "
                 "SHOAL_BUS_KEY, docs/run.md)");

@@ -142,11 +142,14 @@ CLI::App* AddRun(CLI::App* app, shoal::RunOptions* run) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   AddRunLoopOptions(c, run);
-  c->add_flag("--print-launch", run->print_launch,
-              "Start nothing: print to stdout a bash script that starts lcm-logger, the "
-              "emulator, the leader and the vehicles with the commands shoal run would use "
-              "(tick 0 on the wall clock; docs/run.md, \"Launching by hand or by script\")");
-  c->add_flag("--json", run->json, "Print one JSON object instead of the summary");
+  CLI::Option* print_launch =
+      c->add_flag("--print-launch", run->print_launch,
+                  "Start nothing: print to stdout a bash script that starts lcm-logger, the "
+                  "emulator, the leader and the vehicles with the commands shoal run would "
+                  "use (tick 0 on the wall clock; docs/run.md, \"Launching by hand or by "
+                  "script\")");
+  c->add_flag("--json", run->json, "Print one JSON object instead of the summary")
+      ->excludes(print_launch);  // the script is what is printed
   c->add_flag("--quiet", run->quiet, "No progress line");
   return c;
 }
@@ -328,11 +331,12 @@ CLI::App* AddSoak(CLI::App* app, shoal::SoakOptions* soak) {
   return c;
 }
 
-/// -1 is the commands' "not given" marker: a --duration the user typed must be positive.
+/// -1 is the commands' "not given" marker: a --duration the user typed must be positive
+/// and at most 1e9 s, as the scenario's run.duration_s (inf or 1e30 would count no tick).
 bool CheckDuration(const CLI::App* cmd, const char* flag, double value) {
-  if (!cmd->parsed() || cmd->count(flag) == 0 || value > 0) return true;
+  if (!cmd->parsed() || cmd->count(flag) == 0 || (value > 0 && value <= 1e9)) return true;
   std::cerr << "shoal " << cmd->get_name() << ": " << flag
-            << " must be a positive number of seconds (got " << value << ")\n";
+            << " must be a positive number of seconds, at most 1e9 (got " << value << ")\n";
   return false;
 }
 

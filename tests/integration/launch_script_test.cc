@@ -116,6 +116,20 @@ TEST(StartTime, AVehicleGivenAStartTimeRunsAndPublishes) {
   EXPECT_LT(LatenessP50Ms(o.output), 50.0) << o.output;
 }
 
+TEST(StartTime, ADurationThatCountsNoTickIsRefused) {
+  for (const std::string which : {"vehicle", "leader", "emulator"}) {
+    for (const std::string d : {"inf", "nan", "1e30", "0", "-5", "5s"}) {
+      const Outcome o = RunListening(Exe(which) + " --insecure --scenario " + kExample2 +
+                                         " --lcm-url '" + Url(31716) +
+                                         "' --mode lockstep --duration " + d,
+                                     31716, "dur_bad");
+      EXPECT_EQ(o.status, 2) << which << " --duration " << d << ": " << o.output;
+      EXPECT_NE(o.output.find("at most 1e9"), std::string::npos) << which << ": " << o.output;
+      EXPECT_EQ(o.messages, 0) << which << ": it published";
+    }
+  }
+}
+
 TEST(StartTime, BothStartTimesOrOneMoreThanADayAheadOrBeforeTheClockAreRefused) {
   const std::int64_t day = 86400LL * 1000000000LL;
   const std::string mono_now = std::to_string(MonotonicNs());
@@ -301,6 +315,9 @@ TEST(LaunchScript, RealtimeScriptRunsToTheEnd) {
   const auto ana = RunShoal("analyze --json " + log, "ls_rt_analyze");
   const auto aj = ParseJson(ana.out);
   EXPECT_EQ(aj["log_states"].get<int>(), 6 * 151) << ana.out;  // ticks 0..150
+  // The emulator's last status, sent as it exits, is in the log: it tells where the run
+  // ended, so the states expected are those of 3 s, not of the scenario's 600 s.
+  EXPECT_EQ(aj["log_states_expected"].get<int>(), 6 * 151) << ana.out;
   // Every process ran on time from the wall-clock start.
   for (const std::string tag : {"leader", "vehicle1", "vehicle5"}) {
     const std::string out = ReadFile(log + ".d/" + tag + ".txt");

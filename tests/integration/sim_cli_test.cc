@@ -110,6 +110,18 @@ TEST(RunCli, BadInputExitsTwoBeforeAnythingStarts) {
   const std::string ex1 = SourcePath("scenarios/paper_example1.toml");
   EXPECT_EQ(RunShoal("run " + ex1 + " --mode fast", "run_bad2").status, 2);
   EXPECT_EQ(RunShoal("run " + ex1 + " --duration -3", "run_bad3").status, 2);
+  // As the scenario's run.duration_s: at most 1e9 s (inf or 1e30 would count no tick).
+  for (const std::string d : {"inf", "1e30", "nan", "2e9"}) {
+    for (const std::string cmd : {"run", "sim"}) {
+      const auto r = RunShoal(cmd + " " + ex1 + " --duration " + d, "run_bad_dur");
+      EXPECT_EQ(r.status, 2) << cmd << " --duration " << d << ": " << r.err;
+      EXPECT_NE(r.err.find("at most 1e9"), std::string::npos) << r.err;
+    }
+  }
+  // --print-launch prints a script, never JSON.
+  const auto pj = RunShoal("run " + ex1 + " --print-launch --json", "run_bad_pj");
+  EXPECT_EQ(pj.status, 2) << pj.err;
+  EXPECT_NE(pj.err.find("--json"), std::string::npos) << pj.err;
   const auto r4 = RunShoal("run " + ex1 + " --out /nonexistent-dir/x.lcmlog", "run_bad4");
   EXPECT_EQ(r4.status, 2);
   EXPECT_NE(r4.err.find("cannot open log"), std::string::npos) << r4.err;
