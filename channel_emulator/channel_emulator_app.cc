@@ -864,8 +864,8 @@ void AddEmulatorOptions(CLI::App* app, EmulatorOptions* o) {
                   "nobody else listens), and pass each that verified on to --lcm-url "
                   "unchanged, packed per batch, for the recorder (lcm-logger with "
                   "runtime/lcm_queue_shim.c). shoal run gives it, in both modes, with its per-vehicle "
-                  "URLs and without restarts: what is in flight to an emulator that dies is "
-                  "lost with it");
+                  "URLs when that library is there to preload, and not with restarts: what "
+                  "is in flight to an emulator that dies is lost with it");
   app->add_option("--restart-note", o->restart_note,
                   "Replace an emulator that died (shoal run --restart on-failure): why and "
                   "when it ended, for the log");

@@ -20,13 +20,17 @@ logger_pid=
 status=0
 
 # start NAME TAG NICE COMMAND...: starts COMMAND in the background, output to
-# $out_dir/TAG.txt. The process dies with this script (each Shoal process asks the kernel
+# $out_dir/TAG.txt, detached from the terminal by setsid (the same pid), so that Ctrl-C at
+# the terminal reaches this script alone, which then stops the run's processes before the
+# logger, as shoal run does; the logger would otherwise stop with them and miss their
+# last messages. The process dies with this script (each Shoal process asks the kernel
 # for SIGTERM when its parent dies; lcm-logger is started under setpriv --pdeathsig INT,
 # which asks the same for it: SIGINT, on which it closes the log). The traps below stop
 # them in order when the script ends otherwise.
 start() {
   local name=$1 tag=$2 nice=$3
   shift 3
+  set -- /usr/bin/setsid "$@"
   if [ "$nice" != 0 ]; then set -- nice -n "$nice" "$@"; fi
   "$@" >"$out_dir/$tag.txt" 2>&1 </dev/null &
   name_of[$!]=$name
@@ -308,6 +312,14 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
   if (!plan.insecure) o << "export " << bus_auth::kKeyEnv << "\n";
   o << "# Tick 0 on the wall clock, 4 s from now (ns since 1970).\n"
     << "t0=$(( $(date +%s%N) + 4000000000 ))\n";
+  // With an uplink the leader and the vehicles publish there, and the emulator passes it on.
+  bool uplink = false;
+  for (const PlannedProcess& p : plan.processes) {
+    uplink = uplink || std::find(p.argv.begin(), p.argv.end(), "--uplink-url") != p.argv.end();
+  }
+  const std::string published = uplink ? "to the emulator's uplink (--lcm-url here), which "
+                                         "passes it on\n# to the shared bus"
+                                       : "on the shared bus";
   for (std::size_t i = 1; i < plan.processes.size(); ++i) {
     const PlannedProcess& p = plan.processes[i];
     o << "\n";
@@ -320,9 +332,10 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
                 : "")
         << ".\n";
     } else if (p.id == 0) {
-      o << "# The leader: its path state on the shared bus.\n";
+      o << "# The leader: its path state " << published << ".\n";
     } else {
-      o << "# " << p.name << ": its state on the shared bus; its neighbours' via the emulator.\n";
+      o << "# " << p.name << ": its state " << published
+        << "; its neighbours' via the emulator.\n";
     }
     WriteStart(p, std::to_string(p.nice_inc), plan.log, o);
     o << "run_pids+=(\"$started_pid\")\n";

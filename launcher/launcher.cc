@@ -38,6 +38,7 @@
 #include "runtime/messages.h"
 #include "runtime/process.h"
 #include "runtime/stop_signals.h"
+#include "scenario/overrides.h"
 
 namespace shoal {
 namespace {
@@ -781,7 +782,7 @@ std::vector<std::string> Launch::ProcessArgs(const std::string& exe,
                                 "--lcm-url", url.empty() ? r_->lcm_url : url,
                                 "--mode", opt_.mode,
                                 wall_clock_t0_ ? "--t0-unix-ns" : "--t0-ns", kT0Arg,
-                                "--duration", std::to_string(r_->duration_s)};
+                                "--duration", ExactNumber(r_->duration_s)};
   if (opt_.insecure) a.push_back("--insecure");
   // One argument each: a value is never taken for an option of its own.
   for (const std::string& set : opt_.set) a.push_back("--set=" + set);

@@ -60,8 +60,9 @@ void AddProcessOptions(CLI::App* app, ProcessOptions* opt) {
                   "KEY=VALUE: change the scenario as shoal run was told to (repeatable)")
       ->allow_extra_args(false);
   app->add_option("--lcm-url", opt->lcm_url,
-                  "LCM URL this process publishes on: the run's bus, or the emulator's "
-                  "--uplink-url where it has one")
+                  "LCM URL of the run's shared bus; the leader and the vehicles of a run "
+                  "whose emulator has --uplink-url are given that URL here instead, and "
+                  "publish there")
       ->required();
   app->add_option("--rx-url", opt->rx_url,
                   "LCM URL on which this process receives (default: --lcm-url)");

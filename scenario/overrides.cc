@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cstddef>
+#include <cstdio>
 #include <memory>
 #include <string>
 #include <utility>
@@ -262,6 +263,12 @@ std::vector<ScenarioOverride> ParseSetFlags(const std::vector<std::string>& text
 
 void ApplyOverrides(const std::vector<ScenarioOverride>& overrides, toml::table* root) {
   for (const ScenarioOverride& o : overrides) ApplyOne(o, root);
+}
+
+std::string ExactNumber(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.17g", v);
+  return text;
 }
 
 }  // namespace shoal

@@ -26,4 +26,9 @@ ScenarioOverride ParseSetFlag(const std::string& text);
 /// ParseSetFlag of each, in order.
 std::vector<ScenarioOverride> ParseSetFlags(const std::vector<std::string>& texts);
 
+/// A double as text that reads back as the same double (%.17g), for a number handed to
+/// another process or written into a scenario: six decimals would make 0.0199996 s 0.02 s,
+/// a tick more at 50 Hz, and 1e-7 s zero.
+std::string ExactNumber(double v);
+
 }  // namespace shoal

@@ -15,6 +15,7 @@
 
 #include "design/report.h"
 #include "scenario/loader.h"
+#include "scenario/overrides.h"
 #include "tools/json_text.h"
 
 namespace shoal {
@@ -73,13 +74,6 @@ bool WriteCertificateFile(const std::string& path, design::DesignReport* r) {
   }
   r->theorem3.certificate_path = path;
   return true;
-}
-
-/// A double as TOML text that reads back as the same double.
-std::string ExactNumber(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.17g", v);
-  return text;
 }
 
 /// --write-scenario with --set: the effective scenario (the file changed by every --set,

@@ -22,6 +22,7 @@
 #include "campaign/points.h"
 #include "campaign/results.h"
 #include "runtime/stop_signals.h"
+#include "scenario/overrides.h"
 
 namespace shoal {
 namespace {
@@ -40,12 +41,6 @@ std::string ShellQuote(const std::string& arg) {
   return out + "'";
 }
 
-std::string FormatSeconds(double s) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.17g", s);
-  return text;
-}
-
 /// The point's command: what a user would type (argv[0] "shoal"); `exe` replaces it to run.
 std::vector<std::string> PointArgv(const Campaign& c, const std::string& dir,
                                    const std::vector<ScenarioOverride>& overrides,
@@ -57,7 +52,7 @@ std::vector<std::string> PointArgv(const Campaign& c, const std::string& dir,
     argv.insert(argv.end(), {"run", c.scenario, "--mode", EngineName(c.engine)});
   }
   for (const ScenarioOverride& o : overrides) argv.insert(argv.end(), {"--set", o.key + "=" + o.value});
-  if (c.duration_s > 0) argv.insert(argv.end(), {"--duration", FormatSeconds(c.duration_s)});
+  if (c.duration_s > 0) argv.insert(argv.end(), {"--duration", ExactNumber(c.duration_s)});
   argv.insert(argv.end(), {"--json", "--quiet"});
   if (c.engine != CampaignEngine::kSim) {
     char name[32];

@@ -325,20 +325,24 @@ TEST(LaunchScript, RealtimeScriptRunsToTheEnd) {
   }
 }
 
-TEST(LaunchScript, StoppingTheScriptStopsEveryProcess) {
-  const std::string log = TmpPath("ls_stop.lcmlog");
-  const Script s = Print(kExample2 + " --mode realtime --duration 60 --out " + log, "ls_stop");
-  const std::string err = TmpPath("ls_stop.bash.err");
+/// Starts `bash SCRIPT` (stderr to `err`), as a terminal starts a job when `own_group`: in
+/// a process group of its own.
+pid_t StartBash(const std::string& script, const std::string& err, bool own_group) {
   const pid_t bash = fork();
   if (bash == 0) {
-    const std::string cmd = "exec bash " + s.path + " >/dev/null 2>" + err + " </dev/null";
+    if (own_group) setpgid(0, 0);
+    const std::string cmd = "exec bash " + script + " >/dev/null 2>" + err + " </dev/null";
     execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
-  // Until every process has started (the script says so for each).
+  return bash;
+}
+
+/// The pids of the processes the script says it started, once there are `n` (or 10 s).
+std::vector<int> StartedPids(const std::string& err, std::size_t n) {
   std::vector<int> pids;
   const std::regex started(R"(started .* \(pid ([0-9]+)\))");
-  for (int i = 0; i < 200 && pids.size() < 8; ++i) {
+  for (int i = 0; i < 200 && pids.size() < n; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     pids.clear();
     const std::string text = ReadFile(err);
@@ -347,6 +351,15 @@ TEST(LaunchScript, StoppingTheScriptStopsEveryProcess) {
       pids.push_back(std::stoi((*it)[1]));
     }
   }
+  return pids;
+}
+
+TEST(LaunchScript, StoppingTheScriptStopsEveryProcess) {
+  const std::string log = TmpPath("ls_stop.lcmlog");
+  const Script s = Print(kExample2 + " --mode realtime --duration 60 --out " + log, "ls_stop");
+  const std::string err = TmpPath("ls_stop.bash.err");
+  const pid_t bash = StartBash(s.path, err, false);
+  const std::vector<int> pids = StartedPids(err, 8);
   ASSERT_EQ(pids.size(), 8u) << ReadFile(err);
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   kill(bash, SIGTERM);
@@ -355,6 +368,27 @@ TEST(LaunchScript, StoppingTheScriptStopsEveryProcess) {
   EXPECT_LT(took, 6.0);
   for (const int pid : pids) EXPECT_NE(kill(pid, 0), 0) << "pid " << pid << " still runs";
   EXPECT_GT(ReadFile(log).size(), 0u);  // the logger closed its log
+}
+
+TEST(LaunchScript, CtrlCAtTheTerminalStopsTheLoggerLast) {
+  // A terminal's Ctrl-C is SIGINT to the job's whole process group. The script's processes
+  // run detached from the terminal (setsid), so the logger is stopped by the script, after
+  // the others, and records the status each sends as it stops.
+  const std::string log = TmpPath("ls_ctrlc.lcmlog");
+  const Script s = Print(kExample2 + " --mode realtime --duration 60 --out " + log, "ls_ctrlc");
+  const std::string err = TmpPath("ls_ctrlc.bash.err");
+  const pid_t bash = StartBash(s.path, err, true);
+  const std::vector<int> pids = StartedPids(err, 8);
+  ASSERT_EQ(pids.size(), 8u) << ReadFile(err);
+  std::this_thread::sleep_for(std::chrono::seconds(6));  // tick 0 is 4 s after the logger
+  kill(-bash, SIGINT);
+  double took = 0;
+  EXPECT_EQ(shoal::testing::WaitExit(bash, 10.0, &took), 130) << ReadFile(err);
+  for (const int pid : pids) EXPECT_NE(kill(pid, 0), 0) << "pid " << pid << " still runs";
+  const auto ana = RunShoal("analyze --json " + log, "ls_ctrlc_analyze");
+  const auto aj = ParseJson(ana.out);
+  EXPECT_GT(aj["log_states"].get<int>(), 6 * 50) << ana.out;  // more than a second of ticks
+  EXPECT_TRUE(aj["interrupted"].get<bool>()) << ana.out;     // the processes' last statuses
 }
 
 TEST(ShoalRun, WallClockStartTimeRunsOnTime) {
