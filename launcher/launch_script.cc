@@ -20,17 +20,18 @@ logger_pid=
 status=0
 
 # start NAME TAG NICE COMMAND...: starts COMMAND in the background, output to
-# $out_dir/TAG.txt, detached from the terminal by setsid (the same pid), so that Ctrl-C at
-# the terminal reaches this script alone, which then stops the run's processes before the
-# logger, as shoal run does; the logger would otherwise stop with them and miss their
-# last messages. The process dies with this script (each Shoal process asks the kernel
+# $out_dir/TAG.txt, in a process group of its own (perl's setpgrp, then exec: the same pid;
+# setsid would also put it in a scheduling group of its own, where its nice level ranks it
+# against nothing), as shoal run does: Ctrl-C at the terminal then reaches this script
+# alone, which stops the run's processes before the logger, so that the logger records
+# what they send as they stop. The process dies with this script (each Shoal process asks the kernel
 # for SIGTERM when its parent dies; lcm-logger is started under setpriv --pdeathsig INT,
 # which asks the same for it: SIGINT, on which it closes the log). The traps below stop
 # them in order when the script ends otherwise.
 start() {
   local name=$1 tag=$2 nice=$3
   shift 3
-  set -- /usr/bin/setsid "$@"
+  set -- /usr/bin/perl -e 'setpgrp(0, 0) or die "setpgrp: $!\n"; exec { $ARGV[0] } @ARGV or die "exec $ARGV[0]: $!\n"' -- "$@"
   if [ "$nice" != 0 ]; then set -- nice -n "$nice" "$@"; fi
   "$@" >"$out_dir/$tag.txt" 2>&1 </dev/null &
   name_of[$!]=$name
@@ -324,7 +325,8 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
     const PlannedProcess& p = plan.processes[i];
     o << "\n";
     if (p.id == kEmulatorId) {
-      o << "# The channel emulator: hears every state on the shared bus and delivers it to each\n"
+      o << "# The channel emulator: hears every state " << (uplink ? "on its uplink" : "on the shared bus")
+        << " and delivers it to each\n"
         << "# receiver after the link's delay (or drops it)"
         << (plan.mode == Mode::kLockstep
                 ? "; the lockstep clock: it waits for every\n# process's \"ready\", "

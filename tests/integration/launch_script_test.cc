@@ -331,12 +331,20 @@ pid_t StartBash(const std::string& script, const std::string& err, bool own_grou
   const pid_t bash = fork();
   if (bash == 0) {
     if (own_group) setpgid(0, 0);
+    signal(SIGINT, SIG_DFL);  // an ignored SIGINT would stay ignored: bash could not trap it
     const std::string cmd = "exec bash " + script + " >/dev/null 2>" + err + " </dev/null";
     execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
   return bash;
 }
+
+/// Stops a process group when the test leaves, whatever failed: nothing of a run outlives
+/// the test to load the next ones.
+struct GroupStopper {
+  pid_t group;
+  ~GroupStopper() { kill(-group, SIGTERM); }
+};
 
 /// The pids of the processes the script says it started, once there are `n` (or 10 s).
 std::vector<int> StartedPids(const std::string& err, std::size_t n) {
@@ -372,12 +380,14 @@ TEST(LaunchScript, StoppingTheScriptStopsEveryProcess) {
 
 TEST(LaunchScript, CtrlCAtTheTerminalStopsTheLoggerLast) {
   // A terminal's Ctrl-C is SIGINT to the job's whole process group. The script's processes
-  // run detached from the terminal (setsid), so the logger is stopped by the script, after
-  // the others, and records the status each sends as it stops.
+  // run in process groups of their own, so the logger is stopped by the script, after the
+  // others, and records the status the emulator sends as it stops ("interrupted"; the
+  // others' go to the emulator's uplink, which has stopped by then).
   const std::string log = TmpPath("ls_ctrlc.lcmlog");
   const Script s = Print(kExample2 + " --mode realtime --duration 60 --out " + log, "ls_ctrlc");
   const std::string err = TmpPath("ls_ctrlc.bash.err");
   const pid_t bash = StartBash(s.path, err, true);
+  const GroupStopper stop_all{bash};
   const std::vector<int> pids = StartedPids(err, 8);
   ASSERT_EQ(pids.size(), 8u) << ReadFile(err);
   std::this_thread::sleep_for(std::chrono::seconds(6));  // tick 0 is 4 s after the logger
