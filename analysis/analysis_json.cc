@@ -119,7 +119,7 @@ Json FollowersJson(const RunAnalysis& a) {
                        {"saturation_fraction", fa.saturation_fraction},
                        {"neighbour_timeouts", h ? Json(h->neighbour_timeouts) : Json(nullptr)},
                        {"msgs_received", h ? Json(h->msgs_received) : Json(nullptr)},
-                       {"converged", fa.converged},
+                       {"converged", a.has_formation ? Json(fa.converged) : Json(nullptr)},
                        {"convergence_time_s", fa.convergence_time_s},
                        {"max_position_error_m", fa.max_position_error_m},
                        {"samples", fa.samples},
@@ -216,6 +216,7 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   AddFormationKeys(conv, s.convergence_time_s,
                    f ? s.final_worst : FormationErrors{kNaN, kNaN, kNaN}, &j);
   j["max_position_error_m"] = f ? s.max_position_error_m : kNaN;
+  if (!f) j["converged"] = nullptr;  // unknown without the scenario's formation, not false
   AddTimingKeys(s.sim_time_s, a.wall_time_s, &j);
   j["ticks"] = a.ticks;
   j["channel_delivered"] = a.channel.delivered;
@@ -237,6 +238,8 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   j["states_missing_in_restarts"] = a.states_missing_in_restarts;
   j["log"] = source.live ? Json(nullptr) : Json(source.log);
   j["log_events"] = run.events;
+  j["log_undecodable"] = run.undecodable;
+  j["log_rejected"] = run.rejected;
   j["log_states"] = s.states;
   j["log_states_expected"] = a.states_expected;
   j["log_states_damaged"] = a.states_damaged;

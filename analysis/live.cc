@@ -165,6 +165,7 @@ bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, st
   run->stream.end_status = ended;
   b.Finish();
   NoteAuthentication(run);
+  NoteIgnored(run);
   if (!error->empty()) return false;
   const bool got = run->state_messages() > 0 || !run->channel_events.empty() ||
                    !run->health.empty() || !run->statuses.empty() || !run->clock.empty();

@@ -189,8 +189,19 @@ bool ParseRetimedMarker(const std::uint8_t* data, int size, RetimedFrom* out) {
 
 void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size,
                          std::int64_t timestamp) {
-  // A retimed log's marker is no event of the run: the counts stay the original's.
-  if (ch == kRetimedChannel && ParseRetimedMarker(data, size, &d_->retimed_from)) return;
+  // A retimed log's marker is no event of the run: the counts stay the original's. It is
+  // the log's first event, stamped with the first stamp it names. A marker played back and
+  // recorded again (lcm-logplayer of a retimed log into lcm-logger) carries the recorder's
+  // wall-clock stamp instead: that log's stamps are wall time again, and the marker is a
+  // foreign event like any other.
+  if (ch == kRetimedChannel) {
+    RetimedFrom marker;
+    if (d_->events == 0 && ParseRetimedMarker(data, size, &marker) &&
+        marker.first_timestamp == timestamp) {
+      d_->retimed_from = marker;
+      return;
+    }
+  }
   ++d_->events;
   if (!have_time_) {
     d_->first_timestamp = timestamp;
@@ -495,6 +506,20 @@ void NoteAuthentication(RunData* d) {
   }
 }
 
+void NoteIgnored(RunData* d) {
+  if (d->undecodable > 0) {
+    d->warnings.push_back(std::to_string(d->undecodable) +
+                          " messages on Shoal channels did not decode (wrong size or "
+                          "fingerprint, a damaged string length) and were ignored");
+  }
+  if (d->rejected > 0) {
+    d->warnings.push_back(std::to_string(d->rejected) +
+                          " messages were inconsistent (a vehicle id that does not match its "
+                          "channel or lies beyond the scenario's followers, a health window that "
+                          "does not add up) and were ignored");
+  }
+}
+
 bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out,
                 std::string* error) {
   *out = RunData();
@@ -524,6 +549,7 @@ bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out,
   }
   b.Finish();
   NoteAuthentication(out);
+  NoteIgnored(out);
   out->warnings.insert(out->warnings.begin(), reader.warnings().begin(), reader.warnings().end());
   out->damaged = reader.damaged_regions() > 0;
   if (out->events == 0) {

@@ -234,6 +234,9 @@ class LogVerifier {
 /// After the last event: whether a status says --insecure, and the warnings that the
 /// authentication counts call for.
 void NoteAuthentication(RunData* d);
+/// After the last event: a warning for the messages that did not decode and for those
+/// that were inconsistent, which the analysis ignored.
+void NoteIgnored(RunData* d);
 
 /// The key for the log at `path`: read from `key_file` if given (any problem is an error),
 /// else from <path>.key if that exists; none otherwise. False with *error if a key file

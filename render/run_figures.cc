@@ -202,6 +202,9 @@ std::vector<ErrorSeries> ErrorSeriesOf(const RunData& run, const RunAnalysis& a)
 std::vector<LinkSeries> LinkSeriesOf(const RunData& run) {
   std::map<std::pair<int, int>, LinkSeries> links;
   for (const ChannelEventRecord& e : run.channel_events) {
+    // A state the sender never transmitted (modem busy, sender silent) was neither
+    // delivered nor dropped: shoal analyze does not count it as sent, nor does the figure.
+    if (NotTransmitted(e.status)) continue;
     LinkSeries& l = links[{e.sender, e.receiver}];
     l.from = e.sender;
     l.to = e.receiver;
@@ -229,6 +232,9 @@ ChannelOptions ChannelOptionsOf(const RunData& run, const RunAnalysis& a) {
     }
   }
   o.mode = a.mode;
+  for (const ProcessAnalysis& p : a.processes) {  // the emulator's health (process -1)
+    if (p.id == -1 && a.mode == "realtime") o.release_error_p99_s = a.channel.release_error_p99_s;
+  }
   if (a.period_us > 0) {
     o.control_period_s = ToSeconds(a.period_us);
   } else if (run.has_scenario) {

@@ -388,7 +388,9 @@ Panel ZoomPanel(const std::vector<const LinkSeries*>& links, const ChannelOption
   return zoom;
 }
 
-// What realised minus configured delay means in this run's mode.
+// What realised minus configured delay means in this run's mode. A real-time log stamps
+// each delivery with its scheduled release (send + round(tau)), so there the difference is
+// only that rounding: how late the emulator really released is in its health, not here.
 std::string DelayErrorNote(const ChannelOptions& o) {
   char period[48] = "one control period)";
   if (o.control_period_s > 0) {
@@ -396,10 +398,20 @@ std::string DelayErrorNote(const ChannelOptions& o) {
   }
   const std::string quantised = std::string("deliveries wait for the next control tick, so ") +
                                 "delay \xE2\x88\x92 \xCF\x84 lies in [0, " + period;
-  const std::string release = "delay \xE2\x88\x92 \xCF\x84 is the emulator's release error";
+  std::string scheduled = "deliveries are logged at their scheduled release, so delay \xE2\x88\x92 "
+                          "\xCF\x84 is its rounding (\xC2\xB1" "0.5 \xC2\xB5s)";
   if (o.mode == "sim" || o.mode == "lockstep") return o.mode + " run: " + quantised;
-  if (o.mode == "realtime") return "real-time run: " + release;
-  return "sim and lockstep runs: " + quantised + "; real-time runs: " + release;
+  if (o.mode == "realtime") {
+    std::string note = "real-time run: " + scheduled;
+    if (std::isfinite(o.release_error_p99_s)) {
+      char late[96];
+      std::snprintf(late, sizeof late, "; the emulator's release error (how late it really released) p99 %.3g ms",
+                    o.release_error_p99_s * 1e3);
+      note += late;
+    }
+    return note;
+  }
+  return "sim and lockstep runs: " + quantised + "; real-time runs: " + scheduled;
 }
 
 // Summary of one link's values: min, 5th, 50th, 95th percentile, max.

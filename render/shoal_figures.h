@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -99,6 +100,10 @@ struct ChannelOptions {
   /// control period (0: unknown): they say in the figure what the delay error means.
   std::string mode;
   double control_period_s = 0.0;
+  /// Real time: the emulator's release error p99 (how late it really released, from its
+  /// health); NaN: unknown. The log stamps a delivery with its scheduled release, so the
+  /// figure's delay minus tau cannot show it: the note gives it instead.
+  double release_error_p99_s = std::numeric_limits<double>::quiet_NaN();
   /// Marked in the drops panel as a band on the link's row (on the receiver's row when
   /// the links are grouped by receiver; on the single row when they are all in one).
   std::vector<LinkOutage> outages;

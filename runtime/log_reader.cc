@@ -182,6 +182,8 @@ bool LcmLogReader::Resync(std::int64_t limit) {
       continue;
     }
     pos_ = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - buf_.data());
+    // A buffer holds more than the limit: a sync word found beyond it is not accepted.
+    if (limit >= 0 && FileOffset() - start > limit) return false;
     if (CheckEventAt() == Check::kValid) {
       skipped_bytes_ += FileOffset() - start;
       return true;

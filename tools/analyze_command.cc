@@ -110,13 +110,12 @@ int RunAnalyze(const AnalyzeOptions& opt) {
     std::cerr << who << error << "\n";
     return kExitBadInput;
   }
-  for (const std::string& w : run.warnings) std::cerr << who << "warning: " << w << "\n";
   if (!run.has_scenario) {
-    std::cerr << who << "warning: no scenario text in "
-              << (opt.live ? "the received statuses" : "the log")
-              << "; formation errors and configured delays "
-                 "need --scenario FILE\n";
+    run.warnings.push_back(std::string("no scenario text in ") +
+                           (opt.live ? "the received statuses" : "the log") +
+                           "; formation errors and configured delays need --scenario FILE");
   }
+  for (const std::string& w : run.warnings) std::cerr << who << "warning: " << w << "\n";
   const RunAnalysis a = AnalyseRun(run);
   if (!opt.csv_dir.empty()) {
     std::vector<std::string> files;

@@ -65,6 +65,14 @@ bool ReadStates(const std::string& path, const std::string& key_file, States* ou
            (reader.warnings().empty() ? std::string() : " (" + reader.warnings().front() + ")");
     return false;
   }
+  // A key that verifies none of the states is the wrong key (as shoal analyze says), not
+  // a log without states: bad input, not a comparison that failed.
+  if (out->empty() && counts.unauthenticated > 0) {
+    *err = path + ": none of its " + std::to_string(counts.unauthenticated) +
+           " states authenticates with " + used +
+           " (the log of another run, or of a run with --insecure?)";
+    return false;
+  }
   return true;
 }
 

@@ -127,7 +127,7 @@ bool ReadStamps(const std::string& path, Stamps* s, std::string* error) {
 
 /// Writes the marker and every event of `log`, restamped, into `tmp`.
 bool WriteRetimed(const std::string& log, const std::string& tmp, Micros limit, const Stamps& s,
-                  std::int64_t* shoal_timed, std::string* error) {
+                  std::int64_t* shoal_timed, Micros* last_mission, std::string* error) {
   LcmLogReader reader;
   if (!reader.Open(log, error)) return false;
   try {
@@ -150,6 +150,7 @@ bool WriteRetimed(const std::string& log, const std::string& tmp, Micros limit, 
       w.WriteRaw(std::string(ev.channel), s.first + mission, ev.data, ev.size);
     }
     w.Close();
+    *last_mission = mission;
   } catch (const std::exception& e) {
     *error = e.what();
     return false;
@@ -169,9 +170,11 @@ bool CheckPaths(const RetimeOptions& opt, std::string* error) {
     *error = opt.out + ": give the log's path, not a key file's";
   } else if (!opt.force && Exists(opt.out)) {
     *error = opt.out + ": exists; give --force to replace it";
-  } else if (!opt.force && access((opt.log + ".key").c_str(), F_OK) == 0 &&
-             Exists(opt.out + ".key")) {
-    *error = opt.out + ".key: exists; give --force to replace it";
+  } else if (!opt.force && Exists(opt.out + ".key")) {
+    // Whether the input has a key or not: an OUT.key left beside the new log would be
+    // taken as its key, and none of its messages would verify.
+    *error = opt.out + ".key: exists; give --force to replace it (or remove it, for a log "
+             "without a key)";
   }
   return error->empty();
 }
@@ -201,11 +204,12 @@ int RunRetime(const RetimeOptions& opt) {
   Stamps s;
   std::string tmp;
   std::int64_t timed = 0;
+  Micros mission = 0;
   if (!ReadStamps(opt.log, &s, &error) || !MakeTemp(opt.out, &tmp, &error)) {
     std::cerr << kWho << error << "\n";
     return kExitBadInput;
   }
-  if (!WriteRetimed(opt.log, tmp, limit, s, &timed, &error) ||
+  if (!WriteRetimed(opt.log, tmp, limit, s, &timed, &mission, &error) ||
       !Commit(tmp, opt.out, 0644, &error)) {
     unlink(tmp.c_str());
     std::cerr << kWho << error << "\n";
@@ -216,12 +220,18 @@ int RunRetime(const RetimeOptions& opt) {
     std::cerr << kWho << error << "\n";
     return kExitBadInput;
   }
+  // --force over a log that had a key, with an input that has none: the old key goes too.
+  if (!key && unlink((opt.out + ".key").c_str()) != 0 && errno != ENOENT) {
+    std::cerr << kWho << opt.out << ".key: cannot remove the old key (" << std::strerror(errno)
+              << "); remove it, or shoal analyze takes it as this log's key\n";
+    return kExitBadInput;
+  }
   if (!opt.quiet) {
     std::fprintf(stderr,
                  "shoal retime: wrote %s: %lld events (%lld with a mission time), %.2f s of "
                  "mission; the original spans %.2f s%s\n",
                  opt.out.c_str(), static_cast<long long>(s.events), static_cast<long long>(timed),
-                 ToSeconds(b.expected_end_us >= 0 ? b.expected_end_us : 0),
+                 ToSeconds(mission),
                  ToSeconds(s.last - s.first), key ? (", key copied to " + opt.out + ".key").c_str() : "");
   }
   return kExitOk;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "runtime/channels.h"
+#include "runtime/log_reader.h"
 #include "runtime/log_writer.h"
 #include "runtime/messages.h"
 #include "tests/integration/test_util.h"
@@ -202,6 +203,46 @@ TEST(AnalyzeCli, ScenarioFileReplacesTheLogs) {
   EXPECT_EQ(j["scenario"], "paper_example1");
   // Example 1 has no delay: every event of the Example 2 log drew another tau.
   EXPECT_EQ(j["channel"]["model_mismatches"], 3001 * 10);
+}
+
+// A log without the scenario's text (its statuses lost) and no --scenario: the formation
+// is unknown, null rather than "not converged", and the warning is in the JSON too.
+// A scenario of fewer followers than the log: the others' states are ignored, and said so.
+TEST(AnalyzeCli, WhatTheAnalysisCannotJudgeOrIgnoresIsSaid) {
+  const std::string bare = TmpPath("analyze_cli_no_status.lcmlog");
+  {
+    LcmLogReader in;
+    std::string err;
+    ASSERT_TRUE(in.Open(SimLog(), &err)) << err;
+    LogWriter out(bare);
+    LogEventView ev;
+    while (in.Next(&ev)) {
+      if (ev.channel != channels::Status()) {
+        out.WriteRaw(std::string(ev.channel), ev.timestamp, ev.data, ev.size);
+      }
+    }
+    out.Close();
+  }
+  auto r = RunShoal("analyze " + bare + " --json", "analyze_cli_bare");
+  ASSERT_EQ(r.status, 0) << r.err;
+  auto j = ParseJson(r.out);
+  EXPECT_TRUE(j["converged"].is_null()) << j["converged"];
+  EXPECT_TRUE(j["convergence_time_s"].is_null());
+  ASSERT_FALSE(j["followers"].empty());
+  EXPECT_TRUE(j["followers"][0]["converged"].is_null());
+  EXPECT_NE(j["warnings"].dump().find("no scenario text"), std::string::npos) << j["warnings"];
+  r = RunShoal("analyze " + SimLog() + " --json --scenario " +
+                   SourcePath("scenarios/acoustic_survey.toml"), "analyze_cli_fewer");
+  ASSERT_EQ(r.status, 0) << r.err;
+  j = ParseJson(r.out);
+  // Vehicle 5's states, beyond the scenario's 4 followers, and the channel's decisions on
+  // its links.
+  const std::int64_t rejected = j["log_rejected"].get<std::int64_t>();
+  EXPECT_GT(rejected, 3001);
+  EXPECT_EQ(j["log_undecodable"], 0);
+  const std::string said = std::to_string(rejected) + " messages were inconsistent";
+  EXPECT_NE(j["warnings"].dump().find(said), std::string::npos) << j["warnings"];
+  EXPECT_NE(r.err.find(said), std::string::npos) << r.err;
 }
 
 // A log recorded twice (here: concatenated with itself) holds every state twice: the run

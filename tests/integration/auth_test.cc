@@ -241,6 +241,9 @@ TEST(Auth, ForgedMessagesChangeNothingInALockstepRun) {
   const auto wrong = RunShoal("analyze " + log + " --key " + other, "auth_ls_wrong");
   EXPECT_EQ(wrong.status, 2);
   EXPECT_NE(wrong.err.find("authenticates"), std::string::npos) << wrong.err;
+  const auto wrong_cmp = RunShoal("compare " + log + " " + log + " --key-b " + other, "auth_ls_wrong_cmp");
+  EXPECT_EQ(wrong_cmp.status, 2) << wrong_cmp.out;
+  EXPECT_NE(wrong_cmp.err.find("authenticates"), std::string::npos) << wrong_cmp.err;
   ASSERT_EQ(std::rename((log + ".key").c_str(), (log + ".key.moved").c_str()), 0);
   const auto nokey = RunShoal("analyze " + log + " --json", "auth_ls_nokey");
   ASSERT_EQ(nokey.status, 0) << nokey.err;

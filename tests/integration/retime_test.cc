@@ -14,6 +14,7 @@
 
 #include "runtime/lcm_bus.h"
 #include "runtime/log_reader.h"
+#include "runtime/log_writer.h"
 #include "tests/integration/test_util.h"
 
 namespace shoal {
@@ -145,6 +146,73 @@ TEST_F(Retime, KeepsEveryEventAndItsBytes) {
   ASSERT_EQ(stat((TheLogs().retimed + ".key").c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   EXPECT_EQ(ReadFile(TheLogs().retimed + ".key"), ReadFile(TheLogs().run + ".key"));
+}
+
+// A retimed log played back (lcm-logplayer) and recorded again (lcm-logger) has the
+// recorder's wall-clock stamps, its replayed marker among them: it is no retimed log, and
+// its wall time and real-time factor are the new recording's.
+TEST_F(Retime, ARecordingOfAReplayIsNoRetimedLog) {
+  const std::string copy = TmpPath("retime_rerecorded.lcmlog");
+  {
+    LcmLogReader in;
+    std::string err;
+    ASSERT_TRUE(in.Open(TheLogs().retimed, &err)) << err;
+    LogWriter out(copy);
+    LogEventView ev;
+    // The recorder's clock: a later day, and the playback at half the mission's pace.
+    std::int64_t first = -1;
+    while (in.Next(&ev)) {
+      if (first < 0) first = ev.timestamp;
+      out.WriteRaw(std::string(ev.channel), 86'400'000'000 + first + 2 * (ev.timestamp - first),
+                   ev.data, ev.size);
+    }
+    out.Close();
+  }
+  const auto r = RunShoal("analyze " + copy + " --json --key " + TheLogs().retimed + ".key",
+                          "retime_rerecorded");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = ParseJson(r.out);
+  EXPECT_TRUE(j["retimed_from"].is_null()) << j["retimed_from"];
+  EXPECT_NEAR(j["realtime_factor"].get<double>(), 0.5, 0.05);
+  EXPECT_EQ(RunShoal("retime " + copy + " --out " + TmpPath("retime_rerecorded_out.lcmlog") +
+                         " --force --quiet",
+                     "retime_rerecorded_again")
+                .status,
+            0)
+      << "a recording of a replay can be retimed";
+}
+
+// --force over a log that had a key, with an input that has none, removes the old key:
+// left there it would be taken as the new log's; without --force it is refused. The
+// summary gives the mission time written, not the scenario's.
+TEST_F(Retime, ReplacesTheOldKeyAndCountsTheMissionWritten) {
+  const std::string keyless = TmpPath("retime_keyless.lcmlog");
+  std::remove((keyless + ".key").c_str());
+  const std::string all = ReadFile(TheLogs().run);
+  {
+    FILE* f = std::fopen(keyless.c_str(), "wb");
+    ASSERT_NE(f, nullptr);
+    std::fwrite(all.data(), 1, all.size() / 3, f);  // a third: a recording cut short
+    std::fclose(f);
+  }
+  const std::string out = TmpPath("retime_rekeyed.lcmlog");
+  std::remove(out.c_str());
+  ASSERT_EQ(RunShoal("retime " + TheLogs().run + " --out " + out + " --quiet", "retime_k1").status, 0);
+  ASSERT_EQ(access((out + ".key").c_str(), F_OK), 0);
+  std::remove(out.c_str());
+  auto r = RunShoal("retime " + keyless + " --out " + out, "retime_k2");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find(".key: exists"), std::string::npos) << r.err;
+  r = RunShoal("retime " + keyless + " --out " + out + " --force", "retime_k3");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(access((out + ".key").c_str(), F_OK), 0) << "the old key was left beside the new log";
+  const auto at = r.err.find(" s of mission");
+  ASSERT_NE(at, std::string::npos) << r.err;
+  const auto from = r.err.rfind(' ', at - 1);
+  const double mission = std::stod(r.err.substr(from + 1, at - from - 1));
+  EXPECT_GT(mission, 0.5) << r.err;
+  EXPECT_LT(mission, kMissionS - 1.0) << r.err;
+  EXPECT_EQ(RunShoal("analyze " + out, "retime_k4").status, 0);
 }
 
 TEST_F(Retime, RefusesToOverwriteAndSaysWhy) {

@@ -387,6 +387,15 @@ TEST(RunData, DamagedBatchOrEmptyWindowIsCountedNotKept) {
   EXPECT_EQ(run.undecodable, 3);
   EXPECT_EQ(run.rejected, 2);
   EXPECT_TRUE(run.clock.empty());
+  // Each count is said, so a user learns why data is missing.
+  const auto said = [&](const std::string& what) {
+    for (const std::string& w : run.warnings) {
+      if (w.find(what) != std::string::npos) return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(said("3 messages on Shoal channels did not decode"));
+  EXPECT_TRUE(said("2 messages were inconsistent"));
 }
 
 TEST(Analysis, ChannelWithKnownDelayAndDropPattern) {
@@ -853,6 +862,14 @@ TEST(LogDamage, DamagedStartIsSkippedNotFatal) {
   ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
   EXPECT_EQ(run.events, static_cast<std::int64_t>(Spans(full).size()));
   EXPECT_NE(run.warnings[0].find("skipped 100 bytes"), std::string::npos) << run.warnings[0];
+  // An event within the first megabyte is found; one beyond it is not, however much of the
+  // file one read brings in: the file is then no LCM log.
+  WriteBytes(path, std::string((1 << 20) - 1, '\x07') + full);
+  ASSERT_TRUE(LoadRunLog(path, LoadOptions(), &run, &err)) << err;
+  EXPECT_EQ(run.events, static_cast<std::int64_t>(Spans(full).size()));
+  WriteBytes(path, std::string(2 << 20, '\x07') + full);
+  EXPECT_FALSE(LoadRunLog(path, LoadOptions(), &run, &err));
+  EXPECT_NE(err.find("not an LCM log"), std::string::npos) << err;
 }
 
 // Property: at any truncation point the loader returns (never crashes), reads exactly the

@@ -13,6 +13,7 @@
 #include "analysis/analysis.h"
 #include "analysis/run_data.h"
 #include "analysis/sim_report.h"
+#include "core/channel_model.h"
 #include "render/figure.h"
 #include "render/run_figures.h"
 #include "render/shoal_figures.h"
@@ -175,6 +176,16 @@ TEST(RenderEvents, AcousticDelayAgainstRangeLiesOnTheModel) {
     EXPECT_GE(p.realised_delay_s[k], p.drawn_delay_s[k] - 1e-6);
   }
   EXPECT_LE(below_at_start, 6u);  // at most one per link at t = 0
+  // A state the busy modem never transmitted is neither delivered nor dropped in the
+  // channel figure, as in shoal analyze's counts.
+  std::size_t skipped = 0, transmitted = 0, drawn = 0;
+  for (const ChannelEventRecord& e : run.channel_events) {
+    skipped += shoal::NotTransmitted(e.status);
+    transmitted += !shoal::NotTransmitted(e.status);
+  }
+  ASSERT_GT(skipped, 100u);
+  for (const LinkSeries& l : LinkSeriesOf(run)) drawn += l.sent_s.size() + l.dropped_s.size();
+  EXPECT_EQ(drawn, transmitted);
   const std::string dir = Tmp("out");
   std::string err;
   ASSERT_TRUE(PrepareOutputDir(dir, &err)) << err;
