@@ -350,6 +350,12 @@ void ReadCampaignTable(const Reader& r, const toml::table& root, Campaign* c) {
                            "must be an integer in 1..1000000", "e.g. samples = 100");
   }
   if (const toml::node* n = t.get("seed")) {
+    // A grid draws nothing: a seed there would be taken for one that changes the runs (a
+    // scenario's own seed is run.seed, set with set = [...] or an axis).
+    if (c->sampling != CampaignSampling::kLhs) {
+      r.FailAt(*n, "campaign.seed", "only used with sampling = \"lhs\"",
+               "remove it (the runs' own seed is run.seed: set = [\"run.seed=7\"])");
+    }
     c->seed = static_cast<std::uint64_t>(r.Integer(
         *n, "campaign.seed", 0, INT64_MAX, "must be an integer >= 0", "e.g. seed = 1"));
   }
@@ -402,6 +408,10 @@ void ReadAxisFromTo(const Reader& r, const toml::table& t, const std::string& ke
   const toml::node* steps = t.get("steps");
   if (steps == nullptr && sampling == CampaignSampling::kGrid) {
     r.Fail(LineOf(t), key + ".steps", "missing (a grid needs the number of values)", "", fix);
+  }
+  if (steps != nullptr && sampling == CampaignSampling::kLhs) {
+    r.FailAt(*steps, key + ".steps", "only used with sampling = \"grid\"",
+             "remove it: lhs draws its samples from [from, to]");
   }
   if (steps != nullptr) {
     axis->steps = r.Integer(*steps, key + ".steps", 1, kMaxPoints,
@@ -599,6 +609,15 @@ void ReadMapAndSoak(const Reader& r, const toml::table& root, Campaign* c) {
     }
     if (s.settle_s >= s.phase_s) {
       r.Fail(LineOf(t), "soak.settle_s", "must be shorter than phase_s", "", "");
+    }
+    // Targets a lockstep run has no figure for: silently ignored, they would read as met.
+    if (c->engine != CampaignEngine::kRealtime) {
+      for (const char* name : {"lateness_p99_max_s", "delay_error_p99_max_s", "overruns_max"}) {
+        if (const toml::node* n = t.get(name)) {
+          r.FailAt(*n, std::string("soak.") + name, "a real-time target (engine = \"realtime\")",
+                   "remove it, or set engine = \"realtime\"");
+        }
+      }
     }
   }
 }

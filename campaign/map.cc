@@ -101,11 +101,6 @@ std::string UnitOf(const std::string& key) {
 
 }  // namespace
 
-void MapAxes(const Campaign& c, std::string* x, std::string* y) {
-  *x = !c.map_x.empty() ? c.map_x : c.axes.empty() ? "" : c.axes[0].key;
-  *y = !c.map_y.empty() ? c.map_y : c.axes.size() > 1 ? c.axes[1].key : "";
-}
-
 nlohmann::ordered_json MapTheory(const Campaign& c, const std::string& scenario_text,
                                  const std::vector<ScenarioOverride>& base,
                                  const std::vector<CampaignPoint>& points) {

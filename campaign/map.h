@@ -17,9 +17,6 @@
 
 namespace shoal {
 
-/// The map's axes: [map] x and y, else the first two axes ("" when there is no second).
-void MapAxes(const Campaign& c, std::string* x, std::string* y);
-
 /// summary.json's "theory": when one map axis is channel.delay.base_s, the two bounds on
 /// it at each value of the other map axis (its grid values; 12 values over its sampled
 /// range for lhs), the other axes held at the first point's values; otherwise the bounds

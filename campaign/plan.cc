@@ -9,6 +9,7 @@
 #include <map>
 #include <set>
 
+#include "core/swarm.h"
 #include "scenario/loader.h"
 #include "scenario/regular_file.h"
 
@@ -73,7 +74,10 @@ std::vector<ScenarioOverride> PointOverrides(const Campaign& c,
 
 std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario_text,
                                   const std::vector<ScenarioOverride>& base,
-                                  const std::vector<CampaignPoint>& points) {
+                                  const std::vector<CampaignPoint>& points, bool refuse_large) {
+  const RunPace pace = c.engine == CampaignEngine::kSim        ? RunPace::kSim
+                       : c.engine == CampaignEngine::kLockstep ? RunPace::kLockstep
+                                                               : RunPace::kRealtime;
   std::vector<PointPlan> plans;
   plans.reserve(points.size());
   for (const CampaignPoint& p : points) {
@@ -85,6 +89,13 @@ std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario
       throw CampaignError(std::string(e.what()) + " (point " + std::to_string(p.index) + ")");
     }
     plan.duration_s = c.duration_s > 0 ? c.duration_s : s.duration_s;
+    if (refuse_large) {
+      const std::string large = LargeRunRefusal(s, plan.duration_s, pace);
+      if (!large.empty()) {
+        throw CampaignError(c.path + ": point " + std::to_string(p.index) + ": " + large +
+                            " (shoal sweep --allow-large passes it on)");
+      }
+    }
     plans.push_back(std::move(plan));
   }
   return plans;

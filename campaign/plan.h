@@ -33,10 +33,13 @@ std::vector<ScenarioOverride> PointOverrides(const Campaign& c,
                                              const std::vector<ScenarioOverride>& base,
                                              const CampaignPoint& p);
 
-/// Validates every point's scenario; throws CampaignError with the first problem.
+/// Validates every point's scenario; throws CampaignError with the first problem. With
+/// refuse_large, a point whose run shoal sim/run would refuse as large (over 1 h or
+/// 4 GiB at the campaign's engine) is such a problem too.
 std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario_text,
                                   const std::vector<ScenarioOverride>& base,
-                                  const std::vector<CampaignPoint>& points);
+                                  const std::vector<CampaignPoint>& points,
+                                  bool refuse_large = false);
 
 /// Seconds a point may run before it counts as hung: campaign.timeout_s, else
 /// 60 s + 10 x its duration at the engine's slowest expected speed (realtime 1x,

@@ -143,6 +143,29 @@ ojson CriteriaText(const Campaign& c) {
 
 }  // namespace
 
+void MapAxes(const Campaign& c, std::string* x, std::string* y) {
+  // A missing side takes the first axis the other side does not name.
+  const auto other = [&](const std::string& taken) -> std::string {
+    for (const CampaignAxis& a : c.axes) {
+      if (a.key != taken) return a.key;
+    }
+    return "";
+  };
+  if (!c.map_x.empty() && !c.map_y.empty()) {
+    *x = c.map_x;
+    *y = c.map_y;
+  } else if (!c.map_x.empty()) {
+    *x = c.map_x;
+    *y = other(*x);
+  } else if (!c.map_y.empty()) {
+    *y = c.map_y;
+    *x = other(*y);
+  } else {
+    *x = c.axes.empty() ? "" : c.axes[0].key;
+    *y = c.axes.size() > 1 ? c.axes[1].key : "";
+  }
+}
+
 nlohmann::ordered_json MakeManifest(const Campaign& c, const std::string& scenario_text,
                                     const std::vector<std::string>& cli_set,
                                     const std::vector<CampaignPoint>& points, const Shard& shard,
@@ -175,8 +198,8 @@ nlohmann::ordered_json MakeManifest(const Campaign& c, const std::string& scenar
   m["sampling"] = c.sampling == CampaignSampling::kLhs ? "lhs" : "grid";
   m["points"] = static_cast<std::int64_t>(points.size());
   m["axes"] = axes;
-  const std::string map_x = c.map_x.empty() && !c.axes.empty() ? c.axes[0].key : c.map_x;
-  const std::string map_y = c.map_y.empty() && c.axes.size() > 1 ? c.axes[1].key : c.map_y;
+  std::string map_x, map_y;
+  MapAxes(c, &map_x, &map_y);
   const auto log_axis = [&](const std::string& key) {
     for (const CampaignAxis& a : c.axes) {
       if (a.key == key) return a.kind == CampaignAxis::Kind::kFromTo && a.log;
@@ -201,7 +224,12 @@ nlohmann::ordered_json MakeRow(const Campaign& c, const CampaignPoint& point,
   row["exit_status"] = outcome.signal != 0 ? ojson() : ojson(outcome.exit_status);
   bool pass = false;
   std::string why = outcome.why;
-  if (outcome.status == PointStatus::kOk) {
+  if (outcome.status == PointStatus::kOk && c.pass.empty()) {
+    // No [pass]: the run's own verdict (exit 0: converged, every process ok), never "no
+    // criterion, so passed" for a run that diverged.
+    pass = outcome.exit_status == 0;
+    if (!pass) why = "the run exited " + std::to_string(outcome.exit_status) + " (no [pass]: a point passes when its run exits 0)";
+  } else if (outcome.status == PointStatus::kOk) {
     const Judgement j = JudgeRun(c.pass, outcome.result);
     pass = j.pass;
     why = j.why;
@@ -239,6 +267,10 @@ ResultsDir::ResultsDir(std::string dir, const nlohmann::ordered_json& manifest)
                           "; use another --out directory");
     }
     rows_ = ReadRows(dir_ + "/results.jsonl", manifest["points"].get<std::int64_t>());
+    // The same points, with what does not change a row changed (the map's axes and its
+    // theory, the campaign file's path): campaign.json takes the new, so that a merge
+    // draws what this sweep's summary draws.
+    if (old != manifest) WriteFileAtomically(manifest_path, manifest.dump(2) + "\n");
   } else {
     // A directory with results but no campaign.json is not ours to add to.
     if (std::filesystem::exists(dir_ + "/results.jsonl", ec)) {
@@ -412,6 +444,26 @@ Rows MergeResults(const std::vector<std::string>& dirs, const std::string& out,
   const ojson first = ReadManifest(dirs[0]);
   const std::int64_t points = first["points"].get<std::int64_t>();
   Rows rows;
+  // What --out holds already is kept or refused, never lost: an earlier merge or a whole
+  // sweep of this campaign gives its rows to points the directories do not hold; a shard's
+  // directory, another campaign's or results without a campaign.json are refused.
+  Rows kept;
+  std::error_code out_ec;
+  if (std::filesystem::exists(out + "/campaign.json", out_ec)) {
+    const ojson old = ReadManifest(out);
+    if (old["hash"] != first["hash"]) {
+      throw CampaignError(out + ": holds the results of another campaign; use another --out");
+    }
+    if (old.value("shard", "1/1") != "1/1") {
+      throw CampaignError(out + ": holds the results of shard " + old.value("shard", "") +
+                          "; merge into a directory of its own, or list it among the "
+                          "directories to merge");
+    }
+    kept = ReadRows(out + "/results.jsonl", points);
+  } else if (std::filesystem::exists(out + "/results.jsonl", out_ec)) {
+    throw CampaignError(out + ": holds a results.jsonl but no campaign.json; use another --out "
+                        "directory");
+  }
   std::vector<std::string> overlaps;
   for (const std::string& dir : dirs) {
     const ojson m = ReadManifest(dir);
@@ -427,6 +479,7 @@ Rows MergeResults(const std::vector<std::string>& dirs, const std::string& out,
       rows[p] = std::move(row);
     }
   }
+  for (auto& [p, row] : kept) rows.emplace(p, std::move(row));  // the directories' first
   const auto list = [](const std::vector<std::string>& v) {
     std::string text;
     for (std::size_t i = 0; i < v.size() && i < 20; ++i) text += (i ? ", " : "") + v[i];
@@ -449,12 +502,6 @@ Rows MergeResults(const std::vector<std::string>& dirs, const std::string& out,
   std::error_code ec;
   std::filesystem::create_directories(out, ec);
   if (ec) throw CampaignError(out + ": cannot create the output directory (" + ec.message() + ")");
-  if (std::filesystem::exists(out + "/campaign.json", ec)) {
-    const ojson old = ReadManifest(out);
-    if (old["hash"] != manifest["hash"]) {
-      throw CampaignError(out + ": holds the results of another campaign; use another --out");
-    }
-  }
   WriteFileAtomically(out + "/campaign.json", manifest.dump(2) + "\n");
   WriteResults(out, manifest, rows);
   return rows;

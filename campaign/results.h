@@ -28,6 +28,10 @@ struct Shard {
 /// Parses "K/N" (1 <= K <= N <= 1e6); false with *error otherwise.
 bool ParseShard(const std::string& text, Shard* out, std::string* error);
 
+/// The map's axes: [map] x and y; one given, the other is the first axis it does not name;
+/// neither, the first two axes ("" when there is no second).
+void MapAxes(const Campaign& c, std::string* x, std::string* y);
+
 /// What identifies a campaign's results: the campaign file's path, the base scenario's
 /// text, the overrides, engine, duration and criteria, and every point. `theory` is kept
 /// for the summary (merge rebuilds it from here).

@@ -289,7 +289,9 @@ inline double MaxDelaySeconds(const std::vector<Link>& links, const Timeline* ti
 ///   tick k+1 at the earliest).
 ///   period_us == 0 (real time): at send + tau exactly.
 inline Micros DeliveryTime(Micros send_utime, double delay_s, Micros period_us) {
-  const Micros due = send_utime + static_cast<Micros>(std::llround(delay_s * 1e6));
+  // The loader bounds every delay far below this; the clamp keeps a larger one from
+  // overflowing into the past (never sooner than it says).
+  const Micros due = send_utime + static_cast<Micros>(std::llround(std::min(delay_s * 1e6, 1e18)));
   if (period_us <= 0) return due;
   const Micros send_tick = send_utime / period_us;
   Micros tick = (due + period_us - 1) / period_us;  // ceil for due >= 0

@@ -110,7 +110,7 @@ class Environment {
   DelayedLeader Compute(Micros now, LeaderPath::HelixAnchor* anchor) const {
     DelayedLeader d;
     d.delay_us = static_cast<Micros>(
-        std::llround(NominalDelaySeconds(delay_, ToSeconds(now)) * 1e6));
+        std::llround(std::min(NominalDelaySeconds(delay_, ToSeconds(now)) * 1e6, 1e18)));
     if (!leader_factor_) return d;
     const LeaderPath::FactorSample l =
         path_.FactorAt(std::max(0.0, ToSeconds(now - d.delay_us)), anchor);

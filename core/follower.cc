@@ -18,8 +18,7 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
       offset_(OffsetVec(s.offsets_m.at(id - 1))),
       period_us_(s.period_us()),
       timeout_us_(static_cast<Micros>(std::llround(s.neighbour_timeout_s * 1e6))),
-      substeps_(std::max(1, static_cast<int>(std::lround(ToSeconds(s.period_us()) /
-                                                         s.vehicle.integrator_step_s)))),
+      substeps_(Rk4Substeps(s)),
       tau_max_(s.vehicle.tau_max),
       disturbance_(s.disturbance.kind),
       disturbance_relative_(s.disturbance.relative_to_leader),
@@ -65,6 +64,12 @@ Follower::Follower(const Scenario& s, const Topology& topo, int id,
 
   out_.vehicle_id = id_;
   out_.seq = -1;
+}
+
+int Follower::Rk4Substeps(const Scenario& s) {
+  const double ratio = ToSeconds(s.period_us()) / s.vehicle.integrator_step_s;
+  const double steps = std::ceil(ratio * (1.0 - 1e-9));
+  return static_cast<int>(std::clamp(steps, 1.0, static_cast<double>(kMaxRk4Substeps)));
 }
 
 std::int64_t Follower::HistoryCapacity(const Scenario& s, double duration_s) {

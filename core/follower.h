@@ -50,6 +50,10 @@ class Follower {
   /// two periods, but never more than the run has ticks (plus two), since a history that
   /// is never full gives the same answers as a larger one.
   static std::int64_t HistoryCapacity(const Scenario& s, double duration_s = -1.0);
+  /// RK4 steps per control period: the period split into whole steps no longer than
+  /// vehicle.integrator_step_s (a ratio within 1e-9 of a whole number counts as that
+  /// number, so 0.1 / 0.02 is 5 steps, not 6). The loader bounds it (kMaxRk4Substeps).
+  static int Rk4Substeps(const Scenario& s);
 
   int id() const { return id_; }
 

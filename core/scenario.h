@@ -132,10 +132,15 @@ struct FollowerInit {
   bool given = false;       // false: starts at the leader's start + offset, at rest
 };
 
+/// At most this many RK4 steps per control period (the loader refuses a smaller step):
+/// beyond it a tick is seconds of work, and the count must fit the integrator's int.
+constexpr int kMaxRk4Substeps = 100000;
+
 struct VehicleConfig {
   /// Per-channel limits of tau = [X Y Z M N] (N, N, N, N m, N m); docs/reference.md.
   Vec5 tau_max = (Vec5() << 100.0, 10.0, 10.0, 6.0, 6.0).finished();
-  /// RK4 step inside each control period; the period is split into whole steps.
+  /// RK4 step inside each control period; the period is split into whole steps no longer
+  /// than this (Follower::Rk4Substeps).
   double integrator_step_s = 0.01;
 };
 

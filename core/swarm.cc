@@ -48,7 +48,11 @@ RunEstimate EstimateRun(const Scenario& s, double duration_s) {
                                                 static_cast<double>(s.period_us())) + 2.0);
   const double pending = std::min(kMaxPending, delay_ticks * static_cast<double>(e.links));
   e.memory_bytes = s.followers * history * sizeof(HistorySample) + pending * kBytesPerPending;
-  const double per_tick = kSecondsPerTick + s.followers * kSecondsPerFollowerTick +
+  // A follower's tick was measured with one RK4 step (Example 2), about half of it that
+  // step: each further step adds that half.
+  const double substeps = static_cast<double>(Follower::Rk4Substeps(s));
+  const double per_tick = kSecondsPerTick +
+                          s.followers * kSecondsPerFollowerTick * 0.5 * (1.0 + substeps) +
                           static_cast<double>(e.links) *
                               SecondsPerLinkTick(static_cast<double>(e.links));
   e.wall_seconds = static_cast<double>(e.ticks) * per_tick;

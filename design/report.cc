@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <string>
 
+#include "core/swarm.h"
 #include "core/timeline.h"
 #include "core/topology.h"
 #include "design/format.h"
@@ -25,6 +26,16 @@ std::string PositiveError(const char* flag, const std::optional<double>& v, cons
   return "";
 }
 
+/// The scenario loader's own limits, so that a flag cannot give what a file may not: gains
+/// beyond 1e6 overflow the delay margin's discriminant, delays beyond 1e9 s any run.
+std::string AtMostError(const char* flag, const std::optional<double>& v, double limit,
+                        const char* what) {
+  if (v && *v > limit) {
+    return std::string(flag) + " must be at most " + G4(limit) + " (got " + G4(*v) + "): " + what;
+  }
+  return "";
+}
+
 /// The request's values alone: an error message naming the flag, or "".
 std::string ValueError(const DesignRequest& o) {
   std::string e;
@@ -36,6 +47,9 @@ std::string ValueError(const DesignRequest& o) {
            .empty()) {
     return e;
   }
+  if (!(e = AtMostError("--k1", o.k1, 1e6, "the limit of control.k1 in a scenario")).empty()) return e;
+  if (!(e = AtMostError("--k2", o.k2, 1e6, "the limit of control.k2 in a scenario")).empty()) return e;
+  if (!(e = AtMostError("--h", o.h_s, 1e9, "the limit of a delay in a scenario")).empty()) return e;
   if (o.kappa && !(std::isfinite(*o.kappa) && *o.kappa >= 0.0 && *o.kappa < 1.0)) {
     return "--kappa must be in [0, 1) (got " + G4(*o.kappa) +
            "): the bound on d tau/dt of Assumption 3";
@@ -85,8 +99,9 @@ void JoinDelayBounds(const theory::DelayBounds& b, theory::DelayBounds* a) {
 
 /// The delay bounds over the whole timeline: every link of every topology (each with
 /// its default or per-link model) and every delay a channel event gives. Without events
-/// exactly theory::DelayBoundsOf(s).
-theory::DelayBounds TimelineDelayBounds(const Scenario& s) {
+/// exactly theory::DelayBoundsOf(s). *jumps_up_out: whether an event's edge makes tau jump up.
+theory::DelayBounds TimelineDelayBounds(const Scenario& s, bool* jumps_up_out = nullptr) {
+  if (jumps_up_out) *jumps_up_out = false;
   if (s.events.empty()) return theory::DelayBoundsOf(s);
   Scenario u = s;
   u.edges.clear();
@@ -99,12 +114,64 @@ theory::DelayBounds TimelineDelayBounds(const Scenario& s) {
     }
   }
   theory::DelayBounds d = theory::DelayBoundsOf(u);
+  // The models a link's delay may hand over from or to at an event's edges: the default,
+  // the per-link ones and the other events' (conservatively, whatever the event's links).
+  std::vector<const DelayConfig*> models = {&s.delay};
+  for (const LinkOverride& l : s.links) {
+    if (l.delay) models.push_back(&*l.delay);
+  }
   for (const ScenarioEvent& e : s.events) {
-    if (e.kind == EventKind::kChannel && e.delay) {
-      JoinDelayBounds(theory::DelayBoundsOf(*e.delay), &d);
+    if (e.kind == EventKind::kChannel && e.delay) models.push_back(&*e.delay);
+  }
+  bool jumps_up = false;
+  for (const ScenarioEvent& e : s.events) {
+    if (e.kind != EventKind::kChannel || !e.delay) continue;
+    JoinDelayBounds(theory::DelayBoundsOf(*e.delay), &d);
+    // tau jumps up where the event's delay takes over from a smaller one, or hands back
+    // to a larger one: there tau' is unbounded, whatever each model's own rate.
+    for (const DelayConfig* m : models) {
+      if (m == &*e.delay) continue;
+      jumps_up = jumps_up || NominalDelaySeconds(*e.delay, e.at_s) > NominalDelaySeconds(*m, e.at_s);
+      if (std::isfinite(e.until_s)) {
+        jumps_up = jumps_up || NominalDelaySeconds(*m, e.until_s) > NominalDelaySeconds(*e.delay, e.until_s);
+      }
     }
   }
+  if (jumps_up) {
+    d.kappa.reset();
+    d.time_varying = true;
+    d.constant = false;
+  }
+  if (jumps_up_out) *jumps_up_out = jumps_up;
   return d;
+}
+
+/// What leaves the delay's rate unbounded: each kind of delay model of the scenario (the
+/// default, per-link, channel events') that has no bounded rate, and an event's upward jump.
+std::string DelayRateUnboundedWhy(const Scenario& s, bool jumps_up) {
+  std::vector<const DelayConfig*> models = {&s.delay};
+  for (const LinkOverride& l : s.links) {
+    if (l.delay) models.push_back(&*l.delay);
+  }
+  for (const ScenarioEvent& e : s.events) {
+    if (e.kind == EventKind::kChannel && e.delay) models.push_back(&*e.delay);
+  }
+  bool uniform = false, acoustic = false, trace = false;
+  for (const DelayConfig* m : models) {
+    if (theory::DelayBoundsOf(*m).kappa) continue;
+    uniform = uniform || m->kind == DelayKind::kUniform;
+    acoustic = acoustic || m->kind == DelayKind::kAcoustic;
+    trace = trace || m->kind == DelayKind::kTrace;
+  }
+  std::vector<std::string> why;
+  if (uniform) why.push_back("uniform jitter draws a new delay per message");
+  if (acoustic) why.push_back("an acoustic delay follows the range, whose rate nothing bounds");
+  if (trace) why.push_back("a trace's delay changes as its series does, at no bounded rate");
+  if (jumps_up) why.push_back("a channel event makes tau jump up, at its start or its end");
+  if (why.empty()) why.push_back("no model bounds it");
+  std::string text;
+  for (std::size_t k = 0; k < why.size(); ++k) text += (k ? "; " : "") + why[k];
+  return text;
 }
 
 /// Gains, topology, delays and the uncertain factor: the data every result below uses.
@@ -133,7 +200,9 @@ void DescribeDelaysAndFactor(const Scenario& s, const DesignRequest& q, DesignRe
   // Delays: the scenario's, or h (and kappa) from the flags describing one common delay.
   r->delay_model = s.delay.kind;
   r->per_link_overrides = !s.links.empty();
-  r->delay = TimelineDelayBounds(s);
+  bool jumps_up = false;
+  r->delay = TimelineDelayBounds(s, &jumps_up);
+  r->delay_rate_unbounded_why = r->delay.kappa ? "" : DelayRateUnboundedWhy(s, jumps_up);
   r->delay_from_flags = q.h_s.has_value() || q.kappa.has_value();
   if (q.h_s) r->delay.h_s = *q.h_s;
   if (q.kappa) r->delay.kappa = *q.kappa;
@@ -154,23 +223,26 @@ void DescribeDelaysAndFactor(const Scenario& s, const DesignRequest& q, DesignRe
   if (s.disturbance.kind != DisturbanceKind::kNone) {
     r->factor = r->lipschitz.applicable ? FactorKind::kLipschitz : FactorKind::kUncovered;
   }
-  // --rho0 states an assumed Lipschitz bound for the factor (or, with none, adds one).
-  if (q.rho0 && *q.rho0 > 0.0) r->factor = FactorKind::kLipschitz;
+  // --rho0 states an assumed Lipschitz bound for the factor (or, with none, adds one). An
+  // absolute factor (relative_to_leader = false) does not vanish at consensus: no bound
+  // makes it the F_i of the error system, so it stays not covered.
+  const bool absolute = s.disturbance.kind == DisturbanceKind::kPaperExample2 &&
+                        !s.disturbance.relative_to_leader;
+  if (q.rho0 && *q.rho0 > 0.0 && !absolute) r->factor = FactorKind::kLipschitz;
 }
 
 /// Why Theorem 3 does not apply, or "" when it does.
 std::string Theorem3NotApplicable(const DesignReport& r) {
   const std::optional<double>& kappa = r.delay.kappa;
-  if (!kappa) {
-    return "the delay's rate is unbounded (uniform jitter draws a new delay per message)";
-  }
+  if (!kappa) return "the delay's rate is unbounded (" + r.delay_rate_unbounded_why + ")";
   if (*kappa >= 1.0) return "kappa = " + G4(*kappa) + " >= 1 (Assumption 3 needs tau' <= kappa < 1)";
   if (r.factor != FactorKind::kUncovered) return "";
   return r.disturbance == DisturbanceKind::kOceanCurrent
              ? "the ocean current has no Lipschitz bound of the form f(x_i) - f(x_0) "
                "(pass --rho0 to assume one)"
              : "the uncertain factor is not of the form f(x_i) - f(x_0) that Theorem 3 "
-               "covers (relative_to_leader = false; pass --rho0 to assume a bound)";
+               "covers (relative_to_leader = false: it does not vanish at consensus, and no "
+               "--rho0 makes it so)";
 }
 
 /// Theorem 3 (LMI (27)-(28), every multiplier free, CSDP) at the gains and delay bounds:
@@ -306,9 +378,14 @@ const Theorem3Result& Theorem3Section::CertificateResult() const {
 //   dense    0.2-0.3     3.5          13.3-14.0    50.4 [97 MB]
 // (chain 20 ran past 300 s.) Fitted as n^4 (a n^2 + b links), links = edges + leader
 // links, within 25 % from n = 8 on; memory as the Schur complement plus the process.
-// 10 min is reached at about 22 chained or 18 dense followers.
+// Those scenarios (Example 2's delay and factor) were infeasible beyond h = 0.1 s, so
+// their bisection stopped at its first step: about two solves. A feasible LMI bisects to
+// 1 ms, 14 solves or more (a chain of 10 with a constant delay: 14 solves, 58 s), and
+// which it is shows only once solved: the estimate is the worst, kWorstOverFit times the
+// fit. 10 min is then reached at about 17 chained or 13 dense followers.
 constexpr double kSecondsPerN6 = 2.6e-6;
 constexpr double kSecondsPerN4Link = 1.55e-5;
+constexpr double kWorstOverFit = 8.0;
 constexpr double kBaseBytes = 64.0 * (1 << 20);  // the process without the SDP
 constexpr double kSchurBytesPerEntry = 8.8;      // the dense m x m matrix and CSDP's extras
 
@@ -322,12 +399,19 @@ DesignEstimate EstimateDesign(const Scenario& s, const DesignRequest& q) {
   const double links = static_cast<double>(s.edges.size() + s.leader_links.size());
   const double m = 12.0 * n * n + 5.0 * n;
   e.lmi_variables = static_cast<std::int64_t>(m);
-  e.wall_seconds = n * n * n * n * (kSecondsPerN6 * n * n + kSecondsPerN4Link * links);
+  e.wall_seconds =
+      kWorstOverFit * n * n * n * n * (kSecondsPerN6 * n * n + kSecondsPerN4Link * links);
   e.memory_bytes = kBaseBytes + kSchurBytesPerEntry * m * m;
   return e;
 }
 
 std::string LargeDesignRefusal(const Scenario& s, const DesignRequest& q) {
+  if (q.empirical) {
+    // The search runs shoal sim a dozen times or more: one run too large for shoal sim
+    // is too large for it.
+    const std::string run = LargeRunRefusal(s, q.empirical_duration_s, RunPace::kSim);
+    if (!run.empty()) return "--empirical: each of its runs is large: " + run;
+  }
   const DesignEstimate e = EstimateDesign(s, q);
   if (!e.large()) return "";
   char text[320];

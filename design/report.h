@@ -102,6 +102,9 @@ struct DesignReport {
   bool per_link_overrides = false;
   bool delay_from_flags = false;
   theory::DelayBounds delay;
+  /// Why kappa is unbounded, when it is and the flags did not bound it: "uniform jitter
+  /// draws a new delay per message", "a channel event makes tau jump up", ...; "" else.
+  std::string delay_rate_unbounded_why;
 
   DisturbanceKind disturbance = DisturbanceKind::kNone;
   bool relative_to_leader = false;

@@ -1,5 +1,6 @@
 #include "design/sim_eval.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/swarm.h"
@@ -61,6 +62,16 @@ Scenario WithConstantDelay(const Scenario& s, double tau_s) {
   Scenario c = s;
   c.delay = DelayConfig{DelayKind::kConstant, tau_s, 0.0, 0.0};
   for (LinkOverride& o : c.links) o.delay.reset();
+  // A channel event's delay would take over from the constant one: it goes too (an
+  // event that changed only the delay goes whole; one with a loss keeps its loss).
+  for (ScenarioEvent& e : c.events) {
+    if (e.kind == EventKind::kChannel) e.delay.reset();
+  }
+  c.events.erase(std::remove_if(c.events.begin(), c.events.end(),
+                                [](const ScenarioEvent& e) {
+                                  return e.kind == EventKind::kChannel && !e.delay && !e.loss;
+                                }),
+                 c.events.end());
   return c;
 }
 

@@ -235,6 +235,14 @@ std::string OnlyTheorem3Advice(const VerdictInput& in) {
   }
   if (!Theorem3Applicable(in) || !in.theorem3_certified.has_value()) return "";
   if (in.theorem3_max_delay_s && *in.theorem3_max_delay_s <= 0.0) {
+    if (in.factor == FactorKind::kNone) {
+      // Without a factor the LMI is feasible at h = 0 for any kappa < 1 in exact
+      // arithmetic: an "infeasible" there is the solver's margin, not the gains'.
+      return "Theorem 3's LMI was not solved feasible even at h = 0, though without an uncertain "
+             "factor it is feasible there for any kappa < 1: the solver's numerical margin, "
+             "not the gains (a kappa near 1 makes the LMI ill-conditioned); "
+             "a smaller --kappa, or the exact delay margin above, says more";
+    }
     return "Theorem 3's LMI is infeasible even at h = 0 with these gains and this uncertain "
            "factor: the velocity gain must dominate the factor's slope (a necessary condition "
            "is k2 lambda_min(H) > sqrt(2 lambda_max(J^2)), docs/theory_theorem3.md); raise k2 "

@@ -446,6 +446,15 @@ int LineOf(const toml::source_region& source) {
 }
 int LineOf(const toml::node& node) { return LineOf(node.source()); }
 
+/// Where a node is for a message: its source region (a --set value's names that --set), or
+/// line `line` of the file for what has no node.
+toml::source_region RegionAt(const toml::node* node, int line) {
+  if (node != nullptr) return node->source();
+  toml::source_region where;
+  where.begin.line = static_cast<toml::source_index>(std::max(1, line));
+  return where;
+}
+
 /// The entries of a table in the order they were written.
 std::vector<std::pair<const toml::key*, const toml::node*>> InFileOrder(const toml::table& t) {
   std::vector<std::pair<const toml::key*, const toml::node*>> entries;
@@ -768,12 +777,21 @@ void ReadRun(const Reader& r, const Table& t, Scenario* s) {
              "choose a rate such as 10, 20, 25, 50, 64, 100, 125, 200 or 1000");
     }
   }
-  if (const toml::node* node = t.Get("duration_s"); node && s->duration_s * s->control_rate_hz < 1.0) {
+  if (!(s->duration_s * s->control_rate_hz >= 1.0)) {
     // A run of one tick, at t = 0, measures nothing and always reports "not converged".
-    r.FailAt(*node, t.KeyOf("duration_s"),
-             "must be at least one control period (" + FormatNumber(1.0 / s->control_rate_hz) +
-                 " s at " + FormatNumber(s->control_rate_hz) + " Hz)",
-             "the run lasts duration_s seconds, e.g. duration_s = 600");
+    // Checked against the default duration too: a rate this slow is a mistake either way.
+    if (const toml::node* node = t.Get("duration_s")) {
+      r.FailAt(*node, t.KeyOf("duration_s"),
+               "must be at least one control period (" + FormatNumber(1.0 / s->control_rate_hz) +
+                   " s at " + FormatNumber(s->control_rate_hz) + " Hz)",
+               "the run lasts duration_s seconds, e.g. duration_s = 600");
+    } else if (const toml::node* rate = t.Get("control_rate_hz")) {
+      r.FailAt(*rate, t.KeyOf("control_rate_hz"),
+               "its control period (" + FormatNumber(1.0 / s->control_rate_hz) +
+                   " s) is longer than the run (duration_s, default " +
+                   FormatNumber(s->duration_s) + " s)",
+               "the control loop runs at control_rate_hz, e.g. 50");
+    }
   }
   if (const toml::node* node = t.Get("seed")) {
     s->seed = static_cast<std::uint64_t>(
@@ -832,12 +850,12 @@ void ReadLeaderLinks(const Reader& r, const Table& t, int n, std::vector<int>* o
 /// Assumption 1 for one topology: every follower has a directed path from the leader.
 /// `when` qualifies the topology in the message ("" for [swarm]).
 void CheckReachable(const Reader& r, int n, const std::vector<std::pair<int, int>>& edges,
-                    const std::vector<int>& leader_links, int line, const std::string& key,
-                    const std::string& when) {
+                    const std::vector<int>& leader_links, const toml::source_region& where,
+                    const std::string& key, const std::string& when) {
   const std::vector<int> unreachable =
       Topology::Build(n, edges, leader_links).UnreachableFollowers();
   if (unreachable.empty()) return;
-  r.Fail(line, key,
+  r.Fail(where, key,
          (unreachable.size() == 1 ? "follower " : "followers ") + JoinInts(unreachable) +
              " cannot be reached from the leader (Assumption 1)" + when,
          std::nullopt,
@@ -858,8 +876,8 @@ void ReadSwarm(const Reader& r, const Table& t, Scenario* s) {
                "a neighbour whose newest message is older than this drops out of the control law",
                &s->neighbour_timeout_s);
 
-  CheckReachable(r, n, s->edges, s->leader_links,
-                 edges_node != nullptr ? LineOf(*edges_node) : t.line, t.KeyOf("edges"), "");
+  CheckReachable(r, n, s->edges, s->leader_links, RegionAt(edges_node, t.line), t.KeyOf("edges"),
+                 "");
 }
 
 void ReadControl(const Reader& r, const Table& t, Scenario* s) {
@@ -1043,7 +1061,9 @@ void ReadTraceDelay(const Reader& r, const Table& t, DelayConfig* delay) {
   delay->trace = std::move(trace);
 }
 
-constexpr Bound kSoundSpeed{0.0, true, 1e5, false, "must be a positive speed, at most 1e5 m/s"};
+// At least 1 m/s: slower, a delay over the range of a run would not fit the microseconds
+// of the run's clock (1 km at 1e-12 m/s is 1e15 s).
+constexpr Bound kSoundSpeed{1.0, false, 1e5, false, "must be a speed in [1, 1e5] m/s"};
 constexpr Bound kRange{0.0, true, 1e7, false, "must be a positive distance, at most 1e7 m"};
 
 void ReadAcousticDelay(const Reader& r, const Table& t, DelayConfig* delay) {
@@ -1139,7 +1159,7 @@ void ReadLinks(const Reader& r, const Table& channel, Scenario* s) {
         "the link from " + from_text + " to follower " + std::to_string(link.to);
     const std::string got =
         "from = " + std::to_string(link.from) + ", to = " + std::to_string(link.to);
-    const int line = LineOf(*t.Get("from"));
+    const toml::source_region line = t.Get("from")->source();
     const bool exists =
         link.from == 0
             ? std::count(s->leader_links.begin(), s->leader_links.end(), link.to) > 0
@@ -1198,11 +1218,11 @@ void ReadChannel(const Reader& r, const Table& t, Scenario* s) {
 }
 
 /// The line of the first of `keys` present in `t`, else the table's line.
-int LineOfAny(const Table& t, std::initializer_list<std::string_view> keys) {
+toml::source_region LineOfAny(const Table& t, std::initializer_list<std::string_view> keys) {
   for (const std::string_view key : keys) {
-    if (const toml::node* node = t.Get(key)) return LineOf(*node);
+    if (const toml::node* node = t.Get(key)) return node->source();
   }
-  return t.line;
+  return RegionAt(t.node, t.line);
 }
 
 void ReadDisturbance(const Reader& r, const Table& t, DisturbanceConfig* disturbance) {
@@ -1257,9 +1277,23 @@ void ReadVehicle(const Reader& r, const Table& t, Scenario* s) {
     if (s->vehicle.integrator_step_s > period_s * (1.0 + 1e-9)) {
       r.FailAt(*node, key, "must not exceed the control period", hint);
     }
+    if (period_s / s->vehicle.integrator_step_s > kMaxRk4Substeps) {
+      r.FailAt(*node, key,
+               "must be at least 1/" + std::to_string(kMaxRk4Substeps) + " of the control period (" +
+                   FormatNumber(period_s / kMaxRk4Substeps) + " s)",
+               hint);
+    }
   } else {
     // The default step never exceeds the control period at high rates.
     s->vehicle.integrator_step_s = std::min(s->vehicle.integrator_step_s, period_s);
+    if (period_s / s->vehicle.integrator_step_s > kMaxRk4Substeps) {
+      r.Fail(t.line, t.KeyOf("integrator_step_s"),
+             "the default RK4 step (0.01 s) is less than 1/" + std::to_string(kMaxRk4Substeps) +
+                 " of the control period (" + FormatNumber(period_s) + " s)",
+             std::nullopt,
+             "give [vehicle] integrator_step_s of at least " +
+                 FormatNumber(period_s / kMaxRk4Substeps) + " s, or a faster control_rate_hz");
+    }
   }
 }
 
@@ -1354,7 +1388,7 @@ void ReadEventVehicles(const Reader& r, const Table& t, int n, std::vector<int>*
 
 void ReadChannelEvent(const Reader& r, const Table& t, ScenarioEvent* e) {
   if (t.Get("delay") == nullptr && t.Get("loss") == nullptr) {
-    r.Fail(t.line, t.KeyOf("delay"), "a channel event needs a delay or a loss table", std::nullopt,
+    r.Fail(RegionAt(t.node, t.line), t.KeyOf("delay"), "a channel event needs a delay or a loss table", std::nullopt,
            "add delay = { model = \"constant\", base_s = 0.5 } and/or "
            "loss = { model = \"bernoulli\", probability = 0.2 }");
   }
@@ -1479,7 +1513,7 @@ struct LatestEnd {
                               std::string_view fix) {
   const ScenarioEvent& a = s.events[static_cast<std::size_t>(earlier)];
   const ScenarioEvent& b = s.events[later];
-  r.Fail(b.line, tables[later].key,
+  r.Fail(RegionAt(tables[later].node, b.line), tables[later].key,
          std::string(EventKindName(b.kind)) + " window " + WindowText(b) + " overlaps the window " +
              WindowText(a) + " of " + tables[static_cast<std::size_t>(earlier)].key + " (line " +
              std::to_string(a.line) + ")" + what,
@@ -1565,7 +1599,8 @@ void CheckEventTopologies(const Reader& r, const std::vector<Table>& tables, con
   for (std::size_t k = 0; k < s.events.size(); ++k) {
     const ScenarioEvent& e = s.events[k];
     if (e.kind != EventKind::kTopology) continue;
-    CheckReachable(r, s.followers, e.edges, e.leader_links, e.line, tables[k].key,
+    CheckReachable(r, s.followers, e.edges, e.leader_links, RegionAt(tables[k].node, e.line),
+                   tables[k].key,
                    " in the topology from t = " + FormatNumber(e.at_s) + " s");
   }
 }

@@ -127,6 +127,13 @@ bool WriteAdvisedScenario(const DesignOptions& opt, design::DesignReport* r) {
   }
   std::string err;
   const design::GainAdvice& g = r->advice->advice;
+  if (!g.found) {
+    // No scale is certified, not even at h = 0: the "advice" is the scenario's own gains,
+    // and a file of them would pass for a certified design.
+    std::cerr << "shoal design: --write-scenario: no gains were advised (" << g.how
+              << "), nothing written\n";
+    return false;
+  }
   const bool written =
       opt.set.empty()
           ? design::WriteScenarioWithGains(opt.scenario, g.k1, g.k2, opt.write_scenario, &err)

@@ -303,6 +303,9 @@ CLI::App* AddSweep(CLI::App* app, shoal::SweepOptions* sw, shoal::SweepMergeOpti
                 "(repeatable)")
       ->allow_extra_args(false);
   c->add_flag("--quiet", sw->quiet, "No progress line and no summary");
+  c->add_flag("--allow-large", sw->allow_large,
+              "Run points estimated to take over 1 h or 4 GiB each (passed to each point's "
+              "shoal sim/run); without it such a campaign is refused before anything runs");
   CLI::App* m = c->add_subcommand(
       "merge", "Combine the output directories of a campaign's shards into one, as one run");
   m->add_option("dirs", merge->dirs, "Shard output directories")->required();

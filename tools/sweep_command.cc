@@ -44,7 +44,7 @@ std::string ShellQuote(const std::string& arg) {
 /// The point's command: what a user would type (argv[0] "shoal"); `exe` replaces it to run.
 std::vector<std::string> PointArgv(const Campaign& c, const std::string& dir,
                                    const std::vector<ScenarioOverride>& overrides,
-                                   const CampaignPoint& p) {
+                                   const CampaignPoint& p, bool allow_large) {
   std::vector<std::string> argv = {"shoal"};
   if (c.engine == CampaignEngine::kSim) {
     argv.insert(argv.end(), {"sim", c.scenario});
@@ -54,6 +54,7 @@ std::vector<std::string> PointArgv(const Campaign& c, const std::string& dir,
   for (const ScenarioOverride& o : overrides) argv.insert(argv.end(), {"--set", o.key + "=" + o.value});
   if (c.duration_s > 0) argv.insert(argv.end(), {"--duration", ExactNumber(c.duration_s)});
   argv.insert(argv.end(), {"--json", "--quiet"});
+  if (allow_large) argv.push_back("--allow-large");
   if (c.engine != CampaignEngine::kSim) {
     char name[32];
     std::snprintf(name, sizeof(name), "point-%05lld.lcmlog", static_cast<long long>(p.index));
@@ -99,9 +100,9 @@ class Progress {
   std::chrono::steady_clock::time_point start_;
 };
 
-std::string ValueText(const ojson& v) {
-  return v.is_null() ? "none" : v.is_string() ? v.get<std::string>() : v.dump();
-}
+/// A value as TOML writes it (strings quoted), so that an axis value "none" does not read
+/// as no value, which is "(none)".
+std::string ValueText(const ojson& v) { return v.is_null() ? "(none)" : v.dump(); }
 
 /// The end-of-run summary on stdout: counts and the boundary along each axis.
 void PrintSummary(const ojson& s, const std::string& dir) {
@@ -184,7 +185,13 @@ Prepared Prepare(const SweepOptions& opt) {
   const std::string scenario_text = ReadScenarioText(p.campaign.scenario);
   p.base = BaseOverrides(p.campaign, opt.set);
   p.points = MakePoints(p.campaign);
-  p.plans = PlanPoints(p.campaign, scenario_text, p.base, p.points);
+  // Each point's scenario is built and checked first: about 0.5 ms a point, minutes for
+  // a large campaign (and again in every shard), which should not look like a hang.
+  if (!opt.quiet && p.points.size() >= 10000) {
+    std::fprintf(stderr, "shoal sweep: checking the scenarios of %zu points before any runs...\n",
+                 p.points.size());
+  }
+  p.plans = PlanPoints(p.campaign, scenario_text, p.base, p.points, !opt.allow_large);
   std::vector<std::string> cli_set = opt.set;
   p.manifest = MakeManifest(p.campaign, scenario_text, cli_set, p.points, p.shard,
                             MapTheory(p.campaign, scenario_text, p.base, p.points));
@@ -203,7 +210,7 @@ bool Execute(const Prepared& p, const SweepOptions& opt, ResultsDir* dir,
     if (!p.shard.Has(point.index)) continue;
     ++total;
     if (dir->rows().count(point.index)) continue;
-    std::vector<std::string> argv = PointArgv(c, opt.out, PointOverrides(c, p.base, point), point);
+    std::vector<std::string> argv = PointArgv(c, opt.out, PointOverrides(c, p.base, point), point, opt.allow_large);
     commands[static_cast<std::size_t>(point.index)] = CommandText(argv);
     argv[0] = exe;
     jobs.push_back({point.index, std::move(argv),

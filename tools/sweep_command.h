@@ -12,6 +12,7 @@ struct SweepOptions {
   std::string shard;             // "K/N"; "" = all points
   std::vector<std::string> set;  // --set KEY=VALUE, applied before the axes
   bool quiet = false;            // no progress line, no summary
+  bool allow_large = false;      // run (and pass --allow-large to) points estimated large
 };
 
 struct SweepMergeOptions {

@@ -101,6 +101,13 @@ TEST(CampaignFile, RefusesBadInput) {
             std::string::npos);
   EXPECT_NE(ErrorOf(std::string(kHead) + "samples = 3\n").find("only used with sampling"),
             std::string::npos);
+  // Settings a grid does not use are refused, not ignored.
+  EXPECT_NE(ErrorOf(std::string(kHead) + "seed = 7\n").find("campaign.seed: only used with sampling"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(std::string(kHead) + "sampling = \"lhs\"\nsamples = 4\n"
+                    "[[axis]]\nkey = \"a\"\nfrom = 0\nto = 1\nsteps = 7\n")
+                .find("axis[0].steps: only used with sampling = \"grid\""),
+            std::string::npos);
   EXPECT_NE(ErrorOf(std::string(kHead) + "[pass]\nx = { min = 2, max = 1 }\n").find("min is above max"),
             std::string::npos);
   EXPECT_NE(ErrorOf(std::string(kHead) + "[pass]\nx = [1]\n").find("pass.x: must be"),

@@ -82,6 +82,8 @@ TEST(DesignCli, NonPositiveGainsAndDelaysExitTwoNamingTheFlag) {
       {"--k1 nan", "--k1 must be a positive number"},
       {"--h 0", "--h must be a positive number (got 0)"},
       {"--h -0.1", "--h must be a positive number (got -0.1)"},
+      {"--k1 1e300 --k2 1e300", "--k1 must be at most 1e+06 (got 1e+300)"},
+      {"--h 1e300", "--h must be at most 1e+09 (got 1e+300)"},
       {"--kappa 1", "--kappa must be in [0, 1) (got 1)"},
       {"--kappa -0.2", "--kappa must be in [0, 1)"},
       {"--alpha 0", "--alpha must be a positive number"},
@@ -221,6 +223,44 @@ TEST(DesignCli, Theorem3IsNotEvaluatedForAFactorItDoesNotCover) {
   EXPECT_NE(t3["reason"].get<std::string>().find("relative_to_leader = false"),
             std::string::npos)
       << t3;
+  // No assumed bound makes an absolute factor vanish at consensus: --rho0 certifies nothing.
+  const auto rho = RunShoal("design " + path + " --k1 0.5 --k2 2.5 --h 0.05 --kappa 0 --rho0 0.5 --json",
+                            "d_abs_rho0");
+  EXPECT_EQ(rho.status, 1) << rho.out << rho.err;
+  const Json j = ParseJson(rho.out);
+  EXPECT_EQ(j["theorem3"]["evaluated"], false) << j["theorem3"];
+  EXPECT_EQ(j["uncertain_factor"]["theorems_apply"], false) << j["uncertain_factor"];
+}
+
+// A channel event whose delay is larger than the one it takes over from makes tau jump
+// up: Assumption 3 (tau' <= kappa < 1) cannot hold, and Theorem 3 says so rather than
+// calling the delays "different constants" with kappa = 0. An event that only lowers the
+// delay, to the end of the run, keeps kappa = 0.
+TEST(DesignCli, ADelayThatJumpsUpAtAnEventHasNoBoundedRate) {
+  const std::string base =
+      "[run]\nname = \"one\"\nduration_s = 100\ncontrol_rate_hz = 50\n"
+      "[swarm]\nfollowers = 1\nleader_links = [1]\nedges = []\n"
+      "[control]\nk1 = 0.18\nk2 = 1.152\noffsets_m = [[5.0, 0.0, 0.0]]\n"
+      "[leader]\npath = \"line\"\nstart_m = [0.0, 0.0, 10.0]\nvelocity_mps = [1.5, 0.0, 0.0]\n"
+      "[channel.delay]\nmodel = \"constant\"\nbase_s = 0.2\n"
+      "[disturbance]\nmodel = \"none\"\n"
+      "[[follower]]\nid = 1\nposition_m = [0.0, 0.0, 10.0]\n";
+  const auto write = [](const std::string& name, const std::string& text) {
+    const std::string path = TmpPath(name);
+    std::ofstream(path) << text;
+    return path;
+  };
+  const std::string up = write("d_jump_up.toml", base +
+      "[[event]]\nat_s = 10\nkind = \"channel\"\ndelay = { model = \"constant\", base_s = 0.5 }\n");
+  auto r = RunShoal("design " + up + " --json", "d_jump_up");
+  Json j = ParseJson(r.out);
+  EXPECT_EQ(j["theorem3"]["evaluated"], false) << r.out << r.err;
+  EXPECT_NE(j["theorem3"].value("reason", "").find("jump up"), std::string::npos) << j["theorem3"];
+  const std::string down = write("d_jump_down.toml", base +
+      "[[event]]\nat_s = 10\nkind = \"channel\"\ndelay = { model = \"constant\", base_s = 0.1 }\n");
+  r = RunShoal("design " + down + " --json", "d_jump_down");
+  j = ParseJson(r.out);
+  EXPECT_EQ(j["theorem3"]["evaluated"], true) << r.out << r.err;
 }
 
 TEST(DesignCli, ReadableReportHasEverySectionAndAVerdictLine) {
@@ -333,6 +373,12 @@ TEST(DesignCli, WriteScenarioFailuresExitTwo) {
   EXPECT_NE(none.err.find("nothing written"), std::string::npos) << none.err;
   EXPECT_EQ(ParseJson(none.out)["advised_gains"]["evaluated"], false) << none.out;
   EXPECT_FALSE(std::ifstream(out).good()) << out << " was written";
+  // Advice evaluated but no scale certified, not even at h = 0: nothing to write either.
+  const auto uncertified = RunShoal("design " + Example(2) + " --rho0 5 --write-scenario " + out +
+                                        " --json", "d_ws_uncertified");
+  EXPECT_EQ(uncertified.status, 2) << uncertified.err;
+  EXPECT_NE(uncertified.err.find("no gains were advised"), std::string::npos) << uncertified.err;
+  EXPECT_FALSE(std::ifstream(out).good()) << out << " was written";
 }
 
 // Theorem 3's LMI has 12 n^2 + 5 n variables: its time grows as n^6, its memory as n^4.
@@ -356,6 +402,16 @@ TEST(DesignCli, EnormousSwarmsAreRefusedWithTheirEstimate) {
     EXPECT_TRUE(r.out.empty()) << r.out.substr(0, 300);
     EXPECT_LT(s, 1.0 * testing::kTimeLimitScale) << name;
   }
+  // --empirical runs shoal sim again and again: a run too large for it is refused first.
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto empirical = RunShoal("design " + Example(1) + " --empirical --empirical-duration 1e9",
+                                  "design_large_empirical");
+  EXPECT_EQ(empirical.status, 2) << empirical.err;
+  EXPECT_NE(empirical.err.find("--empirical: each of its runs is large: refusing a large run"),
+            std::string::npos)
+      << empirical.err;
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+            1.0 * testing::kTimeLimitScale);
   const auto hundred = RunShoal("design '" + dir + "/hundred_dense_followers_with_long_delays.toml'",
                                 "design_large_100");
   EXPECT_NE(hundred.err.find("100 followers and 9901 links: 120500 variables"), std::string::npos)

@@ -101,6 +101,11 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
       {Steps("0.1", "120", "90") + "overruns_max = -1\n",
        "soak.overruns_max: must be an integer in 0..1e9"},
       {Steps("0.1", "120", "90") + "overruns_max = 1.5\n", "soak.overruns_max: must be an integer"},
+      {Steps("0.1", "120", "90") + "overruns_max = 5\n",
+       "soak.overruns_max: a real-time target (engine = \"realtime\")"},
+      {Steps("0.1", "120", "90") + "lateness_p99_max_s = 0.5\n",
+       "soak.lateness_p99_max_s: a real-time target"},
+      {Steps("0.1", "120", "90", "seed = 7\n"), "campaign.seed: only used with sampling = \"lhs\""},
       {Steps("0.1", "120", "90", "duration_s = 600\n"),
        "campaign.duration_s (the run lasts phases x soak.phase_s): not used by shoal soak"},
   };

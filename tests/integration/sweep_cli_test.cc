@@ -262,6 +262,52 @@ TEST(SweepCli, ShardsMergedEqualOneRun) {
   EXPECT_EQ(ReadFile(dir + "/merged/summary.json"), ReadFile(dir + "/whole/summary.json"));
   const std::string csv = ReadFile(dir + "/merged/results.csv");
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 7);
+  // What --out holds is kept or refused, never lost: a shard's directory is refused, a
+  // whole sweep keeps its rows, results without a campaign.json are refused.
+  const RunResult into_shard = RunShoal("sweep merge " + dir + "/s1 --out " + dir + "/s2 --allow-missing",
+                                        "sweep_m_shard");
+  EXPECT_EQ(into_shard.status, 2);
+  EXPECT_NE(into_shard.err.find("holds the results of shard 2/2"), std::string::npos) << into_shard.err;
+  EXPECT_EQ(ReadRows(dir + "/s2/results.jsonl").size(), 3u);
+  const RunResult into_whole = RunShoal("sweep merge " + dir + "/s1 --out " + dir + "/whole",
+                                        "sweep_m_whole");
+  EXPECT_EQ(into_whole.status, whole.status) << into_whole.err;
+  EXPECT_EQ(Comparable(ReadRows(dir + "/whole/results.jsonl")),
+            Comparable(ReadRows(dir + "/merged/results.jsonl")));
+  std::system(("mkdir -p " + dir + "/foreign && echo '{\"precious\": 1}' > " + dir +
+               "/foreign/results.jsonl").c_str());
+  const RunResult foreign = RunShoal("sweep merge " + dir + "/s1 " + dir + "/s2 --out " + dir + "/foreign",
+                                     "sweep_m_foreign");
+  EXPECT_EQ(foreign.status, 2);
+  EXPECT_EQ(ReadFile(dir + "/foreign/results.jsonl"), "{\"precious\": 1}\n");
+}
+
+// A point shoal sim would refuse as large is refused before anything runs, not run into
+// a row of no_result; --allow-large is passed on to the points.
+TEST(SweepCli, ALargePointIsRefusedBeforeAnythingRuns) {
+  const std::string dir = WriteCampaign(
+      "large", Head("duration_s = 1e9\n") + "[[axis]]\nkey = \"control.k1\"\nvalues = [0.18]\n"
+                   "[pass]\nconverged = true\n");
+  const RunResult r = RunShoal("sweep " + dir + "/large.toml --out " + dir + "/out", "sweep_large");
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("point 0: refusing a large run"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--allow-large"), std::string::npos) << r.err;
+  EXPECT_NE(access((dir + "/out/results.jsonl").c_str(), F_OK), 0);
+}
+
+// Without [pass] a point passes when its run exits 0: a run that does not converge fails.
+TEST(SweepCli, WithoutPassCriteriaTheRunsOwnVerdictCounts) {
+  const std::string dir = WriteCampaign(
+      "nopass", Head("duration_s = 60\nset = ['channel.delay={model=\"constant\",base_s=0.1}']\n") +
+                    "[[axis]]\nkey = \"channel.delay.base_s\"\nvalues = [0.1, 0.6]\n");
+  const RunResult r = RunShoal("sweep " + dir + "/nopass.toml --quiet --out " + dir + "/out", "sweep_nopass");
+  EXPECT_EQ(r.status, 1) << r.err;
+  const std::vector<ojson> rows = ReadRows(dir + "/out/results.jsonl");
+  ASSERT_EQ(rows.size(), 2u);
+  for (const ojson& row : rows) {
+    EXPECT_EQ(row["pass"], row["exit_status"] == 0) << row.dump();
+    EXPECT_EQ(row["pass"], row["channel.delay.base_s"] == 0.1) << row.dump();
+  }
 }
 
 TEST(SweepCli, DelayBoundaryLiesWithinOneStepOfTheExactMargin) {
@@ -337,6 +383,16 @@ TEST(SweepCli, StabilityMapDrawsShoalDesignsBoundsOnTheDelayAxis) {
               design["delay_margin_s"].get<double>(), 1e-9)
       << design.dump();
   EXPECT_EQ(summary["criteria"], ojson::parse(R"(["converged = true"])"));
+  // [map] with y only: x is the other axis (the delay), with its theory; and a resumed
+  // sweep whose [map] changed writes it to campaign.json too, for a merge to draw.
+  std::ofstream(dir + "/map.toml", std::ios::app) << "[map]\ny = \"control.k2\"\n";
+  const RunResult again = RunShoal("sweep " + dir + "/map.toml --quiet --out " + dir + "/out", "sweep_map_x");
+  ASSERT_TRUE(again.status == 0 || again.status == 1) << again.err;
+  const ojson resumed = ParseJson(ReadFile(dir + "/out/summary.json"));
+  EXPECT_EQ(resumed["theory"]["delay_axis"], "channel.delay.base_s") << resumed.dump();
+  const ojson manifest = ParseJson(ReadFile(dir + "/out/campaign.json"));
+  EXPECT_EQ(manifest["map"]["x"], "channel.delay.base_s") << manifest.dump();
+  EXPECT_EQ(manifest["map"]["y"], "control.k2") << manifest.dump();
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // acoustic delay the formation produces, and how the report shows them.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <string>
@@ -190,8 +192,20 @@ TEST(Switching, TheDelayBoundCoversEveryTopologysLinksAndChannelEvents) {
   r = BuildDesignReport(s, DesignRequest{});
   EXPECT_DOUBLE_EQ(r.delay.h_s, 0.4);
   EXPECT_TRUE(r.delay.time_varying);
+  // The swell takes over from 0.1 s at 0.3 s and more: tau jumps up, its rate is unbounded.
+  EXPECT_FALSE(r.delay.kappa.has_value());
+  EXPECT_NE(r.delay_rate_unbounded_why.find("jump up"), std::string::npos)
+      << r.delay_rate_unbounded_why;
+  // A dip below every delay it takes over from, to the end of the run, only lowers tau:
+  // kappa is its own rate.
+  ScenarioEvent dip = swell;
+  dip.delay = DelayConfig(DelayKind::kSinusoid, 0.05, 0.01, 0.5);
+  dip.until_s = std::numeric_limits<double>::infinity();
+  s.events.back() = dip;
+  r = BuildDesignReport(s, DesignRequest{});
+  EXPECT_DOUBLE_EQ(r.delay.h_s, 0.25);
   ASSERT_TRUE(r.delay.kappa.has_value());
-  EXPECT_DOUBLE_EQ(*r.delay.kappa, 0.05);
+  EXPECT_DOUBLE_EQ(*r.delay.kappa, 0.005);
 }
 
 TEST(Switching, ATopologyWithoutASpanningTreeIsNamedAndNothingIsCertified) {

@@ -216,6 +216,27 @@ TEST(EmpiricalMargin, PaperExample1IsJustBelowTheExactMargin) {
   EXPECT_FALSE(RunSwarm(WithConstantDelay(s, em.first_failing_s), -1).converged);
 }
 
+// One constant delay on every link: a channel event's delay goes too (whole, if the delay
+// was all it changed; its loss stays).
+TEST(SimEval, ConstantDelayReplacesTheEventsDelaysToo) {
+  Scenario s = Load("scenarios/paper_example1.toml");
+  ScenarioEvent only_delay;
+  only_delay.kind = EventKind::kChannel;
+  only_delay.at_s = 10.0;
+  only_delay.delay = DelayConfig{DelayKind::kConstant, 0.9, 0.0, 0.0};
+  ScenarioEvent with_loss = only_delay;
+  with_loss.at_s = 20.0;
+  with_loss.loss = LossConfig{};
+  s.events = {only_delay, with_loss};
+  const Scenario c = WithConstantDelay(s, 0.3);
+  ASSERT_EQ(c.events.size(), 1u);
+  EXPECT_EQ(c.events[0].at_s, 20.0);
+  EXPECT_FALSE(c.events[0].delay.has_value());
+  EXPECT_TRUE(c.events[0].loss.has_value());
+  EXPECT_EQ(c.delay.kind, DelayKind::kConstant);
+  EXPECT_EQ(c.delay.base_s, 0.3);
+}
+
 // Each cost is the squared sum of its residuals; the position ISE is its own cost.
 TEST(SimEval, CostIsTheSquaredSumOfTheResiduals) {
   const Scenario s = Load("scenarios/paper_example1.toml");

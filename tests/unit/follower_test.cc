@@ -46,6 +46,24 @@ StateMsg Msg(int id, std::int32_t seq, Micros utime, const Vec5& eta, const Vec5
   return m;
 }
 
+// The period is split into the fewest whole RK4 steps no longer than the step asked for;
+// a ratio a rounding away from a whole number is that number.
+TEST(Follower, Rk4StepsAreNoLongerThanAsked) {
+  Scenario s = TwoFollowers();
+  const auto steps = [&](double rate_hz, double step_s) {
+    s.control_rate_hz = rate_hz;
+    s.vehicle.integrator_step_s = step_s;
+    return Follower::Rk4Substeps(s);
+  };
+  EXPECT_EQ(steps(50, 0.02), 1);
+  EXPECT_EQ(steps(50, 0.01), 2);
+  EXPECT_EQ(steps(50, 0.0134), 2);  // 1.49 steps: two of 0.01 s, not one of 0.02 s
+  EXPECT_EQ(steps(50, 0.019), 2);
+  EXPECT_EQ(steps(10, 0.02), 5);    // 0.1 / 0.02 is 5.000000000000001
+  EXPECT_EQ(steps(50, 0.02 / 3), 3);
+  EXPECT_EQ(steps(50, 1e-12), kMaxRk4Substeps);  // the loader refuses it; never an overflow
+}
+
 TEST(Follower, RejectsBadInputAndCountsIt) {
   const Scenario s = TwoFollowers();
   const Topology topo = Topology::Build(s.followers, s.edges, s.leader_links);

@@ -179,6 +179,21 @@ TEST(ScenarioOverrides, ValidationErrorsNameTheOrigin) {
                        "--set nosuch.key=1: nosuch: unknown table [nosuch]"));
 }
 
+// Checks across keys (reachability, links of the topology, speed ranges, events) name
+// the --set that gave the value they fail on too, not a line of the file.
+TEST(ScenarioOverrides, CrossKeyChecksNameTheOrigin) {
+  EXPECT_EQ(ErrorOf(kFaults, {"swarm.edges=[]"}).rfind("--set swarm.edges=[]: swarm.edges: ", 0), 0u)
+      << ErrorOf(kFaults, {"swarm.edges=[]"});
+  const std::string link = ErrorOf(kFaults, {"channel.link=[{from=0, to=2}]"});
+  EXPECT_EQ(link.rfind("--set channel.link=[{from=0, to=2}]: channel.link[0]: ", 0), 0u) << link;
+  const std::string current = ErrorOf(
+      kFaults, {"disturbance={model=\"ocean_current\", min_speed_mps=0.9, max_speed_mps=0.5}"});
+  EXPECT_EQ(current.rfind("--set disturbance=", 0), 0u) << current;
+  const std::string event =
+      ErrorOf(kFaults, {"event[1]={at_s=101, kind=\"topology\", leader_links=[2]}"});
+  EXPECT_EQ(event.rfind("--set event[1]=", 0), 0u) << event;
+}
+
 TEST(ScenarioOverrides, OriginsOfCampaignsAreKept) {
   const std::vector<ScenarioOverride> o = {
       {"channel.delay.base_s", "-1", "sweep.toml:12: axis channel.delay.base_s"}};

@@ -803,6 +803,14 @@ std::vector<RuleCase> RuleCases() {
        "[run]\ncontrol_rate_hz = 1000\n" + base + "[vehicle]\nintegrator_step_s = 0.002\n",
        "vehicle.integrator_step_s: must not exceed the control period (got 0.002); the RK4 step "
        "must fit in one control period (0.001 s at 1000 Hz)"},
+      {"StepFarBelowThePeriod", base + "[vehicle]\nintegrator_step_s = 1e-9\n",
+       "vehicle.integrator_step_s: must be at least 1/100000 of the control period (2e-07 s)"},
+      {"DefaultStepFarBelowASlowPeriod", "[run]\ncontrol_rate_hz = 0.0001\nduration_s = 1e6\n" + base,
+       "vehicle.integrator_step_s: the default RK4 step (0.01 s) is less than 1/100000 of the "
+       "control period (10000 s)"},
+      {"RateSlowerThanTheDefaultRun", "[run]\ncontrol_rate_hz = 1e-6\n" + base,
+       "run.control_rate_hz: its control period (1000000 s) is longer than the run (duration_s, "
+       "default 600 s)"},
       {"PositionTolZero", base + "[metrics]\nposition_tol_m = 0\n",
        "metrics.position_tol_m: must be a positive number (got 0)"},
       {"VelocityTolNegative", base + "[metrics]\nvelocity_tol_mps = -1\n",
@@ -812,7 +820,10 @@ std::vector<RuleCase> RuleCases() {
        "test.toml:10: channel.delay.max_range_m: missing required key"},
       {"AcousticSoundSpeedZero",
        base + "[channel.delay]\nmodel = \"acoustic\"\nmax_range_m = 100\nsound_speed_mps = 0\n",
-       "channel.delay.sound_speed_mps: must be a positive speed, at most 1e5 m/s (got 0)"},
+       "channel.delay.sound_speed_mps: must be a speed in [1, 1e5] m/s (got 0)"},
+      {"AcousticSoundFarTooSlow",
+       base + "[channel.delay]\nmodel = \"acoustic\"\nmax_range_m = 100\nsound_speed_mps = 1e-12\n",
+       "channel.delay.sound_speed_mps: must be a speed in [1, 1e5] m/s (got 1e-12)"},
       {"AcousticLossAboveOne",
        base + "[channel.delay]\nmodel = \"acoustic\"\nmax_range_m = 100\nloss_at_max_range = 1.5\n",
        "channel.delay.loss_at_max_range: must be in [0, 1] (got 1.5)"},
