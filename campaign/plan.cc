@@ -90,10 +90,11 @@ std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario
     }
     plan.duration_s = c.duration_s > 0 ? c.duration_s : s.duration_s;
     if (refuse_large) {
-      const std::string large = LargeRunRefusal(s, plan.duration_s, pace);
+      const std::string large = LargeRunRefusal(s, plan.duration_s, pace,
+                                                "campaign.duration_s (or run.duration_s)",
+                                                "shoal sweep --allow-large (it passes it on)");
       if (!large.empty()) {
-        throw CampaignError(c.path + ": point " + std::to_string(p.index) + ": " + large +
-                            " (shoal sweep --allow-large passes it on)");
+        throw CampaignError(c.path + ": point " + std::to_string(p.index) + ": " + large);
       }
     }
     plans.push_back(std::move(plan));

@@ -69,7 +69,8 @@ std::string RunEstimate::Describe(int followers) const {
   return text;
 }
 
-std::string LargeRunRefusal(const Scenario& s, double duration_s, RunPace pace) {
+std::string LargeRunRefusal(const Scenario& s, double duration_s, RunPace pace,
+                            const std::string& shorten, const std::string& anyway) {
   RunEstimate e = EstimateRun(s, duration_s);
   constexpr double kLockstepOverSim = 20.0;  // 600 s of Example 2: 6.1 s against 0.35 s
   if (pace == RunPace::kLockstep) e.wall_seconds *= kLockstepOverSim;
@@ -77,9 +78,8 @@ std::string LargeRunRefusal(const Scenario& s, double duration_s, RunPace pace) 
     e.wall_seconds = static_cast<double>(e.ticks) * static_cast<double>(s.period_us()) * 1e-6;
   }
   if (!e.large()) return "";
-  return "refusing a large run (" + e.Describe(s.followers) +
-         "; the limits are 1 h and 4 GiB); shorten run.duration_s or --duration, or pass "
-         "--allow-large to run it anyway";
+  return "refusing a large run (" + e.Describe(s.followers) + "; the limits are 1 h and 4 GiB); shorten " +
+         shorten + ", or pass " + anyway + " to run it anyway";
 }
 
 Swarm::Swarm(const Scenario& s, double duration_s)

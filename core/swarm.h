@@ -52,9 +52,12 @@ RunEstimate EstimateRun(const Scenario& s, double duration_s = -1.0);
 /// than shoal sim), and a real-time run takes its simulated duration.
 enum class RunPace { kSim, kLockstep, kRealtime };
 
-/// "" if the run is not large, else why it is refused and how to run it anyway.
+/// "" if the run is not large, else why it is refused and how to run it anyway: `shorten`
+/// names what sets the duration there, `anyway` the flag and command that run it anyway.
 std::string LargeRunRefusal(const Scenario& s, double duration_s = -1.0,
-                            RunPace pace = RunPace::kSim);
+                            RunPace pace = RunPace::kSim,
+                            const std::string& shorten = "run.duration_s or --duration",
+                            const std::string& anyway = "--allow-large");
 
 class Swarm {
  public:

@@ -97,6 +97,39 @@ void JoinDelayBounds(const theory::DelayBounds& b, theory::DelayBounds* a) {
   a->time_varying = a->time_varying || b.time_varying;
 }
 
+/// The delay models other than channel event e's own that may be in force on e's links
+/// just before or after time t: each such link's own (its [[channel.link]] override, else
+/// the default) and those of the other channel events whose window holds t on a link of e.
+std::vector<const DelayConfig*> ModelsAround(const Scenario& s, const ScenarioEvent& e, double t) {
+  using LinkPair = std::pair<int, int>;
+  const auto lists = [](const std::vector<LinkPair>& links, int from, int to) {
+    return links.empty() || std::find(links.begin(), links.end(), LinkPair{from, to}) != links.end();
+  };
+  std::vector<const DelayConfig*> models;
+  bool default_used = false;
+  const std::vector<LinkPair> all = UnionTopology(s).Links();
+  for (const auto& [from, to] : all) {
+    if (!lists(e.links, from, to)) continue;
+    const auto o = std::find_if(s.links.begin(), s.links.end(), [&](const LinkOverride& l) {
+      return l.from == from && l.to == to && l.delay;
+    });
+    if (o != s.links.end()) {
+      models.push_back(&*o->delay);
+    } else {
+      default_used = true;
+    }
+  }
+  if (default_used) models.push_back(&s.delay);
+  for (const ScenarioEvent& x : s.events) {
+    if (&x == &e || x.kind != EventKind::kChannel || !x.delay || t < x.at_s || t > x.until_s) continue;
+    const bool meets = std::any_of(all.begin(), all.end(), [&](const LinkPair& l) {
+      return lists(e.links, l.first, l.second) && lists(x.links, l.first, l.second);
+    });
+    if (meets) models.push_back(&*x.delay);
+  }
+  return models;
+}
+
 /// The delay bounds over the whole timeline: every link of every topology (each with
 /// its default or per-link model) and every delay a channel event gives. Without events
 /// exactly theory::DelayBoundsOf(s). *jumps_up_out: whether an event's edge makes tau jump up.
@@ -114,25 +147,20 @@ theory::DelayBounds TimelineDelayBounds(const Scenario& s, bool* jumps_up_out = 
     }
   }
   theory::DelayBounds d = theory::DelayBoundsOf(u);
-  // The models a link's delay may hand over from or to at an event's edges: the default,
-  // the per-link ones and the other events' (conservatively, whatever the event's links).
-  std::vector<const DelayConfig*> models = {&s.delay};
-  for (const LinkOverride& l : s.links) {
-    if (l.delay) models.push_back(&*l.delay);
-  }
-  for (const ScenarioEvent& e : s.events) {
-    if (e.kind == EventKind::kChannel && e.delay) models.push_back(&*e.delay);
-  }
   bool jumps_up = false;
   for (const ScenarioEvent& e : s.events) {
     if (e.kind != EventKind::kChannel || !e.delay) continue;
     JoinDelayBounds(theory::DelayBoundsOf(*e.delay), &d);
     // tau jumps up where the event's delay takes over from a smaller one, or hands back
-    // to a larger one: there tau' is unbounded, whatever each model's own rate.
-    for (const DelayConfig* m : models) {
-      if (m == &*e.delay) continue;
-      jumps_up = jumps_up || NominalDelaySeconds(*e.delay, e.at_s) > NominalDelaySeconds(*m, e.at_s);
-      if (std::isfinite(e.until_s)) {
+    // to a larger one: there tau' is unbounded, whatever each model's own rate. Not at
+    // t = 0 (nothing to take over from) nor at or after the run's end.
+    if (e.at_s > 0.0) {
+      for (const DelayConfig* m : ModelsAround(s, e, e.at_s)) {
+        jumps_up = jumps_up || NominalDelaySeconds(*e.delay, e.at_s) > NominalDelaySeconds(*m, e.at_s);
+      }
+    }
+    if (e.until_s < s.duration_s) {
+      for (const DelayConfig* m : ModelsAround(s, e, e.until_s)) {
         jumps_up = jumps_up || NominalDelaySeconds(*m, e.until_s) > NominalDelaySeconds(*e.delay, e.until_s);
       }
     }
@@ -331,6 +359,7 @@ void Decide(DesignReport* r) {
   vi.k2 = r->k2;
   vi.h_s = r->delay.h_s;
   vi.kappa = r->delay.kappa;
+  vi.kappa_unbounded_why = r->delay_rate_unbounded_why;
   vi.delay_time_varying = r->delay.time_varying;
   vi.delay_common_constant = r->delay.constant;
   vi.factor = r->factor;
@@ -409,7 +438,8 @@ std::string LargeDesignRefusal(const Scenario& s, const DesignRequest& q) {
   if (q.empirical) {
     // The search runs shoal sim a dozen times or more: one run too large for shoal sim
     // is too large for it.
-    const std::string run = LargeRunRefusal(s, q.empirical_duration_s, RunPace::kSim);
+    const std::string run = LargeRunRefusal(s, q.empirical_duration_s, RunPace::kSim,
+                                            "--empirical-duration (or run.duration_s)");
     if (!run.empty()) return "--empirical: each of its runs is large: " + run;
   }
   const DesignEstimate e = EstimateDesign(s, q);

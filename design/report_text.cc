@@ -48,7 +48,8 @@ void DelayAndFactorText(const DesignReport& r, std::ostream& txt) {
       << (!r.per_link_overrides || r.delay_from_flags ? ""
                                                       : " (with per-link overrides: max over links)")
       << ": h = " << G4(d.h_s) << " s, kappa = "
-      << (d.kappa ? G4(*d.kappa)
+      << (d.kappa                                ? G4(*d.kappa)
+          : !r.delay_rate_unbounded_why.empty() ? "unbounded (" + r.delay_rate_unbounded_why + ")"
           : r.delay_model == DelayKind::kAcoustic || r.delay_model == DelayKind::kTrace
               ? std::string("unbounded (tau follows the range or the trace; Assumption 3 is "
                             "not guaranteed)")

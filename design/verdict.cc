@@ -217,7 +217,10 @@ std::string OnlyTheorem3Reason(const VerdictInput& in) {
     t3 = in.kappa ? (in.factor == FactorKind::kUncovered
                          ? "Theorem 3 does not cover this uncertain factor"
                          : "Theorem 3 needs kappa < 1")
-                  : "Theorem 3 needs a bounded d tau/dt (kappa), which this delay model lacks";
+                  : in.kappa_unbounded_why.empty()
+                        ? "Theorem 3 needs a bounded d tau/dt (kappa), which this delay model lacks"
+                        : "Theorem 3 needs a bounded d tau/dt (kappa), and here " +
+                              in.kappa_unbounded_why;
   } else if (!in.theorem3_certified) {
     t3 = "Theorem 3 not evaluated";
   } else {

@@ -22,6 +22,9 @@ struct VerdictInput {
   double k1 = 0.0, k2 = 0.0;
   double h_s = 0.0;
   std::optional<double> kappa;  ///< empty: tau(t) has no bounded derivative
+  /// Why kappa is empty ("uniform jitter draws a new delay per message", "a channel event
+  /// makes tau jump up, ..."); "" if unknown.
+  std::string kappa_unbounded_why;
   bool delay_time_varying = false;
   /// Every link (and the uncertain factor) has one and the same constant delay (or none).
   bool delay_common_constant = true;

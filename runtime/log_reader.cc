@@ -170,7 +170,7 @@ bool LcmLogReader::Resync(std::int64_t limit) {
   const std::int64_t start = FileOffset();
   pos_ += 1;
   for (;;) {
-    if (limit >= 0 && FileOffset() - start > limit) return false;
+    if (limit >= 0 && FileOffset() - start >= limit) return false;
     if (!Ensure(4)) {
       skipped_bytes_ += FileOffset() - start + static_cast<std::int64_t>(Available());
       pos_ = end_;
@@ -183,7 +183,7 @@ bool LcmLogReader::Resync(std::int64_t limit) {
     }
     pos_ = static_cast<std::size_t>(static_cast<const std::uint8_t*>(hit) - buf_.data());
     // A buffer holds more than the limit: a sync word found beyond it is not accepted.
-    if (limit >= 0 && FileOffset() - start > limit) return false;
+    if (limit >= 0 && FileOffset() - start >= limit) return false;
     if (CheckEventAt() == Check::kValid) {
       skipped_bytes_ += FileOffset() - start;
       return true;

@@ -1263,7 +1263,9 @@ void ReadDisturbance(const Reader& r, const Table& t, DisturbanceConfig* disturb
   }
 }
 
-void ReadVehicle(const Reader& r, const Table& t, Scenario* s) {
+/// run_rate: [run] control_rate_hz's node (null: absent), where a default step too small
+/// for the period is reported (the rate is what made it so, perhaps from a --set).
+void ReadVehicle(const Reader& r, const Table& t, Scenario* s, const toml::node* run_rate) {
   r.CheckKeys(t, kVehicleKeys);
   r.ReadVector<5>(t, "tau_max", kPositive,
                   "give positive limits [X, Y, Z, M, N] in N, N, N, N m, N m", &s->vehicle.tau_max);
@@ -1277,7 +1279,7 @@ void ReadVehicle(const Reader& r, const Table& t, Scenario* s) {
     if (s->vehicle.integrator_step_s > period_s * (1.0 + 1e-9)) {
       r.FailAt(*node, key, "must not exceed the control period", hint);
     }
-    if (period_s / s->vehicle.integrator_step_s > kMaxRk4Substeps) {
+    if (period_s / s->vehicle.integrator_step_s > kMaxRk4Substeps * (1.0 + 1e-9)) {
       r.FailAt(*node, key,
                "must be at least 1/" + std::to_string(kMaxRk4Substeps) + " of the control period (" +
                    FormatNumber(period_s / kMaxRk4Substeps) + " s)",
@@ -1286,8 +1288,8 @@ void ReadVehicle(const Reader& r, const Table& t, Scenario* s) {
   } else {
     // The default step never exceeds the control period at high rates.
     s->vehicle.integrator_step_s = std::min(s->vehicle.integrator_step_s, period_s);
-    if (period_s / s->vehicle.integrator_step_s > kMaxRk4Substeps) {
-      r.Fail(t.line, t.KeyOf("integrator_step_s"),
+    if (period_s / s->vehicle.integrator_step_s > kMaxRk4Substeps * (1.0 + 1e-9)) {
+      r.Fail(RegionAt(run_rate, t.line), t.KeyOf("integrator_step_s"),
              "the default RK4 step (0.01 s) is less than 1/" + std::to_string(kMaxRk4Substeps) +
                  " of the control period (" + FormatNumber(period_s) + " s)",
              std::nullopt,
@@ -1709,13 +1711,14 @@ void ReadScenario(const Reader& r, const toml::table& root, Scenario* s) {
   const auto child = [&](std::string_view key) {
     return r.Child(top, key, "write [" + std::string(key) + "] as a table header");
   };
-  ReadRun(r, child("run"), s);
+  const Table run = child("run");
+  ReadRun(r, run, s);
   ReadSwarm(r, child("swarm"), s);
   ReadControl(r, child("control"), s);
   ReadLeader(r, child("leader"), &s->leader);
   ReadChannel(r, child("channel"), s);
   ReadDisturbance(r, child("disturbance"), &s->disturbance);
-  ReadVehicle(r, child("vehicle"), s);
+  ReadVehicle(r, child("vehicle"), s, run.Get("control_rate_hz"));
   ReadMetrics(r, child("metrics"), &s->metrics);
   ReadFollowers(r, top, s);
   ReadEvents(r, top, s);

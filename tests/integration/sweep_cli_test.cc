@@ -291,8 +291,20 @@ TEST(SweepCli, ALargePointIsRefusedBeforeAnythingRuns) {
   const RunResult r = RunShoal("sweep " + dir + "/large.toml --out " + dir + "/out", "sweep_large");
   EXPECT_EQ(r.status, 2) << r.err;
   EXPECT_NE(r.err.find("point 0: refusing a large run"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("--allow-large"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("shoal sweep --allow-large"), std::string::npos) << r.err;
   EXPECT_NE(access((dir + "/out/results.jsonl").c_str(), F_OK), 0);
+  // With --allow-large the point runs (here until its 2 s timeout), its command with it.
+  std::ofstream(dir + "/large.toml") << Head("duration_s = 1e9\ntimeout_s = 2\n") +
+                                             "[[axis]]\nkey = \"control.k1\"\nvalues = [0.18]\n"
+                                             "[pass]\nconverged = true\n";
+  const RunResult ran = RunShoal("sweep " + dir + "/large.toml --quiet --allow-large --out " + dir + "/out2",
+                                 "sweep_large_allowed");
+  EXPECT_EQ(ran.status, 1) << ran.err;
+  const std::vector<ojson> rows = ReadRows(dir + "/out2/results.jsonl");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0]["status"], "timeout") << rows[0].dump();
+  EXPECT_NE(rows[0]["command"].get<std::string>().find(" --allow-large"), std::string::npos)
+      << rows[0].dump();
 }
 
 // Without [pass] a point passes when its run exits 0: a run that does not converge fails.

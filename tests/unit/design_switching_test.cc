@@ -208,6 +208,38 @@ TEST(Switching, TheDelayBoundCoversEveryTopologysLinksAndChannelEvents) {
   EXPECT_DOUBLE_EQ(*r.delay.kappa, 0.005);
 }
 
+// A jump is judged where it can happen: on the event's own links, within the run, and not
+// at t = 0, where there is nothing to take over from.
+TEST(Switching, OnlyAHandOverThatCanHappenMakesTauJump) {
+  Scenario s = Load("scenarios/paper_example1.toml");  // 300 s; the leader talks to 1, 3, 5
+  s.delay = DelayConfig(DelayKind::kConstant, 0.2, 0.0, 0.0);
+  LinkOverride fast;  // faster than the event's delay, but not on its link
+  fast.from = 0;
+  fast.to = 3;
+  fast.delay = DelayConfig(DelayKind::kConstant, 0.05, 0.0, 0.0);
+  s.links.push_back(fast);
+  ScenarioEvent lower;
+  lower.kind = EventKind::kChannel;
+  lower.at_s = 10.0;
+  lower.links = {{0, 1}};
+  lower.delay = DelayConfig(DelayKind::kConstant, 0.1, 0.0, 0.0);
+  s.events = {lower};
+  EXPECT_TRUE(BuildDesignReport(s, DesignRequest{}).delay.kappa.has_value());
+  s.events[0].until_s = 400.0;  // hands back after the run's end
+  EXPECT_TRUE(BuildDesignReport(s, DesignRequest{}).delay.kappa.has_value());
+  s.events[0].until_s = 20.0;  // hands back 0.2 s after 0.1 s: up
+  EXPECT_FALSE(BuildDesignReport(s, DesignRequest{}).delay.kappa.has_value());
+  s.events[0].links.clear();  // every link, the fast one too: up at the start as well
+  s.events[0].until_s = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(BuildDesignReport(s, DesignRequest{}).delay.kappa.has_value());
+  ScenarioEvent from_start = lower;  // above the default, but from t = 0
+  from_start.at_s = 0.0;
+  from_start.links.clear();
+  from_start.delay = DelayConfig(DelayKind::kConstant, 0.3, 0.0, 0.0);
+  s.events = {from_start};
+  EXPECT_TRUE(BuildDesignReport(s, DesignRequest{}).delay.kappa.has_value());
+}
+
 TEST(Switching, ATopologyWithoutASpanningTreeIsNamedAndNothingIsCertified) {
   Scenario s = Load("scenarios/paper_example1.toml");
   s.events.push_back(TopologyEvent(30.0, {{2, 1}, {3, 2}, {4, 3}}, {1}));  // 5 hears nobody
