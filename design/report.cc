@@ -391,6 +391,14 @@ bool DesignRequest::IsValid(const Scenario& s, std::string* why) const {
         "): a certificate would rest on a bound the model does not satisfy; give --rho0 >= " +
         G4(lip.rho0) + " or leave it out";
   }
+  // A current that can flow is a factor no bound of zero covers: rho0 = 0 would certify
+  // the formation as if the water stood still.
+  if (e.empty() && rho0 && *rho0 == 0.0 && s.disturbance.kind == DisturbanceKind::kOceanCurrent &&
+      s.disturbance.current.max_speed_mps > 0.0) {
+    e = "--rho0 0 says there is no uncertain factor, but the scenario's ocean current flows at up "
+        "to " + G4(s.disturbance.current.max_speed_mps) +
+        " m/s: give --rho0 > 0 to assume a bound for it, or leave --rho0 out";
+  }
   if (why) *why = e;
   return e.empty();
 }

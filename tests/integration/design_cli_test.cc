@@ -104,6 +104,22 @@ TEST(DesignCli, NonPositiveGainsAndDelaysExitTwoNamingTheFlag) {
   }
 }
 
+TEST(DesignCli, RhoZeroWithAnOceanCurrentIsRefused) {
+  const std::string scen = SourcePath("scenarios/remus_realistic.toml") +
+                           " --set disturbance.model=ocean_current";
+  const auto r = RunShoal("design " + scen + " --rho0 0", "d_rho0_current");
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("shoal design: --rho0 0 says there is no uncertain factor, but the "
+                       "scenario's ocean current flows at up to 1 m/s"),
+            std::string::npos)
+      << r.err;
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  const auto still =
+      RunShoal("design " + scen + " --rho0 0 --set disturbance.max_speed_mps=0 "
+               "--set disturbance.speed_mps=0", "d_rho0_still");
+  EXPECT_NE(still.status, 2) << still.err;
+}
+
 TEST(DesignCli, BadScenarioFilesAndFlagsExitTwo) {
   for (const std::string& args :
        {"design " + SourcePath("tests/data/bad_scenarios/k1_zero.toml"),
