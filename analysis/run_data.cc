@@ -246,8 +246,9 @@ void RunDataBuilder::AddChannelEvents(const std::uint8_t* data, int size) {
   }
   const int lim = IdLimit();
   for (const channel_event_t& e : events) {
-    if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim || e.status < 0 ||
-        e.status > channel_event_t::STATUS_DROPPED_DEAF) {  // the largest status value
+    // A status above the largest this reader knows is a newer writer's kind of drop: it is
+    // kept and counted as dropped_invalid (lcmtypes/README.md), not rejected.
+    if (e.sender < 0 || e.sender > lim || e.receiver < 0 || e.receiver > lim || e.status < 0) {
       ++d_->rejected;
       continue;
     }

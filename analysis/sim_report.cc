@@ -55,7 +55,7 @@ class LogObserver : public SwarmObserver {
   }
   void OnHealth(Micros utime, const Follower& f) override {
     log_->Write(Name(health_ch_, f.id(), channels::Health), utime,
-                ToLcmHealth2(ToLcmHealth(utime, f, health_seq_[f.id() % 256]++),
+                ToLcmHealth2(ToLcmHealth(utime, f, HealthSeq(f.id())++),
                              LatenessWindow()));
   }
 
@@ -71,7 +71,13 @@ class LogObserver : public SwarmObserver {
   Micros period_us_;
   Micros now_ = 0;
   ChannelEventBatch channel_;
-  std::int32_t health_seq_[256] = {};
+  /// Each follower's own count of health messages, as each process of shoal run keeps.
+  std::int32_t& HealthSeq(int id) {
+    const auto i = static_cast<std::size_t>(id);
+    if (i >= health_seq_.size()) health_seq_.resize(i + 1, 0);
+    return health_seq_[i];
+  }
+  std::vector<std::int32_t> health_seq_;
   std::vector<std::string> state_ch_, rx_ch_, health_ch_;
 };
 
@@ -197,7 +203,7 @@ void FinishLog(const Scenario& s, const Swarm& swarm, bool interrupted, LogObser
                LogWriter* log, SimReport* report) {
   if (report->log_error.empty()) {
     try {
-      const Micros end = static_cast<Micros>(swarm.sim_time_s() * 1e6);
+      const Micros end = swarm.sim_time_us();
       const std::string state = RunStateName(
           interrupted ? RunState::kInterrupted
                       : (swarm.diverged_id() ? RunState::kFailed : RunState::kFinished));

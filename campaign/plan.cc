@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "core/swarm.h"
@@ -80,11 +81,15 @@ std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario
                                                                : RunPace::kRealtime;
   std::vector<PointPlan> plans;
   plans.reserve(points.size());
+  // The file is parsed once, not once a point: a campaign of a million points is checked
+  // in minutes rather than hours.
+  std::optional<ScenarioTemplate> scenario;
   for (const CampaignPoint& p : points) {
     PointPlan plan;
     Scenario s;
     try {
-      s = ParseScenario(scenario_text, c.scenario, PointOverrides(c, base, p));
+      if (!scenario) scenario.emplace(scenario_text, c.scenario);
+      s = scenario->Read(PointOverrides(c, base, p));
     } catch (const ScenarioError& e) {
       throw CampaignError(std::string(e.what()) + " (point " + std::to_string(p.index) + ")");
     }

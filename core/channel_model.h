@@ -453,6 +453,9 @@ class Channel {
         by_sender_[sender].empty()) {
       return;
     }
+    // A sender with no link in the topology in force sends to nobody and nothing is
+    // decided: its modem stays free, so that no later state is "busy" after it.
+    if (timeline_ && !AnyLinkInForce(sender, send_utime)) return;
     // A silent sender's modem, or a busy one, transmits nothing: one decision per link
     // of the topology in force says so.
     const bool silent = timeline_ && timeline_->Silent(sender, send_utime);
@@ -573,6 +576,13 @@ class Channel {
   }
 
   // True if link k belongs to the topology in force at t (always without a timeline).
+  bool AnyLinkInForce(int sender, Micros t) const {
+    for (std::size_t k : by_sender_[static_cast<std::size_t>(sender)]) {
+      if (LinkInForce(k, t)) return true;
+    }
+    return false;
+  }
+
   bool LinkInForce(std::size_t k, Micros t) const {
     return !timeline_ || (timeline_link_[k] >= 0 &&
                           timeline_->LinkActive(static_cast<std::size_t>(timeline_link_[k]), t));

@@ -206,7 +206,17 @@ void Follower::FollowTimeline(Micros now) {
   reset_at_ = start;
   in_reset_ = reset;
   if (timeline_->switches_topology()) {
-    for (Slot& sl : slots_) sl.active = sl.link >= 0 && timeline_->LinkActive(sl.link, now);
+    for (Slot& sl : slots_) {
+      const bool active = sl.link >= 0 && timeline_->LinkActive(sl.link, now);
+      // A link that enters the topology in force starts with nothing, as at the run's
+      // start: the message kept from before the switch would be counted as a timeout and
+      // flag the state stale, or, younger than the timeout, be used as the newest.
+      if (active && !sl.active) {
+        sl.have = false;
+        sl.stale = false;
+      }
+      sl.active = active;
+    }
   }
 }
 

@@ -73,6 +73,8 @@ class Swarm {
   std::int64_t final_tick() const { return final_tick_; }
   Micros period_us() const { return period_us_; }
   double sim_time_s() const { return ToSeconds(last_utime_); }
+  /// The last tick's time, exact (sim_time_s() * 1e6 can fall a microsecond short).
+  Micros sim_time_us() const { return last_utime_; }
   const FormationMetrics& metrics() const { return metrics_; }
   const std::vector<std::unique_ptr<Follower>>& followers() const { return followers_; }
   /// Id of the first follower that diverged (0 if none); the run stops there.

@@ -29,6 +29,16 @@ verify. With the run's key (`<log>.key` next to the log, or key_file) every mess
 Shoal channel must verify: what does not is dropped and counted, as shoal analyze does.
 Without a key, trailers are stripped unchecked and the messages counted as unverified.
 SipHash is computed by libsodium (ctypes) where it is installed, in Python otherwise.
+
+What is kept and what is counted follows shoal analyze (analysis/run_data.cc): a message
+that does not decode to exactly its bytes by the C++ readers' rules is undecodable; an id
+beyond the run's followers (the logged scenario's, else the statuses', else 1023, as known
+when the message is read) is rejected; a channel status above the largest known is counted
+as dropped_invalid; channel decisions at impossible times are left out (analysis.cc
+ChannelEventTimeOf); a retimed log's marker is not an event. The logged scenario is read
+with tomllib (Python 3.11+); on older Pythons ids are checked against the statuses'
+followers and the run's end is judged from the states alone (as shoal analyze does for a
+log without scenario text).
 """
 
 from __future__ import annotations
@@ -76,6 +86,13 @@ STATUS_NAMES = {
 NOT_SENT = (4, 6)  # the state was never transmitted: not in `sent`
 
 
+def status_name(status: int) -> str:
+    """The key a status is counted under: a status above the largest this reader knows
+    (STATUS_DROPPED_DEAF, 8) is a newer writer's kind of drop, counted as dropped_invalid
+    (lcmtypes/README.md); a negative one is rejected when read."""
+    return STATUS_NAMES.get(status, "dropped_invalid")
+
+
 class ShoalLogError(Exception):
     """The log cannot be read at all (missing, empty, not an LCM log, no Shoal message,
     a bad key file, the generated types not found). Damage inside a log is not an error:
@@ -109,7 +126,7 @@ class Decision:
     delay_s: float                  # drawn delay
     deliver_utime: int              # [us], 0 if not delivered
     status: int
-    status_name: str                # STATUS_NAMES
+    status_name: str                # STATUS_NAMES; dropped_invalid for an unknown status
     reason: str
 
 
@@ -128,7 +145,8 @@ class Clock:
 
 @dataclass
 class Health:
-    """health2_t (or health_t of older logs: the window fields are None)."""
+    """health2_t (or health_t of older logs: the window fields are None; a health2_t
+    whose window is not reported, count -1: no bins)."""
     utime: int
     vehicle_id: int                 # -1: the channel emulator
     seq: int
@@ -174,15 +192,28 @@ class ShoalLog:
     rx: Dict[int, int] = field(default_factory=dict)  # SHOAL_RX_<id>: messages per receiver
     scenario_toml: Optional[str] = None
     followers: int = 0
-    events: int = 0                 # every event read (the unauthenticated ones too)
+    events: int = 0                 # every event read (the unauthenticated ones too; not
+                                    # the marker of a retimed log)
     other_events: int = 0           # on channels no Shoal process publishes
     verified: int = 0
     unauthenticated: int = 0        # with a key: no trailer, or it did not verify (dropped)
     unauthenticated_by_channel: Dict[str, int] = field(default_factory=dict)
     unverified: int = 0             # no key: a trailer stripped unchecked
     undecodable: int = 0            # a Shoal channel, but the bytes do not decode
-    rejected: int = 0               # decoded, but an id that does not fit
+    rejected: int = 0               # decoded, but an id that does not fit (or a health
+                                    # window that does not add up)
     repeated_states: int = 0        # same vehicle and utime as an earlier state
+    # Channel decisions at impossible times (sent at a negative time or after the run's
+    # end, delivered before sent or after the last possible delivery), left out of
+    # `decisions` and of decision_counts() as shoal analyze leaves them out of its counts.
+    damaged_decisions: List[Decision] = field(default_factory=list)
+    decisions_sent_impossible: int = 0
+    decisions_delivered_impossible: int = 0
+    end_utime: int = -1             # [us] the last possible send time (-1: unknown)
+    last_delivery_utime: int = -1   # [us] the last possible delivery time (-1: unknown)
+    # A log written by `shoal retime`: its marker event (not counted in `events`), as
+    # shoal analyze's retimed_from: {"log", "first_timestamp_us", "last_timestamp_us"}.
+    retimed_from: Optional[dict] = None
     insecure_run: bool = False      # a status says the bus was not authenticated
     damaged: bool = False
     warnings: List[str] = field(default_factory=list)
@@ -192,7 +223,8 @@ class ShoalLog:
         return self.key_file is not None
 
     def decision_counts(self) -> Dict[str, int]:
-        """Decisions per status as shoal analyze counts them (channel.* of its JSON)."""
+        """Decisions per status as shoal analyze counts them (channel.* of its JSON): an
+        unknown status as dropped_invalid, those at impossible times left out."""
         counts = {name: 0 for name in STATUS_NAMES.values()}
         for d in self.decisions:
             counts[d.status_name] += 1
@@ -219,9 +251,14 @@ def _by_status(decisions: List[Decision]) -> Dict[int, int]:
 
 # ------------------------------------------------------------------ the generated types
 
+TYPE_NAMES = ("vehicle_state_t", "channel_events_t", "channel_event_t", "clock_window_t",
+              "clock_tick_t", "health2_t", "health_t", "run_status_t")
+
+
 def load_types(types_dir: Optional[str] = None):
     """The generated package `shoal` (lcm-gen -p), from the first place that holds it
-    (module docstring). Raises ShoalLogError naming the places looked in."""
+    (module docstring). Raises ShoalLogError naming the places looked in, or the package
+    that does not import (a damaged file) or lacks a type (a stale build)."""
     here = os.path.dirname(os.path.abspath(__file__))
     if types_dir is not None:  # an explicit directory without the types is an error
         places = [types_dir]
@@ -239,34 +276,150 @@ def load_types(types_dir: Optional[str] = None):
         "=DIR, DIR being the directory that holds shoal/")
 
 
+_REBUILD = ("make them again (cmake --build build), or give --types DIR, DIR being the "
+            "directory of a build's package shoal/")
+
+
+def _origin(module) -> str:
+    return os.path.dirname(os.path.abspath(getattr(module, "__file__", "") or ""))
+
+
+def _forget_package(package_dir: str) -> None:
+    """Unloads the modules of a package that failed, so that another place can be tried."""
+    for name in [n for n in sys.modules if n == "shoal" or n.startswith("shoal.")]:
+        if _origin(sys.modules[name]) == package_dir or name == "shoal":
+            del sys.modules[name]
+
+
+def _usable_type(cls) -> bool:
+    try:
+        return callable(getattr(cls, "decode")) and len(cls._get_packed_fingerprint()) == 8
+    except Exception:  # noqa: BLE001  whatever a damaged module does: not usable
+        return False
+
+
 def _import_types(place: str):
-    if place not in sys.path:
+    package_dir = os.path.join(place, "shoal")
+    loaded = sys.modules.get("shoal")
+    if loaded is not None and _origin(loaded) != package_dir:
+        raise ShoalLogError("a module named shoal from " + _origin(loaded) + " is already "
+                            "loaded; the message types in " + place + " cannot be imported "
+                            "beside it")
+    added = place not in sys.path
+    if added:
         sys.path.insert(0, place)
-    package = importlib.import_module("shoal")
-    origin = os.path.dirname(os.path.abspath(getattr(package, "__file__", "") or ""))
-    if origin != os.path.join(place, "shoal"):
-        raise ShoalLogError("a module named shoal from " + origin + " is already loaded; the "
-                            "message types in " + place + " cannot be imported beside it")
+    try:
+        package = importlib.import_module("shoal")
+    except Exception as e:  # noqa: BLE001  a syntax error, a missing module, ...
+        _forget_package(package_dir)
+        if added:
+            sys.path.remove(place)
+        what = " ".join(("%s: %s" % (type(e).__name__, e)).split())
+        raise ShoalLogError("%s: the generated Python message types do not import (%s); %s"
+                            % (package_dir, what, _REBUILD)) from None
+    if _origin(package) != package_dir:
+        raise ShoalLogError("a module named shoal from " + _origin(package) + " is already "
+                            "loaded; the message types in " + place + " cannot be imported "
+                            "beside it")
+    missing = [n for n in TYPE_NAMES if not _usable_type(getattr(package, n, None))]
+    if missing:
+        _forget_package(package_dir)
+        if added:
+            sys.path.remove(place)
+        raise ShoalLogError("%s: the generated Python message types lack %s (made by an "
+                            "older build?); %s" % (package_dir, ", ".join(missing), _REBUILD))
     return package
 
 
+# The wire rules of the C++ readers (runtime/lcm_bus.h Decode: ArrayCountsFit,
+# StringLengthsFit; analysis/run_data.cc DecodeChannelEvents), checked before the generated
+# decoder runs: it reads what the fields ask for from a buffer, so a string length that runs
+# past the end, or a string whose last byte is not its NUL, would go unnoticed.
+_I32 = struct.Struct(">i")
+_STATE_BYTES = 8 + 8 + 4 + 4 + 5 * 5 * 8 + 4
+_EVENT_BODY = 8 + 4 * 5 + 8 * 3 + 1   # channel_event_t without its hash, before `reason`
+_BATCH_HEADER = 8 + 8 + 4 + 4 + 4
+
+
+def _skip_string(data: bytes, pos: int) -> int:
+    """runtime/lcm_bus.h wire_check::SkipString: the position after the string at pos, or
+    -1: a length in [1, bytes left], the text without NUL, then one NUL."""
+    if pos + 4 > len(data):
+        return -1
+    n = _I32.unpack_from(data, pos)[0]
+    pos += 4
+    if n < 1 or n > len(data) - pos or data[pos + n - 1] != 0 or \
+            data.find(b"\0", pos, pos + n - 1) >= 0:
+        return -1
+    return pos + n
+
+
+def _event_body(data: bytes, pos: int) -> int:
+    """run_data.cc DecodeEventBody: the position after the event body at pos, or -1 (its
+    reason's length in [1, bytes left], its last byte a NUL; an inner NUL is not checked)."""
+    if len(data) - pos < _EVENT_BODY + 4:
+        return -1
+    n = _I32.unpack_from(data, pos + _EVENT_BODY)[0]
+    start = pos + _EVENT_BODY + 4
+    if n < 1 or n > len(data) - start or data[start + n - 1] != 0:
+        return -1
+    return start + n
+
+
+def _array_fits(data: bytes, fixed: int, per_item: int) -> bool:
+    """ArrayCountsFit of the clock types: the count (the last fixed field) >= 0, and the
+    bytes exactly the fixed part and that many items."""
+    if len(data) < fixed:
+        return False
+    n = _I32.unpack_from(data, fixed - 4)[0]
+    return n >= 0 and len(data) - fixed == n * per_item
+
+
+def _wire_ok(name: str, data: bytes) -> bool:
+    if name == "vehicle_state_t":
+        return len(data) == _STATE_BYTES
+    if name == "channel_event_t":
+        return _event_body(data, 8) == len(data)
+    if name == "channel_events_t":
+        if len(data) < _BATCH_HEADER:
+            return False
+        n = _I32.unpack_from(data, _BATCH_HEADER - 4)[0]
+        if n < 0 or n > (len(data) - _BATCH_HEADER) // (_EVENT_BODY + 5):
+            return False
+        pos = _BATCH_HEADER
+        for _ in range(n):
+            pos = _event_body(data, pos)
+            if pos < 0:
+                return False
+        return pos == len(data)
+    if name == "clock_window_t":
+        return _array_fits(data, 8 + 8 + 4 + 4 + 8 + 4 + 8 + 1 + 4, 8 + 4 + 4 + 4 + 8)
+    if name == "clock_tick_t":
+        return _array_fits(data, 8 + 8 + 4 + 4 + 8 + 8 + 1 + 4, 4 + 4 + 4 + 8)
+    if name == "run_status_t":
+        pos = 8 + 8 + 4 + 4
+        for _ in range(3):  # state, scenario_name, scenario_toml
+            pos = _skip_string(data, pos)
+            if pos < 0:
+                return False
+        return _skip_string(data, pos + 8 + 4) >= 0  # after seed and followers: message
+    return True  # health2_t, health_t: fixed size, checked by the decoded length
+
+
 class _Decoder:
-    """Decodes by fingerprint, through the generated code. The generated decode reads what
-    its fields ask for and does not check the size: a message must decode to exactly its
-    bytes (as the C++ readers require), else it is undecodable."""
+    """Decodes by fingerprint, through the generated code, after the C++ readers' wire
+    checks (_wire_ok); a message must decode to exactly its bytes, else it is undecodable."""
 
     def __init__(self, types):
         self.t = types
         self.by_hash = {}
-        for name in ("vehicle_state_t", "channel_events_t", "channel_event_t",
-                     "clock_window_t", "clock_tick_t", "health2_t", "health_t",
-                     "run_status_t"):
+        for name in TYPE_NAMES:
             cls = getattr(types, name)
-            self.by_hash[cls._get_packed_fingerprint()] = cls
+            self.by_hash[cls._get_packed_fingerprint()] = (name, cls)
 
     def decode(self, data: bytes, accepted: Tuple[str, ...]):
-        cls = self.by_hash.get(bytes(data[:8]))
-        if cls is None or cls.__name__ not in accepted:
+        name, cls = self.by_hash.get(bytes(data[:8]), (None, None))
+        if cls is None or name not in accepted or not _wire_ok(name, data):
             return None
         buf = io.BytesIO(data)
         try:
@@ -367,6 +520,9 @@ class _EventReader:
         self.damaged_regions += 1
         if self.damaged_regions <= MAX_WARNINGS:
             self.warnings.append(self.path + ": " + text)
+        elif self.damaged_regions == MAX_WARNINGS + 1:
+            self.warnings.append("%s: more damaged places follow (only the first %d are "
+                                 "listed)" % (self.path, MAX_WARNINGS))
 
     def __iter__(self) -> Iterator[Tuple[int, str, bytes]]:
         mm, size, pos = self.mm, self.size, self.start
@@ -548,22 +704,224 @@ def parse_channel(channel: str) -> Tuple[str, int]:
 
 # ------------------------------------------------------------------------ the reader
 
+MAX_VEHICLE_ID = 1023     # the largest id accepted when nothing says n (run_data.h)
+INT64_MAX = (1 << 63) - 1
+
+
+@dataclass
+class _Scenario:
+    """What the reading needs of the logged scenario (shoal analyze parses all of it)."""
+    followers: int
+    period_us: int
+    final_tick: int
+    largest_delay_us: int      # analysis.cc LargestDelayUs
+
+
+class _NotLoaded(Exception):
+    pass
+
+
+def _number(table, key, default=None) -> float:
+    v = table.get(key, default) if isinstance(table, dict) else None
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise _NotLoaded(key)
+    return float(v)
+
+
+def _trace_max(file) -> float:
+    """The largest delay of a delay trace (scenario/loader.cc ParseTraceText): a log's
+    scenario text resolves a relative file in the working directory, as shoal analyze."""
+    if not isinstance(file, str) or not file:
+        raise _NotLoaded("file")
+    try:
+        with open(file, "r", encoding="utf-8", errors="replace") as f:
+            lines = f.read(64 << 20).splitlines()
+    except OSError:
+        raise _NotLoaded(file) from None
+    times: List[float] = []
+    delays: List[float] = []
+    for line in lines:
+        line = line.split("#", 1)[0]
+        if not line.strip(" \t\r"):
+            continue
+        fields = line.split(",")
+        if len(fields) != 2:
+            raise _NotLoaded(file)
+        try:
+            t, d = float(fields[0]), float(fields[1])
+        except ValueError:
+            if not times and "".join(line.split()) == "t_s,delay_s":
+                continue
+            raise _NotLoaded(file) from None
+        if not all(math.isfinite(x) and 0 <= x <= 1e9 for x in (t, d)) or \
+                (times and not t > times[-1]):
+            raise _NotLoaded(file)
+        times.append(t)
+        delays.append(d)
+    if not delays:
+        raise _NotLoaded(file)
+    return max(delays)
+
+
+def _delay_bound(table) -> float:
+    """max(MaxDelaySeconds(c), base_s + |amplitude_s|) of one delay table (0: none)."""
+    if not isinstance(table, dict):
+        raise _NotLoaded("delay")
+    model = table.get("model", "none")
+    if model == "none":
+        return 0.0
+    if model == "acoustic":
+        return (_number(table, "max_range_m") / _number(table, "sound_speed_mps", 1500.0) +
+                _number(table, "processing_s", 0.0) + _number(table, "jitter_s", 0.0))
+    if model == "trace":
+        return _trace_max(table.get("file"))
+    base = _number(table, "base_s")
+    if model == "constant":
+        return base
+    if model in ("sinusoid", "uniform"):
+        amplitude = _number(table, "amplitude_s")
+        return max(base + amplitude, base + abs(amplitude))
+    raise _NotLoaded("model")
+
+
+def _read_scenario(text: str) -> Optional[_Scenario]:
+    """The logged scenario's followers, control period, last tick and largest delay, or
+    None if it does not load. Needs tomllib (Python 3.11+): without it every log is read
+    as shoal analyze reads one without scenario text."""
+    try:
+        import tomllib
+    except ImportError:
+        return None
+    try:
+        root = tomllib.loads(text)
+        run = root.get("run", {})
+        swarm = root.get("swarm", {})
+        channel = root.get("channel", {})
+        followers = swarm.get("followers") if isinstance(swarm, dict) else None
+        if isinstance(followers, bool) or not isinstance(followers, int) or \
+                not 1 <= followers <= 1000 or not isinstance(channel, dict):
+            return None
+        duration = _number(run, "duration_s", 600.0)
+        rate = _number(run, "control_rate_hz", 50.0)
+        if not (duration > 0 and rate > 0 and duration * rate >= 1.0):
+            return None
+        period_us = int(1e6 / rate + 0.5)
+        final_tick = int(math.floor(duration * 1e6 / float(period_us) + 1e-9))
+        worst = _delay_bound(channel.get("delay", {}))
+        for link in channel.get("link", []):
+            if isinstance(link, dict) and "delay" in link:
+                worst = max(worst, _delay_bound(link["delay"]))
+        for event in root.get("event", []):
+            if isinstance(event, dict) and event.get("kind") == "channel" and "delay" in event:
+                worst = max(worst, _delay_bound(event["delay"]))
+    except (_NotLoaded, ValueError, TypeError, AttributeError, ZeroDivisionError,
+            OverflowError, RecursionError):
+        return None
+    us = math.ceil(worst * 1e6) + 1.0
+    return _Scenario(followers, period_us, final_tick, int(us) if us < 9e18 else INT64_MAX)
+
+
+def _saturating_add(a: int, b: int) -> int:
+    return INT64_MAX if a > INT64_MAX - b else a + b
+
+
+def _control_period(scenario: Optional[_Scenario], clock: List[Clock],
+                    leader: List[State]) -> int:
+    """analysis.cc ControlPeriodOf: the scenario's, else the clock's, else the median of
+    the leader's first steps."""
+    if scenario is not None:
+        return scenario.period_us
+    if clock and clock[0].period_us > 0:
+        return clock[0].period_us
+    dt = [leader[k].utime - leader[k - 1].utime for k in range(1, min(len(leader), 1000))
+          if leader[k - 1].utime >= 0]
+    return sorted(dt)[len(dt) // 2] if dt else 0
+
+
+def _contiguous_reach(states: List[State], period: int) -> int:
+    """analysis.cc ContiguousReach: how far the states run from time 0 on without a gap of
+    more than a minute (and 1000 periods); -1 if none is at a time >= 0."""
+    gap = 60000000 if period <= 60000 else 1000 * period if period < 60000000 else INT64_MAX
+    times = [s.utime for s in states if s.utime >= 0]
+    if not times:
+        return -1
+    reach = times[0]
+    for t in times[1:]:
+        if t - reach > gap:
+            break
+        reach = t
+    return reach
+
+
+def _time_bounds(log: ShoalLog, scenario: Optional[_Scenario]) -> Tuple[int, int]:
+    """analysis.cc StateTimeBoundsOf: the last possible send time of a channel decision and
+    the last possible delivery time (-1: unknown)."""
+    period = _control_period(scenario, log.clock, log.states.get(0, []))
+    reach = sorted(r for r in (_contiguous_reach(s, period) for s in log.states.values())
+                   if r >= 0)
+    majority = reach[len(reach) - (len(reach) // 2 + 1)] if reach else -1
+    limit = -1
+    if scenario is not None:
+        limit = max(scenario.final_tick * scenario.period_us, majority)
+    elif majority >= 0:
+        limit = _saturating_add(majority, max(majority, period))
+    if limit < 0:
+        return -1, -1
+    delay = scenario.largest_delay_us if scenario is not None else limit
+    return limit, _saturating_add(_saturating_add(limit, delay), max(period, 0))
+
+
+def _impossible(d: Decision, limit: int, deliver_limit: int) -> str:
+    """analysis.cc ChannelEventTimeOf: '' possible, 'sent' or 'delivered' impossible."""
+    if d.send_utime < 0 or (limit >= 0 and d.send_utime > limit):
+        return "sent"
+    if d.status != 0:
+        return ""
+    if d.deliver_utime < d.send_utime or (deliver_limit >= 0 and d.deliver_utime > deliver_limit):
+        return "delivered"
+    return ""
+
+
 class _Builder:
     """Decodes events into a ShoalLog, keeping what shoal analyze keeps (docs/analyze.md,
-    "What it reads"); what does not decode, or names an id that does not fit, is counted."""
+    "What it reads", analysis/run_data.cc); what does not decode, or names an id that does
+    not fit, is counted. The ids are checked against the limit known when the message is
+    read, as RunDataBuilder::IdLimit: the scenario's followers once the logged scenario
+    loads, else the largest followers of the statuses so far, else 1023."""
 
-    def __init__(self, log: ShoalLog, types):
+    def __init__(self, log: ShoalLog, types, keep: Tuple[str, ...]):
         self.log = log
         self.dec = _Decoder(types)
+        self.keep = keep
+        # What must be read for what is kept: the statuses give n and the scenario; the
+        # states give n otherwise, and with the clock the times a decision can have.
+        self.read = set(keep) | {"STATUS", "STATE"}
+        if "CHANNEL" in keep:
+            self.read.add("CLOCK")
+        self.state_ids_only = "STATE" not in keep and "CHANNEL" not in keep
+        self.state_counts: Dict[int, int] = {}  # states_ids_only: valid states per id
+        self.state_hash = types.vehicle_state_t._get_packed_fingerprint()
+        self.max_status_followers = 0
+        self.scenario: Optional[_Scenario] = None
+        self.warnings: List[str] = []          # as RunDataBuilder's
+        self.damaged_warnings: List[str] = []  # what shoal analyze's text says as DAMAGED:
+        self.any_shoal = False
         self.handlers = {"STATE": self._state, "RX": self._rx, "HEALTH": self._health,
                          "CHANNEL": self._channel, "CLOCK": self._clock,
                          "STATUS": self._status}
 
+    def id_limit(self) -> int:
+        if self.scenario is not None:
+            return self.scenario.followers
+        if self.max_status_followers > 0:
+            return self.max_status_followers
+        return MAX_VEHICLE_ID
+
     def add(self, kind: str, cid: int, data: bytes) -> None:
         if not kind:
             self.log.other_events += 1
-            return
-        self.handlers[kind](cid, data)
+        elif kind in self.read:
+            self.handlers[kind](cid, data)
 
     def _decode(self, data: bytes, *accepted: str):
         msg = self.dec.decode(data, accepted)
@@ -572,10 +930,18 @@ class _Builder:
         return msg
 
     def _state(self, cid: int, data: bytes) -> None:
+        if self.state_ids_only:  # what the decoder checks of a state, without decoding it
+            if len(data) != _STATE_BYTES or bytes(data[:8]) != self.state_hash:
+                self.log.undecodable += 1
+            elif _I32.unpack_from(data, 16)[0] != cid or not 0 <= cid <= self.id_limit():
+                self.log.rejected += 1
+            else:
+                self.state_counts[cid] = self.state_counts.get(cid, 0) + 1
+            return
         m = self._decode(data, "vehicle_state_t")
         if m is None:
             return
-        if m.vehicle_id != cid or cid < 0:
+        if m.vehicle_id != cid or cid < 0 or cid > self.id_limit():
             self.log.rejected += 1
             return
         self.log.states.setdefault(cid, []).append(State(
@@ -583,7 +949,7 @@ class _Builder:
             tuple(m.accel_cmd), tuple(m.tau), m.flags))
 
     def _rx(self, cid: int, data: bytes) -> None:
-        if cid < 0:
+        if not 0 <= cid <= self.id_limit():
             self.log.rejected += 1
             return
         self.log.rx[cid] = self.log.rx.get(cid, 0) + 1
@@ -592,13 +958,16 @@ class _Builder:
         m = self._decode(data, "channel_events_t", "channel_event_t")
         if m is None:
             return
+        lim = self.id_limit()
         for e in (m.events if hasattr(m, "events") else [m]):
-            if e.sender < 0 or e.receiver < 0 or e.status not in STATUS_NAMES:
+            # A status above the largest known (STATUS_DROPPED_DEAF) is a newer writer's
+            # kind of drop: kept, counted as dropped_invalid (lcmtypes/README.md).
+            if not (0 <= e.sender <= lim and 0 <= e.receiver <= lim) or e.status < 0:
                 self.log.rejected += 1
                 continue
             self.log.decisions.append(Decision(
                 e.utime, e.sender, e.receiver, e.msg_seq, e.send_utime, e.delay_s,
-                e.deliver_utime, e.status, STATUS_NAMES[e.status], e.reason))
+                e.deliver_utime, e.status, status_name(e.status), e.reason))
 
     def _clock(self, cid: int, data: bytes) -> None:
         m = self._decode(data, "clock_window_t", "clock_tick_t")
@@ -607,7 +976,7 @@ class _Builder:
         n_ticks = getattr(m, "n_ticks", 1)
         if n_ticks < 1 or n_ticks > 100000 or not 0 < m.period_us <= 10 ** 9 or \
                 not 0 <= m.tick <= 2 ** 40 or m.utime != m.tick * m.period_us or \
-                (m.tick + n_ticks) * m.period_us > 2 ** 62:  # shoal analyze's limits
+                (m.tick + n_ticks) * m.period_us > 2 ** 62 - 1:  # shoal analyze's limits
             self.log.rejected += 1
             return
         self.log.clock.append(Clock(m.utime, m.vehicle_id, m.seq, m.tick, n_ticks, m.period_us,
@@ -617,17 +986,17 @@ class _Builder:
         m = self._decode(data, "health2_t", "health_t")
         if m is None:
             return
-        bins = tuple(m.lateness_window_bins) if hasattr(m, "lateness_window_bins") else None
-        if m.vehicle_id != cid or cid < -1 or (bins is not None and (
-                min(bins) < 0 or sum(bins) != m.lateness_window_count)):
+        count = getattr(m, "lateness_window_count", None)
+        bins = tuple(m.lateness_window_bins) if count is not None and count >= 0 else None
+        if m.vehicle_id != cid or not -1 <= cid <= self.id_limit() or (
+                count is not None and not _window_ok(count, m.lateness_window_max_s, bins)):
             self.log.rejected += 1
             return
         self.log.health.setdefault(cid, []).append(Health(
             m.utime, m.vehicle_id, m.seq, m.ticks, m.lateness_p50_s, m.lateness_p99_s,
             m.lateness_max_s, m.overruns, m.msgs_received, m.msgs_dropped_invalid,
             m.msgs_dropped_old, m.neighbour_timeouts, m.active_neighbours, m.saturated_ticks,
-            m.saturation_fraction, getattr(m, "lateness_window_count", None),
-            getattr(m, "lateness_window_max_s", None), bins))
+            m.saturation_fraction, count, getattr(m, "lateness_window_max_s", None), bins))
 
     def _status(self, cid: int, data: bytes) -> None:
         m = self._decode(data, "run_status_t")
@@ -635,19 +1004,29 @@ class _Builder:
             return
         self.log.statuses.append(Status(m.utime, m.vehicle_id, m.seq, m.state,
                                         m.scenario_name, m.seed, m.followers, m.message))
+        if 0 < m.followers <= MAX_VEHICLE_ID:
+            self.max_status_followers = max(self.max_status_followers, m.followers)
         if m.scenario_toml and self.log.scenario_toml is None:
             self.log.scenario_toml = m.scenario_toml
+            self.scenario = _read_scenario(m.scenario_toml)
 
     def finish(self) -> None:
-        """n from the statuses (else the largest id), states beyond it rejected, each
-        vehicle's states sorted by time with one per utime (the last recorded kept)."""
+        """n (the scenario's, else the statuses', else the largest id), states beyond it
+        rejected, each vehicle's states sorted by time with one per utime (the last
+        recorded kept), then the channel decisions at impossible times left out (as shoal
+        analyze's analysis leaves them out) and what was not asked for dropped."""
         log = self.log
-        n = max([s.followers for s in log.statuses if 0 < s.followers <= 1023], default=0)
-        if n == 0:
-            n = max(log.states, default=0)
+        ids = self.state_counts if self.state_ids_only else log.states
+        if self.scenario is not None:
+            n = self.scenario.followers
+        elif self.max_status_followers > 0:
+            n = self.max_status_followers
+        else:
+            n = max(ids, default=0)
         log.followers = n
-        for vid in [v for v in log.states if v > n]:
-            log.rejected += len(log.states.pop(vid))
+        for vid in [v for v in ids if v > n]:
+            gone = ids.pop(vid)
+            log.rejected += gone if isinstance(gone, int) else len(gone)
         for vid, states in log.states.items():
             states.sort(key=lambda s: s.utime)  # stable: equal times keep the log's order
             unique: List[State] = []
@@ -660,8 +1039,86 @@ class _Builder:
             log.states[vid] = unique
         log.states = dict(sorted(log.states.items()))
         log.health = dict(sorted(log.health.items()))
+        if log.repeated_states:
+            self.warnings.append(
+                "%d vehicle states appear more than once (same vehicle and time: a log "
+                "recorded twice or concatenated, or replayed onto a recording bus); each is "
+                "counted once, the last copy kept" % log.repeated_states)
         log.insecure_run = any("bus not authenticated (--insecure)" in s.message
                                for s in log.statuses)
+        # Whether the log holds a Shoal message at all (LoadRunLog's any_shoal).
+        self.any_shoal = bool(ids or log.decisions or log.health or log.clock or log.statuses)
+        if "CHANNEL" in self.keep:
+            self._leave_out_impossible_times()
+        for kind, attr, empty in (("STATE", "states", {}), ("CHANNEL", "decisions", []),
+                                  ("CLOCK", "clock", []), ("HEALTH", "health", {}),
+                                  ("STATUS", "statuses", []), ("RX", "rx", {})):
+            if kind not in self.keep:
+                setattr(log, attr, empty)
+
+    def _leave_out_impossible_times(self) -> None:
+        log = self.log
+        limit, deliver_limit = _time_bounds(log, self.scenario)
+        log.end_utime, log.last_delivery_utime = limit, deliver_limit
+        kept: List[Decision] = []
+        for d in log.decisions:
+            why = _impossible(d, limit, deliver_limit)
+            if not why:
+                kept.append(d)
+                continue
+            log.damaged_decisions.append(d)
+            if why == "sent":
+                log.decisions_sent_impossible += 1
+            else:
+                log.decisions_delivered_impossible += 1
+        log.decisions = kept
+        if log.damaged_decisions:
+            sent_end = deliver_end = ""
+            if limit >= 0:  # without an end to judge by only the sign and order count
+                sent_end = " or after %.2f s" % (limit / 1e6)
+                deliver_end = " or after %.2f s" % (deliver_limit / 1e6)
+            self.damaged_warnings.append(
+                "DAMAGED: %d channel events at impossible times (%d sent at a negative "
+                "time%s, %d delivered before sent%s), left out of the metrics"
+                % (len(log.damaged_decisions), log.decisions_sent_impossible, sent_end,
+                   log.decisions_delivered_impossible, deliver_end))
+
+
+def _window_ok(count: int, max_s: float, bins: Optional[Tuple[int, ...]]) -> bool:
+    """run_data.cc WindowOf: -1 (not reported), or bins >= 0 summing to the count and a
+    finite maximum."""
+    if count < 0:
+        return count == -1
+    return min(bins) >= 0 and sum(bins) == count and math.isfinite(max_s)
+
+
+RETIMED_CHANNEL = "SHOAL-RETIMED"   # analysis/run_data.h kRetimedChannel
+RETIMED_FORMAT = "shoal retimed log 1"
+
+
+def _reject_constant(name):
+    raise ValueError(name)
+
+
+def _retimed_marker(data: bytes) -> Optional[dict]:
+    """run_data.cc ParseRetimedMarker: the marker `shoal retime` writes first (a JSON
+    object), as analyze's JSON key retimed_from, or None if it is not a valid marker."""
+    try:
+        j = json.loads(bytes(data).decode("utf-8-sig"), parse_constant=_reject_constant)
+    except (ValueError, RecursionError):
+        return None
+    if not isinstance(j, dict) or j.get("format") != RETIMED_FORMAT:
+        return None
+    first, last = j.get("first_timestamp_us"), j.get("last_timestamp_us")
+    source = j.get("source", "")
+    if not isinstance(source, str):
+        return None
+    stamps = []
+    for v in (first, last):
+        if type(v) is not int or not -(1 << 63) <= v < (1 << 64):
+            return None
+        stamps.append(v - (1 << 64) if v > INT64_MAX else v)
+    return {"log": source, "first_timestamp_us": stamps[0], "last_timestamp_us": stamps[1]}
 
 
 def _key_file_for(path: str, key_file: Optional[str]) -> Optional[str]:
@@ -692,31 +1149,49 @@ def _authenticate(log: ShoalLog, verifier: Optional[Verifier], kind: str, channe
     return payload
 
 
+KINDS = ("STATE", "RX", "HEALTH", "CHANNEL", "CLOCK", "STATUS")
+
+
 def read_log(path: str, key_file: Optional[str] = None, types_dir: Optional[str] = None,
              channels: Optional[Tuple[str, ...]] = None) -> ShoalLog:
     """Reads the Shoal log at `path`. key_file: the run's key (default: <path>.key if it
     exists; without one the messages are read unverified). types_dir: where the generated
-    types are (load_types). channels: decode only these kinds ('STATE', 'RX', 'HEALTH',
-    'CHANNEL', 'CLOCK', 'STATUS'; default all), the others are still verified and counted.
-    Raises ShoalLogError when the log cannot be read at all."""
+    types are (load_types). channels: keep only these kinds ('STATE', 'RX', 'HEALTH',
+    'CHANNEL', 'CLOCK', 'STATUS'; default all), the others are still verified and counted;
+    the statuses and the states' ids are read whatever is kept (they give n and the ids that
+    fit, as in a full read), and CHANNEL reads the states and the clock too (they give the
+    times a decision can have). Raises ShoalLogError when the log cannot be read at all."""
+    keep = KINDS if channels is None else tuple(channels)
+    unknown = [k for k in keep if k not in KINDS]
+    if unknown:
+        raise ShoalLogError("channels: unknown kind %s (kinds: %s)"
+                            % (", ".join(map(repr, unknown)), ", ".join(KINDS)))
     types = load_types(types_dir)
     log = ShoalLog(path=path, key_file=_key_file_for(path, key_file))
     verifier = Verifier(read_key_file(log.key_file)) if log.key_file else None
     reader = _EventReader(path)
-    builder = _Builder(log, types)
+    builder = _Builder(log, types, keep)
     try:
-        for _timestamp, channel, data in reader:
+        for timestamp, channel, data in reader:
+            # A retimed log's marker is no event of the run (run_data.cc Add): the first
+            # event, stamped with the first stamp it names; elsewhere a foreign event.
+            if channel == RETIMED_CHANNEL and log.events == 0:
+                marker = _retimed_marker(data)
+                if marker is not None and marker["first_timestamp_us"] == timestamp:
+                    log.retimed_from = marker
+                    continue
             log.events += 1
             kind, cid = parse_channel(channel)
             payload = _authenticate(log, verifier, kind, channel, data)
-            if payload is not None and (channels is None or kind in channels or not kind):
+            if payload is not None:
                 builder.add(kind, cid, payload)
     finally:
         reader.close()
     builder.finish()
-    log.warnings = reader.warnings + _authentication_warnings(log)
+    log.warnings = (reader.warnings + builder.warnings + _authentication_warnings(log) +
+                    _ignored_warnings(log) + builder.damaged_warnings)
     log.damaged = reader.damaged_regions > 0
-    _check_usable(log, reader)
+    _check_usable(log, reader, builder.any_shoal)
     return log
 
 
@@ -735,12 +1210,25 @@ def _authentication_warnings(log: ShoalLog) -> List[str]:
     return w
 
 
-def _check_usable(log: ShoalLog, reader: _EventReader) -> None:
+def _ignored_warnings(log: ShoalLog) -> List[str]:
+    """run_data.cc NoteIgnored."""
+    w = []
+    if log.undecodable:
+        w.append("%d messages on Shoal channels did not decode (wrong size or fingerprint, a "
+                 "damaged string length) and were ignored" % log.undecodable)
+    if log.rejected:
+        w.append("%d messages were inconsistent (a vehicle id that does not match its channel "
+                 "or lies beyond the scenario's followers, a health window that does not add "
+                 "up) and were ignored" % log.rejected)
+    return w
+
+
+def _check_usable(log: ShoalLog, reader: _EventReader, any_shoal: bool) -> None:
+    """run_data.cc LoadRunLog: a log of events none of which is a valid Shoal message (a
+    state, a channel decision, a health report, a clock message or a status) is refused."""
     if log.events == 0:
         raise ShoalLogError(log.path + ": no complete LCM event in the file" +
                             (" (" + reader.warnings[0] + ")" if reader.warnings else ""))
-    any_shoal = (log.states or log.decisions or log.health or log.clock or log.statuses or
-                 log.rx or log.undecodable or log.rejected)
     if not any_shoal and log.unauthenticated:
         raise ShoalLogError("%s: none of its %d events authenticates with the key in %s (the "
                             "log of another run, or of a run with --insecure?)"
@@ -819,8 +1307,12 @@ def summary(log: ShoalLog) -> dict:
     names = [s.scenario_name for s in log.statuses if s.scenario_name]
     return {
         "log": log.path, "scenario": names[0] if names else None, "followers": log.followers,
-        "events": log.events, "states": sum(len(s) for s in log.states.values()),
+        "retimed_from": log.retimed_from, "events": log.events,
+        "states": sum(len(s) for s in log.states.values()),
         "vehicles": vehicles, "decisions": log.decision_counts(),
+        "decisions_damaged": len(log.damaged_decisions),
+        "decisions_sent_at_impossible_time": log.decisions_sent_impossible,
+        "decisions_delivered_at_impossible_time": log.decisions_delivered_impossible,
         "clock_messages": len(log.clock), "clock_ticks": log.clock_ticks(),
         "rx_messages": {str(k): v for k, v in sorted(log.rx.items())},
         "health": health, "statuses": [[s.vehicle_id, s.state] for s in log.statuses],
@@ -855,6 +1347,9 @@ def format_summary(s: dict) -> str:
                                                           s["followers"], s["events"]),
              _auth_line(s),
              "states: %d" % s["states"]]
+    if s["retimed_from"] is not None:
+        lines.insert(1, "RETIMED log (event times in mission time) of %s; the wall time is the "
+                     "original recording's" % s["retimed_from"]["log"])
     for v in s["vehicles"]:
         lines.append("  vehicle %d%s: %d states, %.3f..%.3f s" % (
             v["id"], " (leader)" if v["id"] == 0 else "", v["states"], v["first_s"],

@@ -1596,6 +1596,27 @@ void CheckTopologyAndResetOverlaps(const Reader& r, const std::vector<Table>& ta
   }
 }
 
+/// A reset acts at the control ticks of its window: one whose window holds none would do
+/// nothing in shoal sim, and shoal run would restart the vehicle's process for it all the
+/// same.
+void CheckResetsHoldATick(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
+  const Micros period = s.period_us();
+  for (std::size_t k = 0; k < s.events.size(); ++k) {
+    const ScenarioEvent& e = s.events[k];
+    if (e.kind != EventKind::kControllerReset) continue;
+    const Micros end = TimelineMicros(e.end_s());
+    const Micros last = (end - 1) / period * period;  // the last tick before the window ends
+    if (last >= TimelineMicros(e.at_s)) continue;
+    const Table& t = tables[k];
+    r.FailAt(*t.Get("outage_s"), t.KeyOf("outage_s"),
+             "the window [" + FormatNumber(e.at_s) + ", " + FormatNumber(e.end_s()) +
+                 ") s holds no control tick (ticks every " + FormatNumber(period / 1e6) +
+                 " s; the next at " + FormatNumber((static_cast<double>(last) + period) / 1e6) +
+                 " s), so the reset would do nothing",
+             "make outage_s reach the next tick, or start the reset at a tick");
+  }
+}
+
 /// Assumption 1 for every topology the timeline switches to.
 void CheckEventTopologies(const Reader& r, const std::vector<Table>& tables, const Scenario& s) {
   for (std::size_t k = 0; k < s.events.size(); ++k) {
@@ -1702,6 +1723,7 @@ void ReadEvents(const Reader& r, const Table& root, Scenario* s) {
   CheckEventTopologies(r, tables, *s);
   CheckChannelOverlaps(r, tables, *s);
   CheckTopologyAndResetOverlaps(r, tables, *s);
+  CheckResetsHoldATick(r, tables, *s);
   CheckTimelineSize(r, tables, *s);
 }
 
@@ -1845,6 +1867,31 @@ Scenario ParseScenario(const std::string& text, const std::string& path,
     return ParseScenario(effective, path);
   } catch (const ScenarioError& e) {
     throw ChangedScenarioError(e, text, path, overrides);
+  }
+}
+
+struct ScenarioTemplate::Tree {
+  toml::table root;
+};
+
+ScenarioTemplate::ScenarioTemplate(std::string text, std::string path)
+    : tree_(std::make_unique<Tree>()), text_(std::move(text)), path_(std::move(path)) {
+  tree_->root = ParseToml(text_, FileLabel(path_));
+}
+
+ScenarioTemplate::~ScenarioTemplate() = default;
+
+Scenario ScenarioTemplate::Read(const std::vector<ScenarioOverride>& overrides) const {
+  try {
+    toml::table root = tree_->root;
+    ApplyOverrides(overrides, &root);
+    return ReadTree(root, std::string(), path_);
+  } catch (const ScenarioError&) {
+    // A refused set of overrides pays for the whole parse, whose message names the file's
+    // line or the override exactly as ParseScenario's does.
+    Scenario s = ParseScenario(text_, path_, overrides);
+    s.source_text.clear();
+    return s;
   }
 }
 

@@ -1,6 +1,7 @@
 // Loads and validates a scenario TOML file completely before anything runs.
 #pragma once
 
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -51,5 +52,26 @@ bool LoadScenarioWithSetsOrReport(const std::string& who, const std::string& pat
 /// does not validate the result: ParseScenario does).
 std::string ApplyOverridesToText(const std::string& text, const std::string& path,
                                  const std::vector<ScenarioOverride>& overrides);
+
+/// A scenario file parsed once, for checking many sets of overrides (a campaign's points):
+/// Read(overrides) accepts and refuses what ParseScenario(text, path, overrides) does, with
+/// the same messages, and gives the same scenario except that its source_text is empty and
+/// an event's line is the file's (the effective text is not written and parsed again).
+class ScenarioTemplate {
+ public:
+  /// Throws ScenarioError, located, on a syntax error.
+  ScenarioTemplate(std::string text, std::string path);
+  ~ScenarioTemplate();
+  ScenarioTemplate(const ScenarioTemplate&) = delete;
+  ScenarioTemplate& operator=(const ScenarioTemplate&) = delete;
+
+  Scenario Read(const std::vector<ScenarioOverride>& overrides) const;
+
+ private:
+  struct Tree;
+  std::unique_ptr<Tree> tree_;
+  std::string text_;
+  std::string path_;
+};
 
 }  // namespace shoal

@@ -17,4 +17,8 @@ namespace shoal {
 int OpenRegularFile(const std::string& path, const std::string& what, std::int64_t max_bytes,
                     std::string* error, std::int64_t* size_out = nullptr);
 
+/// Whether two paths name one existing file (the same device and inode, through any
+/// links): an output that is an input would destroy it as it is written.
+bool SameFile(const std::string& a, const std::string& b);
+
 }  // namespace shoal

@@ -21,6 +21,7 @@
 #include "runtime/channels.h"
 #include "runtime/log_reader.h"
 #include "runtime/log_writer.h"
+#include "scenario/regular_file.h"
 
 namespace shoal {
 namespace {
@@ -37,12 +38,6 @@ Micros MissionTimeOf(std::string_view ch, const std::uint8_t* d, int n, Micros l
   for (int k = 8; k < 16; ++k) u = (u << 8) | d[k];
   const auto t = static_cast<Micros>(u);
   return t >= 0 && t <= limit ? t : -1;
-}
-
-bool SameFile(const std::string& a, const std::string& b) {
-  struct stat sa {}, sb {};
-  return stat(a.c_str(), &sa) == 0 && stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev &&
-         sa.st_ino == sb.st_ino;
 }
 
 bool Exists(const std::string& p) {

@@ -10,6 +10,7 @@
 #include "core/swarm.h"
 #include "runtime/stop_signals.h"
 #include "scenario/loader.h"
+#include "scenario/regular_file.h"
 #include "tools/json_text.h"
 
 namespace shoal {
@@ -20,6 +21,16 @@ int RunSim(const SimOptions& opt) {
   if (opt.duration_s == 0 || (opt.duration_s < 0 && opt.duration_s != -1)) {
     std::cerr << "shoal sim: --duration must be a positive number of seconds (got "
               << opt.duration_s << ")\n";
+    return kExitBadInput;
+  }
+  if (opt.duration_s > 0 && opt.duration_s * 1e6 < static_cast<double>(s.period_us())) {
+    std::cerr << "shoal sim: --duration must be at least one control period, "
+              << s.period_us() / 1e6 << " s (got " << opt.duration_s << ")\n";
+    return kExitBadInput;
+  }
+  if (!opt.out.empty() && SameFile(opt.out, opt.scenario)) {
+    std::cerr << "shoal sim: --out " << opt.out
+              << " is the scenario file: the log would overwrite it; write it elsewhere\n";
     return kExitBadInput;
   }
   if (!opt.allow_large) {

@@ -2,7 +2,12 @@
 """python/shoal_log.py against shoal analyze, on the logs of a real lockstep run and of
 shoal sim: the same states per vehicle, channel decisions, clock ticks and authentication
 counts, the final formation position error recomputed from the states, one altered
-message refused by both, damaged logs read without a traceback.
+message refused by both, damaged logs read without a traceback: messages that do not
+decode or name ids that do not fit, decisions at impossible times, a retimed log, more
+damaged places than are listed, the same warnings.
+
+The script tested is the source tree's python/shoal_log.py (the build's copy in
+build/python/ is that file once the build has run), with the types of build/python/.
 
 Usage (ctest runs it, tests/python/CMakeLists.txt): shoal_log_test.py BUILD_DIR SOURCE_DIR
 """
@@ -13,6 +18,7 @@ import os
 import random
 import re
 import shutil
+import struct
 import subprocess
 import sys
 import unittest
@@ -24,8 +30,11 @@ TMP = os.path.join(BUILD, "test_tmp", "shoal_log_test")
 EXAMPLE2 = os.path.join(SOURCE, "scenarios", "paper_example2.toml")
 FAULTS = os.path.join(SOURCE, "scenarios", "faults.toml")
 
-sys.path.insert(0, PYDIR)
-import shoal_log  # noqa: E402  (the copy the build puts next to the generated types)
+SCRIPT = os.path.join(SOURCE, "python", "shoal_log.py")
+sys.dont_write_bytecode = True  # nothing written into the source tree
+os.environ["SHOAL_PYTHON_TYPES"] = PYDIR  # the build's types, for the source tree's script
+sys.path.insert(0, os.path.dirname(SCRIPT))
+import shoal_log  # noqa: E402
 
 try:
     import pandas  # optional (Debian: python3-pandas): shoal_log.frames
@@ -74,6 +83,57 @@ def final_position_errors(log):
     for i, d in enumerate(offsets_of(log), start=1):
         e = [(at[i].eta[k] - d[k]) - at[0].eta[k] for k in range(3)]
         out[i] = math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+    return out
+
+
+def read_events(path):
+    """[channel, data, timestamp] of every event of a clean log."""
+    with open(path, "rb") as f:
+        b = f.read()
+    out, pos = [], 0
+    while pos < len(b):
+        ts = int.from_bytes(b[pos + 12:pos + 20], "big", signed=True)
+        cl = int.from_bytes(b[pos + 20:pos + 24], "big")
+        dl = int.from_bytes(b[pos + 24:pos + 28], "big")
+        data = bytearray(b[pos + 28 + cl:pos + 28 + cl + dl])
+        out.append([b[pos + 28:pos + 28 + cl].decode(), data, ts])
+        pos += 28 + cl + dl
+    return out
+
+
+def write_events(path, events):
+    with open(path, "wb") as f:
+        for k, (channel, data, ts) in enumerate(events):
+            c = channel.encode()
+            f.write(struct.pack(">Iqqii", 0xEDA1DA01, k, ts, len(c), len(data)) + c + bytes(data))
+
+
+def i32(data, at, value=None):
+    """The big-endian int32 at `at` of data, after setting it to value if given."""
+    if value is not None:
+        data[at:at + 4] = struct.pack(">i", value)
+    return struct.unpack_from(">i", data, at)[0]
+
+
+# channel_events_t: hash, utime, vehicle_id, seq, n_events, then each event: utime,
+# vehicle_id, seq, sender (+16), receiver (+20), msg_seq, send_utime (+28), delay_s,
+# deliver_utime (+44), status (+52), the reason's length (+53) and bytes (NUL included).
+def batch_events(data):
+    """The offsets of a channel_events_t batch's events in data."""
+    out, at = [], 28
+    for _ in range(i32(data, 24)):
+        out.append(at)
+        at += 57 + i32(data, at + 53)
+    return out
+
+
+def status_strings(data):
+    """The offsets of a run_status_t's string lengths: state, scenario_name, scenario_toml,
+    message."""
+    out, at = [], 24
+    for k in range(4):
+        out.append(at)
+        at += 4 + i32(data, at) + (12 if k == 2 else 0)
     return out
 
 
@@ -133,6 +193,25 @@ class Logs(unittest.TestCase):
         self.assertEqual(log.clock_ticks(), a["ticks"])
         for key in ("verified", "unauthenticated", "unverified", "unauthenticated_by_channel"):
             self.assertEqual(getattr(log, key), a["authentication"][key], key)
+        self.assertEqual(log.undecodable, a["log_undecodable"])
+        self.assertEqual(log.rejected, a["log_rejected"])
+        self.assertEqual(len(log.damaged_decisions), a["channel_events_damaged"])
+        self.assertEqual(log.decisions_sent_impossible,
+                         a["channel_events_sent_at_impossible_time"])
+        self.assertEqual(log.decisions_delivered_impossible,
+                         a["channel_events_delivered_at_impossible_time"])
+        if tomllib is not None:  # without it the logged scenario's end is not read
+            for mine, theirs in ((log.end_utime, a["log_end_s"]),
+                                 (log.last_delivery_utime, a["log_last_delivery_s"])):
+                self.assertEqual(mine, -1 if theirs is None else round(theirs * 1e6))
+        self.assertEqual(log.retimed_from, a["retimed_from"])
+        self.assertEqual({k: len(v) for k, v in log.health.items()},
+                         {p["id"]: p["reports"] for p in a["loop"]["processes"]})
+        # The same warnings, but analyze's about the missing scenario (formation errors,
+        # which Python does not compute) and Python's DAMAGED line (analyze prints it in its
+        # report, not as a warning).
+        self.assertEqual([w for w in log.warnings if not w.startswith("DAMAGED: ")],
+                         [w for w in a["warnings"] if not w.startswith("no scenario text")])
         errors = final_position_errors(log)
         for f in a["followers"]:
             self.assertAlmostEqual(errors[f["id"]], f["final_position_error_m"], delta=1e-9)
@@ -178,7 +257,7 @@ class Logs(unittest.TestCase):
         self.assertEqual(log.unverified, a["authentication"]["unverified"])
         self.assertEqual(log.verified, 0)
         self.check_against_analyze(log, a)
-        p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), bare])
+        p = run([sys.executable, SCRIPT, bare])
         self.assertIn("NOT verified", p.stdout)
 
     def test_an_altered_message_does_not_verify(self):
@@ -199,7 +278,7 @@ class Logs(unittest.TestCase):
         self.assertEqual(a["authentication"]["unauthenticated"], 1)
         self.assertEqual(len(log.states[2]), len(shoal_log.read_log(self.run_log).states[2]) - 1)
         self.check_against_analyze(log, a)
-        p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), forged])
+        p = run([sys.executable, SCRIPT, forged])
         self.assertIn("1 did not verify (dropped): SHOAL_STATE_2 1", p.stdout)
 
     def test_siphash_in_python_verifies_the_run_as_libsodium_does(self):
@@ -274,7 +353,7 @@ class Logs(unittest.TestCase):
         with self.assertRaisesRegex(shoal_log.ShoalLogError, "none of its .* authenticates"):
             shoal_log.read_log(self.run_log, key_file=other)
         self.assertIn("authenticates with the key", analyze_refuses(self.run_log, "--key", other))
-        p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), self.run_log, "--key",
+        p = run([sys.executable, SCRIPT, self.run_log, "--key",
                  other], ok=(2,))
         self.assertNotIn("Traceback", p.stderr)
 
@@ -305,7 +384,7 @@ class Logs(unittest.TestCase):
             self.assertIn(words, log.warnings[0])
             self.assertEqual([w for w in a["warnings"] if "byte" in w], log.warnings)
             self.check_against_analyze(log, a)
-            p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), path])
+            p = run([sys.executable, SCRIPT, path])
             self.assertIn("warning: ", p.stdout)
             self.assertNotIn("Traceback", p.stderr)
         self.assertEqual(shoal_log.read_log(bad_sync).events, len(events) - 1)
@@ -331,6 +410,220 @@ class Logs(unittest.TestCase):
                              [w for w in log.warnings if "byte" in w], case)
             self.check_against_analyze(log, a)
 
+    def edited_sim(self, name, edit):
+        """The shoal sim log (no trailers, no key) with its events edited in place:
+        edit(events), events as read_events gives them."""
+        events = read_events(self.sim_log)
+        edit(events)
+        path = os.path.join(TMP, name)
+        write_events(path, events)
+        return path
+
+    def test_strings_that_do_not_fit_do_not_decode(self):
+        # The generated decoder reads a string's length from the message and that many bytes
+        # from a buffer: a length past the end reads short unnoticed, and the last byte is
+        # dropped unseen. shoal analyze refuses both, and a length of 0.
+        def last_status(events):
+            return [e for e in events if e[0] == "SHOAL_STATUS"][-1][1]
+
+        def message_longer(events):
+            data = last_status(events)
+            at = status_strings(data)[3]
+            i32(data, at, i32(data, at) + 10)  # 10 bytes past the message's end
+
+        def no_nul(events):
+            last_status(events)[-1:] = b"X"  # the message's closing NUL
+
+        def reason_length_0(events):
+            for _, data, _ in events[len(events) // 2:]:
+                if data[:8] != events_hash or not batch_events(data):
+                    continue
+                at = batch_events(data)[-1] + 53
+                if i32(data, at) == 1:  # reason "": its length 0 and no NUL
+                    i32(data, at, 0)
+                    del data[at + 4]
+                    return
+            self.fail("no batch ends with an empty reason")
+
+        events_hash = next(e[1][:8] for e in read_events(self.sim_log)
+                           if e[0] == "SHOAL_CHANNEL")
+        clean = shoal_log.read_log(self.sim_log)
+        for name, edit in (("message_longer", message_longer), ("no_nul", no_nul),
+                           ("reason_length_0", reason_length_0)):
+            path = self.edited_sim(name + ".lcmlog", edit)
+            log = shoal_log.read_log(path)
+            a = analyze(path)
+            self.assertEqual((log.undecodable, a["log_undecodable"]), (1, 1), name)
+            self.assertEqual(log.warnings, ["1 messages on Shoal channels did not decode (wrong "
+                                            "size or fingerprint, a damaged string length) and "
+                                            "were ignored"])
+            if name == "reason_length_0":
+                self.assertLess(len(log.decisions), len(clean.decisions))
+            else:
+                self.assertEqual(len(log.statuses), len(clean.statuses) - 1)
+            self.check_against_analyze(log, a)
+
+    def test_ids_beyond_the_followers_are_rejected(self):
+        # run_data.cc's IdLimit: the scenario's 5 followers, whatever kinds are read.
+        def edit(events):
+            batches = [e[1] for e in events if e[0] == "SHOAL_CHANNEL" and batch_events(e[1])]
+            i32(batches[100], batch_events(batches[100])[0] + 16, 50)  # a sender 50
+            by = {}
+            for k, e in enumerate(events):
+                by.setdefault(e[0], []).append(k)
+            h2, h3 = (events[by[c][3]][1] for c in ("SHOAL_HEALTH_2", "SHOAL_HEALTH_3"))
+            h2[116:124] = struct.pack(">q", -1)  # window not reported: kept
+            h3[124:132] = struct.pack(">d", math.inf)  # a non-finite window maximum
+            health50 = bytearray(events[by["SHOAL_HEALTH_1"][3]][1])
+            i32(health50, 16, 50)
+            state9 = bytearray(events[by["SHOAL_STATE_1"][100]][1])
+            i32(state9, 16, 9)
+            at = len(events) // 2
+            ts = events[at][2]
+            events[at:at] = [["SHOAL_HEALTH_50", health50, ts], ["SHOAL_STATE_9", state9, ts],
+                             ["SHOAL_RX_9", bytearray(events[by["SHOAL_RX_1"][0]][1]), ts]]
+
+        path = self.edited_sim("ids.lcmlog", edit)
+        log = shoal_log.read_log(path)
+        a = analyze(path)
+        self.assertEqual((log.rejected, a["log_rejected"]), (5, 5))
+        self.assertEqual(sorted(log.states), [0, 1, 2, 3, 4, 5])
+        self.assertNotIn(50, log.health)
+        self.assertNotIn(9, log.rx)
+        self.assertEqual(max(max(d.sender, d.receiver) for d in log.decisions), 5)
+        self.assertEqual(sorted(h.lateness_window_count for h in log.health[2])[0], -1)
+        self.check_against_analyze(log, a)
+        only = shoal_log.read_log(path, channels=("STATE",))
+        self.assertEqual((only.followers, only.states, only.rejected), (5, log.states, 1))
+        self.assertNotIn(9, shoal_log.read_log(path, channels=("RX",)).rx)
+        health = shoal_log.read_log(path, channels=("HEALTH",))
+        self.assertEqual(health.health, log.health)
+
+    def test_an_unknown_channel_status_is_dropped_invalid(self):
+        # lcmtypes/README.md: a status above STATUS_DROPPED_DEAF (8) is a newer writer's kind
+        # of drop, counted as dropped_invalid; a negative one is rejected.
+        def edit(events):
+            batches = [e[1] for e in events if e[0] == "SHOAL_CHANNEL" and batch_events(e[1])]
+            batches[100][batch_events(batches[100])[0] + 52] = 9
+            batches[101][batch_events(batches[101])[0] + 52] = 0xFF  # -1
+
+        clean = shoal_log.read_log(self.sim_log)
+        path = self.edited_sim("status9.lcmlog", edit)
+        log = shoal_log.read_log(path)
+        self.assertEqual(log.rejected, 1)
+        self.assertEqual([d.status_name for d in log.decisions if d.status == 9],
+                         ["dropped_invalid"])
+        c, before = log.decision_counts(), clean.decision_counts()
+        self.assertEqual(c["dropped_invalid"], before["dropped_invalid"] + 1)
+        self.assertEqual(sum(c[k] for k in shoal_log.STATUS_NAMES.values()),
+                         sum(before[k] for k in shoal_log.STATUS_NAMES.values()) - 1)
+        a = analyze(path)
+        if a["log_rejected"] == 2 and a["channel"]["dropped_invalid"] == before["dropped_invalid"]:
+            self.skipTest("the shoal analyze in " + BUILD + " rejects an unknown status: built "
+                          "before the rule that counts it as dropped_invalid")
+        self.check_against_analyze(log, a)
+
+    def test_decisions_at_impossible_times_are_left_out(self):
+        def edit(events):
+            batches = [e[1] for e in events if e[0] == "SHOAL_CHANNEL" and batch_events(e[1])]
+            at = batch_events(batches[100])[0]
+            batches[100][at + 28:at + 36] = struct.pack(">q", 10 ** 15)  # sent in 31 years
+            for data in batches[len(batches) // 2:]:
+                delivered = [k for k in batch_events(data) if data[k + 52] == 0]
+                if delivered:
+                    k = delivered[0]
+                    send = struct.unpack_from(">q", data, k + 28)[0]
+                    data[k + 44:k + 52] = struct.pack(">q", send - 1)  # delivered before sent
+                    return
+            self.fail("no delivered decision")
+
+        path = self.edited_sim("impossible.lcmlog", edit)
+        log = shoal_log.read_log(path)
+        a = analyze(path)
+        self.assertEqual((log.decisions_sent_impossible, log.decisions_delivered_impossible),
+                         (1, 1))
+        self.assertEqual(len(log.decisions) + 2,
+                         len(shoal_log.read_log(self.sim_log).decisions))
+        self.check_against_analyze(log, a)
+        if tomllib is not None:  # the end from the logged scenario (Python 3.11+)
+            self.assertEqual(log.end_utime, 40 * 10 ** 6)  # faults_short.toml: 40 s
+            # its largest delay 0.3 s (a channel event's), rounded up, + 1 us, + 1 period
+            self.assertEqual(log.last_delivery_utime, 40 * 10 ** 6 + 300001 + 20000)
+            text = run([SHOAL, "analyze", path]).stdout
+            damaged = [line.strip() for line in text.splitlines() if "channel events at" in line]
+            self.assertEqual(damaged, [w for w in log.warnings if w.startswith("DAMAGED: ")])
+        summary = json.loads(run([sys.executable, SCRIPT, path, "--json"]).stdout)
+        self.assertEqual(summary["decisions"], log.decision_counts())
+        self.assertEqual(summary["decisions_damaged"], 2)
+
+    def test_an_unusable_types_directory_is_a_one_line_error(self):
+        broken = os.path.join(TMP, "types_broken")
+        stale = os.path.join(TMP, "types_stale")
+        for d in (broken, stale):
+            shutil.rmtree(d, ignore_errors=True)
+        os.makedirs(os.path.join(broken, "shoal"))
+        with open(os.path.join(broken, "shoal", "__init__.py"), "w") as f:
+            f.write("this is not python(\n")
+        shutil.copytree(os.path.join(PYDIR, "shoal"), os.path.join(stale, "shoal"),
+                        ignore=shutil.ignore_patterns("__pycache__", "vehicle_state_t.py"))
+        init = os.path.join(stale, "shoal", "__init__.py")
+        with open(init) as f:
+            lines = [x for x in f if "vehicle_state_t" not in x]
+        with open(init, "w") as f:
+            f.writelines(lines)
+        for where, words in ((broken, "do not import (SyntaxError"),
+                             (stale, "lack vehicle_state_t")):
+            for extra, env in ((["--types", where], None), ([], {"SHOAL_PYTHON_TYPES": where})):
+                p = run([sys.executable, SCRIPT, self.sim_log, *extra], ok=(2,), env=env)
+                self.assertNotIn("Traceback", p.stderr)
+                self.assertEqual(len(p.stderr.splitlines()), 1, p.stderr)
+                self.assertIn(words, p.stderr)
+            with self.assertRaises(shoal_log.ShoalLogError):
+                shoal_log.read_log(self.sim_log, types_dir=where)
+        self.assertGreater(shoal_log.read_log(self.sim_log).events, 0)  # types still usable
+
+    def test_a_retimed_log_is_read_as_shoal_analyze_reads_it(self):
+        retimed = os.path.join(TMP, "sim.mission.lcmlog")
+        run([SHOAL, "retime", self.sim_log, "--out", retimed, "--force", "--quiet"])
+        events = read_events(retimed)
+        self.assertEqual(events[0][0], "SHOAL-RETIMED")
+        log = shoal_log.read_log(retimed)
+        a = analyze(retimed)
+        self.assertEqual(log.events, shoal_log.read_log(self.sim_log).events)
+        self.assertEqual(log.retimed_from["log"], os.path.basename(self.sim_log))
+        self.check_against_analyze(log, a)
+        summary = json.loads(run([sys.executable, SCRIPT, retimed, "--json"]).stdout)
+        self.assertEqual(summary["retimed_from"], a["retimed_from"])
+        self.assertEqual(summary["events"], a["log_events"])
+        self.assertIn("RETIMED log (event times in mission time) of sim.lcmlog",
+                      run([sys.executable, SCRIPT, retimed]).stdout)
+        # Not the first event: a foreign event like any other, counted.
+        moved = os.path.join(TMP, "marker_second.lcmlog")
+        write_events(moved, [events[1], events[0]] + events[2:])
+        log = shoal_log.read_log(moved)
+        a = analyze(moved)
+        self.assertIsNone(log.retimed_from)
+        self.assertEqual(log.events, len(events))
+        self.check_against_analyze(log, a)
+
+    def test_more_damaged_places_than_are_listed(self):
+        events = event_offsets(self.run_log)
+        places = [events[k][0] for k in range(100, len(events) - 100, (len(events) - 200) // 25)]
+        self.assertGreaterEqual(len(places), 25)
+
+        def edit(b):
+            for at in places[:25]:
+                b[at] = 0  # its sync word
+
+        path = self.damaged("damaged_25.lcmlog", edit)
+        log = shoal_log.read_log(path)
+        a = analyze(path)
+        self.assertEqual(len(log.warnings), 21)
+        self.assertEqual(log.warnings[-1], path + ": more damaged places follow (only the first "
+                                                  "20 are listed)")
+        self.assertEqual(log.warnings, a["warnings"])
+        self.check_against_analyze(log, a)
+
     def test_what_is_no_log_is_a_clear_error(self):
         junk = os.path.join(TMP, "junk.lcmlog")
         with open(junk, "wb") as f:
@@ -339,14 +632,16 @@ class Logs(unittest.TestCase):
         open(empty, "wb").close()
         for path, words in ((junk, "not an LCM log"), (empty, "empty file"),
                             (os.path.join(TMP, "missing.lcmlog"), "cannot read log")):
-            p = run([sys.executable, os.path.join(PYDIR, "shoal_log.py"), path], ok=(2,))
+            p = run([sys.executable, SCRIPT, path], ok=(2,))
             self.assertIn(words, p.stderr)
             self.assertNotIn("Traceback", p.stderr)
             self.assertIn(words, analyze_refuses(path))
 
     def test_the_cli_finds_the_types_from_the_build_and_the_source_tree(self):
+        # The build's copy finds the types beside it.
         summary = json.loads(run([sys.executable, os.path.join(PYDIR, "shoal_log.py"),
-                                  self.run_log, "--json"]).stdout)
+                                  self.run_log, "--json"],
+                                 env={"SHOAL_PYTHON_TYPES": ""}).stdout)
         self.assertEqual([v["states"] for v in summary["vehicles"]], [501] * 6)
         self.assertEqual(summary["authentication"]["unauthenticated"], 0)
         # The source tree's script finds build/python from python/ (a build named build)

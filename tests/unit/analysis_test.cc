@@ -245,7 +245,8 @@ TEST(Analysis, NotConvergedWhenTheLastSampleViolates) {
 // Written as the lockstep emulator writes it: one clock message and one SHOAL_CHANNEL batch
 // per window of 3 ticks; `legacy`: as logs before batching, one clock message per tick
 // and one channel_event_t per decision.
-std::string WriteChannelLog(int ticks, bool with_states = true, bool legacy = false) {
+std::string WriteChannelLog(int ticks, bool with_states = true, bool legacy = false,
+                            std::int8_t status_at_9 = 2) {
   const std::string path = Tmp(legacy ? "channel_legacy.lcmlog" : "channel.lcmlog");
   LogWriter log(path);
   log.Write(channels::Status(), 0, Status(0, kLauncherId, "running", kScenario));
@@ -277,7 +278,7 @@ std::string WriteChannelLog(int ticks, bool with_states = true, bool legacy = fa
         log.Write(channels::State(id), t, ToLcm(State(id, t, Vec5::Zero(), Vec5::Zero())));
       }
     }
-    const std::int8_t s01 = k == 9 ? 2 : (k % 4 == 3 ? 1 : 0);
+    const std::int8_t s01 = k == 9 ? status_at_9 : (k % 4 == 3 ? 1 : 0);
     const ChannelDecision d01 = Decision(0, 1, t, 0.1, s01 == 0 ? t + 100000 : 0, s01);
     const ChannelDecision d12 = Decision(1, 2, t, 0.03, t + 40000, 0);
     if (legacy) {
@@ -460,6 +461,19 @@ TEST(Analysis, ChannelWithKnownDelayAndDropPattern) {
   // With a clock and no emulator this is a shoal sim log.
   EXPECT_EQ(a.mode, "sim");
   EXPECT_EQ(a.ticks, ticks);
+}
+
+// A status newer than this reader (a later writer's kind of drop) is counted as
+// dropped_invalid, as lcmtypes/README.md promises older readers do, not rejected.
+TEST(Analysis, UnknownChannelStatusIsDroppedInvalidNotRejected) {
+  const RunData run = Load(WriteChannelLog(40, true, false, 9));
+  EXPECT_EQ(run.rejected, 0);
+  const ChannelAnalysis& c = AnalyseRun(run).channel;
+  EXPECT_EQ(c.dropped_queue, 0);
+  EXPECT_EQ(c.dropped_invalid, 1);
+  EXPECT_EQ(c.sent, 80);
+  const RunData negative = Load(WriteChannelLog(40, true, false, -1));
+  EXPECT_EQ(negative.rejected, 1);
 }
 
 TEST(Analysis, AgeAtUseCountsStaleTicksBeyondTheTimeout) {

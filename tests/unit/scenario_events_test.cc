@@ -443,6 +443,20 @@ TEST(ScenarioEventsTest, ResetNeedsAPositiveOutage) {
               "must be at least a microsecond");
 }
 
+// A reset acts at the ticks of its window (50 Hz here): a window between two ticks would
+// do nothing in shoal sim and restart the process in shoal run.
+TEST(ScenarioEventsTest, ResetWindowMustHoldAControlTick) {
+  const std::string at = "\n[[event]]\nat_s = 1.001\nkind = \"controller_reset\"\nvehicles = [1]\n";
+  ExpectError(at + "outage_s = 0.01\n", "outage_s", "event[0].outage_s",
+              "the window [1.001, 1.011) s holds no control tick (ticks every 0.02 s; the next "
+              "at 1.02 s), so the reset would do nothing");
+  EXPECT_EQ(Parse(at + "outage_s = 0.0195\n").events.size(), 1u);  // holds the tick at 1.02
+  EXPECT_EQ(Parse("\n[[event]]\nat_s = 1.02\nkind = \"controller_reset\"\nvehicles = [1]\n"
+                  "outage_s = 1e-6\n")
+                .events.size(),
+            1u);  // starts at a tick
+}
+
 TEST(ScenarioEventsTest, TopologyEventsKeepAssumption1) {
   ExpectError(
       "\n[[event]]\nat_s = 100\nkind = \"topology\"\nedges = [[2, 1]]\n"

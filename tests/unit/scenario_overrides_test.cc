@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -268,6 +270,58 @@ TEST(ScenarioOverrides, EffectiveTextRoundTrips) {
                 "channel.loss={ model = \"bernoulli\", probability = 0.1 }",
                 "control.k1=0.1234567890123", "event[1].at_s=150.5"})),
             s.source_text);
+}
+
+std::string FileText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+/// What a campaign's plan reads of a scenario, and what a run depends on most.
+std::string Summary(const Scenario& s) {
+  std::ostringstream o;
+  o << s.name << " " << s.duration_s << " " << s.control_rate_hz << " " << s.seed << " "
+    << s.followers << " " << s.edges.size() << " " << s.leader_links.size() << " " << s.k1 << " "
+    << s.k2 << " " << static_cast<int>(s.delay.kind) << " " << s.delay.base_s << " "
+    << s.delay.amplitude_s << " " << s.links.size() << " " << s.modems.size() << " "
+    << static_cast<int>(s.disturbance.kind) << " " << s.initial.size() << " " << s.events.size();
+  for (const ScenarioEvent& e : s.events) o << " " << static_cast<int>(e.kind) << "@" << e.at_s;
+  return o.str();
+}
+
+// A campaign checks its points on a template parsed once: each set of overrides gives the
+// scenario, or the message, that parsing the file with them does.
+TEST(ScenarioOverrides, TemplateReadsAsParseScenario) {
+  const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+      {kExample2, {}},
+      {kExample2, {"channel.delay.base_s=0.3", "control.k2=1.7"}},
+      {kExample2, {"channel.delay={ model = \"constant\", base_s = 0.2 }", "run.duration_s=30"}},
+      {kExample2, {"channel.delay.base_s=-1"}},
+      {kExample2, {"nosuch.key=1"}},
+      {kFaults, {"swarm.edges=[]"}},
+      {kFaults, {"event[1]={at_s=101, kind=\"topology\", leader_links=[2]}"}},
+      {kFaults, {"run.seed=7", "run.duration_s=90"}},
+  };
+  for (const auto& [path, flags] : cases) {
+    const std::string text = FileText(path);
+    const ScenarioTemplate t(text, path);
+    std::string parsed, read;
+    try {
+      parsed = Summary(ParseScenario(text, path, Sets(flags)));
+    } catch (const ScenarioError& e) {
+      parsed = std::string("error: ") + e.what();
+    }
+    try {
+      const Scenario s = t.Read(Sets(flags));
+      EXPECT_TRUE(s.source_text.empty());
+      read = Summary(s);
+    } catch (const ScenarioError& e) {
+      read = std::string("error: ") + e.what();
+    }
+    EXPECT_EQ(read, parsed) << path << " with " << flags.size() << " overrides";
+  }
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 
 #include <map>
 #include <memory>
+#include <set>
 #include <vector>
 
 #include "core/channel_model.h"
@@ -212,6 +213,23 @@ TEST(Timeline, LinksOutsideTheTopologyInForceCarryNothing) {
     switched += during && d.sender == 4 && d.receiver == 5;
   }
   EXPECT_EQ(switched, 100);
+}
+
+// A state sent while the topology in force gives its sender no link goes to nobody: no
+// decision, and the modem is not taken, so the first state after it is transmitted.
+TEST(Timeline, ASenderWithoutLinksLeavesItsModemFree) {
+  Scenario s = Example2();
+  s.modem_min_interval_s = 1.0;
+  ScenarioEvent star = Event(EventKind::kTopology, 0.45, 1.05);
+  star.edges = {};
+  star.leader_links = {1, 2, 3, 4, 5};
+  s.events = {star};
+  const Recorder r = Simulate(s, 2.5);
+  std::set<Micros> sent;
+  for (const ChannelDecision& d : r.decisions) {
+    if (d.sender == 1 && !NotTransmitted(d.status)) sent.insert(d.send_utime);
+  }
+  EXPECT_EQ(sent, (std::set<Micros>{0, 1060000, 2060000}));
 }
 
 TEST(Timeline, FollowerUsesOnlyTheNeighboursOfTheTopologyInForce) {
