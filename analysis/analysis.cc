@@ -466,8 +466,10 @@ void AnalyseHealth(const RunData& run, RunAnalysis* a) {
   for (const HealthRecord& h : run.health) {
     ProcessAnalysis& p = by_id[h.process_id];
     p.id = h.process_id;
+    // The newest in mission time (of two at one time, the later in the log): a report
+    // replayed later in the log, validly signed, must not hide what came after it.
+    if (p.reports == 0 || h.utime >= p.last.utime) p.last = h;
     ++p.reports;
-    p.last = h;  // the last in log order, as shoal run's summary
   }
   for (const auto& [id, p] : by_id) {
     a->processes.push_back(p);

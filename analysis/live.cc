@@ -16,6 +16,9 @@
 #include "runtime/messages.h"
 #include "runtime/stop_signals.h"
 
+// runtime/lcm_recv_guard.h's count, weak: only the shoal program links the guard.
+extern "C" unsigned long shoal_lcm_datagrams_refused(void) __attribute__((weak));
+
 namespace shoal {
 namespace {
 
@@ -116,6 +119,17 @@ std::string ListenUrl(const std::string& url) {
          "recv_buf_size=" + std::to_string(kRecvBufBytes);
 }
 
+/// The datagrams the guard before LCM's receive thread refused, said as a warning: nothing
+/// of a run's is lost that way, but someone on the host sent what LCM would have crashed
+/// on.
+void NoteRefusedDatagrams(RunData* run) {
+  const unsigned long n = shoal_lcm_datagrams_refused ? shoal_lcm_datagrams_refused() : 0;
+  if (n == 0) return;
+  run->warnings.push_back(std::to_string(n) +
+                          " malformed LCM datagram(s) received and refused (not a run's: "
+                          "a header that does not add up)");
+}
+
 }  // namespace
 
 bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, std::string* error) {
@@ -166,6 +180,7 @@ bool ReadLiveRun(const LiveOptions& opt, const LoadOptions& lo, RunData* run, st
   b.Finish();
   NoteAuthentication(run);
   NoteIgnored(run);
+  NoteRefusedDatagrams(run);
   if (!error->empty()) return false;
   const bool got = run->state_messages() > 0 || !run->channel_events.empty() ||
                    !run->health.empty() || !run->statuses.empty() || !run->clock.empty();

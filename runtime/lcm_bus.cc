@@ -180,7 +180,21 @@ void LcmBus::Dispatch(std::string_view channel, const unsigned char* data, int s
   const std::vector<Sub*>& subs = SubsFor(channel);
   if (subs.empty()) return;  // LCM drops what no subscription matches, uncounted
   const std::string name(channel);
-  for (Sub* sub : subs) sub->Deliver(name, size > 0 ? data : nullptr, size);
+  const unsigned char* bytes = size > 0 ? data : nullptr;
+  if (!auth_) {
+    for (Sub* sub : subs) sub->handler(name, bytes, size);
+    return;
+  }
+  // Verified once, whichever subscriptions match: a forgery is one rejected datagram.
+  const int payload = auth_->Verify(name, bytes, size);
+  if (payload < 0) {
+    ++rejected_;
+    return;
+  }
+  for (Sub* sub : subs) {
+    const int n = sub->as_received ? size : payload;
+    sub->handler(name, n > 0 ? bytes : nullptr, n);
+  }
 }
 
 void LcmBus::Subscribe(const std::string& channel, Handler handler) {

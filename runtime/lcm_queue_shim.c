@@ -1,5 +1,5 @@
-/* Preloaded into the run's lcm-logger (LD_PRELOAD, set by shoal run). Four things, all on
-   lcm-logger's behalf, through LCM's and GLib's public API:
+/* Preloaded into the run's lcm-logger (LD_PRELOAD, set by shoal run). Eight things, all on
+   lcm-logger's behalf, through the public API of LCM, GLib and the C library:
 
    1. Every subscription lcm-logger makes gets a queue of SHOAL_LOGGER_QUEUE_CAPACITY
       messages instead of LCM's 30. LCM's receive thread reads each datagram off the socket
@@ -59,7 +59,11 @@
       phase of a soak with longer delays has longer windows: its heaps grew by a quarter of
       a megabyte there, which the soak's memory verdict (1 %) read as a leak. Each heap
       therefore grows by 4 MB more than it needs whenever it grows, and is never trimmed:
-      the first window takes the memory a run's windows need (and item 5 locks it). */
+      the first window takes the memory a run's windows need (and item 5 locks it).
+
+   8. LCM's receive thread is guarded against datagrams whose header would make it write
+      outside its buffers (runtime/lcm_recv_guard.c, linked into this library): one forged
+      fragment would otherwise crash the logger and end the run. */
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <errno.h>
@@ -76,6 +80,16 @@
 #include <unistd.h>
 
 #include "runtime/lcm_queue_shim.h"
+#include "runtime/lcm_recv_guard.h"
+
+/* Item 8: what the receive guard refused is said in the logger's output, at its exit. */
+__attribute__((destructor)) static void SayRefused(void)
+{
+    const unsigned long n = shoal_lcm_datagrams_refused();
+    if (n > 0) {
+        fprintf(stderr, "shoal lcm queue shim: %lu malformed LCM datagram(s) refused\n", n);
+    }
+}
 
 /* Item 7. */
 __attribute__((constructor)) static void SteadyHeap(void)
@@ -202,6 +216,20 @@ static const char kBundleChannel[] = "SHOAL_BUNDLE";
 static const unsigned char kRecordable[4] = {'S', 'H', 'B', '2'};
 enum { kMaxChannel = 63 };
 
+/* Whether a bundle's part names one of the run's channels (SHOAL_ and capitals, digits,
+   underscores), as the logger's own --channel filter would have let through: a forged
+   bundle must not write other names into the log, which readers would take for damage. */
+static int RunChannel(const unsigned char *name, uint32_t len)
+{
+    static const char kPrefix[] = "SHOAL_";
+    if (len < sizeof(kPrefix) - 1 || memcmp(name, kPrefix, sizeof(kPrefix) - 1) != 0) return 0;
+    for (uint32_t k = sizeof(kPrefix) - 1; k < len; ++k) {
+        const unsigned char c = name[k];
+        if (!((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) return 0;
+    }
+    return 1;
+}
+
 /* Walks the parts of a recordable bundle: with `t` NULL only checks that it is well formed
    (a bundle is handed on entire or not at all); else hands each part to t's handler. */
 static int ForEachPart(const lcm_recv_buf_t *rbuf, const Target *t)
@@ -212,6 +240,7 @@ static int ForEachPart(const lcm_recv_buf_t *rbuf, const Target *t)
     while (pos < size) {
         const uint32_t len = p[pos];
         if (len < 1 || len > kMaxChannel || size - pos - 1 < len + 4) return 0;
+        if (!RunChannel(p + pos + 1, len)) return 0;
         if (len == sizeof(kBundleChannel) - 1 && memcmp(p + pos + 1, kBundleChannel, len) == 0) {
             return 0; /* never a bundle inside a bundle */
         }

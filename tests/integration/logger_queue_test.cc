@@ -170,6 +170,61 @@ TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
   EXPECT_EQ(events.back().second, std::string(reinterpret_cast<const char*>(bad), sizeof(bad)));
 }
 
+// Datagrams whose LCM header does not add up made LCM 1.3.1's receive thread write outside
+// its buffers: one forged fragment from any user of the host killed the run's logger
+// (SIGSEGV). The preloaded library refuses them before LCM reads them; a bundle naming a
+// channel that is not the run's is logged as it came, not unpacked into that name.
+TEST(LoggerQueue, ForgedFragmentsDoNotCrashTheLoggerNorBundlesNameOtherChannels) {
+  const std::string shim = std::string(SHOAL_BINARY_DIR) + "/runtime/libshoal_lcm_queue.so";
+  const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
+  const std::string log = TmpPath("forged_fragments.lcmlog");
+  std::remove(log.c_str());
+  const std::string preload = "LD_PRELOAD=" + shim;
+  const std::string url_arg = "--lcm-url=" + url;
+  std::vector<char*> argv = {const_cast<char*>("/usr/bin/lcm-logger"),
+                             const_cast<char*>(url_arg.c_str()), const_cast<char*>("-f"),
+                             const_cast<char*>("-q"), const_cast<char*>("--"),
+                             const_cast<char*>(log.c_str()), nullptr};
+  std::vector<char*> envp = {const_cast<char*>(preload.c_str()),
+                             const_cast<char*>("SHOAL_LOGGER_PROGRESS=1"), nullptr};
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), envp.data()), 0);
+  for (int i = 0; i < 100 && access(log.c_str(), F_OK) != 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // subscribed
+  RecorderProgress progress(pid);
+  ASSERT_TRUE(progress.Attach());
+  const std::uint64_t before = progress.handled();
+  for (const auto& d : testing::ForgedLcmDatagrams()) testing::SendUdpDatagram(url, d);
+  const unsigned char foreign[] = {'S', 'H', 'B', '2', 2, 1, 2, 0, 0, 0, 1, 'x'};
+  LcmBus plain(url);
+  ASSERT_TRUE(plain.PublishRaw(bundle_wire::kChannel, foreign, sizeof(foreign)));
+  ASSERT_TRUE(plain.PublishRaw("SHOAL_STATUS", "alone", 5));
+  EXPECT_TRUE(progress.WaitFor(before + 2, 5000000000LL));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFEXITED(status)) << "lcm-logger ended by signal " << WTERMSIG(status);
+  LcmLogReader reader;
+  std::string error;
+  ASSERT_TRUE(reader.Open(log, &error)) << error;
+  std::vector<std::pair<std::string, std::string>> events;
+  LogEventView ev;
+  while (reader.Next(&ev)) {
+    events.emplace_back(std::string(ev.channel),
+                        std::string(reinterpret_cast<const char*>(ev.data),
+                                    static_cast<std::size_t>(ev.size)));
+  }
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].first, bundle_wire::kChannel);
+  EXPECT_EQ(events[0].second,
+            std::string(reinterpret_cast<const char*>(foreign), sizeof(foreign)));
+  EXPECT_EQ(events[1].first, "SHOAL_STATUS");
+  EXPECT_EQ(events[1].second, "alone");
+}
+
 // lcm-logger creates its log before it subscribes. A run that started its processes once
 // the log existed lost what they sent before the subscription: with the logger 600 ms
 // late, every message of a short lockstep run; with it a little late, the processes'

@@ -392,6 +392,27 @@ TEST(ReplayOptions, UntilIdleGoesWithLiveAndIsNotNegative) {
 }
 
 // Nothing on the bus: a clear message and exit 2 after --duration.
+// Datagrams whose LCM header does not add up crashed the live analysis in LCM's receive
+// thread (SIGSEGV); they are refused and said, and the run's messages analysed as ever.
+TEST_F(Replay, LiveAnalysisOutlivesForgedFragments) {
+  const int port = RandomEvenPort();
+  const std::string out = TmpPath("replay_forged.json");
+  const pid_t ana = Spawn(ShoalBinary() + " analyze --live --json --lcm-url '" + Url(port) + "'", out);
+  ASSERT_TRUE(WaitForUdpListener(port, 10)) << "shoal analyze --live did not start";
+  for (const auto& d : testing::ForgedLcmDatagrams()) testing::SendUdpDatagram(Url(port), d);
+  EXPECT_EQ(Play(Url(port), 4.0, "replay_forged"), 0);
+  const int status = WaitExit(ana, 20, nullptr);
+  EXPECT_LT(status, 256) << "killed by signal " << status - 256 << "\n" << ReadFile(out);
+  const auto json = JsonLine(ReadFile(out));
+  ExpectSameAnalysis(Orig().json, json);
+  bool said = false;
+  for (const auto& w : json["warnings"]) {
+    said = said || w.get<std::string>().find("4 malformed LCM datagram(s) received and refused") !=
+                       std::string::npos;
+  }
+  EXPECT_TRUE(said) << json["warnings"];
+}
+
 TEST_F(Replay, LiveWithNothingReceivedExitsTwo) {
   const auto r = RunShoal("analyze --live --duration 1 --lcm-url '" + Url(RandomEvenPort()) + "'",
                           "replay_nothing");

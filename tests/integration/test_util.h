@@ -1,6 +1,9 @@
 // Helpers for tests that run the real `shoal` executable.
 #pragma once
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <signal.h>
 #include <unistd.h>
@@ -12,7 +15,9 @@
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -117,6 +122,53 @@ inline int WaitExit(pid_t pid, double timeout_s, double* took_s) {
   }
   if (took_s) *took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return WIFEXITED(status) ? WEXITSTATUS(status) : 256 + WTERMSIG(status);
+}
+
+/// Sends `bytes` as one UDP datagram to the group and port of a udpm URL
+/// (udpm://GROUP:PORT?...), with TTL 0: as any user of the host can.
+inline void SendUdpDatagram(const std::string& url, const std::vector<unsigned char>& bytes) {
+  const std::string hostport = url.substr(7, url.find('?') - 7);
+  const std::size_t colon = hostport.rfind(':');
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(static_cast<std::uint16_t>(std::stoi(hostport.substr(colon + 1))));
+  ASSERT_EQ(inet_pton(AF_INET, hostport.substr(0, colon).c_str(), &to.sin_addr), 1) << url;
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  const unsigned char ttl = 0, loop = 1;
+  setsockopt(fd, IPPROTO_IP, IP_MULTICAST_TTL, &ttl, sizeof(ttl));
+  setsockopt(fd, IPPROTO_IP, IP_MULTICAST_LOOP, &loop, sizeof(loop));
+  EXPECT_EQ(sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to),
+                   sizeof(to)),
+            static_cast<ssize_t>(bytes.size()));
+  close(fd);
+}
+
+/// An LCM fragment ("LC03": sequence 12, message size, offset, fragment number and count)
+/// followed by `rest`.
+inline std::vector<unsigned char> LcmFragment(std::uint32_t size, std::uint32_t offset,
+                                              std::uint16_t no, std::uint16_t count,
+                                              const std::string& rest) {
+  std::vector<unsigned char> d = {'L', 'C', '0', '3', 0, 0, 0, 12};
+  for (const std::uint32_t v : {size, offset}) {
+    for (int k = 3; k >= 0; --k) d.push_back(static_cast<unsigned char>(v >> (8 * k)));
+  }
+  for (const std::uint16_t v : {no, count}) {
+    d.push_back(static_cast<unsigned char>(v >> 8));
+    d.push_back(static_cast<unsigned char>(v));
+  }
+  d.insert(d.end(), rest.begin(), rest.end());
+  return d;
+}
+
+/// Datagrams in LCM's format whose headers do not add up, each of which made LCM 1.3.1's
+/// receive thread write outside its buffers or read past the datagram.
+inline std::vector<std::vector<unsigned char>> ForgedLcmDatagrams() {
+  const std::string channel = std::string("SHOAL_STATE_1") + '\0' + "z";
+  return {LcmFragment(11853913, 0xffffffffu, 0, 35, channel),  // the offset wraps 32 bits
+          LcmFragment(100, 0xfffffff0u, 1, 2, "zzzz"),         // a later fragment, too
+          LcmFragment(100, 0, 3, 2, channel),                  // numbered beyond its count
+          {'L', 'C', '0', '2', 0, 0, 0, 1, 'S', 'H', 'O', 'A', 'L'}};  // a name without NUL
 }
 
 }  // namespace shoal::testing

@@ -246,5 +246,25 @@ TEST(BusAuth, AuthenticatedBusDropsAndCountsWhatDoesNotVerify) {
   EXPECT_EQ(bus.rejected(), 5);
 }
 
+// A datagram that two subscriptions match (the channel emulator's uplink has a pattern for
+// every SHOAL_ channel and one for the states) is verified once: a forgery counts once.
+TEST(BusAuth, AForgeryMatchedByTwoSubscriptionsCountsOnce) {
+  std::string err;
+  ASSERT_TRUE(EnsureLoopbackMulticast(&err)) << err;
+  const std::string url = PrivateLcmUrl(31393);
+  const Key k = NewKey();
+  LcmBus bus(url, k), same_run(url, k), other_run(url, NewKey());
+  int all = 0, states = 0;
+  bus.Subscribe("CH.*", [&](const std::string&, const void*, int) { ++all; });
+  bus.Subscribe("CH1", [&](const std::string&, const void*, int) { ++states; });
+  ASSERT_TRUE(other_run.PublishRaw("CH1", "forged", 6));
+  ASSERT_TRUE(other_run.PublishRaw("CH1", "forged", 6));
+  ASSERT_TRUE(same_run.PublishRaw("CH1", "hello", 5));
+  for (int k2 = 0; k2 < 40 && states + bus.rejected() < 3; ++k2) bus.Handle(50);
+  EXPECT_EQ(all, 1);
+  EXPECT_EQ(states, 1);
+  EXPECT_EQ(bus.rejected(), 2);
+}
+
 }  // namespace
 }  // namespace shoal::bus_auth
