@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -18,6 +19,7 @@
 #include "analysis/analysis.h"
 #include "analysis/run_data.h"
 #include "analysis/verdict.h"
+#include "runtime/bus_auth.h"
 #include "runtime/channels.h"
 #include "runtime/log_reader.h"
 #include "runtime/log_writer.h"
@@ -120,9 +122,12 @@ bool ReadStamps(const std::string& path, Stamps* s, std::string* error) {
   return true;
 }
 
-/// Writes the marker and every event of `log`, restamped, into `tmp`.
+/// Writes the marker and every event of `log`, restamped, into `tmp`. With the log's key,
+/// only messages that verify set the mission time: a forged or damaged one, which the
+/// analysis drops, must not carry every later event to its time.
 bool WriteRetimed(const std::string& log, const std::string& tmp, Micros limit, const Stamps& s,
-                  std::int64_t* shoal_timed, Micros* last_mission, std::string* error) {
+                  const std::optional<bus_auth::Authenticator>& auth, std::int64_t* shoal_timed,
+                  Micros* last_mission, std::string* error) {
   LcmLogReader reader;
   if (!reader.Open(log, error)) return false;
   try {
@@ -137,7 +142,8 @@ bool WriteRetimed(const std::string& log, const std::string& tmp, Micros limit, 
     Micros mission = 0;  // the running mission time: stamps never go back
     LogEventView ev;
     while (reader.Next(&ev)) {
-      const Micros t = MissionTimeOf(ev.channel, ev.data, ev.size, limit);
+      Micros t = MissionTimeOf(ev.channel, ev.data, ev.size, limit);
+      if (t >= 0 && auth && auth->Verify(ev.channel, ev.data, ev.size) < 0) t = -1;
       if (t >= 0) {
         mission = std::max(mission, t);
         ++*shoal_timed;
@@ -200,17 +206,24 @@ int RunRetime(const RetimeOptions& opt) {
   std::string tmp;
   std::int64_t timed = 0;
   Micros mission = 0;
+  const bool key = access((opt.log + ".key").c_str(), F_OK) == 0;
+  std::optional<bus_auth::Authenticator> auth;
+  bus_auth::Key k{};
+  if (key && !bus_auth::ReadKeyFile(opt.log + ".key", &k, &error)) {
+    std::cerr << kWho << error << "\n";
+    return kExitBadInput;
+  }
+  if (key) auth.emplace(k);
   if (!ReadStamps(opt.log, &s, &error) || !MakeTemp(opt.out, &tmp, &error)) {
     std::cerr << kWho << error << "\n";
     return kExitBadInput;
   }
-  if (!WriteRetimed(opt.log, tmp, limit, s, &timed, &mission, &error) ||
+  if (!WriteRetimed(opt.log, tmp, limit, s, auth, &timed, &mission, &error) ||
       !Commit(tmp, opt.out, 0644, &error)) {
     unlink(tmp.c_str());
     std::cerr << kWho << error << "\n";
     return kExitBadInput;
   }
-  const bool key = access((opt.log + ".key").c_str(), F_OK) == 0;
   if (key && !CopyKey(opt.log + ".key", opt.out + ".key", &error)) {
     std::cerr << kWho << error << "\n";
     return kExitBadInput;

@@ -215,6 +215,48 @@ TEST_F(Retime, ReplacesTheOldKeyAndCountsTheMissionWritten) {
   EXPECT_EQ(RunShoal("analyze " + out, "retime_k4").status, 0);
 }
 
+// With the log's key, a message that does not verify (here one state's time moved near
+// the end of the mission, its trailer no longer matching) sets no mission time: the events
+// after it keep their own, as the analysis, which drops it, sees them.
+TEST_F(Retime, AMessageThatDoesNotVerifySetsNoTime) {
+  const std::string forged = TmpPath("retime_forged.lcmlog");
+  {
+    LcmLogReader in;
+    std::string err;
+    ASSERT_TRUE(in.Open(TheLogs().run, &err)) << err;
+    LogWriter out(forged);
+    LogEventView ev;
+    int states = 0;
+    while (in.Next(&ev)) {
+      std::string data(reinterpret_cast<const char*>(ev.data), static_cast<std::size_t>(ev.size));
+      if (ev.channel == "SHOAL_STATE_2" && ++states == 4 && data.size() >= 16) {
+        const std::uint64_t late = static_cast<std::uint64_t>((kMissionS - 0.1) * 1e6);
+        for (int k = 0; k < 8; ++k) data[8 + k] = static_cast<char>(late >> (8 * (7 - k)));
+      }
+      out.WriteRaw(std::string(ev.channel), ev.timestamp, data.data(),
+                   static_cast<int>(data.size()));
+    }
+    out.Close();
+  }
+  ASSERT_EQ(std::system(("cp '" + TheLogs().run + ".key' '" + forged + ".key'").c_str()), 0);
+  const std::string out = TmpPath("retime_forged_out.lcmlog");
+  std::remove(out.c_str());
+  std::remove((out + ".key").c_str());
+  ASSERT_EQ(RunShoal("retime " + forged + " --out " + out + " --quiet", "retime_forged").status, 0);
+  LcmLogReader r;
+  std::string err;
+  ASSERT_TRUE(r.Open(out, &err)) << err;
+  LogEventView ev;
+  std::int64_t first = -1, events = 0, late = 0;
+  while (r.Next(&ev) && events < 300) {
+    if (first < 0) first = ev.timestamp;
+    late += ev.timestamp - first > 1000000;  // the first 300 events lie in the first second
+    ++events;
+  }
+  EXPECT_EQ(events, 300);
+  EXPECT_EQ(late, 0) << "events stamped at the forged time";
+}
+
 TEST_F(Retime, RefusesToOverwriteAndSaysWhy) {
   const std::string before = ReadFile(TheLogs().run);
   auto r = RunShoal("retime " + TheLogs().run + " --out " + TheLogs().run, "retime_self");

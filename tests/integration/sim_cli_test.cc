@@ -86,6 +86,46 @@ TEST(SimCli, UsageErrorsExitTwo) {
   EXPECT_EQ(RunShoal("frobnicate", "u6").status, 2);
 }
 
+// A duration shorter than one control period runs no tick past t = 0, and a log written
+// over the scenario file would destroy it: both are refused, by sim and by run, before
+// anything is written.
+TEST(SimCli, ADurationUnderAPeriodAndALogOverTheScenarioAreRefused) {
+  const std::string scenario = TmpPath("self_out.toml");
+  std::ofstream(scenario) << ReadFile(SourcePath("scenarios/paper_example1.toml"));
+  const std::string text = ReadFile(scenario);
+  for (const std::string cmd : {"sim", "run"}) {
+    const auto shorter = RunShoal(cmd + " " + scenario + " --duration 0.01", "self_short");
+    EXPECT_EQ(shorter.status, 2) << cmd << ": " << shorter.err;
+    EXPECT_NE(shorter.err.find("--duration must be at least one control period, 0.02 s"),
+              std::string::npos)
+        << cmd << ": " << shorter.err;
+    const auto self = RunShoal(cmd + " " + scenario + " --duration 1 --out " + scenario, "self_out");
+    EXPECT_EQ(self.status, 2) << cmd << ": " << self.err;
+    EXPECT_NE(self.err.find("is the scenario file"), std::string::npos) << cmd << ": " << self.err;
+    EXPECT_EQ(ReadFile(scenario), text) << cmd;
+  }
+}
+
+// The log's last status is stamped at the last tick, never a microsecond before it (a
+// double's round trip fell short for about 1 % of durations at 50 Hz).
+TEST(SimCli, TheLastStatusIsStampedAtTheLastTick) {
+  const std::string log = TmpPath("last_status.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +
+                         " --duration 4.02 --out " + log,
+                     "last_status")
+                .status,
+            0);
+  lcm::LogFile file(log, "r");
+  ASSERT_TRUE(file.good());
+  std::int64_t last_stamp = -1, previous = -1;
+  while (const lcm::LogEvent* ev = file.readNextEvent()) {
+    EXPECT_GE(ev->timestamp, previous) << ev->channel;
+    previous = ev->timestamp;
+    if (ev->channel == "SHOAL_STATUS") last_stamp = ev->timestamp;
+  }
+  EXPECT_EQ(last_stamp, 4020000);
+}
+
 // A refused run writes nothing: an earlier log of the same name stays as it was (here the
 // process output folder <log>.d exists as a file, so the run is refused).
 TEST(RunCli, ARefusedRunLeavesAnEarlierLogAsItWas) {
