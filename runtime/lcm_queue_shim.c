@@ -217,15 +217,18 @@ static const unsigned char kRecordable[4] = {'S', 'H', 'B', '2'};
 enum { kMaxChannel = 63 };
 
 /* Whether a bundle's part names one of the run's channels (SHOAL_ and capitals, digits,
-   underscores), as the logger's own --channel filter would have let through: a forged
-   bundle must not write other names into the log, which readers would take for damage. */
+   underscores, hyphens: SHOAL_HEALTH_-1 is the channel emulator's), as the logger's own
+   --channel filter would have let through: a forged bundle must not write other names into
+   the log, which readers would take for damage. */
 static int RunChannel(const unsigned char *name, uint32_t len)
 {
     static const char kPrefix[] = "SHOAL_";
     if (len < sizeof(kPrefix) - 1 || memcmp(name, kPrefix, sizeof(kPrefix) - 1) != 0) return 0;
     for (uint32_t k = sizeof(kPrefix) - 1; k < len; ++k) {
         const unsigned char c = name[k];
-        if (!((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) return 0;
+        if (!((c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-')) {
+            return 0;
+        }
     }
     return 1;
 }
