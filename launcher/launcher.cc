@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <pthread.h>
 #include <signal.h>
+#include <sys/mman.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
@@ -21,6 +22,7 @@
 #include <cstring>
 #include <map>
 #include <set>
+#include <sstream>
 #include <memory>
 #include <thread>
 
@@ -39,6 +41,7 @@
 #include "runtime/process.h"
 #include "runtime/stop_signals.h"
 #include "scenario/overrides.h"
+#include "scenario/regular_file.h"
 
 namespace shoal {
 namespace {
@@ -51,6 +54,7 @@ struct Child {
   int status = 0;  // raw waitpid status once exited
   bool stopped = false;   // stopped by a signal (SIGSTOP, SIGTSTP, ...), not continued yet
   bool reported = false;  // its fault is already among the problems
+  bool stop_sent = false;  // shoal run asked it to stop (Launch::Stop)
   std::string output;     // its output file, <log>.d/<tag>.txt
   // What it was started with, to start it again (--restart on-failure).
   std::vector<std::string> argv;
@@ -163,10 +167,29 @@ pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::strin
   _exit(127);
 }
 
+/// What a file that is not a regular file is, for a message.
+const char* FileKindOf(mode_t mode) {
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISSOCK(mode)) return "a socket";
+  return "a special file";
+}
+
 /// The log must be writable before anything starts. An existing log is only checked: it
-/// stays as it is until lcm-logger replaces it.
+/// stays as it is until lcm-logger replaces it. It must be a regular file: lcm-logger
+/// fails on a directory only once the run has started, waits on a FIFO until something
+/// reads it, writes into a device (/dev/full), and the key and the process output would
+/// be put beside it (/dev/full.key, /dev/full.d/).
 bool CheckLogWritable(const std::string& log, std::string* error) {
-  if (access(log.c_str(), F_OK) == 0) {
+  struct stat st {};
+  if (stat(log.c_str(), &st) == 0) {
+    if (!S_ISREG(st.st_mode)) {
+      *error = log + ": cannot open log for writing: it is " + FileKindOf(st.st_mode) +
+               ", not a regular file";
+      return false;
+    }
     if (access(log.c_str(), W_OK) == 0) return true;
   } else {
     const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0644);
@@ -205,6 +228,32 @@ bool PrepareOutputDir(const std::string& dir, std::string* error) {
       if (ours) unlink((dir + "/" + n).c_str());
     }
     closedir(d);
+  }
+  return true;
+}
+
+/// The folder that holds `path` ("." for a bare name).
+std::string FolderOf(const std::string& path) {
+  const std::size_t slash = path.rfind('/');
+  return slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+}
+
+/// Whether PrepareKey can replace `key_file`, checked before anything is removed or
+/// written: a folder in its place cannot be removed, and removing the file or making a new
+/// one writes the folder that holds it. Changes nothing.
+bool CheckKeyFile(const LaunchOptions& opt, const std::string& key_file, std::string* error) {
+  struct stat st {};
+  const bool exists = lstat(key_file.c_str(), &st) == 0;
+  const std::string cannot = opt.insecure ? ": cannot remove an earlier run's key file ("
+                             : exists     ? ": cannot replace the key file ("
+                                          : ": cannot create the key file (";
+  if (exists && S_ISDIR(st.st_mode)) {
+    *error = key_file + cannot + std::strerror(EISDIR) + ")";
+    return false;
+  }
+  if ((exists || !opt.insecure) && access(FolderOf(key_file).c_str(), W_OK | X_OK) != 0) {
+    *error = key_file + cannot + std::strerror(errno) + ")";
+    return false;
   }
   return true;
 }
@@ -466,6 +515,8 @@ class Launch {
   bool RecorderVisible() const;
   /// Whether the logger's pid and /dev/shm are this process's (it runs on this host).
   bool LoggerVisible() const;
+  /// Whether the logger counts what it handles in shared memory (SHOAL_LOGGER_PROGRESS=1).
+  bool LoggerCounts() const;
   /// `url`: where the process publishes (empty: the run's bus).
   std::vector<std::string> ProcessArgs(const std::string& exe,
                                        const std::vector<std::string>& more,
@@ -474,6 +525,10 @@ class Launch {
   /// Returns true if all did.
   bool WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit);
   void Stop(bool logger, std::chrono::milliseconds grace);
+  /// Once the logger was told to close the log: a problem if it ended otherwise.
+  void CheckLoggerExit();
+  /// Removes the name of the logger's count from /dev/shm, if it is still there.
+  void RemoveLoggerCount();
   /// Until the logger has subscribed (its progress count's name exists), or 30 s.
   void WaitForSubscription(pid_t logger_pid);
   double WallSeconds(std::chrono::steady_clock::time_point wall0) const;
@@ -549,6 +604,12 @@ bool Launch::CheckOptions(std::string* error) {
     *error = "--duration must be a positive number of seconds";
     return false;
   }
+  if (opt_.duration_s > 0 && opt_.duration_s * 1e6 < static_cast<double>(s_.period_us())) {
+    std::ostringstream period;
+    period << s_.period_us() / 1e6;
+    *error = "--duration must be at least one control period, " + period.str() + " s";
+    return false;
+  }
   if (!opt_.allow_large) {
     *error = LargeRunRefusal(s_, opt_.duration_s,
                              mode_ == Mode::kRealtime ? RunPace::kRealtime : RunPace::kLockstep);
@@ -558,6 +619,10 @@ bool Launch::CheckOptions(std::string* error) {
   r_->sched_fifo = SchedFifoAsked(mode_, opt_.sched_fifo, std::getenv("SHOAL_SCHED_FIFO"));
   r_->duration_s = opt_.duration_s > 0 ? opt_.duration_s : s_.duration_s;
   r_->log = opt_.out.empty() ? s_.name + ".lcmlog" : opt_.out;
+  if (SameFile(r_->log, opt_.scenario)) {
+    *error = r_->log + " is the scenario file: the log would overwrite it; give --out elsewhere";
+    return false;
+  }
   r_->process_output_dir = r_->log + ".d";
   vehicle_exe_ = FindExe("vehicle", "shoal_vehicle");
   leader_exe_ = FindExe("leader", "shoal_leader");
@@ -595,9 +660,10 @@ bool Launch::Prepare(bool for_print, std::string* error) {
   BuildPlan();
   if (for_print) return true;
   // Everything that can refuse the run is checked before anything is written: a refused
-  // run leaves an earlier log and its process output as they were.
-  return CheckLogWritable(r_->log, error) && PrepareOutputDir(r_->process_output_dir, error) &&
-         PrepareKey(opt_, r_, error);
+  // run leaves an earlier log, its key and its process output as they were. PrepareOutputDir
+  // refuses before it removes anything.
+  return CheckLogWritable(r_->log, error) && CheckKeyFile(opt_, r_->log + ".key", error) &&
+         PrepareOutputDir(r_->process_output_dir, error) && PrepareKey(opt_, r_, error);
 }
 
 bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
@@ -709,6 +775,12 @@ bool Launch::LoggerVisible() const {
   if (!opt_.hosts) return true;
   const auto logger = host_checks_.find(HostFor(kLoggerId)->name);
   return logger != host_checks_.end() && logger->second.same_process;
+}
+
+bool Launch::LoggerCounts() const {
+  if (plan_.processes.empty()) return false;
+  const std::vector<std::string>& env = plan_.processes.front().env;
+  return std::find(env.begin(), env.end(), "SHOAL_LOGGER_PROGRESS=1") != env.end();
 }
 
 std::vector<int> Launch::ElsewhereIds() {
@@ -972,11 +1044,7 @@ void Launch::StartAll() {
   // never reach it: in lockstep the processes' ready statuses, for which the clock master
   // would then wait; in real time the emulator's first status, the one with the scenario's
   // text. Counting, it makes its count's name once subscribed (runtime/lcm_queue_shim.c).
-  const auto& env = plan_.processes.front().env;
-  if (logger_pid > 0 &&
-      std::find(env.begin(), env.end(), "SHOAL_LOGGER_PROGRESS=1") != env.end()) {
-    WaitForSubscription(logger_pid);
-  }
+  if (logger_pid > 0 && LoggerCounts()) WaitForSubscription(logger_pid);
   // Real time: a start margin, longer by the logins the starts wait for (--hosts). On the
   // wall clock, it is converted to the monotonic clock as each process does (process.h).
   std::map<std::string, int> placed;  // processes by host
@@ -1148,16 +1216,50 @@ std::string ReadTail(const std::string& path, long max_bytes) {
   return text;
 }
 
-/// The last non-empty line of a process's output file ("" if none), at most 300 bytes.
-std::string LastLineOf(const std::string& path) {
-  std::string text = ReadTail(path, 4096);
-  while (!text.empty() && (text.back() == '\n' || text.back() == '\r' || text.back() == ' ')) {
-    text.pop_back();
+bool EndsWith(const std::string& text, const std::string& tail) {
+  return text.size() >= tail.size() &&
+         text.compare(text.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+/// Whether `line` is one that a run's process writes at its end however it ended, after
+/// any reason it stopped for: the count of what failed authentication that each writes
+/// last, "<name>: N message(s) failed authentication (dropped)", or "<name>: bus not
+/// authenticated (--insecure)" (bus_auth::ExitNote, in runtime/clocked_node.cc and
+/// channel_emulator/channel_emulator_app.cc); and the channel emulator's lockstep figures
+/// ("waited for the recorder ...", "lockstep, N windows of ...").
+bool IsRoutineEndLine(const std::string& line) {
+  std::int64_t count = 0;
+  if (EndsWith(line, " message(s) failed authentication (dropped)") &&
+      bus_auth::ParseExitNote(line, &count)) {
+    return true;
   }
-  const std::size_t nl = text.rfind('\n');
-  std::string last = nl == std::string::npos ? text : text.substr(nl + 1);
-  if (last.size() > 300) last = last.substr(0, 300) + "...";
-  return last;
+  if (EndsWith(line, std::string(": ") + bus_auth::kInsecureNote)) return true;
+  const std::string emulator = "shoal_channel_emulator: ";
+  if (line.rfind(emulator + "waited for the recorder", 0) == 0) return true;
+  const std::string windows = emulator + "lockstep, ";
+  if (line.rfind(windows, 0) != 0) return false;
+  std::size_t i = windows.size();
+  while (i < line.size() && line[i] >= '0' && line[i] <= '9') ++i;
+  return i > windows.size() && line.compare(i, 12, " windows of ") == 0;
+}
+
+/// A process's last words: the last line of its output file that is not a routine end
+/// line (IsRoutineEndLine), which would hide why it failed ("" if none), at most 300
+/// bytes.
+std::string LastWordsOf(const std::string& path) {
+  const std::string text = ReadTail(path, 4096);
+  std::size_t end = text.size();
+  while (end > 0) {
+    const std::size_t nl = text.rfind('\n', end - 1);
+    const std::size_t begin = nl == std::string::npos ? 0 : nl + 1;
+    std::string line = text.substr(begin, end - begin);
+    end = nl == std::string::npos ? 0 : nl;
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (line.empty() || IsRoutineEndLine(line)) continue;
+    if (line.size() > 300) line = line.substr(0, 300) + "...";
+    return line;
+  }
+  return "";
 }
 
 /// The disk under the log: lcm-logger exits when a write fails (status 1, "No space left
@@ -1220,6 +1322,9 @@ bool Launch::OnChildEvent(Child& c, int status, const LaunchCallbacks& cb) {
     r_->logger_exited_early = Describe(status);
     r_->logger_exited_at = When();
     r_->logger_exit_note = LoggerExitNote(r_->log, r_->process_output_dir + "/logger.txt");
+    // The report's problem says it as "lcm-logger exited early (...)" (run_report.cc); the
+    // cause of the stop names the process as for any other.
+    r_->stopped_by = Failure(c) + " at " + r_->logger_exited_at;
     c.reported = true;
     return false;
   } else if (!clean) {
@@ -1228,7 +1333,7 @@ bool Launch::OnChildEvent(Child& c, int status, const LaunchCallbacks& cb) {
     const int sig = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
     const bool own = WIFEXITED(status) || sig == SIGABRT || sig == SIGSEGV || sig == SIGBUS ||
                      sig == SIGFPE || sig == SIGILL;
-    const std::string last = own ? LastLineOf(c.output) : "";
+    const std::string last = own ? LastWordsOf(c.output) : "";
     const std::string what =
         Describe(status) + (last.empty() ? "" : " (its output ends with \"" + last + "\")");
     if (Restart(c, what, cb)) return true;
@@ -1337,15 +1442,18 @@ void Launch::Stop(bool logger, std::chrono::milliseconds grace) {
     // input stops the process there, which then ends as it would on SIGTERM.
     if (!c.signals_reach) {
       CloseStdin(c);
+      c.stop_sent = true;
       continue;
     }
     kill(c.pid, logger ? SIGINT : SIGTERM);
     if (c.stopped) kill(c.pid, SIGCONT);
+    c.stop_sent = true;
   }
   if (WaitFor(logger ? IsLogger : IsRunProcess, grace)) return;
   for (Child& c : kids_) {
     if (!c.running || IsLogger(c) != logger) continue;
     SignalGroup(c.pid, SIGKILL);
+    c.reported = true;
     r_->problems.push_back(c.name + " did not stop within " +
                            std::to_string(grace.count()) + " ms and was killed");
   }
@@ -1353,6 +1461,7 @@ void Launch::Stop(bool logger, std::chrono::milliseconds grace) {
   for (Child& c : kids_) {
     if (!c.running || IsLogger(c) != logger) continue;
     c.running = false;
+    c.reported = true;
     r_->problems.push_back(c.name + " (pid " + std::to_string(c.pid) +
                            ") did not exit 2 s after SIGKILL");
   }
@@ -1362,29 +1471,68 @@ void Launch::Shutdown() {
   // Normal end: give the vehicles a moment to finish their last tick on their own. Stopped
   // by a fault: at once, with shorter graces, so that shoal run has exited within 2 s of
   // the fault (docs/reliability.md; they exit within about 0.1 s when they can). The
-  // logger's is the longer one: killed, it would lose what it has not written yet.
+  // logger's is the longer one: killed, it would lose what it has not written yet. A stop
+  // signal hurries the shutdown as well; the processes that had ended by then are reaped
+  // first, so that their statuses are known.
   const bool fault = !r_->logger_exited_early.empty() || !r_->stopped_by.empty() ||
                      start_failed_;
   const bool stopped_early = fault || StopSignals::Requested();
-  if (!stopped_early) WaitFor(IsRunProcess, std::chrono::seconds(2));
   using std::chrono::milliseconds;
+  WaitFor(IsRunProcess, stopped_early ? milliseconds(0) : milliseconds(2000));
   // The run's processes first, the logger last so that it records everything they
   // published; it drains its socket in between.
   Stop(false, milliseconds(fault ? 700 : 2000));
   std::this_thread::sleep_for(milliseconds(fault ? 100 : 200));
   Stop(true, milliseconds(fault ? 1000 : 2000));
-  r_->interrupted = StopSignals::Requested();
-  // Stopped by shoal run (a stop signal, a fault, or the logger gone): the others'
-  // statuses say nothing.
-  if (stopped_early) return;
+  CheckLoggerExit();
+  RemoveLoggerCount();
+  // Once the channel emulator has run the last tick the run is complete: a stop signal
+  // after that only hurried its shutdown, and does not make it an interrupted run.
+  r_->interrupted = StopSignals::Requested() && !emulator_done_;
+  // Stopped by shoal run (a fault, a stop signal, or the logger gone): the others' statuses
+  // say nothing. After a hurried end, those of the processes it had to stop say nothing.
+  if (fault || r_->interrupted) return;
+  const bool hurried = stopped_early;
   for (const Child& c : kids_) {
-    if (IsLogger(c) || c.reported || (WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) {
+    if (IsLogger(c) || c.reported || (hurried && c.stop_sent) ||
+        (WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0)) {
       continue;
     }
     const std::string msg = Failure(c);
     if (std::find(r_->problems.begin(), r_->problems.end(), msg) == r_->problems.end()) {
       r_->problems.push_back(msg);
     }
+  }
+}
+
+void Launch::CheckLoggerExit() {
+  // lcm-logger closes the log and exits 0 on the SIGINT it was sent (or dies of it, sent
+  // before it could catch it); any other end, at the end of a run too, and before it was
+  // asked to stop as well (reaped while the others were waited for), may have left
+  // messages it had received unwritten.
+  for (Child& c : kids_) {
+    if (!IsLogger(c) || c.reported || c.running || c.pid <= 0) continue;
+    const bool closed = (WIFEXITED(c.status) && WEXITSTATUS(c.status) == 0) ||
+                        (WIFSIGNALED(c.status) && WTERMSIG(c.status) == SIGINT);
+    if (closed) continue;
+    c.reported = true;
+    r_->problems.push_back(Failure(c) + " when the run ended" +
+                           LoggerExitNote(r_->log, c.output) +
+                           ": the log may lack the run's last messages");
+  }
+}
+
+void Launch::RemoveLoggerCount() {
+  // The name is removed by whoever reads the count: in lockstep the clock master once it
+  // has mapped it (channel_emulator/recorder_gate.cc), in real time WaitForSubscription.
+  // A run stopped before the clock master did so (Ctrl-C at its start, an emulator that
+  // failed at its start) would leave it in /dev/shm. Removing it again fails harmlessly.
+  if (!LoggerCounts() || !LoggerVisible()) return;
+  for (const Child& c : kids_) {
+    if (!IsLogger(c) || c.pid <= 0) continue;
+    char name[64];
+    std::snprintf(name, sizeof(name), SHOAL_LOGGER_PROGRESS_NAME, static_cast<long>(c.pid));
+    shm_unlink(name);
   }
 }
 
