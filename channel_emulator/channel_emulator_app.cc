@@ -823,6 +823,11 @@ int ChannelEmulatorApp::RunRealtime() {
   WriteNote(late_releases_.Finish());
   PublishEvents();
   PublishHealth((MonotonicNs() - t0_ns_) / 1000);
+  // The status is stamped with the run's clock where it ended (the last tick, or the tick
+  // of a stop), which the loop brings up to date only with each health report: a second
+  // short, the analysis would expect a second of states too few.
+  tick_ = std::min(final_tick_,
+                   std::max<std::int64_t>(0, (MonotonicNs() - t0_ns_) / (period_us_ * 1000)));
   PublishStatus(StopRequested() ? RunState::kInterrupted : RunState::kFinished, "");
   return StopRequested() ? 1 : 0;
 }
