@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <utility>
 
 #include "analysis/event_analysis.h"
@@ -599,12 +600,15 @@ void AnalyseTicks(const RunData& run, const StateTimeBounds& b, const ValidState
     a->states_expected = (b.expected_end_us / a->period_us + 1) * (run.followers + 1);
   }
   // lcm-logger stamps events with the wall clock (us since 1970); shoal sim with
-  // simulated time. Only the former gives a recording span. A retimed log's stamps are
-  // mission time: its marker keeps the original recording's.
-  const bool retimed = run.retimed_from.retimed;
-  const std::int64_t first = retimed ? run.retimed_from.first_timestamp : run.first_timestamp;
-  const std::int64_t last = retimed ? run.retimed_from.last_timestamp : run.last_timestamp;
-  if (first > 1000000000000000LL) a->wall_time_s = ToSeconds(last - first);
+  // simulated time. Only the former gives a recording span: from the first state (tick 0)
+  // to the last event, as shoal run measures its run, without the processes' start-up
+  // before it. A retimed log's stamps are mission time: its marker keeps the original's.
+  const RetimedFrom& r = run.retimed_from;
+  const std::int64_t first_event = r.retimed ? r.first_timestamp : run.first_timestamp;
+  const std::int64_t first_state = r.retimed ? r.first_state_timestamp : run.first_state_timestamp;
+  const std::int64_t last = r.retimed ? r.last_timestamp : run.last_timestamp;
+  const std::int64_t first = first_state >= first_event ? first_state : first_event;
+  if (first_event > 1000000000000000LL) a->wall_time_s = ToSeconds(last - first);
 }
 
 /// The follower that diverged first, as shoal sim defines it: non-finite state or
@@ -744,10 +748,14 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
       break;
     }
   }
-  // Without it (a stream that missed the final clock window), the run-level "finished"
-  // status says the same: the emulator and shoal sim stamp it with the last tick.
+  // Without it (a stream that missed the final clock window, a real-time run), the
+  // run-level "finished" status says the same: the emulator and shoal sim stamp it with the
+  // last tick; an "interrupted" one with the tick where the run was stopped, up to which
+  // its states are expected.
   for (auto st = run.statuses.rbegin(); !final_seen && st != run.statuses.rend(); ++st) {
-    if (st->vehicle_id < 0 && ParseRunState(st->state) == RunState::kFinished &&
+    const std::optional<RunState> state = ParseRunState(st->state);
+    if (st->vehicle_id < 0 &&
+        (state == RunState::kFinished || state == RunState::kInterrupted) &&
         st->utime >= 0 && st->utime <= b.limit_us) {
       b.expected_end_us = st->utime;
       break;

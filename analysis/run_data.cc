@@ -184,6 +184,16 @@ bool ParseRetimedMarker(const std::uint8_t* data, int size, RetimedFrom* out) {
   out->source = j.value("source", "");
   out->first_timestamp = first->get<std::int64_t>();
   out->last_timestamp = last->get<std::int64_t>();
+  const auto first_state = j.find("first_state_timestamp_us");
+  if (first_state != j.end() && first_state->is_number_integer()) {
+    out->first_state_timestamp = first_state->get<std::int64_t>();
+  }
+  const auto damage = j.find("original_damage");
+  if (damage != j.end() && damage->is_array()) {
+    for (const auto& w : *damage) {
+      if (w.is_string()) out->original_damage.push_back(w.get<std::string>());
+    }
+  }
   return true;
 }
 
@@ -209,6 +219,9 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
   }
   d_->last_timestamp = timestamp;
   const channels::Parsed c = channels::Parse(ch);
+  if (c.kind == channels::Kind::kState && d_->first_state_timestamp < 0) {
+    d_->first_state_timestamp = timestamp;
+  }
   switch (c.kind) {
     case channels::Kind::kState:
       AddState(c.id, data, size);
@@ -553,6 +566,14 @@ bool LoadRunLog(const std::string& path, const LoadOptions& opt, RunData* out,
   NoteIgnored(out);
   out->warnings.insert(out->warnings.begin(), reader.warnings().begin(), reader.warnings().end());
   out->damaged = reader.damaged_regions() > 0;
+  // A retimed copy holds what its original's reader could read: it is as damaged.
+  const RetimedFrom& r = out->retimed_from;
+  if (r.retimed && !r.original_damage.empty()) {
+    out->damaged = true;
+    std::vector<std::string> said;
+    for (const std::string& w : r.original_damage) said.push_back("the original log: " + w);
+    out->warnings.insert(out->warnings.begin(), said.begin(), said.end());
+  }
   if (out->events == 0) {
     *error = path + ": no complete LCM event in the file" +
              (reader.warnings().empty() ? std::string() : " (" + reader.warnings().front() + ")");

@@ -135,12 +135,18 @@ struct RetimedFrom {
   bool retimed = false;
   std::string source;  // the original log's name
   std::int64_t first_timestamp = 0, last_timestamp = 0;  // [us] the original's stamps
+  std::int64_t first_state_timestamp = -1;  // [us] its first state's stamp (-1: not given)
+  /// The original's damage, as its reader said it ("original_damage"): a copy holds only
+  /// what could be read, so it is as damaged as its original.
+  std::vector<std::string> original_damage;
 };
 
 /// The marker event `shoal retime` writes first: not a SHOAL_ channel (no live analysis
 /// subscribes to it, no key is needed for it); its data is a JSON object:
 /// {"format": kRetimedFormat, "source": the original log's file name,
-///  "first_timestamp_us", "last_timestamp_us": the original's stamps, "events": its count}.
+///  "first_timestamp_us", "last_timestamp_us": the original's stamps, "events": its count,
+///  "first_state_timestamp_us": the stamp of its first vehicle state, and, when the
+///  original was damaged, "original_damage": its reader's warnings}.
 constexpr const char* kRetimedChannel = "SHOAL-RETIMED";
 constexpr const char* kRetimedFormat = "shoal retimed log 1";
 
@@ -174,6 +180,9 @@ struct RunData {
   std::int64_t rejected = 0;        // decoded, but inconsistent (id mismatch / out of range,
                                     // a health window that does not add up)
   Micros first_timestamp = 0, last_timestamp = 0;  // [us] event timestamps (recorder's clock)
+  /// [us] the first vehicle state's stamp (-1: none): where the run's ticks begin, after
+  /// the processes' start-up that the first events (their statuses) stamp.
+  Micros first_state_timestamp = -1;
   // Authentication (runtime/bus_auth.h).
   bool key_used = false;              // events were checked against the run's key
   std::string key_file;               // where that key came from ("" if given otherwise)

@@ -167,16 +167,6 @@ pid_t Spawn(const std::vector<std::string>& argv, int nice_inc, const std::strin
   _exit(127);
 }
 
-/// What a file that is not a regular file is, for a message.
-const char* FileKindOf(mode_t mode) {
-  if (S_ISDIR(mode)) return "a directory";
-  if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
-  if (S_ISCHR(mode)) return "a character device";
-  if (S_ISBLK(mode)) return "a block device";
-  if (S_ISSOCK(mode)) return "a socket";
-  return "a special file";
-}
-
 /// The log must be writable before anything starts. An existing log is only checked: it
 /// stays as it is until lcm-logger replaces it. It must be a regular file: lcm-logger
 /// fails on a directory only once the run has started, waits on a FIFO until something
@@ -186,7 +176,7 @@ bool CheckLogWritable(const std::string& log, std::string* error) {
   struct stat st {};
   if (stat(log.c_str(), &st) == 0) {
     if (!S_ISREG(st.st_mode)) {
-      *error = log + ": cannot open log for writing: it is " + FileKindOf(st.st_mode) +
+      *error = log + ": cannot open log for writing: it is " + KindOf(st.st_mode) +
                ", not a regular file";
       return false;
     }

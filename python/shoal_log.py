@@ -1100,9 +1100,10 @@ def _reject_constant(name):
     raise ValueError(name)
 
 
-def _retimed_marker(data: bytes) -> Optional[dict]:
+def _retimed_marker(data: bytes) -> Optional[Tuple[dict, List[str]]]:
     """run_data.cc ParseRetimedMarker: the marker `shoal retime` writes first (a JSON
-    object), as analyze's JSON key retimed_from, or None if it is not a valid marker."""
+    object), as analyze's JSON key retimed_from with the original's damage warnings, or
+    None if it is not a valid marker."""
     try:
         j = json.loads(bytes(data).decode("utf-8-sig"), parse_constant=_reject_constant)
     except (ValueError, RecursionError):
@@ -1118,7 +1119,11 @@ def _retimed_marker(data: bytes) -> Optional[dict]:
         if type(v) is not int or not -(1 << 63) <= v < (1 << 64):
             return None
         stamps.append(v - (1 << 64) if v > INT64_MAX else v)
-    return {"log": source, "first_timestamp_us": stamps[0], "last_timestamp_us": stamps[1]}
+    marker = {"log": source, "first_timestamp_us": stamps[0], "last_timestamp_us": stamps[1]}
+    # The original's damage (run_data.cc LoadRunLog): a copy is as damaged as its original.
+    damage = j.get("original_damage")
+    marker_damage = [w for w in damage if isinstance(w, str)] if isinstance(damage, list) else []
+    return marker, marker_damage
 
 
 def _key_file_for(path: str, key_file: Optional[str]) -> Optional[str]:
@@ -1171,14 +1176,15 @@ def read_log(path: str, key_file: Optional[str] = None, types_dir: Optional[str]
     verifier = Verifier(read_key_file(log.key_file)) if log.key_file else None
     reader = _EventReader(path)
     builder = _Builder(log, types, keep)
+    original_damage: List[str] = []
     try:
         for timestamp, channel, data in reader:
             # A retimed log's marker is no event of the run (run_data.cc Add): the first
             # event, stamped with the first stamp it names; elsewhere a foreign event.
             if channel == RETIMED_CHANNEL and log.events == 0:
-                marker = _retimed_marker(data)
-                if marker is not None and marker["first_timestamp_us"] == timestamp:
-                    log.retimed_from = marker
+                parsed = _retimed_marker(data)
+                if parsed is not None and parsed[0]["first_timestamp_us"] == timestamp:
+                    log.retimed_from, original_damage = parsed
                     continue
             log.events += 1
             kind, cid = parse_channel(channel)
@@ -1188,9 +1194,10 @@ def read_log(path: str, key_file: Optional[str] = None, types_dir: Optional[str]
     finally:
         reader.close()
     builder.finish()
-    log.warnings = (reader.warnings + builder.warnings + _authentication_warnings(log) +
+    log.warnings = (["the original log: " + w for w in original_damage] + reader.warnings +
+                    builder.warnings + _authentication_warnings(log) +
                     _ignored_warnings(log) + builder.damaged_warnings)
-    log.damaged = reader.damaged_regions > 0
+    log.damaged = reader.damaged_regions > 0 or bool(original_damage)
     _check_usable(log, reader, builder.any_shoal)
     return log
 

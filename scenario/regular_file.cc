@@ -8,7 +8,6 @@
 #include <cstring>
 
 namespace shoal {
-namespace {
 
 const char* KindOf(mode_t mode) {
   if (S_ISDIR(mode)) return "a directory";
@@ -18,8 +17,6 @@ const char* KindOf(mode_t mode) {
   if (S_ISSOCK(mode)) return "a socket";
   return "a special file";
 }
-
-}  // namespace
 
 int OpenRegularFile(const std::string& path, const std::string& what, std::int64_t max_bytes,
                     std::string* error, std::int64_t* size_out) {

@@ -3,6 +3,8 @@
 // socket cannot be read as a file; each is refused with a message that says what it is.
 #pragma once
 
+#include <sys/types.h>
+
 #include <cstdint>
 #include <string>
 
@@ -16,6 +18,10 @@ namespace shoal {
 /// *size_out, if given, receives the file's size.
 int OpenRegularFile(const std::string& path, const std::string& what, std::int64_t max_bytes,
                     std::string* error, std::int64_t* size_out = nullptr);
+
+/// What a file that is not a regular file is, for a message ("a directory", "a FIFO (named
+/// pipe)", "a character device", ...).
+const char* KindOf(mode_t mode);
 
 /// Whether two paths name one existing file (the same device and inode, through any
 /// links): an output that is an input would destroy it as it is written.

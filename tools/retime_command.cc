@@ -13,6 +13,7 @@
 #include <limits>
 #include <optional>
 #include <sstream>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -106,9 +107,12 @@ bool CopyKey(const std::string& from, const std::string& to, std::string* error)
   return Commit(tmp, to, 0600, error);
 }
 
-/// The first and last stamps and the event count of the log (one pass).
+/// The first and last stamps and the event count of the log (one pass), and its reader's
+/// warnings if it is damaged.
 struct Stamps {
   std::int64_t first = 0, last = 0, events = 0;
+  std::int64_t first_state = -1;  // the first vehicle state's stamp (-1: none)
+  std::vector<std::string> damage;
 };
 
 bool ReadStamps(const std::string& path, Stamps* s, std::string* error) {
@@ -118,7 +122,11 @@ bool ReadStamps(const std::string& path, Stamps* s, std::string* error) {
   while (reader.Next(&ev)) {
     if (s->events++ == 0) s->first = ev.timestamp;
     s->last = ev.timestamp;
+    if (s->first_state < 0 && channels::Parse(ev.channel).kind == channels::Kind::kState) {
+      s->first_state = ev.timestamp;
+    }
   }
+  if (reader.damaged_regions() > 0) s->damage = reader.warnings();
   return true;
 }
 
@@ -132,12 +140,15 @@ bool WriteRetimed(const std::string& log, const std::string& tmp, Micros limit, 
   if (!reader.Open(log, error)) return false;
   try {
     LogWriter w(tmp);
-    const std::string marker = nlohmann::ordered_json{{"format", kRetimedFormat},
-                                                      {"source", BaseOf(log)},
-                                                      {"first_timestamp_us", s.first},
-                                                      {"last_timestamp_us", s.last},
-                                                      {"events", s.events}}
-                                   .dump();
+    nlohmann::ordered_json m{{"format", kRetimedFormat},
+                             {"source", BaseOf(log)},
+                             {"first_timestamp_us", s.first},
+                             {"last_timestamp_us", s.last},
+                             {"events", s.events},
+                             {"first_state_timestamp_us", s.first_state}};
+    // The copy holds what could be read: its analysis must say the original was damaged.
+    if (!s.damage.empty()) m["original_damage"] = s.damage;
+    const std::string marker = m.dump();
     w.WriteRaw(kRetimedChannel, s.first, marker.data(), static_cast<int>(marker.size()));
     Micros mission = 0;  // the running mission time: stamps never go back
     LogEventView ev;

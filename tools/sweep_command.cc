@@ -185,8 +185,9 @@ Prepared Prepare(const SweepOptions& opt) {
   const std::string scenario_text = ReadScenarioText(p.campaign.scenario);
   p.base = BaseOverrides(p.campaign, opt.set);
   p.points = MakePoints(p.campaign);
-  // Each point's scenario is built and checked first: about 0.5 ms a point, minutes for
-  // a large campaign (and again in every shard), which should not look like a hang.
+  // Each point's scenario is built and checked first, on the file parsed once: about
+  // 0.05 ms a point (a profile of 99,856 points), still a minute for a million (and again
+  // in every shard), which should not look like a hang.
   if (!opt.quiet && p.points.size() >= 10000) {
     std::fprintf(stderr, "shoal sweep: checking the scenarios of %zu points before any runs...\n",
                  p.points.size());

@@ -35,6 +35,9 @@ namespace {
 
 using shoal::testing::ParseJson;
 using shoal::testing::ReadFile;
+using shoal::testing::CmdLine;
+using shoal::testing::ParentOf;
+using shoal::testing::ProcessState;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::StartShoal;
@@ -48,30 +51,6 @@ constexpr double kReactionLimitS = 2.0;
 
 double Since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
-std::string CmdLine(pid_t pid) {
-  std::string s = ReadFile("/proc/" + std::to_string(pid) + "/cmdline");
-  for (char& c : s) c = c == '\0' ? ' ' : c;
-  return s;
-}
-
-// The parent pid of pid from /proc/<pid>/stat (after the command name in parentheses).
-pid_t ParentOf(pid_t pid) {
-  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
-  const std::size_t close = stat.rfind(')');
-  if (close == std::string::npos) return -1;
-  char state = 0;
-  int ppid = -1;
-  if (std::sscanf(stat.c_str() + close + 1, " %c %d", &state, &ppid) != 2) return -1;
-  return ppid;
-}
-
-// The state letter of /proc/<pid>/stat ('R', 'S', 'T', 'Z', ...), 0 once pid is gone.
-char ProcessState(pid_t pid) {
-  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
-  const std::size_t close = stat.rfind(')');
-  return close == std::string::npos || close + 2 >= stat.size() ? 0 : stat[close + 2];
 }
 
 std::vector<pid_t> AllPids() {

@@ -99,11 +99,11 @@ TEST(LoggerQueue, FortyFollowersInLockstepLogEveryStateInWindowsOfTheChannelsLag
 // had it been published alone (trailer included), in order; a malformed recordable bundle
 // is recorded as it came, on the bundle channel. With SHOAL_LOGGER_PROGRESS=1 it counts
 // each message it handled, a bundle once, where the clock master reads it.
-TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
+/// Starts the real lcm-logger on `url` writing `log`, with the run's library preloaded and
+/// its count kept (as shoal run starts it); returns once it has subscribed (its pid), or
+/// -1 if it did not start.
+pid_t StartLogger(const std::string& url, const std::string& log) {
   const std::string shim = std::string(SHOAL_BINARY_DIR) + "/runtime/libshoal_lcm_queue.so";
-  const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
-  const std::string log = TmpPath("recordable_bundle.lcmlog");
-  std::remove(log.c_str());
   const std::string preload = "LD_PRELOAD=" + shim;
   const std::string url_arg = "--lcm-url=" + url;
   std::vector<char*> argv = {const_cast<char*>("/usr/bin/lcm-logger"),
@@ -113,11 +113,20 @@ TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
   std::vector<char*> envp = {const_cast<char*>(preload.c_str()),
                              const_cast<char*>("SHOAL_LOGGER_PROGRESS=1"), nullptr};
   pid_t pid = 0;
-  ASSERT_EQ(posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), envp.data()), 0);
+  if (posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), envp.data()) != 0) return -1;
   for (int i = 0; i < 100 && access(log.c_str(), F_OK) != 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // subscribed
+  return pid;
+}
+
+TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
+  const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
+  const std::string log = TmpPath("recordable_bundle.lcmlog");
+  std::remove(log.c_str());
+  const pid_t pid = StartLogger(url, log);
+  ASSERT_GT(pid, 0);
   RecorderProgress progress(pid);
   ASSERT_TRUE(progress.Attach());  // made at its subscription
   // LCM's own self-test message, when it came after the subscription, is counted too.
@@ -175,24 +184,11 @@ TEST(LoggerQueue, TheLoggerRecordsARecordableBundleAsItsMessages) {
 // (SIGSEGV). The preloaded library refuses them before LCM reads them; a bundle naming a
 // channel that is not the run's is logged as it came, not unpacked into that name.
 TEST(LoggerQueue, ForgedFragmentsDoNotCrashTheLoggerNorBundlesNameOtherChannels) {
-  const std::string shim = std::string(SHOAL_BINARY_DIR) + "/runtime/libshoal_lcm_queue.so";
   const std::string url = PrivateLcmUrl(RandomPrivatePort(1));
   const std::string log = TmpPath("forged_fragments.lcmlog");
   std::remove(log.c_str());
-  const std::string preload = "LD_PRELOAD=" + shim;
-  const std::string url_arg = "--lcm-url=" + url;
-  std::vector<char*> argv = {const_cast<char*>("/usr/bin/lcm-logger"),
-                             const_cast<char*>(url_arg.c_str()), const_cast<char*>("-f"),
-                             const_cast<char*>("-q"), const_cast<char*>("--"),
-                             const_cast<char*>(log.c_str()), nullptr};
-  std::vector<char*> envp = {const_cast<char*>(preload.c_str()),
-                             const_cast<char*>("SHOAL_LOGGER_PROGRESS=1"), nullptr};
-  pid_t pid = 0;
-  ASSERT_EQ(posix_spawn(&pid, argv[0], nullptr, nullptr, argv.data(), envp.data()), 0);
-  for (int i = 0; i < 100 && access(log.c_str(), F_OK) != 0; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // subscribed
+  const pid_t pid = StartLogger(url, log);
+  ASSERT_GT(pid, 0);
   RecorderProgress progress(pid);
   ASSERT_TRUE(progress.Attach());
   const std::uint64_t before = progress.handled();

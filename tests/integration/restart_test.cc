@@ -27,6 +27,8 @@ namespace {
 
 using shoal::testing::ParseJson;
 using shoal::testing::ReadFile;
+using shoal::testing::CmdLine;
+using shoal::testing::ParentOf;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::StartShoal;
@@ -41,12 +43,6 @@ const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
 // restart from anywhere but the last state is metres off; integration over a few 20 ms
 // periods of a smooth path is far below this.
 constexpr double kJumpToleranceM = 0.01;
-
-std::string CmdLine(pid_t pid) {
-  std::string s = ReadFile("/proc/" + std::to_string(pid) + "/cmdline");
-  for (char& c : s) c = c == '\0' ? ' ' : c;
-  return s;
-}
 
 // Processes whose command line holds every one of `parts`.
 std::vector<pid_t> ProcessesWith(const std::vector<std::string>& parts) {
@@ -63,19 +59,6 @@ std::vector<pid_t> ProcessesWith(const std::vector<std::string>& parts) {
   }
   closedir(d);
   return found;
-}
-
-// The parent pid of pid, from /proc/<pid>/stat (after the command name in parentheses).
-pid_t ParentOf(pid_t pid) {
-  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
-  const std::size_t close = stat.rfind(')');
-  int ppid = -1;
-  char state = 0;
-  if (close == std::string::npos ||
-      std::sscanf(stat.c_str() + close + 1, " %c %d", &state, &ppid) != 2) {
-    return -1;
-  }
-  return ppid;
 }
 
 // The child of shoal run `run` running `exe`, -1 if none.

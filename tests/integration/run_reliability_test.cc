@@ -26,6 +26,9 @@ namespace {
 
 using shoal::testing::ParseJson;
 using shoal::testing::ReadFile;
+using shoal::testing::CmdLine;
+using shoal::testing::ParentOf;
+using shoal::testing::ProcessState;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::TmpPath;
@@ -47,36 +50,13 @@ std::string TestDir(const std::string& name) {
 
 bool Exists(const std::string& path) { return access(path.c_str(), F_OK) == 0; }
 
-std::string CmdLine(pid_t pid) {
-  std::string s = ReadFile("/proc/" + std::to_string(pid) + "/cmdline");
-  for (char& c : s) c = c == '\0' ? ' ' : c;
-  return s;
-}
-
-// The parent pid of pid from /proc/<pid>/stat (after the command name in parentheses).
-pid_t ParentOf(pid_t pid) {
-  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
-  const std::size_t close = stat.rfind(')');
-  if (close == std::string::npos) return -1;
-  char state = 0;
-  int ppid = -1;
-  if (std::sscanf(stat.c_str() + close + 1, " %c %d", &state, &ppid) != 2) return -1;
-  return ppid;
-}
-
-// The state letter of /proc/<pid>/stat ('R', 'S', 'Z', ...), 0 once pid is gone.
-char ProcessState(pid_t pid) {
-  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
-  const std::size_t close = stat.rfind(')');
-  return close == std::string::npos || close + 2 >= stat.size() ? 0 : stat[close + 2];
-}
-
 bool Ended(pid_t pid) {
   const char state = ProcessState(pid);
   return state == 0 || state == 'Z' || state == 'X';
 }
 
-// The child of shoal run `run` whose command line holds `exe` and `also`, -1 if none.
+// The child of shoal run `run` running the program `exe` (its path ends so) whose command
+// line holds `also`, -1 if none.
 pid_t ChildWith(pid_t run, const std::string& exe, const std::string& also = "") {
   DIR* d = opendir("/proc");
   if (!d) return -1;
@@ -84,8 +64,12 @@ pid_t ChildWith(pid_t run, const std::string& exe, const std::string& also = "")
   while (const dirent* e = readdir(d)) {
     const int pid = std::atoi(e->d_name);
     if (pid <= 0 || ParentOf(pid) != run) continue;
+    // The program itself, not a shell that names it (shoal run's "command -v lcm-logger").
     const std::string cmd = CmdLine(pid);
-    if (cmd.find(exe) != std::string::npos && cmd.find(also) != std::string::npos) {
+    const std::string program = cmd.substr(0, cmd.find(' '));
+    const bool is_exe = program.size() >= exe.size() &&
+                        program.compare(program.size() - exe.size(), exe.size(), exe) == 0;
+    if (is_exe && cmd.find(also) != std::string::npos) {
       found = pid;
       break;
     }

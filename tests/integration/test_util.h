@@ -124,6 +124,32 @@ inline int WaitExit(pid_t pid, double timeout_s, double* took_s) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : 256 + WTERMSIG(status);
 }
 
+/// A process's command line, its arguments joined by spaces ("" once it is gone).
+inline std::string CmdLine(pid_t pid) {
+  std::string s = ReadFile("/proc/" + std::to_string(pid) + "/cmdline");
+  for (char& c : s) c = c == '\0' ? ' ' : c;
+  return s;
+}
+
+/// The parent pid of pid from /proc/<pid>/stat (after the command name in parentheses);
+/// -1 once it is gone.
+inline pid_t ParentOf(pid_t pid) {
+  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
+  const std::size_t close = stat.rfind(')');
+  if (close == std::string::npos) return -1;
+  char state = 0;
+  int ppid = -1;
+  if (std::sscanf(stat.c_str() + close + 1, " %c %d", &state, &ppid) != 2) return -1;
+  return ppid;
+}
+
+/// The state letter of /proc/<pid>/stat ('R', 'S', 'T', 'Z', ...), 0 once pid is gone.
+inline char ProcessState(pid_t pid) {
+  const std::string stat = ReadFile("/proc/" + std::to_string(pid) + "/stat");
+  const std::size_t close = stat.rfind(')');
+  return close == std::string::npos || close + 2 >= stat.size() ? 0 : stat[close + 2];
+}
+
 /// Sends `bytes` as one UDP datagram to the group and port of a udpm URL
 /// (udpm://GROUP:PORT?...), with TTL 0: as any user of the host can.
 inline void SendUdpDatagram(const std::string& url, const std::vector<unsigned char>& bytes) {

@@ -606,6 +606,24 @@ class Logs(unittest.TestCase):
         self.assertEqual(log.events, len(events))
         self.check_against_analyze(log, a)
 
+    def test_a_retimed_copy_of_a_damaged_log_is_damaged(self):
+        events = event_offsets(self.run_log)
+        middle = events[len(events) // 2][0]
+
+        def edit(b):
+            b[middle] = 0  # a sync word
+
+        path = self.damaged("damaged_for_retime.lcmlog", edit)
+        retimed = os.path.join(TMP, "damaged.mission.lcmlog")
+        run([SHOAL, "retime", path, "--out", retimed, "--force", "--quiet"])
+        log = shoal_log.read_log(retimed)
+        a = analyze(retimed)
+        self.assertTrue(a["damaged"])
+        self.assertTrue(log.damaged)
+        self.assertTrue(log.warnings[0].startswith("the original log: "), log.warnings)
+        self.assertEqual(log.warnings, a["warnings"])
+        self.check_against_analyze(log, a)
+
     def test_more_damaged_places_than_are_listed(self):
         events = event_offsets(self.run_log)
         places = [events[k][0] for k in range(100, len(events) - 100, (len(events) - 200) // 25)]

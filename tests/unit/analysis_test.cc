@@ -623,6 +623,48 @@ TEST(Analysis, HealthUsesTheLastReportPerProcessAndFlagsGiveStaleEvents) {
   EXPECT_EQ(a.followers[1].stale_events, 0);
 }
 
+// A run stopped early (Ctrl-C, a fault) is expected up to the tick its run-level
+// "interrupted" status names, not over the scenario's whole length: a complete log of
+// what ran is complete.
+TEST(Analysis, AnInterruptedRunIsExpectedUpToWhereItStopped) {
+  const std::string path = Tmp("interrupted.lcmlog");
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), 0, Status(0, kEmulatorId, "running", kScenario));
+    for (int k = 0; k <= 100; ++k) {
+      const Micros t = k * kPeriod;
+      for (int id = 0; id <= 2; ++id) {
+        log.Write(channels::State(id), t, ToLcm(State(id, t, Vec5::Zero(), Vec5::Zero())));
+      }
+    }
+    log.Write(channels::Status(), 100 * kPeriod,
+              Status(100 * kPeriod, kEmulatorId, "interrupted", ""));
+  }
+  const RunAnalysis a = AnalyseRun(Load(path));
+  EXPECT_TRUE(a.interrupted);
+  EXPECT_EQ(a.states_expected, 101 * 3);  // ticks 0..100 of the leader and 2 followers
+}
+
+// A recording's span is the run's, from tick 0: the statuses of the processes' start-up,
+// stamped seconds before it (4 s in real time), are not counted.
+TEST(Analysis, WallTimeRunsFromTheFirstStateNotTheStartUp) {
+  const std::string path = Tmp("wall_time.lcmlog");
+  const std::int64_t wall0 = 1700000000000000LL;  // lcm-logger's stamps: the wall clock
+  {
+    LogWriter log(path);
+    log.Write(channels::Status(), wall0, Status(0, kEmulatorId, "running", kScenario));
+    for (int k = 0; k <= 250; ++k) {
+      const Micros t = k * kPeriod;
+      for (int id = 0; id <= 2; ++id) {
+        log.Write(channels::State(id), wall0 + 4000000 + t,
+                  ToLcm(State(id, t, Vec5::Zero(), Vec5::Zero())));
+      }
+    }
+  }
+  const RunAnalysis a = AnalyseRun(Load(path));
+  EXPECT_NEAR(a.wall_time_s, 5.0, 1e-9);
+}
+
 TEST(Analysis, ModeAndProblemsFromStatuses) {
   const std::string path = Tmp("lockstep.lcmlog");
   {

@@ -232,6 +232,29 @@ TEST(Timeline, ASenderWithoutLinksLeavesItsModemFree) {
   EXPECT_EQ(sent, (std::set<Micros>{0, 1060000, 2060000}));
 }
 
+// A link that leaves the topology and comes back longer than the timeout later starts
+// empty, as at the run's start: the message from before the switch is no timeout, and
+// no reason to flag the state stale, on a channel that loses nothing.
+TEST(Timeline, ALinkBackInTheTopologyStartsWithNothing) {
+  Scenario s = Example2();  // no loss; follower 5 hears 2 and 4
+  ScenarioEvent without = Event(EventKind::kTopology, 1.0, 3.0);
+  without.edges = {{1, 3}, {2, 1}, {2, 5}, {3, 1}, {4, 5}, {5, 4}};  // 5 no longer hears 2
+  without.leader_links = s.leader_links;
+  s.events = {without};
+  Swarm swarm(s, 6.0);
+  std::int64_t stale = 0;
+  struct Obs : SwarmObserver {
+    std::int64_t* stale;
+    void OnState(const StateMsg& m) override {
+      *stale += m.vehicle_id == 5 && (m.flags & StateMsg::kFlagStaleNeighbour) != 0;
+    }
+  } obs;
+  obs.stale = &stale;
+  swarm.Run(&obs);
+  EXPECT_EQ(swarm.followers()[4]->counters().neighbour_timeouts, 0);
+  EXPECT_EQ(stale, 0);
+}
+
 TEST(Timeline, FollowerUsesOnlyTheNeighboursOfTheTopologyInForce) {
   Scenario s = Example2();
   // Follower 2 hears 1 and 5 in [swarm]; from 1.5 s on it hears only the leader.
