@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 
 #include <unistd.h>
@@ -251,10 +252,60 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
   }
 }
 
+void RunDataBuilder::SeenSet::Reserve(std::size_t n) {
+  std::size_t want = 64;
+  while (want < 2 * n) want *= 2;  // at most half full
+  if (want <= slots_.size()) return;
+  std::vector<Slot> old(want);
+  old.swap(slots_);
+  used_ = 0;
+  for (const Slot& s : old) {
+    if (s.content != 0) Insert(s.key, s.content);
+  }
+}
+
+bool RunDataBuilder::SeenSet::Insert(std::uint64_t key, std::uint64_t content) {
+  if (2 * (used_ + 1) > slots_.size()) Reserve(std::max<std::size_t>(64, 2 * used_ + 2));
+  const std::size_t mask = slots_.size() - 1;
+  for (std::size_t i = (content ^ (key * 0x9e3779b97f4a7c15ULL)) & mask;; i = (i + 1) & mask) {
+    Slot& s = slots_[i];
+    if (s.content == 0) {
+      s = Slot{key, content};
+      ++used_;
+      return true;
+    }
+    if (s.content == content && s.key == key) return false;
+  }
+}
+
+bool RunDataBuilder::SeenBefore(std::uint64_t key, const std::uint8_t* data, int size) {
+  const std::uint64_t content = std::hash<std::string_view>{}(std::string_view(
+                                    reinterpret_cast<const char*>(data), static_cast<std::size_t>(size))) |
+                                1;  // never 0, the mark of an empty slot
+  return !seen_.Insert(key, content);
+}
+
+namespace {
+/// A message's kind, its publisher's id and the number that tells the publisher's messages
+/// apart (a sequence number or a time), mixed: only a shorthand, the bytes decide.
+std::uint64_t MessageKey(int kind, std::int32_t publisher, std::uint64_t number) {
+  return (static_cast<std::uint64_t>(kind) << 62) ^
+         (static_cast<std::uint64_t>(static_cast<std::uint32_t>(publisher)) << 30) ^ number;
+}
+}  // namespace
+
 void RunDataBuilder::AddChannelEvents(const std::uint8_t* data, int size) {
   static thread_local std::vector<channel_event_t> events;
   if (!DecodeChannelEvents(data, size, &events)) {
     ++d_->undecodable;
+    return;
+  }
+  // A batch (or an older log's single event) is its publisher's by id and sequence number.
+  const bool batch = events.empty() || I64(data) == channel_events_t::getHash();
+  const std::int32_t publisher = batch ? I32(data + 16) : events.front().vehicle_id;
+  const std::int32_t seq = batch ? I32(data + 20) : events.front().seq;
+  if (SeenBefore(MessageKey(1, publisher, static_cast<std::uint32_t>(seq)), data, size)) {
+    repeated_decisions_ += static_cast<std::int64_t>(events.size());
     return;
   }
   const int lim = IdLimit();
@@ -286,6 +337,10 @@ void RunDataBuilder::AddHealth(int id, const std::uint8_t* data, int size) {
   HealthRecord r;
   if (h.vehicle_id != id || id < -1 || id > IdLimit() || !WindowOf(h, &r)) {
     ++d_->rejected;
+    return;
+  }
+  if (SeenBefore(MessageKey(2, id, static_cast<std::uint64_t>(h.utime)), data, size)) {
+    ++repeated_health_;
     return;
   }
   r.utime = h.utime;
@@ -410,6 +465,7 @@ void RunDataBuilder::ReserveByExtrapolation(double fraction) {
     if (!v.samples.empty()) ReserveHuge(&v.samples, room(v.samples.size()));
   }
   if (!d_->channel_events.empty()) ReserveHuge(&d_->channel_events, room(d_->channel_events.size()));
+  seen_.Reserve(room(seen_.size()));
 }
 
 void RunDataBuilder::Finish() {
@@ -455,6 +511,13 @@ void RunDataBuilder::Finish() {
                            " vehicle states appear more than once (same vehicle and time: a "
                            "log recorded twice or concatenated, or replayed onto a recording "
                            "bus); each is counted once, the last copy kept");
+  }
+  if (repeated_decisions_ > 0 || repeated_health_ > 0) {
+    d_->warnings.push_back(std::to_string(repeated_decisions_) + " channel decisions and " +
+                           std::to_string(repeated_health_) +
+                           " health reports appear more than once (the same message from "
+                           "the same publisher: a log recorded twice or concatenated, or "
+                           "replayed onto a recording bus); each is counted once");
   }
 }
 

@@ -273,11 +273,34 @@ class RunDataBuilder {
   void AddStatus(const std::uint8_t* data, int size);
   int IdLimit() const;
   VehicleTrack* Track(int id);
+  /// Whether a message with this key (its publisher's identity for it) and these bytes was
+  /// added before: a copy, as in a log recorded twice or a replay onto a recording bus.
+  /// The same key with other bytes is a restarted publisher's message, and is new.
+  bool SeenBefore(std::uint64_t key, const std::uint8_t* data, int size);
+
+  /// An open-addressing set of (key, content hash) pairs: one slot per message of a long
+  /// log, without a node to allocate for each. A content of 0 marks an empty slot.
+  class SeenSet {
+   public:
+    bool Insert(std::uint64_t key, std::uint64_t content);  // false if already there
+    void Reserve(std::size_t n);
+    std::size_t size() const { return used_; }
+
+   private:
+    struct Slot {
+      std::uint64_t key = 0, content = 0;
+    };
+    std::vector<Slot> slots_;
+    std::size_t used_ = 0;
+  };
 
   RunData* d_;
   LoadOptions opt_;
   bool have_time_ = false;
   int max_status_followers_ = 0;
+  SeenSet seen_;
+  std::int64_t repeated_decisions_ = 0;
+  std::int64_t repeated_health_ = 0;
 };
 
 /// The distinct ticks the clock messages of a run cover (a window repeated, as in a log

@@ -203,6 +203,8 @@ class ShoalLog:
     rejected: int = 0               # decoded, but an id that does not fit (or a health
                                     # window that does not add up)
     repeated_states: int = 0        # same vehicle and utime as an earlier state
+    repeated_decisions: int = 0     # in a channel batch whose bytes came before
+    repeated_health: int = 0        # a health report whose bytes came before
     # Channel decisions at impossible times (sent at a negative time or after the run's
     # end, delivered before sent or after the last possible delivery), left out of
     # `decisions` and of decision_counts() as shoal analyze leaves them out of its counts.
@@ -906,6 +908,10 @@ class _Builder:
         self.warnings: List[str] = []          # as RunDataBuilder's
         self.damaged_warnings: List[str] = []  # what shoal analyze's text says as DAMAGED:
         self.any_shoal = False
+        # (kind, publisher, number, hash of the bytes) of each channel batch and health
+        # report: the same again is a copy (a log recorded twice, a replay), counted once;
+        # the same number with other bytes is a restarted publisher's and is new.
+        self.seen: set = set()
         self.handlers = {"STATE": self._state, "RX": self._rx, "HEALTH": self._health,
                          "CHANNEL": self._channel, "CLOCK": self._clock,
                          "STATUS": self._status}
@@ -958,8 +964,12 @@ class _Builder:
         m = self._decode(data, "channel_events_t", "channel_event_t")
         if m is None:
             return
+        events = m.events if hasattr(m, "events") else [m]
+        if self._seen_before("CHANNEL", m.vehicle_id, m.seq, data):
+            self.log.repeated_decisions += len(events)
+            return
         lim = self.id_limit()
-        for e in (m.events if hasattr(m, "events") else [m]):
+        for e in events:
             # A status above the largest known (STATUS_DROPPED_DEAF) is a newer writer's
             # kind of drop: kept, counted as dropped_invalid (lcmtypes/README.md).
             if not (0 <= e.sender <= lim and 0 <= e.receiver <= lim) or e.status < 0:
@@ -968,6 +978,13 @@ class _Builder:
             self.log.decisions.append(Decision(
                 e.utime, e.sender, e.receiver, e.msg_seq, e.send_utime, e.delay_s,
                 e.deliver_utime, e.status, status_name(e.status), e.reason))
+
+    def _seen_before(self, kind: str, publisher: int, number: int, data: bytes) -> bool:
+        key = (kind, publisher, number, hash(bytes(data)))
+        if key in self.seen:
+            return True
+        self.seen.add(key)
+        return False
 
     def _clock(self, cid: int, data: bytes) -> None:
         m = self._decode(data, "clock_window_t", "clock_tick_t")
@@ -991,6 +1008,9 @@ class _Builder:
         if m.vehicle_id != cid or not -1 <= cid <= self.id_limit() or (
                 count is not None and not _window_ok(count, m.lateness_window_max_s, bins)):
             self.log.rejected += 1
+            return
+        if self._seen_before("HEALTH", cid, m.utime, data):
+            self.log.repeated_health += 1
             return
         self.log.health.setdefault(cid, []).append(Health(
             m.utime, m.vehicle_id, m.seq, m.ticks, m.lateness_p50_s, m.lateness_p99_s,
@@ -1044,6 +1064,12 @@ class _Builder:
                 "%d vehicle states appear more than once (same vehicle and time: a log "
                 "recorded twice or concatenated, or replayed onto a recording bus); each is "
                 "counted once, the last copy kept" % log.repeated_states)
+        if log.repeated_decisions or log.repeated_health:
+            self.warnings.append(
+                "%d channel decisions and %d health reports appear more than once (the same "
+                "message from the same publisher: a log recorded twice or concatenated, or "
+                "replayed onto a recording bus); each is counted once"
+                % (log.repeated_decisions, log.repeated_health))
         log.insecure_run = any("bus not authenticated (--insecure)" in s.message
                                for s in log.statuses)
         # Whether the log holds a Shoal message at all (LoadRunLog's any_shoal).
@@ -1329,7 +1355,9 @@ def summary(log: ShoalLog) -> dict:
             "unauthenticated_by_channel": dict(sorted(log.unauthenticated_by_channel.items())),
             "unverified": log.unverified, "insecure_run": log.insecure_run},
         "undecodable": log.undecodable, "rejected": log.rejected,
-        "repeated_states": log.repeated_states, "damaged": log.damaged,
+        "repeated_states": log.repeated_states,
+        "repeated_decisions": log.repeated_decisions, "repeated_health": log.repeated_health,
+        "damaged": log.damaged,
         "warnings": log.warnings,
     }
 

@@ -259,6 +259,15 @@ TEST(AnalyzeCli, ALogConcatenatedWithItselfCountsEachStateOnce) {
   EXPECT_EQ(j["log_states"], 6 * 1001) << r.out;
   EXPECT_EQ(j["log_states_expected"], 6 * 1001) << r.out;
   EXPECT_NE(r.err.find("6006 vehicle states appear more than once"), std::string::npos) << r.err;
+  // The channel's decisions and the health reports too, each once.
+  const auto once = RunShoal("analyze " + one + " --json", "twice_once");
+  ASSERT_EQ(once.status, 0) << once.err;
+  const auto k = ParseJson(once.out);
+  EXPECT_EQ(j["channel"], k["channel"]);
+  EXPECT_EQ(j["loop"], k["loop"]);
+  EXPECT_NE(r.err.find("10010 channel decisions and 105 health reports appear more than once"),
+            std::string::npos)
+      << r.err;
 }
 
 // A 20 s Example 2 log followed by three states at impossible times, far from any slot:

@@ -523,6 +523,19 @@ class Logs(unittest.TestCase):
                           "before the rule that counts it as dropped_invalid")
         self.check_against_analyze(log, a)
 
+    def test_a_log_recorded_twice_counts_each_message_once(self):
+        path = os.path.join(TMP, "twice.lcmlog")
+        with open(self.sim_log, "rb") as f:
+            data = f.read()
+        with open(path, "wb") as f:
+            f.write(data + data)
+        once, twice = shoal_log.read_log(self.sim_log), shoal_log.read_log(path)
+        self.assertEqual(twice.decisions, once.decisions)
+        self.assertEqual(twice.health, once.health)
+        self.assertEqual(twice.repeated_decisions, len(once.decisions) + once.rejected)
+        self.assertEqual(twice.repeated_health, sum(len(h) for h in once.health.values()))
+        self.check_against_analyze(twice, analyze(path))
+
     def test_decisions_at_impossible_times_are_left_out(self):
         def edit(events):
             batches = [e[1] for e in events if e[0] == "SHOAL_CHANNEL" and batch_events(e[1])]
