@@ -628,6 +628,17 @@ void FindDivergence(const RunData& run, const ValidStates& valid, RunAnalysis* a
       a->diverged_follower = i;
     }
   }
+  // shoal sim stops at the tick whose integration diverged, before that state is published:
+  // its last status names the follower ("follower 2 diverged at t = 1.8 s").
+  for (const StatusRecord& st : run.statuses) {
+    int id = 0;
+    char tail[16] = {};
+    if (a->diverged_follower == 0 && st.vehicle_id == -2 && st.state == "failed" &&
+        std::sscanf(st.message.c_str(), "follower %d %15s", &id, tail) == 2 &&
+        std::string(tail) == "diverged" && id >= 1 && id <= run.followers) {
+      a->diverged_follower = id;
+    }
+  }
 }
 
 /// The restarts the statuses name (a restarted process repeats its status until the clock
@@ -750,12 +761,13 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
   }
   // Without it (a stream that missed the final clock window, a real-time run), the
   // run-level "finished" status says the same: the emulator and shoal sim stamp it with the
-  // last tick; an "interrupted" one with the tick where the run was stopped, up to which
-  // its states are expected.
+  // last tick; an "interrupted" or "failed" one (shoal sim stops where a follower diverges)
+  // with the tick where the run was stopped, up to which its states are expected.
   for (auto st = run.statuses.rbegin(); !final_seen && st != run.statuses.rend(); ++st) {
     const std::optional<RunState> state = ParseRunState(st->state);
     if (st->vehicle_id < 0 &&
-        (state == RunState::kFinished || state == RunState::kInterrupted) &&
+        (state == RunState::kFinished || state == RunState::kInterrupted ||
+         state == RunState::kFailed) &&
         st->utime >= 0 && st->utime <= b.limit_us) {
       b.expected_end_us = st->utime;
       break;
@@ -832,7 +844,10 @@ RunAnalysis AnalyseRun(const RunData& run) {
   AnalyseHealth(run, &a);
   // A real-time emulator judges deafness at send + tau exactly (no tick grid).
   if (events) {
-    a.events = AnalyseEvents(run, worst, a.end_s, a.mode == "realtime" ? 0 : a.period_us);
+    // Up to where the run ran (a --duration shorter than the scenario's ends it earlier).
+    const double ran_to_s =
+        bounds.expected_end_us >= 0 ? ToSeconds(bounds.expected_end_us) : a.end_s;
+    a.events = AnalyseEvents(run, worst, ran_to_s, a.mode == "realtime" ? 0 : a.period_us);
   }
   return a;
 }

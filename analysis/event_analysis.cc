@@ -149,6 +149,7 @@ std::vector<EventAnalysis> AnalyseEvents(const RunData& run, const std::vector<W
   const std::vector<ScenarioEvent>& events = run.scenario.events;
   for (std::size_t k = 0; k < events.size(); ++k) {
     const ScenarioEvent& ev = events[k];
+    if (ev.at_s > end_s) continue;  // after the run's end: not part of this run
     EventAnalysis a;
     a.index = static_cast<int>(k);
     a.kind = ev.kind;

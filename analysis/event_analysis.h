@@ -23,7 +23,8 @@ struct WorstSample {
 /// "the leader", "edges 1<-3 2<-1, leader links 1 3".
 std::string EventAffects(const ScenarioEvent& e);
 
-/// One EventAnalysis per event of run.scenario.events. `samples`: the complete samples in
+/// One EventAnalysis per event of run.scenario.events that starts by `end_s` (a run ended
+/// earlier never saw the others). `samples`: the complete samples in
 /// time order (empty without formation metrics: the formation figures stay NaN); `end_s`:
 /// the run's end (the last time a state may have); `period_us`: the control period (for a
 /// deaf receiver's due times; 0 for a real-time run, whose messages are due at send + tau).

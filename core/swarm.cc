@@ -162,15 +162,17 @@ bool Swarm::Step(SwarmObserver* obs) {
   publish(lm);
   for (const StateMsg* m : published_) publish(*m);
 
-  const Micros per_second = static_cast<Micros>(1000000);
-  if (obs && ((now % per_second) < period_us_ || final_tick)) {
-    for (const auto& f : followers_) obs->OnHealth(now, *f);
-  }
   for (const auto& f : followers_) {
     if (f->diverged()) {
       diverged_id_ = f->id();
       break;
     }
+  }
+  // A run that stops here, at its last tick or where a follower diverged, reports its
+  // followers' health as it stands.
+  const Micros per_second = static_cast<Micros>(1000000);
+  if (obs && ((now % per_second) < period_us_ || final_tick || diverged_id_ != 0)) {
+    for (const auto& f : followers_) obs->OnHealth(now, *f);
   }
   last_utime_ = now;
   ++tick_;

@@ -60,8 +60,9 @@ std::string ValueError(const DesignRequest& o) {
   if (!(std::isfinite(o.beta) && o.beta > 0.0)) {
     return "--beta must be a positive number (got " + G4(o.beta) + "): Theorem 1's beta";
   }
-  if (o.rho0 && !(std::isfinite(*o.rho0) && *o.rho0 >= 0.0)) {
-    return "--rho0 must be a number >= 0 (got " + G4(*o.rho0) +
+  // 1e6, as the gains: the theorems' matrices square it, and beyond 1e150 they overflow.
+  if (o.rho0 && !(std::isfinite(*o.rho0) && *o.rho0 >= 0.0 && *o.rho0 <= 1e6)) {
+    return "--rho0 must be a number in [0, 1e6] (got " + G4(*o.rho0) +
            "): the Lipschitz constant of the uncertain factor";
   }
   if (!(std::isfinite(o.safety) && o.safety >= 1.0)) {
@@ -213,6 +214,7 @@ void DescribeProblem(const Scenario& s, const DesignRequest& q, DesignReport* r)
   r->gains_from_flags = q.k1.has_value() || q.k2.has_value();
   r->safety = q.safety;
   r->duration_s = s.duration_s;
+  r->period_s = ToSeconds(s.period_us());
   r->position_tol_m = s.metrics.position_tol_m;
   r->velocity_tol_mps = s.metrics.velocity_tol_mps;
 
@@ -358,6 +360,7 @@ void Decide(DesignReport* r) {
   vi.k1 = r->k1;
   vi.k2 = r->k2;
   vi.h_s = r->delay.h_s;
+  vi.period_s = r->period_s;
   vi.kappa = r->delay.kappa;
   vi.kappa_unbounded_why = r->delay_rate_unbounded_why;
   vi.delay_time_varying = r->delay.time_varying;

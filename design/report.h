@@ -92,6 +92,7 @@ struct DesignReport {
   bool gains_from_flags = false;
   double safety = 2.0;
   double duration_s = 0.0;  ///< the scenario's run length
+  double period_s = 0.0;    ///< the control period
   double position_tol_m = 0.0, velocity_tol_mps = 0.0;
 
   Eigen::MatrixXd H;

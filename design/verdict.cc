@@ -278,6 +278,25 @@ Verdict Decide(const VerdictInput& in) {
     v.advice = OnlyTheorem3Advice(in);
   }
   v.margin_over_h = margin_over_h;
+  // The theorems are about the paper's continuous-time loop; Shoal's loop uses each state
+  // at the first control tick after it arrives. A margin the run's ticks use up is no
+  // certificate for the run.
+  if (v.certified && in.period_s > 0.0) {
+    const double ticks = std::max(1.0, std::ceil(in.h_s / in.period_s - 1e-9));
+    const double acts_as = ticks * in.period_s;
+    if (m.tau_s <= acts_as) {
+      const double c = m.tau_s / (in.safety * acts_as);
+      v.certified = false;
+      v.reason = v.by + " holds for the continuous-time loop, but in a run each state is used "
+                 "at the first control tick after it arrives, so the delay acts as up to " +
+                 G4(acts_as) + " s (" + G4(ticks) + " control period(s) of " + G4(in.period_s) +
+                 " s), and the exact constant-delay margin " + G4(m.tau_s) + " s is not above it";
+      v.by.clear();
+      v.advice = "scale the gains to k1 = " + G4(c * c * in.k1) + ", k2 = " + G4(c * in.k2) +
+                 " (k1 x c^2, k2 x c with c = " + G4(c) + "), which makes the exact margin " +
+                 G4(in.safety * acts_as) + " s = " + G4(in.safety) + " x that delay; or run --tune";
+    }
+  }
   return v;
 }
 

@@ -21,6 +21,9 @@ enum class FactorKind {
 struct VerdictInput {
   double k1 = 0.0, k2 = 0.0;
   double h_s = 0.0;
+  /// The control period: a message is used at the first tick after it arrives, so in a
+  /// run a delay h acts as up to ceil(h / period) periods, and never less than one.
+  double period_s = 0.0;
   std::optional<double> kappa;  ///< empty: tau(t) has no bounded derivative
   /// Why kappa is empty ("uniform jitter draws a new delay per message", "a channel event
   /// makes tau jump up, ..."); "" if unknown.

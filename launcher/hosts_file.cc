@@ -157,6 +157,7 @@ void ReadBus(const Reader& r, const toml::node& node, HostsFile* h) {
                "1 crosses a bridge or switch, not a router");
     }
     h->ttl = static_cast<int>(*v);
+    h->ttl_line = LineOf(*ttl);
   }
 }
 

@@ -48,6 +48,7 @@ struct HostsFile {
   /// group per vehicle, with `ttl`.
   std::string bus_url;
   int ttl = 1;  // [bus] ttl: 1 crosses a bridge or switch, not a router
+  int ttl_line = 0;  // where [bus] ttl is given; 0: not given
   /// Host index of the logger, the emulator and the leader, and of each vehicle placed by
   /// id; everything else runs on `default_host`.
   std::map<HostRole, std::size_t> roles;

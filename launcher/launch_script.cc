@@ -241,7 +241,15 @@ void WriteSetup(const LaunchPlan& plan, const LaunchScriptContext& ctx, std::ost
   o << "\nunset " << bus_auth::kKeyEnv
     << "  # a key exported by the calling shell would reach lcm-logger and other runs\n";
   o << "\nmkdir -p -- \"$out_dir\"\n"
-    << "rm -f -- \"$out_dir\"/{vehicle,leader,emulator,logger}*.{txt,ckpt}\n";
+    << "# One run at a time writes this log: another would remove it while it is written. The\n"
+    << "# lock on <log>.d/ is the one shoal run takes; every process started below holds it\n"
+    << "# (fd 9) until the last ends.\n"
+    << "if command -v flock >/dev/null; then\n"
+    << "  exec 9<\"$out_dir\"\n"
+    << "  if ! flock -n 9; then\n"
+    << "    echo \"$0: another run is writing $log (it holds $out_dir/)\" >&2\n    exit 2\n  fi\n"
+    << "fi\n"
+    << "rm -f -- \"$out_dir\"/{vehicle,leader,emulator,logger}*.{txt,ckpt} \"$out_dir/resources.csv\"\n";
   if (plan.insecure) {
     o << "rm -f -- \"$log.key\"  # an earlier run's key would make this log look forged\n";
   } else {

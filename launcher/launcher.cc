@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <pthread.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
@@ -195,7 +196,12 @@ bool CheckLogWritable(const std::string& log, std::string* error) {
 
 /// Creates <log>.d/ and removes the output files a previous run left there, so that the
 /// folder holds this run's processes only.
-bool PrepareOutputDir(const std::string& dir, std::string* error) {
+/// Makes `dir`, the output folder of the run that writes `log`, and locks it for the run
+/// (*lock_fd, held until shoal run ends): a second run on the same log, a shoal run or a
+/// printed script (which takes the same flock), would remove the log while it is written.
+/// Then removes what an earlier run left there.
+bool PrepareOutputDir(const std::string& dir, const std::string& log, int* lock_fd,
+                      std::string* error) {
   if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST) {
     *error = dir + ": cannot create the process output folder (" + std::strerror(errno) + ")";
     return false;
@@ -204,6 +210,19 @@ bool PrepareOutputDir(const std::string& dir, std::string* error) {
   if (stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
     *error = dir + ": exists and is not a folder (shoal run keeps each process's output there)";
     return false;
+  }
+  const int fd = open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd >= 0 && flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int e = errno;
+    close(fd);
+    // A file system without locks (ENOLCK, EINVAL) only loses the guard.
+    if (e == EWOULDBLOCK) {
+      *error = "another run is writing " + log + " (it holds " + dir +
+               "/); wait for it to end, or give another --out";
+      return false;
+    }
+  } else if (fd >= 0) {
+    *lock_fd = fd;
   }
   if (DIR* d = opendir(dir.c_str())) {
     while (const dirent* e = readdir(d)) {
@@ -214,7 +233,7 @@ bool PrepareOutputDir(const std::string& dir, std::string* error) {
       };
       const bool process = n.rfind("vehicle", 0) == 0 || n.rfind("leader", 0) == 0 ||
                            n.rfind("emulator", 0) == 0 || n.rfind("logger", 0) == 0;
-      const bool ours = process && (ends(".txt") || ends(".ckpt"));
+      const bool ours = (process && (ends(".txt") || ends(".ckpt"))) || n == "resources.csv";
       if (ours) unlink((dir + "/" + n).c_str());
     }
     closedir(d);
@@ -468,6 +487,7 @@ class Launch {
       : s_(s), opt_(opt), r_(r), wall_clock_t0_(opt.wall_clock_t0) {}
   ~Launch() {
     for (Child& c : kids_) CloseStdin(c);
+    if (output_lock_fd_ >= 0) close(output_lock_fd_);
   }
   Launch(const Launch&) = delete;
   Launch& operator=(const Launch&) = delete;
@@ -570,6 +590,7 @@ class Launch {
   std::unique_ptr<ResourceLog> resources_;       // LaunchOptions::resource_interval_s
   std::chrono::steady_clock::time_point last_resource_poll_;
   std::map<std::string, HostCheck> host_checks_;  // --hosts: by host name
+  int output_lock_fd_ = -1;  // the output folder, flocked for the run (PrepareOutputDir)
 };
 
 bool Launch::CheckOptions(std::string* error) {
@@ -653,13 +674,20 @@ bool Launch::Prepare(bool for_print, std::string* error) {
   // run leaves an earlier log, its key and its process output as they were. PrepareOutputDir
   // refuses before it removes anything.
   return CheckLogWritable(r_->log, error) && CheckKeyFile(opt_, r_->log + ".key", error) &&
-         PrepareOutputDir(r_->process_output_dir, error) && PrepareKey(opt_, r_, error);
+         PrepareOutputDir(r_->process_output_dir, r_->log, &output_lock_fd_, error) &&
+         PrepareKey(opt_, r_, error);
 }
 
 bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
   const HostsFile* hosts = opt_.hosts ? &*opt_.hosts : nullptr;
   if (hosts && !hosts->bus_url.empty() && !opt_.lcm_url.empty()) {
     *error = "give the LCM URL either with --lcm-url or as [bus] url in " + hosts->path;
+    return false;
+  }
+  // --lcm-url is used as given: a [bus] ttl beside it would be silently ignored.
+  if (hosts && hosts->ttl_line > 0 && !opt_.lcm_url.empty()) {
+    *error = hosts->path + ":" + std::to_string(hosts->ttl_line) +
+             ": bus.ttl: cannot be given with --lcm-url; give the TTL in the URL (?ttl=1)";
     return false;
   }
   std::string url = hosts && !hosts->bus_url.empty() ? hosts->bus_url : opt_.lcm_url;
@@ -699,9 +727,14 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
     }
   }
   if (!hosts) return true;
+  // Every group of the run: the emulator sends to each vehicle's, so its host needs a
+  // route for all of them, and each vehicle's host for its own.
   std::vector<std::string> groups = {GroupOfUrl(url)};
-  if (!vehicle_urls_.empty()) groups.push_back(GroupOfUrl(vehicle_urls_[0]));
+  for (const std::string& u : vehicle_urls_) groups.push_back(GroupOfUrl(u));
   if (!uplink_url_.empty()) groups.push_back(GroupOfUrl(uplink_url_));
+  const std::string ttl_fix = !opt_.lcm_url.empty() ? "?ttl=1 in --lcm-url"
+                              : !hosts->bus_url.empty() ? "?ttl=1 in [bus] url in " + hosts->path
+                                                        : "[bus] ttl = 1 in " + hosts->path;
   if (groups[0].empty()) {
     *error = "--hosts needs an udpm:// LCM URL (got " + url + ")";
     return false;
@@ -718,8 +751,8 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
   if (!opt_.sched_fifo.empty()) {
     fifo_hosts[hosts->HostOf(HostRole::kEmulator).name] = kEmulatorFifoPriority;
   }
-  if (!CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), fifo_hosts, &host_checks_,
-                  error)) {
+  if (!CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), ttl_fix, fifo_hosts,
+                  &host_checks_, error)) {
     return false;
   }
   for (const auto& [name, check] : host_checks_) wall_clock_t0_ |= !check.same_clock;

@@ -8,7 +8,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
 #include <chrono>
 #include <cstring>
@@ -36,7 +38,8 @@ constexpr const char* kWrapper =
     ">/dev/null 2>&1 & "
     "exec \"$@\" 3<&- </dev/null";
 
-// Prints what CheckHosts compares with shoal run's own; "$@": the groups.
+// Prints what CheckHosts compares with shoal run's own; $1: the interface the hosts file
+// names ("" for none), then the groups.
 // fifo<P>: whether SCHED_FIFO priority P may be had there ("ok", chrt's refusal, or "nochrt":
 // not known, and each process checks for itself).
 static_assert(kNodeFifoPriority == 40 && kEmulatorFifoPriority == 50,
@@ -47,6 +50,9 @@ constexpr const char* kProbe =
     "echo \"timens=$(readlink /proc/$$/ns/time 2>/dev/null)\"; "
     "echo \"pidns=$(readlink /proc/$$/ns/pid 2>/dev/null)\"; "
     "echo \"netns=$(readlink /proc/$$/ns/net 2>/dev/null)\"; "
+    "i=$1; shift; "
+    "if [ -n \"$i\" ]; then case \"$i\" in .|..) ;; *) [ -d \"/sys/class/net/$i\" ] && "
+    "echo iface=ok;; esac; echo \"ifaces=$(ls /sys/class/net 2>/dev/null | tr '\\n' ' ')\"; fi; "
     "for p in 40 50; do "
     "if ! command -v chrt >/dev/null 2>&1; then echo \"fifo$p=nochrt\"; "
     "elif chrt -f $p true 2>/dev/null; then echo \"fifo$p=ok\"; "
@@ -184,7 +190,7 @@ std::string Where(const HostsFile& hosts, const Host& h) {
 bool Probe(const HostsFile& hosts, const Host& h, const std::vector<std::string>& groups,
            std::map<std::string, std::string>* fields, bool* in_place, double* seconds,
            std::string* error) {
-  std::vector<std::string> words = {"sh", "-c", kProbe, "shoal-probe"};
+  std::vector<std::string> words = {"sh", "-c", kProbe, "shoal-probe", h.interface};
   words.insert(words.end(), groups.begin(), groups.end());
   const std::vector<std::string> cmd = Prefixed(h, words);
   std::string out;
@@ -307,9 +313,14 @@ std::string GroupOfUrl(const std::string& url) {
 }
 
 bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::string>& groups,
-                int ttl, const std::map<std::string, int>& fifo_hosts,
+                int ttl, const std::string& ttl_fix, const std::map<std::string, int>& fifo_hosts,
                 std::map<std::string, HostCheck>* checks, std::string* error) {
   const std::vector<const Host*> used = hosts.UsedHosts(followers);
+  for (const Host& h : hosts.hosts) {
+    if (h.name == kLocalHostName || std::find(used.begin(), used.end(), &h) != used.end()) continue;
+    std::fprintf(stderr, "shoal run: warning: host %s%s runs no process of this run: not checked\n",
+                 h.name.c_str(), Where(hosts, h).c_str());
+  }
   std::vector<std::map<std::string, std::string>> probed(used.size());
   std::vector<bool> in_place(used.size());
   std::vector<double> login_s(used.size());
@@ -326,7 +337,7 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
   if (spans && ttl == 0) {
     *error = hosts.path + ": the run spans " + std::to_string(networks.size()) +
              " networks, but its LCM URL's ttl is 0, which keeps every message on its host; "
-             "use ttl = 1 ([bus] ttl, or ?ttl=1 in the URL)";
+             "use " + ttl_fix;
     return false;
   }
   const std::string boot = ReadLine("/proc/sys/kernel/random/boot_id");
@@ -348,6 +359,21 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
         *error = "--sched-fifo: host " + h.name + Where(hosts, h) +
                  " does not permit SCHED_FIFO priority " + prio + " (chrt -f " + prio +
                  " true: " + (said.empty() ? "no answer" : said) + ")";
+        return false;
+      }
+    }
+    if (!h.interface.empty()) {
+      const std::string on = "host " + h.name + Where(hosts, h) + ": interface " + h.interface;
+      if (f["iface"] != "ok") {
+        std::string has = f["ifaces"];
+        while (!has.empty() && has.back() == ' ') has.pop_back();
+        *error = on + " does not exist there (it has: " + has +
+                 "); name the one on the network the hosts share";
+        return false;
+      }
+      if (spans && h.interface == "lo") {
+        *error = on + " reaches no other host, and the run spans more than one network; name "
+                     "the interface on the network the hosts share";
         return false;
       }
     }

@@ -84,8 +84,10 @@ std::string ShellQuote(const std::string& text);
 /// `fifo_hosts` permits SCHED_FIFO at the priority given for it (shoal run --sched-fifo:
 /// the highest its processes take; where the host has no chrt to ask, its processes check
 /// for themselves at their start). Fills *checks by host name; false with *error.
+/// `ttl_fix` says where the TTL is set, for the message when it is 0. Hosts that run no
+/// process are not probed: each gets a warning on stderr.
 bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::string>& groups,
-                int ttl, const std::map<std::string, int>& fifo_hosts,
+                int ttl, const std::string& ttl_fix, const std::map<std::string, int>& fifo_hosts,
                 std::map<std::string, HostCheck>* checks, std::string* error);
 
 /// The multicast group of an udpm:// URL ("" if it is not one).

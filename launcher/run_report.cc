@@ -177,7 +177,7 @@ void PrintAuthentication(const RunReport& r, std::FILE* out) {
 void PrintRestarts(const RunReport& r, std::FILE* out) {
   const std::vector<ProcessRestart>& rs = r.launch.restarts;
   if (rs.empty()) return;
-  std::fprintf(out, "  %zu restart(s) (--restart on-failure):\n", rs.size());
+  std::fprintf(out, "  %zu restart(s):\n", rs.size());
   for (const ProcessRestart& p : rs) {
     std::fprintf(out, "    %s (pid %d) %s at t = %.2f s of the mission: restarted as pid %d\n",
                  p.process.c_str(), p.pid, p.reason.c_str(), p.mission_s, p.new_pid);

@@ -480,6 +480,20 @@ bool SoakFigure(const SoakFigureData& d, Figure2D* out, std::string* err) {
   f.panels = SoakPanels(d, u);
   if (f.panels.empty()) return Fail(err, "soak figure: no series to draw (every series is empty)");
   for (std::size_t k = 0; k < f.panels.size(); ++k) AddPhaseBands(d, u, k == 0, &f.panels[k]);
+  // The time axis spans the phases: the first samples come a sampling interval after the
+  // start, and the bands alone would not widen it.
+  if (!d.phases.empty()) {
+    double t0 = d.phases.front().t0_s, t1 = 0.0;
+    for (const SoakPhase& ph : d.phases) t0 = std::min(t0, ph.t0_s), t1 = std::max(t1, ph.t1_s);
+    for (Panel& p : f.panels) {
+      double end = t1;
+      for (const Series& s : p.series) {
+        if (!s.x.empty()) end = std::max(end, s.x.back() / u.per_s);
+      }
+      p.x.min = t0 * u.per_s;
+      p.x.max = end * u.per_s;
+    }
+  }
   f.panels.front().note = FailedPhasesNote(d);
   if (!d.phases.empty()) f.legend = PhaseLegend(d);
   if (!Validate(f, err)) return false;

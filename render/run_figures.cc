@@ -146,11 +146,15 @@ bool AcousticOf(const RunData& run, AcousticPoints* points, std::vector<Acoustic
         e.receiver >= static_cast<int>(run.vehicles.size()) || e.sender < 0 || e.receiver < 0) {
       continue;
     }
+    // The channel's range (docs/scenario.md, "Acoustic range"): the sender's position in
+    // the message, the receiver's in its newest state sent strictly before the send tick,
+    // 0 before the receiver's first state.
     const StateMsg* a = StateAt(run.vehicles[static_cast<std::size_t>(e.sender)], e.send_utime);
-    const StateMsg* b = StateAt(run.vehicles[static_cast<std::size_t>(e.receiver)], e.send_utime);
-    if (a == nullptr || b == nullptr) continue;
+    const StateMsg* b =
+        StateAt(run.vehicles[static_cast<std::size_t>(e.receiver)], e.send_utime - 1);
+    if (a == nullptr) continue;
     points->send_s.push_back(ToSeconds(e.send_utime));
-    points->range_m.push_back((a->eta.head<3>() - b->eta.head<3>()).norm());
+    points->range_m.push_back(b == nullptr ? 0.0 : (a->eta.head<3>() - b->eta.head<3>()).norm());
     points->drawn_delay_s.push_back(e.delay_s);
     points->realised_delay_s.push_back(ToSeconds(e.deliver_utime - e.send_utime));
   }
@@ -243,8 +247,11 @@ ChannelOptions ChannelOptionsOf(const RunData& run, const RunAnalysis& a) {
   return o;
 }
 
-bool WriteRunFigures(const RunData& run, const std::string& out_dir, const RunFigureOptions& o,
+bool WriteRunFigures(const RunData& run, const std::string& out, const RunFigureOptions& o,
                      RunFigureReport* report, std::string* err) {
+  // The paths it reports: "figures/x.png" for --out figures/, not "figures//x.png".
+  std::string out_dir = out;
+  while (out_dir.size() > 1 && out_dir.back() == '/') out_dir.pop_back();
   const std::vector<VehicleSeries> vehicles = VehicleSeriesOf(run);
   if (vehicles.empty()) {
     if (err) *err = run.source + ": no vehicle states to draw";

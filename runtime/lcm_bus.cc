@@ -24,8 +24,10 @@ LcmBus::LcmBus(const std::string& url, std::optional<bus_auth::Key> key, Receivi
   }
   if (!lcm_.good()) {
     throw std::runtime_error("cannot open LCM at '" + url +
-                             "' (for udpm on loopback, multicast must be routed to lo: "
-                             "ip link set lo multicast on && ip route add 239.255.0.0/16 dev lo)");
+                             "' (udpm needs a route for the group: on one machine, through "
+                             "loopback: ip link set lo multicast on && ip route add "
+                             "239.255.0.0/16 dev lo; across hosts, through the interface of "
+                             "the network they share: ip route add 224.0.0.0/4 dev <interface>)");
   }
 }
 

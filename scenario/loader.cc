@@ -904,6 +904,22 @@ void ReadControl(const Reader& r, const Table& t, Scenario* s) {
   }
 }
 
+/// The climb or dive angle of a leg d (NED: z down), in radians, magnitude only.
+double PitchOf(const Vec3& d) { return std::abs(std::atan2(d.z(), std::hypot(d.x(), d.y()))); }
+
+/// The leader's attitude follows its path, and the followers start at the leader's: a leg
+/// steeper than a REMUS 100 can pitch would start them, or steer them, towards the
+/// Euler angles' singularity at 90 deg.
+void CheckPathPitch(const Reader& r, const toml::node& node, const std::string& key,
+                    const Vec3& d, const std::string& which) {
+  const double pitch = PitchOf(d);
+  if (pitch <= kMaxPitchRad) return;
+  char deg[32];
+  std::snprintf(deg, sizeof(deg), "%.1f", pitch * 180.0 / M_PI);
+  r.FailAt(node, key, which + " climbs or dives at " + deg + " deg",
+           "a REMUS 100 pitches at most 30 deg (0.5236 rad): make it less steep");
+}
+
 void ReadWaypoints(const Reader& r, const Table& t, LeaderConfig* leader) {
   const std::string key = t.KeyOf("waypoints_m");
   const std::string_view hint =
@@ -918,6 +934,10 @@ void ReadWaypoints(const Reader& r, const Table& t, LeaderConfig* leader) {
       r.FailAt(*points.get(k), Index(key, k), "repeats the previous waypoint",
                "consecutive waypoints must differ");
     }
+    if (!leader->waypoints_m.empty()) {
+      CheckPathPitch(r, *points.get(k), Index(key, k), p - leader->waypoints_m.back(),
+                     "the leg to this waypoint");
+    }
     leader->waypoints_m.push_back(p);
   }
   r.ReadNumber(t, "speed_mps", kPositiveSpeed, "the leader's along-path speed in m/s",
@@ -927,6 +947,10 @@ void ReadWaypoints(const Reader& r, const Table& t, LeaderConfig* leader) {
     r.FailAt(*points.get(points.size() - 1), Index(key, points.size() - 1),
              "repeats the first waypoint while loop = true",
              "a looped path closes by itself: remove the last waypoint");
+  }
+  if (leader->loop) {
+    CheckPathPitch(r, node, key, leader->waypoints_m.front() - leader->waypoints_m.back(),
+                   "the leg back to the first waypoint (loop = true)");
   }
 }
 
@@ -942,6 +966,9 @@ void ReadLeader(const Reader& r, const Table& t, LeaderConfig* leader) {
       r.ReadVector<3>(t, "velocity_mps", kVelocity,
                       "the leader's constant velocity [vx, vy, vz] in m/s (NED)",
                       &leader->velocity_mps);
+      if (const toml::node* v = t.Get("velocity_mps")) {
+        CheckPathPitch(r, *v, t.KeyOf("velocity_mps"), leader->velocity_mps, "the path");
+      }
       break;
     case PathKind::kWaypoints:
       ReadWaypoints(r, t, leader);

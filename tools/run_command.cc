@@ -91,17 +91,14 @@ int RunRun(const RunOptions& opt) {
                    p.processes);
     };
   }
-  if (!opt.json) {
-    cb.problem = [show](const std::string& problem, bool stops_run) {
-      std::fprintf(stderr, "%sshoal run: %s%s\n", show ? "\n" : "", problem.c_str(),
-                   stops_run ? "" : "; the others keep running (--keep-going)");
-    };
-  }
-  if (!opt.json) {
-    cb.restarted = [show](const std::string& what) {
-      std::fprintf(stderr, "%sshoal run: %s\n", show ? "\n" : "", what.c_str());
-    };
-  }
+  // On stderr as they happen, with --json too: its report goes to stdout at the end.
+  cb.problem = [show](const std::string& problem, bool stops_run) {
+    std::fprintf(stderr, "%sshoal run: %s%s\n", show ? "\n" : "", problem.c_str(),
+                 stops_run ? "" : "; the others keep running (--keep-going)");
+  };
+  cb.restarted = [show](const std::string& what) {
+    std::fprintf(stderr, "%sshoal run: %s\n", show ? "\n" : "", what.c_str());
+  };
   LaunchResult launch;
   std::string error;
   if (!LaunchRun(s, launch_options, cb, &launch, &error)) {

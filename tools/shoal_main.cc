@@ -343,6 +343,13 @@ bool CheckDuration(const CLI::App* cmd, const char* flag, double value) {
   return false;
 }
 
+bool IsCommand(const CLI::App& app, const std::string& word) {
+  for (const CLI::App* c : app.get_subcommands({})) {
+    if (c->check_name(word)) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -368,6 +375,16 @@ int main(int argc, char** argv) {
   CLI::App* soak_cmd = AddSoak(&app, &soak);
   shoal::RetimeOptions retime;
   CLI::App* retime_cmd = AddRetime(&app, &retime);
+  // A word that names no command: CLI11 would say only that a subcommand is required.
+  if (argc > 1 && argv[1][0] != '-' && !IsCommand(app, argv[1])) {
+    std::string names;
+    for (const CLI::App* c : app.get_subcommands({})) {
+      names += (names.empty() ? "" : ", ") + c->get_name();
+    }
+    std::cerr << "shoal: unknown command '" << argv[1] << "'; the commands are " << names
+              << " (shoal --help)\n";
+    return shoal::kExitBadInput;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <iomanip>
 #include <iostream>
 
 #include "analysis/sim_report.h"
@@ -25,7 +26,8 @@ int RunSim(const SimOptions& opt) {
   }
   if (opt.duration_s > 0 && opt.duration_s * 1e6 < static_cast<double>(s.period_us())) {
     std::cerr << "shoal sim: --duration must be at least one control period, "
-              << s.period_us() / 1e6 << " s (got " << opt.duration_s << ")\n";
+              << s.period_us() / 1e6 << " s (got " << std::setprecision(15) << opt.duration_s
+              << ")\n";
     return kExitBadInput;
   }
   if (!opt.out.empty() && SameFile(opt.out, opt.scenario)) {

@@ -338,7 +338,7 @@ TEST(Auth, LiveAnalysisVerifiesWithTheRunsKey) {
                              " >/dev/null 2>&1";
     ASSERT_EQ(std::system(play.c_str()), 0);
     const int status = WaitExit(ana, 20, nullptr);
-    const std::string text = ReadFile(out);
+    const std::string text = ReadFile(out) + ReadFile(out + ".err");  // the JSON, then stderr
     if (key == other) {
       EXPECT_EQ(status, 2) << text;
       EXPECT_NE(text.find("none of them authenticated"), std::string::npos) << text;

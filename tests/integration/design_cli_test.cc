@@ -88,7 +88,8 @@ TEST(DesignCli, NonPositiveGainsAndDelaysExitTwoNamingTheFlag) {
       {"--kappa -0.2", "--kappa must be in [0, 1)"},
       {"--alpha 0", "--alpha must be a positive number"},
       {"--beta -2", "--beta must be a positive number"},
-      {"--rho0 -1", "--rho0 must be a number >= 0"},
+      {"--rho0 -1", "--rho0 must be a number in [0, 1e6]"},
+      {"--rho0 1e300", "--rho0 must be a number in [0, 1e6] (got 1e+300)"},
       {"--safety 0.5", "--safety must be a number >= 1"},
       {"--tune-horizon 0", "--tune-horizon must be a positive number"},
       {"--rho0 0.1", "--rho0 0.1 is below the uncertain factor's own Lipschitz constant 0.5"},
@@ -118,6 +119,24 @@ TEST(DesignCli, RhoZeroWithAnOceanCurrentIsRefused) {
       RunShoal("design " + scen + " --rho0 0 --set disturbance.max_speed_mps=0 "
                "--set disturbance.speed_mps=0", "d_rho0_still");
   EXPECT_NE(still.status, 2) << still.err;
+}
+
+// Theorem 1 certifies the delay-free continuous-time loop, but a run uses each state at the
+// first control tick after it arrives: gains whose exact margin (7.7 ms here) is below one
+// control period (20 ms) do not converge in shoal sim and are not certified.
+TEST(DesignCli, AMarginBelowOneControlPeriodIsNotCertified) {
+  const std::string path = TmpPath("d_fast_gains.toml");
+  std::ofstream(path) << "[run]\nduration_s = 60\n[swarm]\nfollowers = 1\nleader_links = [1]\n"
+                         "[control]\nk1 = 1000.0\nk2 = 200.0\n"
+                         "[vehicle]\ntau_max = [10000, 10000, 10000, 5000, 5000]\n";
+  const auto r = RunShoal("design " + path, "d_fast_gains");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("NOT CERTIFIED"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("the delay acts as up to 0.02 s"), std::string::npos) << r.out;
+  EXPECT_EQ(RunShoal("sim " + path + " --quiet", "d_fast_gains_sim").status, 1);
+  // Gains with room for the period stay certified.
+  const auto slow = RunShoal("design " + path + " --k1 1 --k2 2", "d_fast_gains_slow");
+  EXPECT_EQ(slow.status, 0) << slow.out << slow.err;
 }
 
 TEST(DesignCli, BadScenarioFilesAndFlagsExitTwo) {

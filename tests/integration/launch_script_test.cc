@@ -2,6 +2,7 @@
 // the real executables, and the printed script run by bash.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -376,6 +377,33 @@ TEST(LaunchScript, StoppingTheScriptStopsEveryProcess) {
   EXPECT_LT(took, 6.0);
   for (const int pid : pids) EXPECT_NE(kill(pid, 0), 0) << "pid " << pid << " still runs";
   EXPECT_GT(ReadFile(log).size(), 0u);  // the logger closed its log
+}
+
+// While a run writes a log, a second run on the same log -- the same script again, or
+// shoal run with that --out -- is refused before it removes anything: both lock <log>.d/.
+// The script also removes an earlier run's resources.csv, which would describe other
+// processes.
+TEST(LaunchScript, ASecondRunOnTheSameLogIsRefusedWhileTheFirstWrites) {
+  const std::string log = TmpPath("ls_twice.lcmlog");
+  const Script s = Print(kExample2 + " --mode realtime --duration 60 --out " + log, "ls_twice");
+  ::mkdir((log + ".d").c_str(), 0755);
+  { std::ofstream(log + ".d/resources.csv") << "an earlier run's\n"; }
+  const std::string err = TmpPath("ls_twice.bash.err");
+  const pid_t bash = StartBash(s.path, err, true);
+  const GroupStopper stop_all{bash};
+  ASSERT_EQ(StartedPids(err, 8).size(), 8u) << ReadFile(err);
+  EXPECT_FALSE(std::ifstream(log + ".d/resources.csv").good());
+  const auto [status, second] = RunBash(s.path, "ls_twice_again");
+  EXPECT_EQ(status, 2) << second;
+  EXPECT_NE(second.find("another run is writing " + log), std::string::npos) << second;
+  const auto run = RunShoal("run " + kExample2 + " --duration 1 --out " + log, "ls_twice_run");
+  EXPECT_EQ(run.status, 2) << run.err;
+  EXPECT_NE(run.err.find("another run is writing " + log), std::string::npos) << run.err;
+  std::this_thread::sleep_for(std::chrono::seconds(5));  // tick 0 is 4 s after the logger
+  kill(-bash, SIGINT);
+  EXPECT_EQ(shoal::testing::WaitExit(bash, 10.0, nullptr), 130) << ReadFile(err);
+  const auto ana = RunShoal("analyze --json " + log, "ls_twice_analyze");
+  EXPECT_GT(ParseJson(ana.out)["log_states"].get<int>(), 6 * 10) << ana.out << ana.err;
 }
 
 TEST(LaunchScript, CtrlCAtTheTerminalStopsTheLoggerLast) {

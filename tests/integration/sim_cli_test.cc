@@ -462,6 +462,30 @@ TEST(SimCli, SameScenarioSameSeedGivesIdenticalLogs) {
 }
 
 // The log is a standard LCM log with the SIL channels and types.
+// shoal sim stops at the tick whose integration diverged; the analysis of its log says the
+// same as its report: the follower, the counts of its last health report, and every state
+// of the run that ran (not of the scenario's whole length).
+TEST(SimCli, ADivergedRunsLogAnalysesAsItsReportSays) {
+  const std::string scenario = TmpPath("diverge.toml"), log = TmpPath("diverge.lcmlog");
+  std::ofstream(scenario) << "[run]\nduration_s = 10\n[swarm]\nfollowers = 2\n"
+                             "leader_links = [1]\nedges = [[2, 1]]\n[control]\nk1 = 1.0\n"
+                             "k2 = 2.0\n[[follower]]\nid = 1\nposition_m = [0, 0, 0]\n";
+  const auto sim = RunShoal("sim " + scenario + " --json --out " + log, "diverge_sim");
+  ASSERT_EQ(sim.status, 1) << sim.err;
+  const auto s = ParseJson(sim.out);
+  ASSERT_NE(s["diverged_follower"], 0) << sim.out;
+  const auto ana = RunShoal("analyze " + log + " --json", "diverge_ana");
+  ASSERT_EQ(ana.status, 0) << ana.err;
+  const auto a = ParseJson(ana.out);
+  EXPECT_EQ(a["diverged_follower"], s["diverged_follower"]) << ana.out;
+  EXPECT_EQ(a["sim_time_s"], s["sim_time_s"]) << ana.out;
+  EXPECT_EQ(a["log_states"], a["log_states_expected"]) << ana.out;
+  EXPECT_EQ(a["log_states"], 3 * s["ticks"].get<int>()) << ana.out;
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(a["followers"][i]["msgs_received"], s["followers"][i]["msgs_received"]) << i;
+  }
+}
+
 TEST(SimCli, LogHasTheSilChannelsAndConsistentChannelTruth) {
   const std::string path = TmpPath("content.lcmlog");
   const auto r = RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +

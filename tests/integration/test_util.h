@@ -97,8 +97,12 @@ inline std::string TmpPath(const std::string& name) {
 inline pid_t StartShoal(const std::string& args, const std::string& out_file) {
   const pid_t pid = fork();
   if (pid == 0) {
+    // With --json, stdout is the report alone: what the run says as it goes (restarts,
+    // problems) goes to stderr, here <out_file>.err.
+    const bool json = (" " + args + " ").find(" --json ") != std::string::npos;
     const std::string cmd = "exec " + shoal::testing::ShoalBinary() + " " + args + " >" +
-                            out_file + " 2>&1 </dev/null";
+                            out_file + (json ? " 2>" + out_file + ".err" : " 2>&1") +
+                            " </dev/null";
     execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }

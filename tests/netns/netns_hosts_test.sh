@@ -4,7 +4,11 @@
 # logger, the channel emulator and the leader run in one namespace, the vehicles in the
 # other two. Checks that
 #   - a hosts file with a placement error (unknown host, a vehicle placed twice, a vehicle
-#     the scenario does not have) is refused: exit 2, file:line, nothing started;
+#     the scenario does not have), or a [bus] ttl beside --lcm-url, is refused: exit 2,
+#     file:line, nothing started;
+#   - a host without a route for the group of a vehicle placed there, or whose interface
+#     does not exist, is refused before anything starts; a host that runs nothing is named
+#     in a warning;
 #   - multicast crosses the bridge (lcm-logger in each namespace records what the other
 #     two send);
 #   - lockstep: the run's log equals shoal sim's of the same scenario exactly;
@@ -43,12 +47,12 @@ json() {
 [ -x "$shoal" ] || fail "no shoal executable at $shoal"
 work=$(mktemp -d /tmp/shoal-netns-test.XXXXXX)
 id=$$
-h1=shoal-h1-$id h2=shoal-h2-$id h3=shoal-h3-$id br=shoal-br-$id
+h1=shoal-h1-$id h2=shoal-h2-$id h3=shoal-h3-$id h4=shoal-h4-$id br=shoal-br-$id
 netns_was_mounted=0
 if mountpoint -q /run/netns 2>/dev/null; then netns_was_mounted=1; fi
 cleanup() {
   local status=$?
-  for ns in "$h1" "$h2" "$h3" "$br"; do
+  for ns in "$h1" "$h2" "$h3" "$h4" "$br"; do
     if ip netns list 2>/dev/null | grep -qw "$ns"; then
       # Anything still running there is a failure of the run's supervision.
       if [ -n "$(ip netns pids "$ns" 2>/dev/null)" ]; then
@@ -69,7 +73,7 @@ cleanup() {
 trap cleanup EXIT
 trap 'exit 130' INT TERM
 
-hosts_file() {  # the three hosts, then $1 as the placement
+hosts_file() {  # the three hosts, $2 (more lines) after them, then $1 as the placement
   cat <<EOF
 [[host]]
 name = "h1"
@@ -84,8 +88,8 @@ interface = "eth0"
 [[host]]
 name = "h3"
 prefix = ["ip", "netns", "exec", "$h3"]
-interface = "eth0"
-
+interface = "${IFACE3:-eth0}"
+${2:-}
 [placement]
 $1
 EOF
@@ -109,6 +113,14 @@ expect_refused placed_twice 'vehicles = { h2 = ["1-3"], h3 = [3, 4] }' \
   "$work/placed_twice.toml:17: placement.vehicles.h3: vehicle 3 is placed twice (also on host \"h2\", line 17)"
 expect_refused no_such_vehicle 'vehicles = { h2 = [1, 2], h3 = [6] }' \
   "placement.vehicles.h3: vehicle 6 is not in the scenario (its vehicles are 1 to 5)"
+hosts_file 'default = "h1"' '[bus]
+ttl = 1' >"$work/ttl.toml"
+status=0
+"$shoal" run --hosts "$work/ttl.toml" "$scenario" --duration 1 --quiet --out "$work/ttl.lcmlog" \
+  --lcm-url "udpm://239.255.76.67:7667?ttl=0" >/dev/null 2>"$work/ttl.err" || status=$?
+[ "$status" = 2 ] || fail "[bus] ttl with --lcm-url: exit status $status: $(cat "$work/ttl.err")"
+grep -qF "$work/ttl.toml:16: bus.ttl: cannot be given with --lcm-url" "$work/ttl.err" ||
+  fail "[bus] ttl with --lcm-url: $(cat "$work/ttl.err")"
 echo "placement errors refused"
 
 # --- The hosts. -------------------------------------------------------------------------
@@ -165,20 +177,59 @@ for n in 1 2 3; do
 done
 echo "multicast crosses the bridge"
 
+# --- Hosts refused before anything starts. ----------------------------------------------
+# h4 on the bridge, with routes for the shared bus, the uplink and the leader's group
+# (239.255.76.0/24, 239.255.77.20) but none for vehicle 3's own (239.255.77.23).
+ip netns add "$h4"
+ip -n "$h4" link add eth0 type veth peer name p4 netns "$br"
+ip -n "$br" link set p4 master br0 up
+ip -n "$h4" link set lo up
+ip -n "$h4" link set eth0 up multicast on
+ip -n "$h4" addr add 10.77.0.4/24 dev eth0
+ip -n "$h4" route add 239.255.76.0/24 dev eth0
+ip -n "$h4" route add 239.255.77.20/32 dev eth0
+h4_host="[[host]]
+name = \"h4\"
+prefix = [\"ip\", \"netns\", \"exec\", \"$h4\"]
+interface = \"eth0\"
+"
+hosts_file 'default = "h1"
+vehicles = { h4 = [3] }' "$h4_host" >"$work/route.toml"
+status=0
+"$shoal" run --hosts "$work/route.toml" "$scenario" --duration 1 --quiet \
+  --out "$work/route.lcmlog" >/dev/null 2>"$work/route.err" || status=$?
+[ "$status" = 2 ] || fail "no route for a vehicle's group: exit status $status: $(cat "$work/route.err")"
+grep -qE "host h4 \(.*\): multicast to 239\.255\.77\.23 has no route" "$work/route.err" ||
+  fail "no route for a vehicle's group: $(cat "$work/route.err")"
+[ ! -e "$work/route.lcmlog" ] || fail "no route for a vehicle's group: a log was written"
+IFACE3=eth9 hosts_file 'default = "h1"
+vehicles = { h3 = [3] }' >"$work/iface.toml"
+status=0
+"$shoal" run --hosts "$work/iface.toml" "$scenario" --duration 1 --quiet \
+  --out "$work/iface.lcmlog" >/dev/null 2>"$work/iface.err" || status=$?
+[ "$status" = 2 ] || fail "no such interface: exit status $status: $(cat "$work/iface.err")"
+grep -qE "host h3 \(.*\): interface eth9 does not exist there \(it has: .*eth0" "$work/iface.err" ||
+  fail "no such interface: $(cat "$work/iface.err")"
+echo "a host without a vehicle's route or without its interface refused"
+
 # --- Lockstep: equal to shoal sim. ------------------------------------------------------
 placement='logger = "h1"
 emulator = "h1"
 leader = "h1"
 vehicles = { h2 = ["1-2", 5], h3 = [3, 4] }'
 hosts_file "$placement" >"$work/hosts.toml"
+# The same hosts and h4, which runs nothing: named in a warning, not probed.
+hosts_file "$placement" "$h4_host" >"$work/hosts4.toml"
 status=0
-"$shoal" run --hosts "$work/hosts.toml" "$scenario" --duration "$LOCKSTEP_S" --json \
+"$shoal" run --hosts "$work/hosts4.toml" "$scenario" --duration "$LOCKSTEP_S" --json \
   --out "$work/lock.lcmlog" >"$work/lock.json" 2>"$work/lock.err" || status=$?
 # Exit 1: not converged in 10 s (as shoal sim says below); every process ran to the end.
 [ "$status" = 1 ] || fail "lockstep run: exit status $status: $(cat "$work/lock.err" "$work/lock.json")"
 [ "$(json all_processes_ok "$work/lock.json")" = true ] || fail "lockstep run: $(cat "$work/lock.json")"
 [ "$(json log_complete "$work/lock.json")" = true ] || fail "lockstep log incomplete: $(cat "$work/lock.json")"
 json lcm_url "$work/lock.json" | grep -q 'ttl=1' || fail "the run's URL has no ttl=1"
+grep -qE "warning: host h4 \(.*\) runs no process of this run: not checked" "$work/lock.err" ||
+  fail "the unused host h4 was not named: $(cat "$work/lock.err")"
 # The emulator ran in h1, with lcm-logger's pid to wait for (ip netns exec runs in place).
 grep -q "waited for the recorder" "$work/lock.lcmlog.d/emulator.txt" ||
   fail "the emulator did not wait for the logger: $(cat "$work/lock.lcmlog.d/emulator.txt")"

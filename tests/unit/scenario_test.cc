@@ -686,6 +686,18 @@ std::vector<RuleCase> RuleCases() {
        "set path = \"line\""},
       {"LineVelocityTwoNumbers", base + "[leader]\npath = \"line\"\nvelocity_mps = [1, 0]\n",
        "leader.velocity_mps: must be an array of 3 numbers (got [1, 0])"},
+      // The followers start at the leader's attitude, which its path sets.
+      {"LineTooSteep", base + "[leader]\npath = \"line\"\nvelocity_mps = [0, 0, 1]\n",
+       "leader.velocity_mps: the path climbs or dives at 90.0 deg (got [0, 0, 1]); a REMUS "
+       "100 pitches at most 30 deg (0.5236 rad)"},
+      {"WaypointLegTooSteep",
+       base + "[leader]\npath = \"waypoints\"\nwaypoints_m = [[0, 0, 0], [10, 0, 0], [11, 0, 10]]\n",
+       "leader.waypoints_m[2]: the leg to this waypoint climbs or dives at 84.3 deg"},
+      {"LoopClosingLegTooSteep",
+       base + "[leader]\npath = \"waypoints\"\nloop = true\n"
+              "waypoints_m = [[0, 0, 0], [20, 0, 5], [1, 0, 10]]\n",
+       "leader.waypoints_m: the leg back to the first waypoint (loop = true) climbs or dives at "
+       "84.3 deg"},
       {"WaypointsMissing", base + "[leader]\npath = \"waypoints\"\n",
        "test.toml:10: leader.waypoints_m: missing required key"},
       {"WaypointsOnePoint", base + "[leader]\npath = \"waypoints\"\nwaypoints_m = [[0, 0, 0]]\n",
