@@ -127,6 +127,10 @@ class Follower {
     Vec5 eta, nu;        // the plant state after that Tick's integration (at utime + period)
     FollowerCounters counters;
     bool diverged = false;
+    /// The attitude's sines and cosines as carried from tick to tick, and their age: a
+    /// resumed follower carries them on as the uninterrupted one does, to the bit.
+    AttitudeTrig<double> trig{Vec5::Zero()};
+    int trig_age = 0;
   };
   /// The state after the last Tick (published.seq = -1 before any).
   Checkpoint MakeCheckpoint() const;

@@ -11,6 +11,8 @@ Follower::Checkpoint Follower::MakeCheckpoint() const {
   c.nu = x_.nu;
   c.counters = counters_;
   c.diverged = diverged_;
+  c.trig = trig_;
+  c.trig_age = trig_age_;
   return c;
 }
 
@@ -21,7 +23,8 @@ void Follower::Resume(const Checkpoint& c) {
   out_.vehicle_id = id_;
   counters_ = c.counters;
   diverged_ = c.diverged;
-  trig_age_ = 0;  // the next Tick computes the attitude's sines and cosines afresh
+  trig_ = c.trig;
+  trig_age_ = c.trig_age >= 0 && c.trig_age < kTrigRefreshTicks ? c.trig_age : 0;  // 0: afresh
   delayed_y_.Reset();
   delayed_z_.Reset();
   delayed_psi_.Reset();

@@ -280,14 +280,24 @@ DelayBounds DelayBoundsOf(const Scenario& s) {
   return out;
 }
 
+/// Whether both roots of s^2 + b s + c lie in the open left half-plane. The root of the
+/// larger magnitude comes from -(b + disc) / 2 with the sign that adds, the other as c
+/// over it: -b + disc cancels when |4c| << |b|^2 (k1 = 1e-6, k2 = 1e6 gives a root at
+/// -1e-12 that the textbook formula puts at 0 or to the right of it).
+static bool BothRootsStable(Complex b, Complex c) {
+  Complex disc = std::sqrt(b * b - 4.0 * c);
+  if (std::real(std::conj(b) * disc) < 0.0) disc = -disc;
+  const Complex r1 = -0.5 * (b + disc);
+  if (r1 == Complex(0.0, 0.0)) return false;  // b = c = 0: a double root at 0
+  const Complex r2 = c / r1;
+  return r1.real() < 0.0 && r2.real() < 0.0;
+}
+
 EigenMargin EigenDelayMargin(Complex lambda, double k1, double k2) {
   EigenMargin m;
   m.lambda = lambda;
   // tau = 0: s^2 + lambda k2 s + lambda k1 = 0.
-  const Complex b = lambda * k2, c = lambda * k1;
-  const Complex disc = std::sqrt(b * b - 4.0 * c);
-  const Complex r1 = (-b + disc) / 2.0, r2 = (-b - disc) / 2.0;
-  m.stable_at_zero = r1.real() < 0.0 && r2.real() < 0.0;
+  m.stable_at_zero = BothRootsStable(lambda * k2, lambda * k1);
 
   // |s^2| = |lambda| |k1 + k2 s| at s = j w:  w^4 = |lambda|^2 (k1^2 + k2^2 w^2).
   const double a2 = std::norm(lambda);
@@ -335,9 +345,7 @@ DelayMargin ComputeDelayMargin(const std::vector<Complex>& eigenvalues, double k
 
 EigenMargin GeneralDelayMargin(Complex a, Complex b) {
   EigenMargin m;
-  const Complex disc = std::sqrt(a * a - 4.0 * b);
-  const Complex r1 = (-a + disc) / 2.0, r2 = (-a - disc) / 2.0;
-  m.stable_at_zero = r1.real() < 0.0 && r2.real() < 0.0;
+  m.stable_at_zero = BothRootsStable(a, b);
   m.tau_s = std::numeric_limits<double>::infinity();
 
   // Real roots of p(w) = w^4 + c2 w^2 + c1 w + c0 from its companion matrix, polished.

@@ -495,6 +495,9 @@ class Launch {
   /// also makes sure multicast stays on the host (or, with --hosts, that each host can
   /// take part) and prepares the log, the output folder and the key. Nothing is started.
   bool Prepare(bool for_print, std::string* error);
+  /// --hosts: the multicast groups each host that runs a process sends or joins on.
+  std::map<std::string, std::vector<std::string>> GroupsByHost(const HostsFile& hosts,
+                                                               const std::string& url) const;
   const LaunchPlan& plan() const { return plan_; }
   void StartAll();
   void Supervise(const LaunchCallbacks& cb);
@@ -678,6 +681,25 @@ bool Launch::Prepare(bool for_print, std::string* error) {
          PrepareKey(opt_, r_, error);
 }
 
+std::map<std::string, std::vector<std::string>> Launch::GroupsByHost(const HostsFile& hosts,
+                                                                     const std::string& url) const {
+  // Every host sends or joins on the shared bus's group and the uplink's; a vehicle's host
+  // (the leader's too) on that vehicle's own; the emulator's, which sends to each vehicle,
+  // on every vehicle's.
+  std::vector<std::string> groups = {GroupOfUrl(url)};
+  if (!uplink_url_.empty()) groups.push_back(GroupOfUrl(uplink_url_));
+  std::map<std::string, std::vector<std::string>> by_host;
+  for (const Host* h : hosts.UsedHosts(s_.followers)) by_host[h->name] = groups;
+  const std::string& emulator = hosts.HostOf(HostRole::kEmulator).name;
+  for (std::size_t id = 0; id < vehicle_urls_.size(); ++id) {
+    const std::string g = GroupOfUrl(vehicle_urls_[id]);
+    const std::string& host = hosts.HostOfVehicle(static_cast<int>(id)).name;
+    by_host[host].push_back(g);
+    if (host != emulator) by_host[emulator].push_back(g);
+  }
+  return by_host;
+}
+
 bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
   const HostsFile* hosts = opt_.hosts ? &*opt_.hosts : nullptr;
   if (hosts && !hosts->bus_url.empty() && !opt_.lcm_url.empty()) {
@@ -727,15 +749,12 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
     }
   }
   if (!hosts) return true;
-  // Every group of the run: the emulator sends to each vehicle's, so its host needs a
-  // route for all of them, and each vehicle's host for its own.
-  std::vector<std::string> groups = {GroupOfUrl(url)};
-  for (const std::string& u : vehicle_urls_) groups.push_back(GroupOfUrl(u));
-  if (!uplink_url_.empty()) groups.push_back(GroupOfUrl(uplink_url_));
+  const std::map<std::string, std::vector<std::string>> groups_by_host =
+      GroupsByHost(*hosts, url);
   const std::string ttl_fix = !opt_.lcm_url.empty() ? "?ttl=1 in --lcm-url"
                               : !hosts->bus_url.empty() ? "?ttl=1 in [bus] url in " + hosts->path
                                                         : "[bus] ttl = 1 in " + hosts->path;
-  if (groups[0].empty()) {
+  if (GroupOfUrl(url).empty()) {
     *error = "--hosts needs an udpm:// LCM URL (got " + url + ")";
     return false;
   }
@@ -751,7 +770,7 @@ bool Launch::ChooseUrls(bool ensure_multicast, std::string* error) {
   if (!opt_.sched_fifo.empty()) {
     fifo_hosts[hosts->HostOf(HostRole::kEmulator).name] = kEmulatorFifoPriority;
   }
-  if (!CheckHosts(*hosts, s_.followers, groups, TtlOfUrl(url), ttl_fix, fifo_hosts,
+  if (!CheckHosts(*hosts, s_.followers, groups_by_host, TtlOfUrl(url), ttl_fix, fifo_hosts,
                   &host_checks_, error)) {
     return false;
   }

@@ -234,6 +234,25 @@ std::string RouteProblem(const HostsFile& hosts, const Host& h, const std::strin
   return "";
 }
 
+/// The check of the interface the hosts file names for h, from its probe's fields; "" if
+/// it passes (or none is named).
+std::string InterfaceProblem(const HostsFile& hosts, const Host& h,
+                             std::map<std::string, std::string>& f, bool spans_hosts) {
+  if (h.interface.empty()) return "";
+  const std::string on = "host " + h.name + Where(hosts, h) + ": interface " + h.interface;
+  if (f["iface"] != "ok") {
+    std::string has = f["ifaces"];
+    while (!has.empty() && has.back() == ' ') has.pop_back();
+    return on + " does not exist there (it has: " + has +
+           "); name the one on the network the hosts share";
+  }
+  if (spans_hosts && h.interface == "lo") {
+    return on + " reaches no other host, and the run spans more than one network; name the "
+                "interface on the network the hosts share";
+  }
+  return "";
+}
+
 }  // namespace
 
 std::string ShellQuote(const std::string& text) {
@@ -312,7 +331,8 @@ std::string GroupOfUrl(const std::string& url) {
   return rest.substr(0, rest.find_first_of(":?"));
 }
 
-bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::string>& groups,
+bool CheckHosts(const HostsFile& hosts, int followers,
+                const std::map<std::string, std::vector<std::string>>& groups_by_host,
                 int ttl, const std::string& ttl_fix, const std::map<std::string, int>& fifo_hosts,
                 std::map<std::string, HostCheck>* checks, std::string* error) {
   const std::vector<const Host*> used = hosts.UsedHosts(followers);
@@ -327,7 +347,12 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
   std::set<std::string> networks;  // boot id and network namespace of each host
   for (std::size_t i = 0; i < used.size(); ++i) {
     bool b = false;
-    if (!Probe(hosts, *used[i], groups, &probed[i], &b, &login_s[i], error)) return false;
+    const auto g = groups_by_host.find(used[i]->name);
+    const std::vector<std::string> none;
+    if (!Probe(hosts, *used[i], g == groups_by_host.end() ? none : g->second, &probed[i], &b,
+               &login_s[i], error)) {
+      return false;
+    }
     in_place[i] = b;
     networks.insert(probed[i]["boot"] + " " + probed[i]["netns"]);
   }
@@ -362,22 +387,10 @@ bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::st
         return false;
       }
     }
-    if (!h.interface.empty()) {
-      const std::string on = "host " + h.name + Where(hosts, h) + ": interface " + h.interface;
-      if (f["iface"] != "ok") {
-        std::string has = f["ifaces"];
-        while (!has.empty() && has.back() == ' ') has.pop_back();
-        *error = on + " does not exist there (it has: " + has +
-                 "); name the one on the network the hosts share";
-        return false;
-      }
-      if (spans && h.interface == "lo") {
-        *error = on + " reaches no other host, and the run spans more than one network; name "
-                     "the interface on the network the hosts share";
-        return false;
-      }
-    }
-    for (const std::string& g : groups) {
+    *error = InterfaceProblem(hosts, h, f, spans);
+    if (!error->empty()) return false;
+    const auto it = groups_by_host.find(h.name);
+    for (const std::string& g : it == groups_by_host.end() ? std::vector<std::string>{} : it->second) {
       const std::string route = f["route " + g];
       *error = RouteProblem(hosts, h, g, route, spans);
       if (!error->empty()) return false;

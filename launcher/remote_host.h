@@ -76,7 +76,7 @@ std::string ShellQuote(const std::string& text);
 
 /// Checks every host that runs a process of a run with `followers` vehicles, before
 /// anything starts: the prefix starts a command there (within 30 s), the host has a route
-/// for each of `groups` (LCM's udpm sends and joins by it), through the hosts file's
+/// for each of its `groups_by_host` (LCM's udpm sends and joins by it), through the hosts file's
 /// `interface` when it gives one and not through loopback when the run spans more than one
 /// host, and `ttl` lets the run's messages leave a host when it spans more than one. Finds
 /// which hosts share shoal run's CLOCK_MONOTONIC (HostCheck::same_clock: where one does
@@ -86,7 +86,8 @@ std::string ShellQuote(const std::string& text);
 /// for themselves at their start). Fills *checks by host name; false with *error.
 /// `ttl_fix` says where the TTL is set, for the message when it is 0. Hosts that run no
 /// process are not probed: each gets a warning on stderr.
-bool CheckHosts(const HostsFile& hosts, int followers, const std::vector<std::string>& groups,
+bool CheckHosts(const HostsFile& hosts, int followers,
+                const std::map<std::string, std::vector<std::string>>& groups_by_host,
                 int ttl, const std::string& ttl_fix, const std::map<std::string, int>& fifo_hosts,
                 std::map<std::string, HostCheck>* checks, std::string* error);
 

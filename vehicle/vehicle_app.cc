@@ -167,6 +167,8 @@ void VehicleApp::SaveCheckpoint(CheckpointPayload* out) const {
   for (std::int64_t v : n.saturated_channel) out->Put(v);
   out->Put(static_cast<std::int32_t>(n.active_neighbours));
   out->Put(static_cast<std::uint8_t>(c.diverged));
+  for (double v : {c.trig.ct, c.trig.st, c.trig.cp, c.trig.sp}) out->Put(v);
+  out->Put(static_cast<std::int32_t>(c.trig_age));
 }
 
 bool VehicleApp::RestoreCheckpoint(std::int64_t tick, CheckpointPayload* in) {
@@ -186,6 +188,12 @@ bool VehicleApp::RestoreCheckpoint(std::int64_t tick, CheckpointPayload* in) {
   std::int32_t active = 0;
   std::uint8_t diverged = 0;
   ok = ok && in->Get(&active) && in->Get(&diverged);
+  std::int32_t trig_age = 0;
+  for (double* v : {&c.trig.ct, &c.trig.st, &c.trig.cp, &c.trig.sp}) {
+    ok = ok && in->Get(v) && std::isfinite(*v);
+  }
+  ok = ok && in->Get(&trig_age);
+  c.trig_age = trig_age;
   // The record must be this vehicle's state of that tick.
   if (!ok || m.utime != tick * period_us() || m.seq < 0 || !m.AllFinite()) return false;
   n.active_neighbours = active;

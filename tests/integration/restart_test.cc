@@ -352,6 +352,24 @@ TEST(Restart, ControllerResetKillsAndRestartsTheVehicleAndLockstepEqualsShoalSim
   EXPECT_TRUE(ProcessesWith({log}).empty());
 }
 
+// A reset between two of the ticks where a follower computes its attitude's sines afresh
+// (every 50): the restarted process carries them on from its checkpoint, as shoal sim's
+// follower does, so the two logs are equal to the bit.
+TEST(Restart, AResetBetweenTheSinesRefreshesStillEqualsShoalSim) {
+  const std::string scenario = TmpPath("restart_trig.toml");
+  std::ofstream(scenario) << "[run]\nduration_s = 5\n[swarm]\nfollowers = 1\nleader_links = [1]\n"
+                             "[control]\nk1 = 0.18\nk2 = 1.152\n[[event]]\nat_s = 0.01\n"
+                             "kind = \"controller_reset\"\nvehicles = [1]\noutage_s = 0.02\n";
+  const std::string log = TmpPath("restart_trig.lcmlog"), sim = TmpPath("restart_trig_sim.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + scenario + " --quiet --out " + sim, "restart_trig_sim").status, 0);
+  const auto run = RunShoal("run " + scenario + " --json --quiet --out " + log, "restart_trig_run");
+  ASSERT_EQ(run.status, 0) << run.out << run.err;
+  const auto cmp = ParseJson(RunShoal("compare " + log + " " + sim + " --json", "restart_trig_cmp").out);
+  EXPECT_EQ(cmp["max_position_diff_m"], 0.0) << cmp;
+  EXPECT_EQ(cmp["max_velocity_diff_mps"], 0.0) << cmp;
+  EXPECT_EQ(cmp["complete"], true) << cmp;
+}
+
 // Real time: the process is killed and restarted at the reset; the restarted one rejoins
 // at the current tick, without a jump in position.
 TEST(Restart, RealtimeControllerResetRestartsTheVehicleWhichRejoins) {

@@ -193,23 +193,22 @@ name = \"h4\"
 prefix = [\"ip\", \"netns\", \"exec\", \"$h4\"]
 interface = \"eth0\"
 "
+host_refused() {  # NAME WHAT EXPECTED_ERE: $work/NAME.toml refused before anything starts
+  local status=0
+  "$shoal" run --hosts "$work/$1.toml" "$scenario" --duration 1 --quiet \
+    --out "$work/$1.lcmlog" >/dev/null 2>"$work/$1.err" || status=$?
+  [ "$status" = 2 ] || fail "$2: exit status $status: $(cat "$work/$1.err")"
+  grep -qE "$3" "$work/$1.err" || fail "$2: $(cat "$work/$1.err")"
+  [ ! -e "$work/$1.lcmlog" ] || fail "$2: a log was written"
+}
 hosts_file 'default = "h1"
 vehicles = { h4 = [3] }' "$h4_host" >"$work/route.toml"
-status=0
-"$shoal" run --hosts "$work/route.toml" "$scenario" --duration 1 --quiet \
-  --out "$work/route.lcmlog" >/dev/null 2>"$work/route.err" || status=$?
-[ "$status" = 2 ] || fail "no route for a vehicle's group: exit status $status: $(cat "$work/route.err")"
-grep -qE "host h4 \(.*\): multicast to 239\.255\.77\.23 has no route" "$work/route.err" ||
-  fail "no route for a vehicle's group: $(cat "$work/route.err")"
-[ ! -e "$work/route.lcmlog" ] || fail "no route for a vehicle's group: a log was written"
+host_refused route "no route for a vehicle's group" \
+  "host h4 \(.*\): multicast to 239\.255\.77\.23 has no route"
 IFACE3=eth9 hosts_file 'default = "h1"
 vehicles = { h3 = [3] }' >"$work/iface.toml"
-status=0
-"$shoal" run --hosts "$work/iface.toml" "$scenario" --duration 1 --quiet \
-  --out "$work/iface.lcmlog" >/dev/null 2>"$work/iface.err" || status=$?
-[ "$status" = 2 ] || fail "no such interface: exit status $status: $(cat "$work/iface.err")"
-grep -qE "host h3 \(.*\): interface eth9 does not exist there \(it has: .*eth0" "$work/iface.err" ||
-  fail "no such interface: $(cat "$work/iface.err")"
+host_refused iface "no such interface" \
+  "host h3 \(.*\): interface eth9 does not exist there \(it has: .*eth0"
 echo "a host without a vehicle's route or without its interface refused"
 
 # --- Lockstep: equal to shoal sim. ------------------------------------------------------

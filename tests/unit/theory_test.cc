@@ -302,6 +302,15 @@ TEST(Theory, DelayMarginRealEigenvalueClosedForm) {
 
 // At (tau_s, j omega) the characteristic function vanishes, for real, complex and
 // conjugate eigenvalues; every crossing moves into the right half plane.
+// s^2 + k2 s + k1 with k1 = 1e-6, k2 = 1e6: roots near -1e6 and -1e-12, both stable. The
+// textbook formula loses the small one to cancellation and calls the loop unstable.
+TEST(Theory, AStableLoopWithGainsFarApartIsStable) {
+  EXPECT_TRUE(EigenDelayMargin(Complex(1.0, 0.0), 1e-6, 1e6).stable_at_zero);
+  EXPECT_TRUE(GeneralDelayMargin(Complex(1e6, 0.0), Complex(1e-6, 0.0)).stable_at_zero);
+  EXPECT_FALSE(EigenDelayMargin(Complex(-1.0, 0.0), 1e-6, 1e6).stable_at_zero);
+  EXPECT_FALSE(GeneralDelayMargin(Complex(1e6, 0.0), Complex(0.0, 0.0)).stable_at_zero);
+}
+
 TEST(Theory, DelayMarginIsARootOnTheImaginaryAxis) {
   for (const Complex l : {Complex(2.0, 0.0), Complex(1.5, 0.866), Complex(1.5, -0.866),
                           Complex(0.3, 2.0), Complex(5.0, -0.1)}) {
