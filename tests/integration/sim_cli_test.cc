@@ -486,6 +486,28 @@ TEST(SimCli, ADivergedRunsLogAnalysesAsItsReportSays) {
   }
 }
 
+// An event the run never reached (a --duration shorter than the scenario's) is not
+// analysed: it did not happen, so it neither "ends at the run's end" nor fails to
+// re-converge.
+TEST(SimCli, AnEventAfterTheRunsEndIsNotAnalysed) {
+  const std::string scenario = TmpPath("late_event.toml");
+  std::ofstream(scenario) << "[run]\nduration_s = 20\n[swarm]\nfollowers = 1\n"
+                             "leader_links = [1]\n[control]\nk1 = 0.18\nk2 = 1.152\n"
+                             "[[event]]\nat_s = 10\nuntil_s = 12\nkind = \"leader_silent\"\n";
+  const auto events_of = [&](const std::string& duration, const std::string& tag) {
+    const std::string log = TmpPath(tag + ".lcmlog");
+    const auto sim = RunShoal("sim " + scenario + duration + " --quiet --out " + log, tag + "_sim");
+    EXPECT_TRUE(sim.status == 0 || sim.status == 1) << sim.err;
+    const auto ana = RunShoal("analyze " + log + " --json", tag + "_ana");
+    EXPECT_EQ(ana.status, 0) << ana.err;
+    return ParseJson(ana.out)["events"];
+  };
+  EXPECT_EQ(events_of(" --duration 5", "late_event_short").size(), 0u);
+  const auto whole = events_of("", "late_event_whole");
+  ASSERT_EQ(whole.size(), 1u) << whole;
+  EXPECT_EQ(whole[0]["ends_in_run"], true) << whole;
+}
+
 TEST(SimCli, LogHasTheSilChannelsAndConsistentChannelTruth) {
   const std::string path = TmpPath("content.lcmlog");
   const auto r = RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") +
