@@ -61,6 +61,22 @@ class CarriedSinCos {
   double cos() const { return cos_; }
   /// The next Set computes afresh.
   void Reset() { age_ = 0; }
+  /// What is carried from one Set to the next: a follower's checkpoint holds it, so that a
+  /// resumed follower goes on to the bit as the uninterrupted one does.
+  struct Carried {
+    double x = 0.0, sin = 0.0, cos = 1.0;
+    int age = 0;
+  };
+  Carried carried() const { return {x_, sin_, cos_, age_}; }
+  /// Goes on from `c`; one that is not finite or out of range computes afresh instead.
+  void Restore(const Carried& c) {
+    const bool ok = std::isfinite(c.x) && std::isfinite(c.sin) && std::isfinite(c.cos) &&
+                    c.age >= 0 && c.age < kRefresh;
+    x_ = ok ? c.x : 0.0;
+    sin_ = ok ? c.sin : 0.0;
+    cos_ = ok ? c.cos : 1.0;
+    age_ = ok ? c.age : 0;
+  }
 
  private:
   double x_ = 0.0, sin_ = 0.0, cos_ = 1.0;

@@ -131,6 +131,9 @@ class Follower {
     /// resumed follower carries them on as the uninterrupted one does, to the bit.
     AttitudeTrig<double> trig{Vec5::Zero()};
     int trig_age = 0;
+    /// The sines and cosines of the uncertain factor's delayed state, carried likewise
+    /// (y, z, psi).
+    CarriedSinCos::Carried delayed[3];
   };
   /// The state after the last Tick (published.seq = -1 before any).
   Checkpoint MakeCheckpoint() const;

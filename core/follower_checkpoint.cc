@@ -13,6 +13,9 @@ Follower::Checkpoint Follower::MakeCheckpoint() const {
   c.diverged = diverged_;
   c.trig = trig_;
   c.trig_age = trig_age_;
+  c.delayed[0] = delayed_y_.carried();
+  c.delayed[1] = delayed_z_.carried();
+  c.delayed[2] = delayed_psi_.carried();
   return c;
 }
 
@@ -25,9 +28,9 @@ void Follower::Resume(const Checkpoint& c) {
   diverged_ = c.diverged;
   trig_ = c.trig;
   trig_age_ = c.trig_age >= 0 && c.trig_age < kTrigRefreshTicks ? c.trig_age : 0;  // 0: afresh
-  delayed_y_.Reset();
-  delayed_z_.Reset();
-  delayed_psi_.Reset();
+  delayed_y_.Restore(c.delayed[0]);
+  delayed_z_.Restore(c.delayed[1]);
+  delayed_psi_.Restore(c.delayed[2]);
   // The ocean current is a random process stepped once per tick: drawn again as far as
   // the checkpoint's tick, it goes on with the numbers the uninterrupted run would draw.
   if (disturbance_ == DisturbanceKind::kOceanCurrent) {

@@ -169,6 +169,10 @@ void VehicleApp::SaveCheckpoint(CheckpointPayload* out) const {
   out->Put(static_cast<std::uint8_t>(c.diverged));
   for (double v : {c.trig.ct, c.trig.st, c.trig.cp, c.trig.sp}) out->Put(v);
   out->Put(static_cast<std::int32_t>(c.trig_age));
+  for (const CarriedSinCos::Carried& d : c.delayed) {
+    for (double v : {d.x, d.sin, d.cos}) out->Put(v);
+    out->Put(static_cast<std::int32_t>(d.age));
+  }
 }
 
 bool VehicleApp::RestoreCheckpoint(std::int64_t tick, CheckpointPayload* in) {
@@ -194,6 +198,11 @@ bool VehicleApp::RestoreCheckpoint(std::int64_t tick, CheckpointPayload* in) {
   }
   ok = ok && in->Get(&trig_age);
   c.trig_age = trig_age;
+  for (CarriedSinCos::Carried& d : c.delayed) {
+    std::int32_t age = 0;
+    ok = ok && in->Get(&d.x) && in->Get(&d.sin) && in->Get(&d.cos) && in->Get(&age);
+    d.age = age;
+  }
   // The record must be this vehicle's state of that tick.
   if (!ok || m.utime != tick * period_us() || m.seq < 0 || !m.AllFinite()) return false;
   n.active_neighbours = active;
