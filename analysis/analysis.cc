@@ -763,6 +763,7 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
   // run-level "finished" status says the same: the emulator and shoal sim stamp it with the
   // last tick; an "interrupted" or "failed" one (shoal sim stops where a follower diverges)
   // with the tick where the run was stopped, up to which its states are expected.
+  bool finished_seen = false;
   for (auto st = run.statuses.rbegin(); !final_seen && st != run.statuses.rend(); ++st) {
     const std::optional<RunState> state = ParseRunState(st->state);
     if (st->vehicle_id < 0 &&
@@ -770,9 +771,15 @@ StateTimeBounds StateTimeBoundsOf(const RunData& run) {
          state == RunState::kFailed) &&
         st->utime >= 0 && st->utime <= b.limit_us) {
       b.expected_end_us = st->utime;
+      finished_seen = state == RunState::kFinished;
       break;
     }
   }
+  // A run that ran to its final tick (a clock's final window, or "finished") has no state
+  // after it: a run shortened with --duration ends there, not at the scenario's end. (An
+  // interrupted or failed run keeps the wider limit: its processes may have gone on a tick
+  // or two past the stamp.)
+  if (final_seen || finished_seen) b.limit_us = b.expected_end_us;
   b.deliver_limit_us = DeliverLimitOf(run, b.limit_us, period);
   return b;
 }

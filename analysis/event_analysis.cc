@@ -55,12 +55,13 @@ Micros DecisionTime(EventKind kind, const ChannelEventRecord& e, Micros period_u
   return e.send_utime;
 }
 
-/// The decisions within the event's window [at, end); a window clipped to the run's end
-/// includes the final tick, whose decisions the run makes too.
-void CountDecisions(const RunData& run, const ScenarioEvent& ev, Micros period_us,
+/// The decisions within the event's window [at, end); a window the run's end cuts short
+/// (`clipped`: the event holds beyond it) includes the final tick, whose decisions the run
+/// makes too. One that ends right at the run's end does not hold at its final tick.
+void CountDecisions(const RunData& run, const ScenarioEvent& ev, Micros period_us, bool clipped,
                     EventAnalysis* out) {
   const Micros at = TimelineMicros(out->at_s), end = TimelineMicros(out->end_s);
-  const bool to_run_end = !out->ends_in_run;
+  const bool to_run_end = clipped;
   for (const ChannelEventRecord& e : run.channel_events) {
     if (e.status < 0 || e.status >= kChannelStatuses || !Affected(ev, e)) continue;
     const Micros t = DecisionTime(ev.kind, e, period_us);
@@ -163,7 +164,7 @@ std::vector<EventAnalysis> AnalyseEvents(const RunData& run, const std::vector<W
       if (next.at_s > a.reference_s) a.horizon_s = std::min(a.horizon_s, next.at_s);
     }
     Formation(samples, a.horizon_s == end_s, &a);
-    CountDecisions(run, ev, period_us, &a);
+    CountDecisions(run, ev, period_us, ChangeEndS(events, k) > end_s, &a);
     out.push_back(a);
   }
   return out;

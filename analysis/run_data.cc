@@ -214,13 +214,17 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
     }
   }
   ++d_->events;
+  // The earliest and latest stamps, not the first and last in the file: a log whose
+  // events are out of order (cut and joined again) still spans the time it recorded.
   if (!have_time_) {
-    d_->first_timestamp = timestamp;
+    d_->first_timestamp = d_->last_timestamp = timestamp;
     have_time_ = true;
   }
-  d_->last_timestamp = timestamp;
+  d_->first_timestamp = std::min(d_->first_timestamp, timestamp);
+  d_->last_timestamp = std::max(d_->last_timestamp, timestamp);
   const channels::Parsed c = channels::Parse(ch);
-  if (c.kind == channels::Kind::kState && d_->first_state_timestamp < 0) {
+  if (c.kind == channels::Kind::kState &&
+      (d_->first_state_timestamp < 0 || timestamp < d_->first_state_timestamp)) {
     d_->first_state_timestamp = timestamp;
   }
   switch (c.kind) {
@@ -438,6 +442,11 @@ void RunDataBuilder::AddStatus(const std::uint8_t* data, int size) {
     max_status_followers_ = std::max(max_status_followers_, st.followers);
   }
   if (d_->scenario_name.empty()) d_->scenario_name = st.scenario_name;
+  // Another scenario text: another run's log was joined to this one.
+  if (!st.scenario_toml.empty() && !d_->scenario_text.empty() &&
+      st.scenario_toml != d_->scenario_text) {
+    ++other_scenarios_;
+  }
   if (!st.scenario_toml.empty() && d_->scenario_text.empty()) {
     d_->scenario_text = st.scenario_toml;
     if (!d_->has_scenario) {
@@ -511,6 +520,12 @@ void RunDataBuilder::Finish() {
                            " vehicle states appear more than once (same vehicle and time: a "
                            "log recorded twice or concatenated, or replayed onto a recording "
                            "bus); each is counted once, the last copy kept");
+  }
+  if (other_scenarios_ > 0) {
+    d_->warnings.push_back(std::to_string(other_scenarios_ + 1) +
+                           " runs' scenario texts differ in this log (logs of different runs "
+                           "joined into one): the first one's scenario is used, and the states, "
+                           "decisions and health of every run are read as one run's");
   }
   if (repeated_decisions_ > 0 || repeated_health_ > 0) {
     d_->warnings.push_back(std::to_string(repeated_decisions_) + " channel decisions and " +

@@ -179,8 +179,9 @@ struct RunData {
   std::int64_t undecodable = 0;     // Shoal channel, but the bytes do not decode
   std::int64_t rejected = 0;        // decoded, but inconsistent (id mismatch / out of range,
                                     // a health window that does not add up)
-  Micros first_timestamp = 0, last_timestamp = 0;  // [us] event timestamps (recorder's clock)
-  /// [us] the first vehicle state's stamp (-1: none): where the run's ticks begin, after
+  // [us] the earliest and latest event timestamps (recorder's clock)
+  Micros first_timestamp = 0, last_timestamp = 0;
+  /// [us] the earliest vehicle state's stamp (-1: none): where the run's ticks begin, after
   /// the processes' start-up that the first events (their statuses) stamp.
   Micros first_state_timestamp = -1;
   // Authentication (runtime/bus_auth.h).
@@ -301,6 +302,7 @@ class RunDataBuilder {
   SeenSet seen_;
   std::int64_t repeated_decisions_ = 0;
   std::int64_t repeated_health_ = 0;
+  std::int64_t other_scenarios_ = 0;  // scenario texts that differ from the first one
 };
 
 /// The distinct ticks the clock messages of a run cover (a window repeated, as in a log

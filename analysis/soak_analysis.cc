@@ -334,13 +334,20 @@ void PhaseFormation(const SoakData& d, const SoakPhase& p, double settle_s,
     if (!max_error || !(s.position_m <= *max_error)) max_error = s.position_m;
     if (!s.within && first_out == nullptr) first_out = &s;
   }
-  const bool ok = judged > 0 && first_out == nullptr;
+  // A run that ended before the phase did (interrupted) did not run its window whole: what
+  // it ran of it says nothing of the rest.
+  const double period_s = d.run.has_scenario ? ToSeconds(d.run.scenario.period_us()) : 0.0;
+  const bool cut_short = p.end_s > d.end_s + period_s + 1e-9;
+  const bool ok = judged > 0 && first_out == nullptr && !cut_short;
   (*m)["reconverged"] = ok;
   (*m)["reconverged_at_s"] =
       std::isnan(reconverged_at) ? nlohmann::ordered_json() : nlohmann::ordered_json(reconverged_at);
   (*m)["final_position_error_m"] = Opt(final_error);
   (*m)["max_position_error_m"] = Opt(max_error);
-  if (judged == 0) {
+  if (cut_short) {
+    why->push_back("the run ended at " + Num(d.end_s) + " s, before the phase's end at " +
+                   Num(p.end_s) + " s: the phase did not run whole");
+  } else if (judged == 0) {
     why->push_back("no complete formation sample from " + Num(from) + " s (start + settle_s " +
                    Num(settle_s) + " s) to " + Num(p.end_s) + " s to judge re-convergence");
   } else if (first_out != nullptr) {

@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <cstdint>
+#include <cstdio>
 
 #include <algorithm>
 #include <map>
@@ -94,6 +95,23 @@ std::vector<PointPlan> PlanPoints(const Campaign& c, const std::string& scenario
       throw CampaignError(std::string(e.what()) + " (point " + std::to_string(p.index) + ")");
     }
     plan.duration_s = c.duration_s > 0 ? c.duration_s : s.duration_s;
+    // What shoal sim and shoal run would refuse for every point, refused once, before any
+    // runs (the scenario's own duration_s was checked as it loaded).
+    if (c.duration_s > 0) {
+      char what[160] = "";
+      if (c.duration_s * 1e6 < static_cast<double>(s.period_us())) {
+        std::snprintf(what, sizeof what, "is shorter than one control period (%g s at %g Hz)",
+                      static_cast<double>(s.period_us()) * 1e-6, s.control_rate_hz);
+      } else if (const std::string ticks = s.TickLimitRefusal(c.duration_s); !ticks.empty()) {
+        std::snprintf(what, sizeof what, "is too long: %s", ticks.c_str());
+      }
+      if (what[0] != '\0') {
+        char got[64];
+        std::snprintf(got, sizeof got, " (got %g)", c.duration_s);
+        throw CampaignError(c.path + ": campaign.duration_s: " + what + got + " (point " +
+                            std::to_string(p.index) + ")");
+      }
+    }
     if (refuse_large) {
       const std::string large = LargeRunRefusal(s, plan.duration_s, pace,
                                                 "campaign.duration_s (or run.duration_s)",

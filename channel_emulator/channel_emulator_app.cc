@@ -80,6 +80,7 @@ ChannelEmulatorApp::ChannelEmulatorApp(const Scenario& s, Mode mode, std::int64_
       have_seq_(s.followers + 1, false),
       alive_(s.followers + 1, true),
       ready_(s.followers + 1, false),
+      ended_(s.followers + 1, false),
       resent_tick_(s.followers + 1, -1),
       resent_ns_(s.followers + 1, 0),
       next_of_(s.followers + 1, -1),
@@ -189,6 +190,9 @@ void ChannelEmulatorApp::OnStatus(const unsigned char* data, int size) {
   } else if (state == RunState::kRestarted && mode_ == Mode::kLockstep && st.utime >= 0 &&
              st.utime % period_us_ == 0) {
     OnRestarted(st.vehicle_id, st.utime / period_us_);
+  } else if (running_ && (state == RunState::kFinished || state == RunState::kFailed ||
+                          state == RunState::kInterrupted)) {
+    ended_[st.vehicle_id] = true;
   }
 }
 
@@ -523,6 +527,17 @@ void ChannelEmulatorApp::AwaitRecorder(std::int64_t released, std::uint64_t queu
   if (recorder_) recorder_->Wait(kRecorderWaitNs);
 }
 
+void ChannelEmulatorApp::AwaitEndStatuses() {
+  if (uplink_ == nullptr) return;
+  const std::int64_t start = MonotonicNs();
+  for (;;) {
+    bool all = true;
+    for (int id = 0; id <= n_; ++id) all = all && (!alive_[id] || ended_[id]);
+    if (all || StopRequested() || MonotonicNs() - start > 2000000000LL) return;
+    HandleBus(10);
+  }
+}
+
 void ChannelEmulatorApp::DrainRecorder() {
   if (progress_ && uplink_ != nullptr && progress_->Attach()) {
     progress_->WaitFor(static_cast<std::uint64_t>(bus_->sent()), 50 * kRecorderWaitNs);
@@ -605,6 +620,7 @@ int ChannelEmulatorApp::RunLockstep() {
     AwaitRecorder(released, queued);
     PublishEvents();
   }
+  AwaitEndStatuses();
   DrainRecorder();
   ReportRecorder();
   if (windows_ > 0) {

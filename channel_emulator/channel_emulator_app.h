@@ -216,6 +216,7 @@ class ChannelEmulatorApp {
   std::vector<Vec3> tick_pos_;
   std::vector<bool> alive_;
   std::vector<bool> ready_;
+  std::vector<bool> ended_;  // its end-of-run status (finished, failed, interrupted) came
   std::int64_t tick_ = -1;  // lockstep: current tick
   std::int32_t clock_seq_ = 0, health_seq_ = 0, status_seq_ = 0;
   EmulatorCounters counters_;
@@ -231,6 +232,11 @@ class ChannelEmulatorApp {
   /// says; `released` is what the bus had sent when the window was released.
   /// `queued`: the events the recorder had handed its writer then; they must be written.
   void AwaitRecorder(std::int64_t released, std::uint64_t queued);
+  /// Lockstep, after the last window, when the emulator forwards the uplink to the
+  /// recorder: until every live process's end-of-run status has come (at most 2 s). A
+  /// process that publishes message by message (with a checkpoint) sends its last health
+  /// report and status after the state that completed the last window.
+  void AwaitEndStatuses();
   /// After the last window: until the recorder has handled all that was sent (at most 5 s).
   void DrainRecorder();
   void ReportRecorder() const;

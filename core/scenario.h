@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -238,6 +239,20 @@ struct Scenario {
   /// Control period in whole microseconds.
   Micros period_us() const {
     return static_cast<Micros>(1e6 / control_rate_hz + 0.5);
+  }
+
+  /// The most ticks a run may have: a state's sequence number, an int32 on the wire,
+  /// counts them from 0 (about 497 days at 50 Hz, 25 days at 1000 Hz).
+  static constexpr std::int64_t kMaxFinalTick = 2147483646;
+  /// "" if a run of `duration` seconds (< 0: the scenario's) fits kMaxFinalTick, else why not.
+  std::string TickLimitRefusal(double duration = -1.0) const {
+    if (final_tick(duration) <= kMaxFinalTick) return "";
+    const double most_s = static_cast<double>(kMaxFinalTick) * static_cast<double>(period_us()) * 1e-6;
+    char text[160];
+    std::snprintf(text, sizeof text, "at most %.0f s at %g Hz (2^31 - 1 ticks)", std::floor(most_s),
+                  control_rate_hz);
+    return std::string("a run's ticks are counted by an int32 sequence number on the wire: ") +
+           text;
   }
 
   /// Index of the last control tick of a run of `duration_s` seconds (< 0: duration_s of

@@ -624,6 +624,10 @@ bool Launch::CheckOptions(std::string* error) {
     *error = "--duration must be at least one control period, " + period.str() + " s";
     return false;
   }
+  if (const std::string ticks = s_.TickLimitRefusal(opt_.duration_s); !ticks.empty()) {
+    *error = "--duration is too long: " + ticks;
+    return false;
+  }
   if (!opt_.allow_large) {
     *error = LargeRunRefusal(s_, opt_.duration_s,
                              mode_ == Mode::kRealtime ? RunPace::kRealtime : RunPace::kLockstep);

@@ -479,7 +479,7 @@ _WHAT = {"sync": "no sync word", "header": "an implausible event header",
 def _resync(mm, pos: int, size: int, limit: int = -1) -> int:
     """The offset of the next valid event after pos (within limit bytes if >= 0), or -1."""
     k = mm.find(SYNC_BYTES, pos + 1)
-    while k >= 0 and (limit < 0 or k - pos <= limit):
+    while k >= 0 and (limit < 0 or k - pos < limit):
         if _check_event(mm, k, size) == "valid":
             return k
         k = mm.find(SYNC_BYTES, k + 1)
@@ -869,6 +869,18 @@ def _time_bounds(log: ShoalLog, scenario: Optional[_Scenario]) -> Tuple[int, int
         limit = _saturating_add(majority, max(majority, period))
     if limit < 0:
         return -1, -1
+    # A run that ran to its final tick (a clock's final window, or a run-level "finished"
+    # status) has nothing after it: a run shortened with --duration ends there.
+    end = next((c.utime + (c.n_ticks - 1) * c.period_us for c in reversed(log.clock)
+                if c.final_tick and 0 <= c.utime + (c.n_ticks - 1) * c.period_us <= limit), None)
+    if end is None:
+        for st in reversed(log.statuses):
+            if st.vehicle_id < 0 and st.state in ("finished", "interrupted", "failed") and \
+                    0 <= st.utime <= limit:
+                end = st.utime if st.state == "finished" else None
+                break
+    if end is not None:
+        limit = end
     delay = scenario.largest_delay_us if scenario is not None else limit
     return limit, _saturating_add(_saturating_add(limit, delay), max(period, 0))
 
@@ -902,6 +914,7 @@ class _Builder:
             self.read.add("CLOCK")
         self.state_ids_only = "STATE" not in keep and "CHANNEL" not in keep
         self.state_counts: Dict[int, int] = {}  # states_ids_only: valid states per id
+        self.other_scenarios = 0  # scenario texts that differ from the first one
         self.state_hash = types.vehicle_state_t._get_packed_fingerprint()
         self.max_status_followers = 0
         self.scenario: Optional[_Scenario] = None
@@ -1026,6 +1039,9 @@ class _Builder:
                                         m.scenario_name, m.seed, m.followers, m.message))
         if 0 < m.followers <= MAX_VEHICLE_ID:
             self.max_status_followers = max(self.max_status_followers, m.followers)
+        if m.scenario_toml and self.log.scenario_toml is not None and \
+                m.scenario_toml != self.log.scenario_toml:
+            self.other_scenarios += 1  # another run's log was joined to this one
         if m.scenario_toml and self.log.scenario_toml is None:
             self.log.scenario_toml = m.scenario_toml
             self.scenario = _read_scenario(m.scenario_toml)
@@ -1064,6 +1080,11 @@ class _Builder:
                 "%d vehicle states appear more than once (same vehicle and time: a log "
                 "recorded twice or concatenated, or replayed onto a recording bus); each is "
                 "counted once, the last copy kept" % log.repeated_states)
+        if self.other_scenarios:
+            self.warnings.append(
+                "%d runs' scenario texts differ in this log (logs of different runs joined "
+                "into one): the first one's scenario is used, and the states, decisions and "
+                "health of every run are read as one run's" % (self.other_scenarios + 1))
         if log.repeated_decisions or log.repeated_health:
             self.warnings.append(
                 "%d channel decisions and %d health reports appear more than once (the same "
@@ -1332,7 +1353,12 @@ def summary(log: ShoalLog) -> dict:
                          "final_position_m": list(states[-1].eta[:3]) if states else None})
     health = {}
     for pid, reports in log.health.items():
-        last = reports[-1]
+        # The newest in mission time (of two at one time, the later in the log), as shoal
+        # analyze takes it: a report replayed later in the log must not hide what came after.
+        last = reports[0]
+        for h in reports:
+            if h.utime >= last.utime:
+                last = h
         health[str(pid)] = {"reports": len(reports), "ticks": last.ticks,
                             "lateness_p99_s": last.lateness_p99_s, "overruns": last.overruns,
                             "msgs_received": last.msgs_received,

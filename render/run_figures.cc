@@ -205,7 +205,19 @@ std::vector<ErrorSeries> ErrorSeriesOf(const RunData& run, const RunAnalysis& a)
 
 std::vector<LinkSeries> LinkSeriesOf(const RunData& run) {
   std::map<std::pair<int, int>, LinkSeries> links;
-  for (const ChannelEventRecord& e : run.channel_events) {
+  // The figure reads each link's series in time order: a log whose events are out of order
+  // (cut and joined again) is taken in order of send time.
+  const auto by_send = [](const ChannelEventRecord& a, const ChannelEventRecord& b) {
+    return a.send_utime < b.send_utime;
+  };
+  std::vector<ChannelEventRecord> sorted;
+  const std::vector<ChannelEventRecord>* events = &run.channel_events;
+  if (!std::is_sorted(events->begin(), events->end(), by_send)) {
+    sorted = run.channel_events;
+    std::stable_sort(sorted.begin(), sorted.end(), by_send);
+    events = &sorted;
+  }
+  for (const ChannelEventRecord& e : *events) {
     // A state the sender never transmitted (modem busy, sender silent) was neither
     // delivered nor dropped: shoal analyze does not count it as sent, nor does the figure.
     if (NotTransmitted(e.status)) continue;
@@ -229,7 +241,9 @@ ChannelOptions ChannelOptionsOf(const RunData& run, const RunAnalysis& a) {
   ChannelOptions o;
   o.scenario = run.scenario_name.empty() ? "run" : run.scenario_name;
   if (run.has_scenario && !run.channel_events.empty()) {  // the default link delay
-    const double end = ToSeconds(run.channel_events.back().send_utime);
+    Micros last = run.channel_events.front().send_utime;
+    for (const ChannelEventRecord& e : run.channel_events) last = std::max(last, e.send_utime);
+    const double end = ToSeconds(last);
     for (double t = 0.0; t <= end + 1e-9; t += 0.01) {
       o.tau_t_s.push_back(t);
       o.tau_s.push_back(NominalDelaySeconds(run.scenario.delay, t));

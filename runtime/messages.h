@@ -116,7 +116,9 @@ class ChannelEventBatch {
   // bytes for a message sent in one datagram.
   static constexpr int kMaxEvents = 800;
 
-  void Add(const ChannelDecision& d) { b_.events.push_back(ToLcm(d, event_seq_++)); }
+  void Add(const ChannelDecision& d) {
+    b_.events.push_back(ToLcm(d, static_cast<std::int32_t>(event_seq_++)));
+  }
   bool empty() const { return b_.events.empty(); }
   std::size_t size() const { return b_.events.size(); }
 
@@ -127,7 +129,7 @@ class ChannelEventBatch {
     // Stamps a message: its seq, its count, and the newest decision it holds as its time.
     const auto stamp = [this](channel_events_t* m) {
       m->vehicle_id = -1;
-      m->seq = batch_seq_++;
+      m->seq = static_cast<std::int32_t>(batch_seq_++);
       m->n_events = static_cast<std::int32_t>(m->events.size());
       m->utime = 0;
       for (const channel_event_t& e : m->events) m->utime = std::max(m->utime, e.utime);
@@ -151,8 +153,11 @@ class ChannelEventBatch {
 
  private:
   channel_events_t b_{};
-  std::int32_t event_seq_ = 0;
-  std::int32_t batch_seq_ = 0;
+  // Counted unsigned, so that a run with more than 2^31 decisions (a long run of many
+  // links) wraps to negative numbers on the int32 of the wire rather than overflowing;
+  // readers use these numbers only to tell a publisher's messages apart.
+  std::uint32_t event_seq_ = 0;
+  std::uint32_t batch_seq_ = 0;
 };
 
 /// Health of a follower; lateness/overrun fields are the caller's (zero in sim/lockstep).

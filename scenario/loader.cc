@@ -793,6 +793,13 @@ void ReadRun(const Reader& r, const Table& t, Scenario* s) {
                "the control loop runs at control_rate_hz, e.g. 50");
     }
   }
+  if (const toml::node* node = t.Get("duration_s")) {
+    const std::string refusal = s->TickLimitRefusal();
+    if (!refusal.empty()) {
+      r.FailAt(*node, t.KeyOf("duration_s"), "is too long: " + refusal,
+               "the run lasts duration_s seconds, e.g. duration_s = 600");
+    }
+  }
   if (const toml::node* node = t.Get("seed")) {
     s->seed = static_cast<std::uint64_t>(
         r.ToInteger(*node, t.KeyOf("seed"),

@@ -107,11 +107,11 @@ bool CopyKey(const std::string& from, const std::string& to, std::string* error)
   return Commit(tmp, to, 0600, error);
 }
 
-/// The first and last stamps and the event count of the log (one pass), and its reader's
+/// The earliest and latest stamps and the event count of the log (one pass), and its reader's
 /// warnings if it is damaged.
 struct Stamps {
   std::int64_t first = 0, last = 0, events = 0;
-  std::int64_t first_state = -1;  // the first vehicle state's stamp (-1: none)
+  std::int64_t first_state = -1;  // the earliest vehicle state's stamp (-1: none)
   std::vector<std::string> damage;
 };
 
@@ -120,9 +120,11 @@ bool ReadStamps(const std::string& path, Stamps* s, std::string* error) {
   if (!reader.Open(path, error)) return false;
   LogEventView ev;
   while (reader.Next(&ev)) {
-    if (s->events++ == 0) s->first = ev.timestamp;
-    s->last = ev.timestamp;
-    if (s->first_state < 0 && channels::Parse(ev.channel).kind == channels::Kind::kState) {
+    if (s->events++ == 0) s->first = s->last = ev.timestamp;
+    s->first = std::min(s->first, ev.timestamp);  // earliest and latest, in any order
+    s->last = std::max(s->last, ev.timestamp);
+    if ((s->first_state < 0 || ev.timestamp < s->first_state) &&
+        channels::Parse(ev.channel).kind == channels::Kind::kState) {
       s->first_state = ev.timestamp;
     }
   }

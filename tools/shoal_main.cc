@@ -2,6 +2,7 @@
 // flags are defined by one function below, its work is done by the command (tools/*_command.h)
 // and the libraries behind it. Exit statuses: docs/cli.md.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -331,6 +332,10 @@ CLI::App* AddSoak(CLI::App* app, shoal::SoakOptions* soak) {
   AddSchedFifoOption(c, &soak->sched_fifo);
   c->add_flag("--json", soak->json, "Print soak.json instead of the summary");
   c->add_flag("--quiet", soak->quiet, "No progress line");
+  c->add_flag("--allow-large", soak->allow_large,
+              "Run a soak estimated to take over 1 h of wall time or 4 GiB (a real-time soak "
+              "of more than an hour needs it); without it such a soak is refused before "
+              "anything runs");
   return c;
 }
 
@@ -340,6 +345,14 @@ bool CheckDuration(const CLI::App* cmd, const char* flag, double value) {
   if (!cmd->parsed() || cmd->count(flag) == 0 || (value > 0 && value <= 1e9)) return true;
   std::cerr << "shoal " << cmd->get_name() << ": " << flag
             << " must be a positive number of seconds, at most 1e9 (got " << value << ")\n";
+  return false;
+}
+
+/// NaN is the "not given" marker of these options: a NaN the user typed is not a number
+/// of seconds (it would mean "not given", and --duration nan would listen for ever).
+bool CheckNotNaN(const CLI::App* cmd, const char* flag, double value) {
+  if (!cmd->parsed() || cmd->count(flag) == 0 || !std::isnan(value)) return true;
+  std::cerr << "shoal " << cmd->get_name() << ": " << flag << " must be a number of seconds (got nan)\n";
   return false;
 }
 
@@ -392,7 +405,9 @@ int main(int argc, char** argv) {
   }
   if (!CheckDuration(sim_cmd, "--duration", sim.duration_s) ||
       !CheckDuration(run_cmd, "--duration", run.launch.duration_s) ||
-      !CheckDuration(design_cmd, "--empirical-duration", design.empirical_duration_s)) {
+      !CheckDuration(design_cmd, "--empirical-duration", design.empirical_duration_s) ||
+      !CheckNotNaN(ana_cmd, "--duration", ana.duration_s) ||
+      !CheckNotNaN(ana_cmd, "--until-idle", ana.until_idle_s)) {
     return shoal::kExitBadInput;
   }
   if (sim_cmd->parsed()) return shoal::RunSim(sim);

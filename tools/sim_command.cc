@@ -30,6 +30,11 @@ int RunSim(const SimOptions& opt) {
               << ")\n";
     return kExitBadInput;
   }
+  if (const std::string ticks = s.TickLimitRefusal(opt.duration_s); !ticks.empty()) {
+    std::cerr << "shoal sim: --duration " << std::setprecision(15) << opt.duration_s
+              << " is too long: " << ticks << "\n";
+    return kExitBadInput;
+  }
   if (!opt.out.empty() && SameFile(opt.out, opt.scenario)) {
     std::cerr << "shoal sim: --out " << opt.out
               << " is the scenario file: the log would overwrite it; write it elsewhere\n";

@@ -19,6 +19,7 @@
 #include "analysis/verdict.h"
 #include "campaign/plan.h"
 #include "campaign/soak_plan.h"
+#include "core/swarm.h"
 #include "launcher/machine_witness.h"
 #include "launcher/run_report.h"
 #include "runtime/clocked_node.h"
@@ -225,6 +226,7 @@ LaunchOptions LaunchOptionsOf(const SoakOptions& opt, const Planned& p) {
   for (const ScenarioOverride& o : p.plan.overrides) launch.set.push_back(o.key + "=" + o.value);
   launch.resource_interval_s = 60.0;
   launch.sched_fifo = opt.sched_fifo;
+  launch.allow_large = opt.allow_large;  // refused by RunSoak before anything is made
   // As shoal run: real-time followers are staggered wherever the channel leaves room.
   launch.stagger = launch.mode == ModeName(Mode::kRealtime) &&
                    ClockedNode::StaggerPhaseUs(p.plan.scenario, p.plan.scenario.followers) > 0;
@@ -277,6 +279,18 @@ int RunSoak(const SoakOptions& opt) {
   if (!opt.sched_fifo.empty() && !SchedFifoPermitted(kEmulatorFifoPriority, &why)) {
     std::cerr << "shoal soak: --sched-fifo: " << why << "\n";
     return kExitBadInput;
+  }
+  if (!opt.allow_large) {
+    // A soak's length is its phases': refused here, before its output directory is made,
+    // in a soak's words rather than shoal run's.
+    const std::string refusal = LargeRunRefusal(
+        p.plan.scenario, p.plan.duration_s,
+        p.campaign.engine == CampaignEngine::kRealtime ? RunPace::kRealtime : RunPace::kLockstep,
+        "the soak (fewer phases or a shorter [soak] phase_s)", "--allow-large");
+    if (!refusal.empty()) {
+      std::cerr << "shoal soak: " << opt.campaign << ": " << refusal << "\n";
+      return kExitBadInput;
+    }
   }
   if (!MakeOutDir(opt.out, &error)) {
     std::cerr << "shoal soak: " << error << "\n";

@@ -12,6 +12,7 @@ struct SoakOptions {
   bool json = false;             // print soak.json instead of the summary
   bool quiet = false;            // no progress line
   std::string sched_fifo;        // real time: --sched-fifo all|emulator (LaunchOptions)
+  bool allow_large = false;      // run a soak estimated at over 1 h of wall time or 4 GiB
 };
 
 /// `shoal soak`: one long shoal run whose phases step the campaign's axis values, judged

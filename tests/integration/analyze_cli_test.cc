@@ -245,6 +245,29 @@ TEST(AnalyzeCli, WhatTheAnalysisCannotJudgeOrIgnoresIsSaid) {
   EXPECT_NE(r.err.find(said), std::string::npos) << r.err;
 }
 
+// Two different runs' logs joined into one cannot be told apart state by state: the
+// analysis says so, naming the scenario texts that differ, and so does shoal_log.py.
+TEST(AnalyzeCli, TwoRunsJoinedIntoOneLogAreNamed) {
+  const std::string a = TmpPath("joined_a.lcmlog"), b = TmpPath("joined_b.lcmlog");
+  const std::string joined = TmpPath("joined.lcmlog");
+  RunShoal("sim " + SourcePath("scenarios/paper_example2.toml") + " --duration 4 --quiet --out " + a,
+           "joined_a");
+  RunShoal("sim " + SourcePath("scenarios/paper_example1.toml") + " --duration 4 --quiet --out " + b,
+           "joined_b");
+  ASSERT_EQ(std::system(("cat '" + a + "' '" + b + "' > '" + joined + "'").c_str()), 0);
+  const char* said = "2 runs' scenario texts differ in this log";
+  const auto r = RunShoal("analyze " + joined + " --json", "joined_ana");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(ParseJson(r.out)["warnings"].dump().find(said), std::string::npos) << r.out;
+  const auto one = RunShoal("analyze " + a + " --json", "joined_one");
+  EXPECT_EQ(ParseJson(one.out)["warnings"].dump().find("scenario texts differ"), std::string::npos)
+      << one.out;
+  const std::string py_err = TmpPath("joined_py.err");
+  EXPECT_EQ(std::system(("python3 '" + SourcePath("python/shoal_log.py") + "' '" + joined +
+                         "' >/dev/null 2>'" + py_err + "'").c_str()), 0);
+  EXPECT_NE(ReadFile(py_err).find(said), std::string::npos) << ReadFile(py_err);
+}
+
 // A log recorded twice (here: concatenated with itself) holds every state twice: the run
 // still recorded each state once, so the count is the run's, never 200 %, and a warning
 // says why.
@@ -270,8 +293,9 @@ TEST(AnalyzeCli, ALogConcatenatedWithItselfCountsEachStateOnce) {
       << r.err;
 }
 
-// A 20 s Example 2 log followed by three states at impossible times, far from any slot:
-// follower 3 at utime = INT64_MAX, the leader at -1 s, follower 2 at 1e9 s; and four
+// A 20 s Example 2 log (of a 600 s scenario) followed by four states at impossible times,
+// far from any slot: follower 3 at utime = INT64_MAX, the leader at -1 s, follower 2 at
+// 1e9 s, follower 4 at 274.4 s (after the run's final tick, within the scenario's); and four
 // channel events at impossible times. Returns the damaged log; *clean is the log as shoal
 // sim wrote it.
 std::string DamagedTimesLog(const std::string& tag, std::string* clean) {
@@ -282,7 +306,8 @@ std::string DamagedTimesLog(const std::string& tag, std::string* clean) {
   {
     LogWriter log(forged);
     const std::pair<int, std::int64_t> bad[] = {
-        {3, std::numeric_limits<std::int64_t>::max()}, {0, -1000000}, {2, 1000000000000000}};
+        {3, std::numeric_limits<std::int64_t>::max()}, {0, -1000000}, {2, 1000000000000000},
+        {4, 274435456}};
     for (const auto& [id, utime] : bad) {
       StateMsg m;
       m.vehicle_id = id;
@@ -326,10 +351,10 @@ TEST(AnalyzeCli, StatesAtImpossibleTimesAreDamagedNotTheRunsLength) {
   const auto j = ParseJson(r.out), cj = ParseJson(c.out);
   EXPECT_EQ(j["log_states_expected"], 6 * 1001) << r.out;
   EXPECT_EQ(j["log_states"], 6 * 1001);
-  EXPECT_EQ(j["log_states_damaged"], 3);
+  EXPECT_EQ(j["log_states_damaged"], 4);
   EXPECT_EQ(j["log_states_negative_time"], 1);
-  EXPECT_EQ(j["log_states_after_end"], 2);
-  EXPECT_EQ(j["log_end_s"], 600.0);  // the scenario's run.duration_s
+  EXPECT_EQ(j["log_states_after_end"], 3);
+  EXPECT_EQ(j["log_end_s"], 20.0);  // the run's final clock tick, not the scenario's 600 s
   EXPECT_EQ(cj["log_states_damaged"], 0);
   for (const char* key : {"sim_time_s", "ticks", "final_position_error_m", "max_position_error_m",
                           "converged", "followers", "leader", "complete_samples"}) {
@@ -337,13 +362,13 @@ TEST(AnalyzeCli, StatesAtImpossibleTimesAreDamagedNotTheRunsLength) {
   }
   const auto t = RunShoal("analyze " + damaged, "impossible_text");
   EXPECT_NE(t.out.find("of 6006 expected"), std::string::npos) << t.out;
-  EXPECT_NE(t.out.find("DAMAGED: 3 vehicle states at impossible times (1 negative, 2 after"),
+  EXPECT_NE(t.out.find("DAMAGED: 4 vehicle states at impossible times (1 negative, 3 after"),
             std::string::npos) << t.out;
   // shoal compare holds the forged states against the clean log: in A only, so the logs
   // differ (exit 1) and agree on everything else.
   const auto cmp = RunShoal("compare " + damaged + " " + clean + " --json", "impossible_cmp");
   EXPECT_EQ(cmp.status, 1) << cmp.err;
-  EXPECT_EQ(ParseJson(cmp.out)["only_in_a"], 3) << cmp.out;
+  EXPECT_EQ(ParseJson(cmp.out)["only_in_a"], 4) << cmp.out;
   EXPECT_EQ(ParseJson(cmp.out)["max_position_diff_m"], 0.0) << cmp.out;
   EXPECT_EQ(RunShoal("compare " + damaged + " " + clean + " --allow-missing", "impossible_cmp2")
                 .status, 0);

@@ -118,6 +118,16 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
     EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
     EXPECT_NE(access((dir + "/out").c_str(), F_OK), 0) << "nothing may be written or run";
   }
+  // Twelve phases of 10 minutes in real time: two hours, refused as large unless asked for.
+  std::string long_rt = Steps("0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1", "600", "300");
+  long_rt.replace(long_rt.find("\"lockstep\""), 10, "\"realtime\"");
+  const std::string large_dir = WriteCampaign("large", long_rt);
+  const RunResult large = RunShoal("soak " + large_dir + "/large.toml --out " + large_dir + "/out",
+                                   "soak_large");
+  EXPECT_EQ(large.status, 2) << large.err;
+  EXPECT_NE(large.err.find("refusing a large run"), std::string::npos) << large.err;
+  EXPECT_NE(large.err.find("or pass --allow-large"), std::string::npos) << large.err;
+  EXPECT_NE(access((large_dir + "/out").c_str(), F_OK), 0) << "nothing may be written or run";
   const std::string dir = WriteCampaign("fifo", Steps("0.1", "120", "90"));
   const RunResult fifo = RunShoal("soak " + dir + "/fifo.toml --sched-fifo all --out " + dir +
                                       "/out", "soak_fifo");
@@ -159,6 +169,14 @@ TEST(SoakCli, CtrlCKeepsTheJudgementOfWhatRanAndLeavesNoProcess) {
     said = said || reason.get<std::string>().find("interrupted") != std::string::npos;
   }
   EXPECT_TRUE(said) << soak["reasons"].dump();
+  // The phase the run stopped in did not run whole: it does not pass on what ran of it.
+  int cut = 0;
+  for (const ojson& phase : soak["phases"]) {
+    if (phase["why"].dump().find("the phase did not run whole") == std::string::npos) continue;
+    ++cut;
+    EXPECT_FALSE(phase["pass"].get<bool>()) << phase.dump();
+  }
+  EXPECT_GE(cut, 1) << soak["phases"].dump();
   EXPECT_GT(ReadFile(dir + "/out/soak.lcmlog").size(), 0u);
   EXPECT_EQ(CountProcesses("[s]oak_cli_cut/out/soak.lcmlog"), 0);
 }

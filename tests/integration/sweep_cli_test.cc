@@ -286,7 +286,7 @@ TEST(SweepCli, ShardsMergedEqualOneRun) {
 // a row of no_result; --allow-large is passed on to the points.
 TEST(SweepCli, ALargePointIsRefusedBeforeAnythingRuns) {
   const std::string dir = WriteCampaign(
-      "large", Head("duration_s = 1e9\n") + "[[axis]]\nkey = \"control.k1\"\nvalues = [0.18]\n"
+      "large", Head("duration_s = 4e7\n") + "[[axis]]\nkey = \"control.k1\"\nvalues = [0.18]\n"
                    "[pass]\nconverged = true\n");
   const RunResult r = RunShoal("sweep " + dir + "/large.toml --out " + dir + "/out", "sweep_large");
   EXPECT_EQ(r.status, 2) << r.err;
@@ -294,7 +294,7 @@ TEST(SweepCli, ALargePointIsRefusedBeforeAnythingRuns) {
   EXPECT_NE(r.err.find("shoal sweep --allow-large"), std::string::npos) << r.err;
   EXPECT_NE(access((dir + "/out/results.jsonl").c_str(), F_OK), 0);
   // With --allow-large the point runs (here until its 2 s timeout), its command with it.
-  std::ofstream(dir + "/large.toml") << Head("duration_s = 1e9\ntimeout_s = 2\n") +
+  std::ofstream(dir + "/large.toml") << Head("duration_s = 4e7\ntimeout_s = 2\n") +
                                              "[[axis]]\nkey = \"control.k1\"\nvalues = [0.18]\n"
                                              "[pass]\nconverged = true\n";
   const RunResult ran = RunShoal("sweep " + dir + "/large.toml --quiet --allow-large --out " + dir + "/out2",
@@ -305,6 +305,25 @@ TEST(SweepCli, ALargePointIsRefusedBeforeAnythingRuns) {
   EXPECT_EQ(rows[0]["status"], "timeout") << rows[0].dump();
   EXPECT_NE(rows[0]["command"].get<std::string>().find(" --allow-large"), std::string::npos)
       << rows[0].dump();
+}
+
+// A campaign duration every point's run would refuse (under one control period, or more
+// ticks than a state's int32 sequence number counts) is refused before anything runs.
+TEST(SweepCli, ADurationNoPointCanRunIsRefusedBeforeAnythingRuns) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"0.001", "campaign.duration_s: is shorter than one control period (0.02 s at 50 Hz) (got 0.001)"},
+      {"1e9", "campaign.duration_s: is too long: a run's ticks are counted by an int32"}};
+  int i = 0;
+  for (const auto& [duration, said] : cases) {
+    const std::string name = "duration" + std::to_string(i++);
+    const std::string dir = WriteCampaign(
+        name, Head("duration_s = " + duration + "\n") +
+                  "[[axis]]\nkey = \"control.k1\"\nvalues = [0.18]\n");
+    const RunResult r = RunShoal("sweep " + dir + "/" + name + ".toml --out " + dir + "/out", "sweep_" + name);
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find(said), std::string::npos) << r.err;
+    EXPECT_NE(access((dir + "/out/results.jsonl").c_str(), F_OK), 0);
+  }
 }
 
 // Without [pass] a point passes when its run exits 0: a run that does not converge fails.

@@ -314,6 +314,29 @@ TEST(AnalysisEvents, SilentAndDeafAreCountedNeitherInvalidNorDamaged) {
   EXPECT_EQ(r.a.events[1].affects, "vehicle 4");
 }
 
+// An event that ends right at the run's end holds on [at, end): the final tick's decisions
+// are not its own (here a link_down that starts there makes one); one the end cuts short
+// holds at the final tick too.
+TEST(AnalysisEvents, AnEventEndingAtTheRunsEndLeavesItsFinalTickOut) {
+  Scenario s = Example2(10.0);
+  ScenarioEvent silent = Event(EventKind::kVehicleSilent, 9.0, 10.0);
+  silent.vehicles = {2};  // sends to follower 5 only
+  ScenarioEvent down = Event(EventKind::kLinkDown, 10.0, 1e300);
+  down.links = {{2, 5}};
+  ScenarioEvent longer = Event(EventKind::kVehicleSilent, 9.5, 11.0);
+  longer.vehicles = {4};  // sends to follower 5 only
+  s.events = {silent, longer, down};
+  const Analysed r = SimulateAndAnalyse(s);
+  ASSERT_EQ(r.a.events.size(), 3u);
+  const EventAnalysis& e = r.a.events[0];
+  EXPECT_FALSE(e.ends_in_run);
+  EXPECT_EQ(e.decisions[ChannelDecision::kSkippedSilent], 50);
+  EXPECT_EQ(e.decisions[ChannelDecision::kDroppedLinkDown], 0);
+  // 9.5 s to the final tick at 10 s, included: 26 states of follower 4.
+  EXPECT_EQ(r.a.events[1].decisions[ChannelDecision::kSkippedSilent], 26);
+  EXPECT_EQ(r.a.events[2].decisions[ChannelDecision::kDroppedLinkDown], 1);
+}
+
 TEST(AnalysisEvents, ChannelEventDelayIsTheModelInForceAndTopologyLinksAreKnown) {
   Scenario s = Example2(12.0);
   ScenarioEvent ch = Event(EventKind::kChannel, 3.0, 6.0);
