@@ -536,6 +536,38 @@ class Logs(unittest.TestCase):
         self.assertEqual(twice.repeated_health, sum(len(h) for h in once.health.values()))
         self.check_against_analyze(twice, analyze(path))
 
+    def test_a_log_out_of_order_reads_as_shoal_analyze_reads_it(self):
+        # Cut in two and joined the other way round: each process's health is its newest
+        # report in mission time, as shoal analyze takes it, and the recording spans the
+        # same time.
+        events = read_events(self.run_log)
+        half = len(events) // 2
+        path = os.path.join(TMP, "swapped.lcmlog")
+        write_events(path, events[half:] + events[:half])
+        shutil.copy(self.run_log + ".key", path + ".key")
+        log, a = shoal_log.read_log(path), analyze(path)
+        self.check_against_analyze(log, a)
+        health = shoal_log.summary(log)["health"]
+        for p in a["loop"]["processes"]:
+            self.assertEqual(health[str(p["id"])]["ticks"], p["ticks"], p["id"])
+            self.assertEqual(health[str(p["id"])]["msgs_received"], p["msgs_received"], p["id"])
+        self.assertEqual(a["wall_time_s"], analyze(self.run_log)["wall_time_s"])
+
+    def test_the_first_event_is_looked_for_in_the_first_mebibyte_as_analyze_does(self):
+        with open(self.sim_log, "rb") as f:
+            data = f.read()
+        for prefix, status in ((1048575, 0), (1048576, 2)):
+            path = os.path.join(TMP, "prefix_%d.lcmlog" % prefix)
+            with open(path, "wb") as f:
+                f.write(bytes(prefix) + data)
+            p = run([sys.executable, SCRIPT, path], ok=(status,))
+            self.assertNotIn("Traceback", p.stderr)
+            if status:
+                self.assertIn("not an LCM log", p.stderr)
+                self.assertIn("not an LCM log", analyze_refuses(path))
+            else:
+                self.check_against_analyze(shoal_log.read_log(path), analyze(path))
+
     def test_decisions_at_impossible_times_are_left_out(self):
         def edit(events):
             batches = [e[1] for e in events if e[0] == "SHOAL_CHANNEL" and batch_events(e[1])]

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <stb_image.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <string>
@@ -145,6 +146,28 @@ TEST(RenderEvents, WindowsAndOutagesComeFromTheScenario) {
   c.outages = o;
   const Figure2D cf = ChannelFigure(LinkSeriesOf(run), c);
   EXPECT_EQ(cf.panels.back().bands.size(), 3u);
+}
+
+// A log whose events are out of order (cut and joined the other way round): each link's
+// series, and the configured tau(t), still run over the whole run in time order.
+TEST(RenderEvents, ChannelEventsOutOfOrderAreDrawnInTimeOrder) {
+  RunData run = SimulateAndLoad(Load("paper_example2.toml", 10.0));
+  const std::vector<LinkSeries> in_order = LinkSeriesOf(run);
+  const RunAnalysis a = AnalyseRun(run);
+  const ChannelOptions c_in_order = ChannelOptionsOf(run, a);
+  std::vector<ChannelEventRecord>& ev = run.channel_events;
+  std::rotate(ev.begin(), ev.begin() + static_cast<std::ptrdiff_t>(ev.size() / 2), ev.end());
+  const std::vector<LinkSeries> swapped = LinkSeriesOf(run);
+  ASSERT_EQ(swapped.size(), in_order.size());
+  for (std::size_t i = 0; i < swapped.size(); ++i) {
+    EXPECT_EQ(swapped[i].sent_s, in_order[i].sent_s) << i;
+    EXPECT_EQ(swapped[i].delay_s, in_order[i].delay_s) << i;
+    EXPECT_EQ(swapped[i].dropped_s, in_order[i].dropped_s) << i;
+  }
+  const ChannelOptions c = ChannelOptionsOf(run, a);
+  EXPECT_EQ(c.tau_t_s, c_in_order.tau_t_s);
+  ASSERT_FALSE(c.tau_t_s.empty());
+  EXPECT_NEAR(c.tau_t_s.back(), 10.0, 0.011);
 }
 
 TEST(RenderEvents, AcousticDelayAgainstRangeLiesOnTheModel) {
