@@ -140,14 +140,15 @@ WorstSample WorstOf(const RunData& run, const StateMsg& l, const std::vector<con
 /// The swarm-level metrics of shoal sim / shoal run: only times at which the leader and
 /// every follower have a state. `worst` (may be null): each complete sample's worst
 /// follower, for the events.
-void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis* a,
-                      std::vector<WorstSample>* worst) {
+/// Calls `f(leader, followers)` at each time at which the leader and every follower have a
+/// state; `followers` points into `valid`'s spans. Returns how many such times there are.
+template <class F>
+std::int64_t ForEachCompleteSample(const RunData& run, const ValidStates& valid, F&& f) {
   const int n = run.followers;
-  const Span lead = valid(0);
-  FormationMetrics m(run.scenario.offsets_m, run.scenario.metrics);
   std::vector<std::size_t> idx(n + 1, 0);
   std::vector<const StateMsg*> ptr(n);
-  for (const StateMsg& l : lead) {
+  std::int64_t samples = 0;
+  for (const StateMsg& l : valid(0)) {
     bool complete = true;
     for (int i = 1; i <= n; ++i) {
       const Span s = valid(i);
@@ -160,11 +161,21 @@ void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis*
       ptr[i - 1] = &s[k];
     }
     if (!complete) continue;
-    m.Add(l, ptr);
-    if (worst != nullptr) worst->push_back(WorstOf(run, l, ptr));
-    a->summary.sim_time_s = ToSeconds(l.utime);
+    ++samples;
+    f(l, ptr);
   }
-  a->complete_samples = m.samples();
+  return samples;
+}
+
+void AnalyseFormation(const RunData& run, const ValidStates& valid, RunAnalysis* a,
+                      std::vector<WorstSample>* worst) {
+  FormationMetrics m(run.scenario.offsets_m, run.scenario.metrics);
+  a->complete_samples = ForEachCompleteSample(
+      run, valid, [&](const StateMsg& l, const std::vector<const StateMsg*>& ptr) {
+        m.Add(l, ptr);
+        if (worst != nullptr) worst->push_back(WorstOf(run, l, ptr));
+        a->summary.sim_time_s = ToSeconds(l.utime);
+      });
   a->summary.converged = m.converged();
   a->summary.convergence_time_s = m.convergence_time_s();
   a->summary.final_worst = m.final_worst();
@@ -386,13 +397,57 @@ void DelayQuantiles(const std::vector<ChannelEventRecord>& ev, const EventsByLin
   }
 }
 
-/// Age at use: at each of the receiver's ticks (its state samples), the newest message
-/// delivered so far (largest send time: the follower keeps only newer messages) and its
-/// age; a message older than the neighbour timeout is not used (a stale tick).
+/// What a follower keeps of one in-link, tick by tick, by the rules of Follower
+/// (core/follower.cc): the newest message delivered so far (largest send time), which a
+/// reset that starts and the link's entry into the topology in force both forget; a
+/// delivery during a reset is dropped, and an inactive link or a reset tick is not used.
+class LinkMemory {
+ public:
+  LinkMemory(const Timeline* tl, int link, int receiver)
+      : tl_(tl != nullptr && (tl->switches_topology() || tl->resets()) ? tl : nullptr),
+        link_(link), receiver_(receiver) {}
+  /// The timeline's state at tick t, before the deliveries due at t (Follower::BeginTick).
+  void BeginTick(Micros t) {
+    in_use_ = true;
+    if (tl_ == nullptr) return;
+    const Micros start = tl_->ResetStart(receiver_, t);
+    if (start != Timeline::kNoReset && start != reset_at_) have_ = false;
+    reset_at_ = start;
+    in_reset_ = start != Timeline::kNoReset;
+    if (tl_->switches_topology()) {
+      const bool active = link_ >= 0 && tl_->LinkActive(static_cast<std::size_t>(link_), t);
+      if (active && !active_) have_ = false;
+      active_ = active;
+    }
+    in_use_ = active_ && !in_reset_;
+  }
+  void Deliver(Micros send) {
+    if (in_reset_) return;
+    if (!have_ || send > newest_) newest_ = send;
+    have_ = true;
+  }
+  bool in_use() const { return in_use_; }
+  bool have() const { return have_; }
+  Micros newest() const { return newest_; }
+
+ private:
+  const Timeline* tl_;
+  int link_, receiver_;
+  Micros reset_at_ = Timeline::kNoReset;
+  bool in_reset_ = false, active_ = true, in_use_ = true, have_ = false;
+  Micros newest_ = -1;
+};
+
+/// Age at use: at each of the receiver's ticks (its state samples) at which it uses the
+/// link, the age of the newest message it keeps (LinkMemory); a message older than the
+/// neighbour timeout is not used (a stale tick). Ticks with nothing kept (before the first
+/// delivery, or after a reset or the link's entry into the topology) are counted apart.
 void AgeAtUse(const RunData& run, const ValidStates& valid, const EventsByLink& by_link,
               PerLinkValues* v, ChannelAnalysis* c) {
   const std::vector<ChannelEventRecord>& ev = run.channel_events;
   const double timeout_s = run.has_scenario ? run.scenario.neighbour_timeout_s : kNaN;
+  std::optional<Timeline> timeline;
+  if (run.has_scenario && !run.scenario.events.empty()) timeline.emplace(run.scenario);
   v->buf.clear();
   std::vector<std::pair<Micros, Micros>> deliveries;  // (deliver, send) of one link
   for (std::size_t li = 0; li < c->links.size(); ++li) {
@@ -407,20 +462,20 @@ void AgeAtUse(const RunData& run, const ValidStates& valid, const EventsByLink& 
     if (!std::is_sorted(deliveries.begin(), deliveries.end())) {
       std::sort(deliveries.begin(), deliveries.end());
     }
+    LinkMemory memory(timeline ? &*timeline : nullptr,
+                      timeline ? timeline->LinkIndex(l.from, l.to) : -1, l.to);
     std::size_t d = 0;
-    Micros newest = -1;
-    bool have = false;
     for (const StateMsg& m : valid(l.to)) {
-      while (d < deliveries.size() && deliveries[d].first <= m.utime) {
-        if (!have || deliveries[d].second > newest) newest = deliveries[d].second;
-        have = true;
-        ++d;
+      memory.BeginTick(m.utime);
+      for (; d < deliveries.size() && deliveries[d].first <= m.utime; ++d) {
+        memory.Deliver(deliveries[d].second);
       }
-      if (!have) {
+      if (!memory.in_use()) continue;
+      if (!memory.have()) {
         ++l.ticks_before_first;
         continue;
       }
-      const double age = ToSeconds(m.utime - newest);
+      const double age = ToSeconds(m.utime - memory.newest());
       if (std::isfinite(timeout_s) && age > timeout_s) {
         ++l.ticks_stale;
         continue;
@@ -841,6 +896,8 @@ RunAnalysis AnalyseRun(const RunData& run) {
   if (a.has_formation) {
     AnalyseFormation(run, valid, &a, events ? &worst : nullptr);
   } else {  // no formation metrics: the latest state time instead
+    a.complete_samples =
+        ForEachCompleteSample(run, valid, [](const StateMsg&, const std::vector<const StateMsg*>&) {});
     Micros t = 0;
     for (int id = 0; id < static_cast<int>(run.vehicles.size()); ++id) {
       if (!valid(id).empty()) t = std::max(t, valid(id).back().utime);

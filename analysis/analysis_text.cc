@@ -180,8 +180,12 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
   PrintHeader(out, run, a, source);
   if (!a.has_formation) {
     std::fprintf(out, "  formation: not computed (%s)\n",
-                run.has_scenario ? "no leader states in the log"
-                                 : "no scenario in the log; give --scenario FILE");
+                !run.has_scenario
+                    ? (run.scenario_text.empty() ? "no scenario in the log; give --scenario FILE"
+                                                 : "the log's scenario does not load; give --scenario FILE")
+                : static_cast<int>(run.scenario.offsets_m.size()) != run.followers
+                    ? "the scenario's followers are not the log's"
+                    : "no leader states in the log");
   } else {
     if (FormationConverged(a)) {
       std::fprintf(out, "  converged: yes, at %.2f s (position tol %.3g m, velocity tol %.3g m/s)\n",

@@ -708,8 +708,11 @@ void JudgeReport(const nlohmann::json& j, std::vector<std::string>* reasons) {
                        std::to_string(r.value("new_pid", 0)));
   }
   if (!j.value("log_complete", false)) {
-    std::string text = "the log lost states: " + std::to_string(j.value("log_states", 0LL)) +
-                       " of " + std::to_string(j.value("log_states_expected", 0LL)) +
+    // An interrupted run is already a reason above; what it never ran was not lost.
+    std::string text = (j.value("interrupted", false) ? "the log is not the whole run: "
+                                                      : "the log lost states: ") +
+                       std::to_string(j.value("log_states", 0LL)) + " of " +
+                       std::to_string(j.value("log_states_expected", 0LL)) +
                        " expected vehicle states recorded";
     for (const auto& p : j.value("log_problems", nlohmann::json::array())) {
       text += "; " + p.get<std::string>();

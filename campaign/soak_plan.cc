@@ -133,6 +133,25 @@ std::string TimelineValue(const toml::table& base_tree, std::vector<toml::table>
   return out.str();
 }
 
+/// A soak's phases each change the channel of every link, and one of them is in force at
+/// every moment of the run: a channel event of the scenario's own would overlap one. It is
+/// refused here by its own line, before the merged timeline's loader names it by position.
+void CheckNoChannelEvents(const Campaign& c, const toml::table& base_tree) {
+  const toml::array* own = base_tree["event"].as_array();
+  if (own == nullptr) return;
+  for (const toml::node& n : *own) {
+    const toml::table* t = n.as_table();
+    if (t == nullptr || (*t)["kind"].value<std::string>().value_or("") != "channel") continue;
+    const auto line = t->source().begin.line;
+    std::ostringstream at;
+    at << (*t)["at_s"].value<double>().value_or(0.0);
+    throw CampaignError(c.scenario + (line > 0 ? ":" + std::to_string(line) : std::string()) +
+                        ": a channel event (at_s = " + at.str() + "): a soak's phases set the channel of every link for the whole run, "
+                        "so its scenario may hold no channel event of its own; remove it (the "
+                        "other kinds of event are kept), or run that scenario with shoal sweep");
+  }
+}
+
 }  // namespace
 
 SoakPlan PlanSoak(const Campaign& c, const std::string& scenario_text,
@@ -147,6 +166,8 @@ SoakPlan PlanSoak(const Campaign& c, const std::string& scenario_text,
   // Each phase's scenario as a sweep point would run it: a bad value is named by its axis'
   // line, not by the event it becomes.
   PlanPoints(c, scenario_text, base, points);
+  toml::table base_tree = EffectiveTree(c, scenario_text, base);
+  CheckNoChannelEvents(c, base_tree);
   SoakPlan plan;
   const double phase_s = c.soak.phase_s;
   std::vector<toml::table> events;
@@ -166,7 +187,7 @@ SoakPlan PlanSoak(const Campaign& c, const std::string& scenario_text,
   plan.duration_s = phase_s * static_cast<double>(points.size());
   plan.overrides = base;
   plan.overrides.push_back({"event",
-                            TimelineValue(EffectiveTree(c, scenario_text, base), std::move(events)),
+                            TimelineValue(base_tree, std::move(events)),
                             c.path + ": the soak's phases (" + std::to_string(points.size()) +
                                 " channel events)"});
   // The timeline reaches every process of the run as one --set argument, and Linux caps

@@ -131,9 +131,16 @@ void JudgeLog(std::int64_t clock_ticks, std::int64_t expected_ticks, RunReport* 
   // by the log; the report names them apart (PrintRestarts).
   const std::int64_t states = r->summary.states;
   const std::int64_t expected = r->log_states_expected - r->states_missing_in_restarts;
-  if (states < expected) r->log_problems.push_back(Lost(states, expected, "vehicle states"));
+  // A run stopped early never ran the rest: the log is not the whole run, but it lost
+  // nothing, and saying so would send the user looking for a fault.
+  const auto lacks = [&](std::int64_t have, std::int64_t whole, const std::string& what) {
+    if (!r->launch.interrupted) return Lost(have, whole, what);
+    return "the run was interrupted: the log holds " + std::to_string(have) + " of the " +
+           std::to_string(whole) + " " + what + " of the whole run";
+  };
+  if (states < expected) r->log_problems.push_back(lacks(states, expected, "vehicle states"));
   if (clock_ticks >= 0 && clock_ticks < expected_ticks) {
-    r->log_problems.push_back(Lost(clock_ticks, expected_ticks, "clock ticks"));
+    r->log_problems.push_back(lacks(clock_ticks, expected_ticks, "clock ticks"));
   }
   r->log_complete = r->log_readable && r->log_problems.empty();
 }

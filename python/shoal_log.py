@@ -34,9 +34,9 @@ What is kept and what is counted follows shoal analyze (analysis/run_data.cc): a
 that does not decode to exactly its bytes by the C++ readers' rules is undecodable; an id
 beyond the run's followers (the logged scenario's, else the statuses', else 1023, as known
 when the message is read) is rejected; a channel status above the largest known is counted
-as dropped_invalid; channel decisions at impossible times are left out (analysis.cc
-ChannelEventTimeOf); a retimed log's marker is not an event. The logged scenario is read
-with tomllib (Python 3.11+); on older Pythons ids are checked against the statuses'
+as dropped_invalid; vehicle states and channel decisions at impossible times are left
+out (analysis.cc ValidStates, ChannelEventTimeOf); a retimed log's marker is not an event.
+The logged scenario is read with tomllib (Python 3.11+); on older Pythons ids are checked against the statuses'
 followers and the run's end is judged from the states alone (as shoal analyze does for a
 log without scenario text).
 """
@@ -209,6 +209,11 @@ class ShoalLog:
     # end, delivered before sent or after the last possible delivery), left out of
     # `decisions` and of decision_counts() as shoal analyze leaves them out of its counts.
     damaged_decisions: List[Decision] = field(default_factory=list)
+    # Vehicle states at impossible times (a negative time, or after the run's end), left
+    # out of `states` as shoal analyze leaves them out of its log_states and its metrics.
+    damaged_states: List[State] = field(default_factory=list)
+    states_negative_time: int = 0
+    states_after_end: int = 0
     decisions_sent_impossible: int = 0
     decisions_delivered_impossible: int = 0
     end_utime: int = -1             # [us] the last possible send time (-1: unknown)
@@ -1095,7 +1100,7 @@ class _Builder:
                                for s in log.statuses)
         # Whether the log holds a Shoal message at all (LoadRunLog's any_shoal).
         self.any_shoal = bool(ids or log.decisions or log.health or log.clock or log.statuses)
-        if "CHANNEL" in self.keep:
+        if not self.state_ids_only:
             self._leave_out_impossible_times()
         for kind, attr, empty in (("STATE", "states", {}), ("CHANNEL", "decisions", []),
                                   ("CLOCK", "clock", []), ("HEALTH", "health", {}),
@@ -1107,6 +1112,36 @@ class _Builder:
         log = self.log
         limit, deliver_limit = _time_bounds(log, self.scenario)
         log.end_utime, log.last_delivery_utime = limit, deliver_limit
+        if "STATE" in self.keep:
+            self._leave_out_impossible_states(limit)
+        if "CHANNEL" in self.keep:
+            self._leave_out_impossible_decisions(limit, deliver_limit)
+
+    def _leave_out_impossible_states(self, limit: int) -> None:
+        """analysis.cc ValidStates: a state is possible at 0 <= utime <= the run's end (any
+        utime >= 0 when the end is unknown)."""
+        log = self.log
+        for vid, states in log.states.items():
+            kept = []
+            for st in states:
+                if st.utime < 0:
+                    log.states_negative_time += 1
+                elif 0 <= limit < st.utime:
+                    log.states_after_end += 1
+                else:
+                    kept.append(st)
+                    continue
+                log.damaged_states.append(st)
+            log.states[vid] = kept
+        if log.damaged_states:
+            self.damaged_warnings.append(
+                "DAMAGED: %d vehicle states at impossible times (%d negative, %d after the "
+                "run's end at %.2f s), left out of the metrics"
+                % (len(log.damaged_states), log.states_negative_time, log.states_after_end,
+                   limit / 1e6 if limit >= 0 else float("nan")))
+
+    def _leave_out_impossible_decisions(self, limit: int, deliver_limit: int) -> None:
+        log = self.log
         kept: List[Decision] = []
         for d in log.decisions:
             why = _impossible(d, limit, deliver_limit)
@@ -1368,6 +1403,9 @@ def summary(log: ShoalLog) -> dict:
         "log": log.path, "scenario": names[0] if names else None, "followers": log.followers,
         "retimed_from": log.retimed_from, "events": log.events,
         "states": sum(len(s) for s in log.states.values()),
+        "states_damaged": len(log.damaged_states),
+        "states_negative_time": log.states_negative_time,
+        "states_after_end": log.states_after_end,
         "vehicles": vehicles, "decisions": log.decision_counts(),
         "decisions_damaged": len(log.damaged_decisions),
         "decisions_sent_at_impossible_time": log.decisions_sent_impossible,

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <iostream>
 #include <limits>
 #include <map>
@@ -44,14 +45,29 @@ bool ReadStates(const std::string& path, const std::string& key_file, States* ou
   RunData counts;  // authentication counts only
   LogVerifier verifier(key, &counts);
   LogEventView ev;
+  std::int64_t repeated = 0, conflicting = 0;
   while (reader.Next(&ev)) {
     if (!channels::ParseStateId(ev.channel)) continue;
     const int size = verifier.Check(ev.channel, ev.data, ev.size);
     vehicle_state_t m{};
     if (size < 0 || !Decode(ev.data, size, &m)) continue;
-    (*out)[{m.vehicle_id, m.utime}] = Sample{Load5(m.eta), Load5(m.eta_dot)};
+    const Sample s{Load5(m.eta), Load5(m.eta_dot)};
+    // The last copy of a state wins, as in shoal analyze; a copy that differs is two runs'
+    // (or a damaged) state under one name, which the user must hear of.
+    const auto [it, inserted] = out->try_emplace({m.vehicle_id, m.utime}, s);
+    if (inserted) continue;
+    ++repeated;
+    if (std::memcmp(&it->second, &s, sizeof s) != 0) ++conflicting;
+    it->second = s;
   }
   warnings->insert(warnings->end(), reader.warnings().begin(), reader.warnings().end());
+  if (repeated > 0) {
+    warnings->push_back(path + ": " + std::to_string(repeated) +
+                        " vehicle states appear more than once (same vehicle and time: a log "
+                        "recorded twice or concatenated, or replayed onto a recording bus), " +
+                        std::to_string(conflicting) + " of them with different values; the "
+                        "last copy of each is compared");
+  }
   if (counts.unauthenticated > 0) {
     warnings->push_back(path + ": " + std::to_string(counts.unauthenticated) +
                         " states did not authenticate with " + used + " and were ignored");
@@ -66,11 +82,17 @@ bool ReadStates(const std::string& path, const std::string& key_file, States* ou
     return false;
   }
   // A key that verifies none of the states is the wrong key (as shoal analyze says), not
-  // a log without states: bad input, not a comparison that failed.
+  // a log without states: bad input, not a comparison that failed. So is a log with no
+  // state at all: there is nothing of a run in it to compare.
   if (out->empty() && counts.unauthenticated > 0) {
     *err = path + ": none of its " + std::to_string(counts.unauthenticated) +
            " states authenticates with " + used +
            " (the log of another run, or of a run with --insecure?)";
+    return false;
+  }
+  if (out->empty()) {
+    *err = path + ": no vehicle state (SHOAL_STATE_<id>) in its " +
+           std::to_string(reader.events()) + " events: not the log of a Shoal run";
     return false;
   }
   return true;

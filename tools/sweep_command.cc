@@ -256,6 +256,14 @@ int RunSweep(const SweepOptions& opt) {
   try {
     p = Prepare(opt);
     dir = std::make_unique<ResultsDir>(opt.out, p.manifest);
+    // More shards than points (a Slurm array sized before the campaign shrank) leaves
+    // some empty: its directory is still written, so that merging every shard works, and
+    // the user hears that this one ran nothing.
+    if (p.shard.n > 1 && static_cast<std::int64_t>(p.points.size()) < p.shard.k) {
+      std::cerr << "shoal sweep: shard " << p.shard.k << "/" << p.shard.n << " holds none of the "
+                << p.points.size() << " points of " << opt.campaign
+                << " (shard K/N runs the points whose index % N == K-1): nothing to run\n";
+    }
   } catch (const CampaignError& e) {
     std::cerr << "shoal sweep: " << e.what() << "\n";
     return kExitBadInput;

@@ -449,6 +449,47 @@ TEST(CompareCli, StatesInOnlyOneLogFailUnlessAllowed) {
   EXPECT_EQ(ParseJson(hole.out)["only_in_a"], 1) << hole.out;
   EXPECT_EQ(RunShoal("compare " + a + " " + holed + " --allow-missing", "cmp_miss_hole2").status,
             0);
+  // A log with events but no vehicle state is not a run's log: bad input, not a failure.
+  const std::string stateless = TmpPath("cmp_miss_stateless.lcmlog");
+  CopyLogEditingStates(a, stateless, [](vehicle_state_t*) { return false; });
+  const auto foreign = RunShoal("compare " + a + " " + stateless, "cmp_miss_foreign");
+  EXPECT_EQ(foreign.status, 2) << foreign.out << foreign.err;
+  EXPECT_NE(foreign.err.find("no vehicle state (SHOAL_STATE_<id>)"), std::string::npos)
+      << foreign.err;
+}
+
+// A state recorded twice (a log concatenated, or replayed onto a recording bus) is named,
+// and how many of the copies differ; the last copy is the one compared, as in analyze.
+TEST(CompareCli, StatesRecordedTwiceAreNamed) {
+  const std::string a = CompareLog("cmp_dup_a.lcmlog"), twice = TmpPath("cmp_dup_twice.lcmlog");
+  {
+    lcm::LogFile in(a, "r"), out(twice, "w");
+    ASSERT_TRUE(in.good() && out.good());
+    while (const lcm::LogEvent* ev = in.readNextEvent()) {
+      ASSERT_EQ(out.writeEvent(const_cast<lcm::LogEvent*>(ev)), 0);
+      if (ev->channel != "SHOAL_STATE_2" && ev->channel != "SHOAL_STATE_3") continue;
+      vehicle_state_t m{};
+      ASSERT_GE(m.decode(ev->data, 0, ev->datalen), 0);
+      if (m.utime != 7'000'000) continue;
+      // Vehicle 2's copy is the same; vehicle 3's second copy is 1 m off, and it is the one
+      // compared.
+      if (m.vehicle_id == 3) m.eta[0] += 1.0;
+      std::vector<unsigned char> buf(m.getEncodedSize());
+      m.encode(buf.data(), 0, static_cast<int>(buf.size()));
+      lcm::LogEvent copy = *ev;
+      copy.data = buf.data();
+      copy.datalen = static_cast<int32_t>(buf.size());
+      ASSERT_EQ(out.writeEvent(&copy), 0);
+    }
+  }
+  const auto r = RunShoal("compare " + a + " " + twice + " --json", "cmp_dup");
+  EXPECT_EQ(r.status, 1) << r.out << r.err;
+  const auto j = ParseJson(r.out);
+  EXPECT_EQ(j["only_in_a"], 0) << r.out;
+  EXPECT_EQ(j["only_in_b"], 0) << r.out;
+  EXPECT_NEAR(j["max_position_diff_m"].get<double>(), 1.0, 1e-9) << r.out;
+  EXPECT_NE(r.err.find("2 vehicle states appear more than once"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("1 of them with different values"), std::string::npos) << r.err;
 }
 
 TEST(SimCli, VersionPrintsTheProjectVersion) {

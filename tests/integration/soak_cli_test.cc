@@ -108,6 +108,11 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
       {Steps("0.1", "120", "90", "seed = 7\n"), "campaign.seed: only used with sampling = \"lhs\""},
       {Steps("0.1", "120", "90", "duration_s = 600\n"),
        "campaign.duration_s (the run lasts phases x soak.phase_s): not used by shoal soak"},
+      // Named by the scenario's own line (faults.toml:128), not by its place among the phases.
+      {"[campaign]\nscenario = \"" + SourcePath("scenarios/faults.toml") +
+           "\"\nengine = \"lockstep\"\n" + delay_axis + soak,
+       "faults.toml:128: a channel event (at_s = 320): a soak's phases set the channel of every "
+       "link"},
   };
   int i = 0;
   for (const auto& [text, message] : cases) {
@@ -169,6 +174,8 @@ TEST(SoakCli, CtrlCKeepsTheJudgementOfWhatRanAndLeavesNoProcess) {
     said = said || reason.get<std::string>().find("interrupted") != std::string::npos;
   }
   EXPECT_TRUE(said) << soak["reasons"].dump();
+  // What the run never ran is not called lost.
+  EXPECT_EQ(soak["reasons"].dump().find("lost"), std::string::npos) << soak["reasons"].dump();
   // The phase the run stopped in did not run whole: it does not pass on what ran of it.
   int cut = 0;
   for (const ojson& phase : soak["phases"]) {

@@ -246,6 +246,11 @@ TEST(SweepCli, ShardsMergedEqualOneRun) {
   const RunResult two = RunShoal(args + "/s2 --shard 2/2", "sweep_shard2");
   ASSERT_EQ(ReadRows(dir + "/s1/results.jsonl").size(), 3u) << one.err;
   ASSERT_EQ(ReadRows(dir + "/s2/results.jsonl").size(), 3u) << two.err;
+  // A shard past the last point runs nothing, and says so.
+  const RunResult empty = RunShoal(args + "/s7 --shard 7/7", "sweep_shard7");
+  EXPECT_EQ(empty.status, 0) << empty.err;
+  EXPECT_NE(empty.err.find("shard 7/7 holds none of the 6 points"), std::string::npos) << empty.err;
+  EXPECT_TRUE(ReadRows(dir + "/s7/results.jsonl").empty());
   const RunResult missing = RunShoal("sweep merge " + dir + "/s1 --out " + dir + "/m1", "sweep_m1");
   EXPECT_EQ(missing.status, 2);
   EXPECT_NE(missing.err.find("points missing from every directory: 1, 3, 5"), std::string::npos)

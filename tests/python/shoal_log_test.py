@@ -568,6 +568,29 @@ class Logs(unittest.TestCase):
             else:
                 self.check_against_analyze(shoal_log.read_log(path), analyze(path))
 
+    def test_states_at_impossible_times_are_left_out(self):
+        def edit(events):
+            two = [e[1] for e in events if e[0] == "SHOAL_STATE_2"]
+            three = [e[1] for e in events if e[0] == "SHOAL_STATE_3"]
+            two[100][8:16] = struct.pack(">q", 10 ** 15)  # a state 31 years on
+            three[50][8:16] = struct.pack(">q", -5 * 10 ** 6)  # and one 5 s before the start
+
+        path = self.edited_sim("impossible_states.lcmlog", edit)
+        log = shoal_log.read_log(path)
+        a = analyze(path)
+        self.assertEqual((len(log.damaged_states), log.states_negative_time,
+                          log.states_after_end), (2, 1, 1))
+        self.assertEqual((a["log_states_damaged"], a["log_states_negative_time"],
+                          a["log_states_after_end"]), (2, 1, 1))
+        self.assertEqual(sorted(s.vehicle_id for s in log.damaged_states), [2, 3])
+        self.check_against_analyze(log, a)
+        text = run([SHOAL, "analyze", path]).stdout
+        damaged = [line.strip() for line in text.splitlines() if "vehicle states at" in line]
+        self.assertEqual(damaged, [w for w in log.warnings if "vehicle states at" in w])
+        summary = json.loads(run([sys.executable, SCRIPT, path, "--json"]).stdout)
+        self.assertEqual(summary["states"], a["log_states"])
+        self.assertEqual(summary["states_damaged"], 2)
+
     def test_decisions_at_impossible_times_are_left_out(self):
         def edit(events):
             batches = [e[1] for e in events if e[0] == "SHOAL_CHANNEL" and batch_events(e[1])]

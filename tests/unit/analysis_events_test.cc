@@ -374,6 +374,35 @@ TEST(AnalysisEvents, ChannelEventDelayIsTheModelInForceAndTopologyLinksAreKnown)
   EXPECT_EQ(r.a.events[1].affects, "edges 1<-2 2<-1 3<-4 4<-3 5<-4, leader links 1, 2, 3, 4, 5");
 }
 
+// A link's message age is measured at the ticks at which its receiver uses it: not while
+// the topology in force leaves it out, not while the receiver's controller is reset (its
+// deliveries are dropped then, and the reset forgets what it held).
+TEST(AnalysisEvents, MessageAgeCountsOnlyTheTicksAtWhichTheLinkIsUsed) {
+  Scenario s = Example2(12.0);
+  ScenarioEvent reset = Event(EventKind::kControllerReset, 1.0, 1e300);
+  reset.vehicles = {1};
+  reset.outage_s = 1.0;
+  ScenarioEvent topo = Event(EventKind::kTopology, 3.0, 8.0);  // 2<-5 and 5<-2 left out
+  topo.edges = {{1, 3}, {2, 1}, {3, 1}, {4, 5}, {5, 4}};
+  topo.leader_links = {1, 2, 3, 4, 5};
+  s.events = {reset, topo};
+  const Analysed r = SimulateAndAnalyse(s);
+  // Ticks 0..600; in use: 5->2 at [0, 3) and [8, 12]; 0->2 at [3, 8); 3->1 but at [1, 2).
+  const std::pair<std::pair<int, int>, std::int64_t> in_use[] = {
+      {{5, 2}, 150 + 201}, {{2, 5}, 150 + 201}, {{0, 2}, 250}, {{3, 1}, 601 - 50},
+      {{0, 1}, 601 - 50}, {{1, 2}, 601}};
+  for (const auto& [link, ticks] : in_use) {
+    const LinkAnalysis& l = LinkOf(r.a, link.first, link.second);
+    EXPECT_EQ(l.age_at_use_s.count + l.ticks_stale + l.ticks_before_first, ticks)
+        << link.first << "->" << link.second;
+    EXPECT_EQ(l.ticks_stale, 0) << link.first << "->" << link.second;
+    // A link is empty at the start, after a reset and when it comes back, until its first
+    // delivery there (Example 2's delay is at most 0.15 s: 8 ticks).
+    EXPECT_LE(l.ticks_before_first, 3 * 8) << link.first << "->" << link.second;
+  }
+  for (const FollowerAnalysis& f : r.a.followers) EXPECT_EQ(f.stale_ticks, 0) << f.id;
+}
+
 TEST(AnalysisEvents, RunWithoutEventsHasNoEventTextAndAnEmptyJsonArray) {
   const Analysed r = SimulateAndAnalyse(Example2(3.0));
   EXPECT_TRUE(r.a.events.empty());

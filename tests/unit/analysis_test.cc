@@ -1340,6 +1340,9 @@ TEST(ImpossibleTimes, WithoutAScenarioMostVehiclesSetTheEnd) {
   EXPECT_EQ(a.states_negative_time, 1);
   EXPECT_DOUBLE_EQ(a.summary.sim_time_s, ToSeconds(499 * kPeriod));
   EXPECT_EQ(a.ticks, 500);
+  // Times with every vehicle's state need no scenario to be counted.
+  EXPECT_FALSE(a.has_formation);
+  EXPECT_EQ(a.complete_samples, 500);
 }
 
 // For a plot: the damaged states are removed from the tracks, and a warning says so.
