@@ -133,22 +133,51 @@ std::string TimelineValue(const toml::table& base_tree, std::vector<toml::table>
   return out.str();
 }
 
+/// Where an event of the effective scenario was written: an override that sets the
+/// timeline (a campaign's `set`, `--set event=...`) by its origin, else the scenario file's
+/// line of the same event (overrides rewrite the text, so the line is read from the file's).
+std::string WhereEventIs(const Campaign& c, const std::string& scenario_text,
+                         const std::vector<ScenarioOverride>& base, std::size_t index) {
+  // The timeline's own override, or one of this event's keys (event[k].kind, ...); a key
+  // may be written quoted ("event").
+  const std::string element = "event[" + std::to_string(index) + "]";
+  for (auto it = base.rbegin(); it != base.rend(); ++it) {
+    std::string key = it->key;
+    key.erase(std::remove(key.begin(), key.end(), '"'), key.end());
+    if (key == "event" || key == element || key.rfind(element + ".", 0) == 0) {
+      return it->origin.empty() ? "--set " + it->key : it->origin;
+    }
+  }
+  try {
+    const toml::table own = toml::parse(scenario_text, c.scenario);
+    if (const toml::array* events = own["event"].as_array(); events && index < events->size()) {
+      const auto line = events->get(index)->source().begin.line;
+      if (line > 0) return c.scenario + ":" + std::to_string(line);
+    }
+  } catch (const toml::parse_error&) {
+    // The effective text parsed; the file's own errors are the loader's to name.
+  }
+  return c.scenario;
+}
+
 /// A soak's phases each change the channel of every link, and one of them is in force at
 /// every moment of the run: a channel event of the scenario's own would overlap one. It is
-/// refused here by its own line, before the merged timeline's loader names it by position.
-void CheckNoChannelEvents(const Campaign& c, const toml::table& base_tree) {
-  const toml::array* own = base_tree["event"].as_array();
+/// refused here where it was written, before the merged timeline's loader names it by its
+/// position among the phases.
+void CheckNoChannelEvents(const Campaign& c, const std::string& scenario_text,
+                          const std::vector<ScenarioOverride>& base, const toml::table& tree) {
+  const toml::array* own = tree["event"].as_array();
   if (own == nullptr) return;
-  for (const toml::node& n : *own) {
-    const toml::table* t = n.as_table();
+  for (std::size_t k = 0; k < own->size(); ++k) {
+    const toml::table* t = own->get(k)->as_table();
     if (t == nullptr || (*t)["kind"].value<std::string>().value_or("") != "channel") continue;
-    const auto line = t->source().begin.line;
     std::ostringstream at;
     at << (*t)["at_s"].value<double>().value_or(0.0);
-    throw CampaignError(c.scenario + (line > 0 ? ":" + std::to_string(line) : std::string()) +
-                        ": a channel event (at_s = " + at.str() + "): a soak's phases set the channel of every link for the whole run, "
-                        "so its scenario may hold no channel event of its own; remove it (the "
-                        "other kinds of event are kept), or run that scenario with shoal sweep");
+    throw CampaignError(WhereEventIs(c, scenario_text, base, k) + ": a channel event (at_s = " +
+                        at.str() + "): a soak's phases set the channel of every link for the "
+                        "whole run, so its scenario may hold no channel event of its own; "
+                        "remove it (the other kinds of event are kept), or run that scenario "
+                        "with shoal sweep");
   }
 }
 
@@ -167,7 +196,7 @@ SoakPlan PlanSoak(const Campaign& c, const std::string& scenario_text,
   // line, not by the event it becomes.
   PlanPoints(c, scenario_text, base, points);
   toml::table base_tree = EffectiveTree(c, scenario_text, base);
-  CheckNoChannelEvents(c, base_tree);
+  CheckNoChannelEvents(c, scenario_text, base, base_tree);
   SoakPlan plan;
   const double phase_s = c.soak.phase_s;
   std::vector<toml::table> events;

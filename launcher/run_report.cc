@@ -131,14 +131,20 @@ void JudgeLog(std::int64_t clock_ticks, std::int64_t expected_ticks, RunReport* 
   // by the log; the report names them apart (PrintRestarts).
   const std::int64_t states = r->summary.states;
   const std::int64_t expected = r->log_states_expected - r->states_missing_in_restarts;
-  // A run stopped early never ran the rest: the log is not the whole run, but it lost
-  // nothing, and saying so would send the user looking for a fault.
+  // A run stopped early never ran the rest: the log is not the whole run, and that is
+  // said as it is; what it lost of the part that ran (the states missing before each
+  // vehicle's last one) is a loss like any other.
   const auto lacks = [&](std::int64_t have, std::int64_t whole, const std::string& what) {
     if (!r->launch.interrupted) return Lost(have, whole, what);
     return "the run was interrupted: the log holds " + std::to_string(have) + " of the " +
            std::to_string(whole) + " " + what + " of the whole run";
   };
   if (states < expected) r->log_problems.push_back(lacks(states, expected, "vehicle states"));
+  if (r->launch.interrupted && r->states_lost_before_interruption > 0) {
+    r->log_problems.push_back("the log lost " + std::to_string(r->states_lost_before_interruption) +
+                              " vehicle states of the part that ran, before each vehicle's "
+                              "last logged state");
+  }
   if (clock_ticks >= 0 && clock_ticks < expected_ticks) {
     r->log_problems.push_back(lacks(clock_ticks, expected_ticks, "clock ticks"));
   }
@@ -254,6 +260,34 @@ void PrintMachine(const MachineWatch& m, double period_s, bool limited, std::FIL
 
 }  // namespace
 
+namespace {
+
+/// The states missing between tick 0 and each vehicle's last state at a possible time,
+/// less the ticks a restarted process was down for before that state: what a log lost of
+/// a run that stopped early, whose tail the stop cut off.
+std::int64_t StatesLostBeforeLast(const RunData& run, const RunAnalysis& a) {
+  if (a.period_us <= 0) return 0;
+  std::int64_t lost = 0;
+  for (std::size_t id = 0; id < run.vehicles.size(); ++id) {
+    std::int64_t have = 0;
+    Micros last = -1;
+    for (const StateMsg& m : run.vehicles[id].samples) {
+      if (m.utime < 0 || (a.bounds.limit_us >= 0 && m.utime > a.bounds.limit_us)) continue;
+      ++have;
+      last = m.utime;
+    }
+    if (last < 0) continue;
+    std::int64_t missing = last / a.period_us + 1 - have;
+    for (const RestartAnalysis& r : a.restarts) {
+      if (r.id == static_cast<int>(id) && r.utime <= last) missing -= r.states_missing;
+    }
+    lost += std::max<std::int64_t>(0, missing);
+  }
+  return lost;
+}
+
+}  // namespace
+
 RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
   RunReport r;
   r.scenario = s.name;
@@ -280,6 +314,9 @@ RunReport MakeRunReport(const Scenario& s, LaunchResult launch) {
     r.summary = a.summary;
     r.log_restarts = a.restarts;
     r.states_missing_in_restarts = a.states_missing_in_restarts;
+    if (r.launch.interrupted) {
+      r.states_lost_before_interruption = StatesLostBeforeLast(run, a);
+    }
     r.diverged_follower = a.diverged_follower;
     r.converged = FormationConverged(a);
     r.bus_authenticated = run.bus_authenticated();
@@ -335,6 +372,7 @@ nlohmann::ordered_json RunReportJson(const RunReport& r) {
   }
   j["restarts"] = restarts;
   j["states_missing_in_restarts"] = r.states_missing_in_restarts;
+  j["states_lost_before_interruption"] = r.states_lost_before_interruption;
   j["interrupted"] = l.interrupted;
   j["log"] = l.log;
   j["process_output_dir"] = l.process_output_dir;

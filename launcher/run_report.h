@@ -35,6 +35,10 @@ struct RunReport {
   /// log_complete judges the states the processes published.
   std::vector<RestartAnalysis> log_restarts;
   std::int64_t states_missing_in_restarts = 0;
+  /// An interrupted run: the states missing before each vehicle's last logged one (the
+  /// part that ran), less the ticks a restarted process was down for there; what the
+  /// interruption cut off after them is not counted. 0 for a run that was not interrupted.
+  std::int64_t states_lost_before_interruption = 0;
   /// Real time: no process overran a period, and every process's loop lateness p99 (the
   /// emulator's: release error p99) stayed within kMaxLatenessP99S; always true in
   /// lockstep, which reads no clock. timing_problems names each process that did not.

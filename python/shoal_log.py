@@ -913,9 +913,10 @@ class _Builder:
         self.dec = _Decoder(types)
         self.keep = keep
         # What must be read for what is kept: the statuses give n and the scenario; the
-        # states give n otherwise, and with the clock the times a decision can have.
+        # states give n otherwise, and with the clock the times a state or a decision can
+        # have (a run's final clock tick is where it ended).
         self.read = set(keep) | {"STATUS", "STATE"}
-        if "CHANNEL" in keep:
+        if "CHANNEL" in keep or "STATE" in keep:
             self.read.add("CLOCK")
         self.state_ids_only = "STATE" not in keep and "CHANNEL" not in keep
         self.state_counts: Dict[int, int] = {}  # states_ids_only: valid states per id
@@ -1246,8 +1247,8 @@ def read_log(path: str, key_file: Optional[str] = None, types_dir: Optional[str]
     types are (load_types). channels: keep only these kinds ('STATE', 'RX', 'HEALTH',
     'CHANNEL', 'CLOCK', 'STATUS'; default all), the others are still verified and counted;
     the statuses and the states' ids are read whatever is kept (they give n and the ids that
-    fit, as in a full read), and CHANNEL reads the states and the clock too (they give the
-    times a decision can have). Raises ShoalLogError when the log cannot be read at all."""
+    fit, as in a full read), STATE reads the clock too, and CHANNEL the states and the clock
+    (they give the times a state or a decision can have). Raises ShoalLogError when the log cannot be read at all."""
     keep = KINDS if channels is None else tuple(channels)
     unknown = [k for k in keep if k not in KINDS]
     if unknown:

@@ -108,11 +108,17 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
       {Steps("0.1", "120", "90", "seed = 7\n"), "campaign.seed: only used with sampling = \"lhs\""},
       {Steps("0.1", "120", "90", "duration_s = 600\n"),
        "campaign.duration_s (the run lasts phases x soak.phase_s): not used by shoal soak"},
-      // Named by the scenario's own line (faults.toml:128), not by its place among the phases.
+      // Named by the scenario's own line (faults.toml:128), not by its place among the
+      // phases, with the campaign's overrides too; one that a `set` wrote, by that line.
       {"[campaign]\nscenario = \"" + SourcePath("scenarios/faults.toml") +
-           "\"\nengine = \"lockstep\"\n" + delay_axis + soak,
+           "\"\nengine = \"lockstep\"\nset = ['channel.delay={ model = \"constant\", "
+           "base_s = 0.05 }']\n" + delay_axis + soak,
        "faults.toml:128: a channel event (at_s = 320): a soak's phases set the channel of every "
        "link"},
+      {head + "engine = \"lockstep\"\nset = ['event=[{ kind = \"channel\", at_s = 5, "
+              "until_s = 6, delay = { model = \"constant\", base_s = 0.2 } }]']\n" +
+           delay_axis + soak,
+       ":4: set event=[{ kind = \"channel\", at_s = 5"},
   };
   int i = 0;
   for (const auto& [text, message] : cases) {

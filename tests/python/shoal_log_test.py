@@ -583,6 +583,9 @@ class Logs(unittest.TestCase):
         self.assertEqual((a["log_states_damaged"], a["log_states_negative_time"],
                           a["log_states_after_end"]), (2, 1, 1))
         self.assertEqual(sorted(s.vehicle_id for s in log.damaged_states), [2, 3])
+        only = shoal_log.read_log(path, channels=("STATE",))
+        self.assertEqual(only.states, log.states)
+        self.assertEqual(len(only.damaged_states), 2)
         self.check_against_analyze(log, a)
         text = run([SHOAL, "analyze", path]).stdout
         damaged = [line.strip() for line in text.splitlines() if "vehicle states at" in line]
