@@ -139,11 +139,12 @@ std::string TimelineValue(const toml::table& base_tree, std::vector<toml::table>
 std::string WhereEventIs(const Campaign& c, const std::string& scenario_text,
                          const std::vector<ScenarioOverride>& base, std::size_t index) {
   // The timeline's own override, or one of this event's keys (event[k].kind, ...); a key
-  // may be written quoted ("event").
+  // may be written quoted ("event", 'event').
   const std::string element = "event[" + std::to_string(index) + "]";
   for (auto it = base.rbegin(); it != base.rend(); ++it) {
     std::string key = it->key;
-    key.erase(std::remove(key.begin(), key.end(), '"'), key.end());
+    key.erase(std::remove_if(key.begin(), key.end(), [](char ch) { return ch == '"' || ch == '\''; }),
+              key.end());
     if (key == "event" || key == element || key.rfind(element + ".", 0) == 0) {
       return it->origin.empty() ? "--set " + it->key : it->origin;
     }

@@ -115,6 +115,10 @@ TEST(SoakCli, CampaignsASoakCannotRunAreRefusedBeforeAnythingRuns) {
            "base_s = 0.05 }']\n" + delay_axis + soak,
        "faults.toml:128: a channel event (at_s = 320): a soak's phases set the channel of every "
        "link"},
+      // An override of another event does not take the blame.
+      {"[campaign]\nscenario = \"" + SourcePath("scenarios/faults.toml") +
+           "\"\nengine = \"lockstep\"\nset = ['event[0].at_s=101']\n" + delay_axis + soak,
+       "faults.toml:128: a channel event (at_s = 320)"},
       {head + "engine = \"lockstep\"\nset = ['event=[{ kind = \"channel\", at_s = 5, "
               "until_s = 6, delay = { model = \"constant\", base_s = 0.2 } }]']\n" +
            delay_axis + soak,
