@@ -300,6 +300,13 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
     << "if [ ! -e \"$log\" ]; then\n"
     << "  echo \"$0: lcm-logger did not create $log within 5 s ($out_dir/logger.txt)\" >&2\n"
     << "  exit 1\nfi\n";
+  // With an uplink the leader and the vehicles publish there, and the emulator passes it on.
+  bool uplink = false, recorder_wait = false;
+  for (const PlannedProcess& p : plan.processes) {
+    uplink = uplink || std::find(p.argv.begin(), p.argv.end(), "--uplink-url") != p.argv.end();
+    recorder_wait = recorder_wait || std::find(p.argv.begin(), p.argv.end(), "--recorder-pid") !=
+                                         p.argv.end();
+  }
   if (std::find(logger.env.begin(), logger.env.end(), "SHOAL_LOGGER_PROGRESS=1") !=
       logger.env.end()) {
     o << "# It creates the log before it subscribes, and its count once subscribed: what the\n"
@@ -312,20 +319,16 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
       << "if [ ! -e \"" << name << "\" ]; then\n"
       << "  echo \"$0: warning: lcm-logger had not subscribed after 30 s: what the run\" \\\n"
       << "       \"sends before it does is not in the log\" >&2\n";
-    if (plan.mode == Mode::kRealtime) {
+    // Read, and removed, only by the clock master of a lockstep run with an uplink.
+    if (plan.mode == Mode::kRealtime || !uplink || !recorder_wait) {
       o << "else\n"
-        << "  rm -f -- \"" << name << "\"  # read by no one in real time\n";
+        << "  rm -f -- \"" << name << "\"  # read by no one on this run\n";
     }
     o << "fi\n";
   }
   if (!plan.insecure) o << "export " << bus_auth::kKeyEnv << "\n";
   o << "# Tick 0 on the wall clock, 4 s from now (ns since 1970).\n"
     << "t0=$(( $(date +%s%N) + 4000000000 ))\n";
-  // With an uplink the leader and the vehicles publish there, and the emulator passes it on.
-  bool uplink = false;
-  for (const PlannedProcess& p : plan.processes) {
-    uplink = uplink || std::find(p.argv.begin(), p.argv.end(), "--uplink-url") != p.argv.end();
-  }
   const std::string published = uplink ? "to the emulator's uplink (--lcm-url here), which "
                                          "passes it on\n# to the shared bus"
                                        : "on the shared bus";

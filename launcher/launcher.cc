@@ -530,6 +530,8 @@ class Launch {
   bool LoggerVisible() const;
   /// Whether the logger counts what it handles in shared memory (SHOAL_LOGGER_PROGRESS=1).
   bool LoggerCounts() const;
+  /// Whether the lockstep clock master reads the logger's count (a run with an uplink).
+  bool ClockMasterReadsCount() const;
   /// `url`: where the process publishes (empty: the run's bus).
   std::vector<std::string> ProcessArgs(const std::string& exe,
                                        const std::vector<std::string>& more,
@@ -823,6 +825,10 @@ bool Launch::LoggerVisible() const {
   return logger != host_checks_.end() && logger->second.same_process;
 }
 
+bool Launch::ClockMasterReadsCount() const {
+  return mode_ == Mode::kLockstep && !uplink_url_.empty() && RecorderVisible();
+}
+
 bool Launch::LoggerCounts() const {
   if (plan_.processes.empty()) return false;
   const std::vector<std::string>& env = plan_.processes.front().env;
@@ -955,12 +961,11 @@ void Launch::BuildPlan() {
     const char* before = std::getenv("LD_PRELOAD");
     logger.env = {"LD_PRELOAD=" + logger_queue_shim_ +
                   (before != nullptr && *before != '\0' ? std::string(":") + before : "")};
-    // It counts what it has handled, for the clock master, which is then the only sender
-    // on its bus (channel_emulator/recorder_gate.h: RecorderProgress). In real time nothing
-    // reads the count: its name says when the logger has subscribed (StartAll).
-    if (mode_ == Mode::kLockstep ? !uplink_url_.empty() && RecorderVisible() : LoggerVisible()) {
-      logger.env.push_back("SHOAL_LOGGER_PROGRESS=1");
-    }
+    // It counts what it has handled, for the lockstep clock master on a run with an uplink,
+    // which is then the only sender on its bus (channel_emulator/recorder_gate.h:
+    // RecorderProgress). On every run whose logger is on this host the count's name says
+    // when the logger has subscribed, before which nothing may start (StartAll).
+    if (LoggerVisible()) logger.env.push_back("SHOAL_LOGGER_PROGRESS=1");
     // Lockstep: its wake-ups do not preempt the clock master finishing a window.
     if (mode_ == Mode::kLockstep) logger.env.push_back("SHOAL_LOGGER_BATCH=1");
   }
@@ -1074,9 +1079,9 @@ void Launch::WaitForSubscription(pid_t logger_pid) {
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  // In lockstep the clock master takes the name over and removes it; in real time no one
-  // reads the count, and the name would outlive the run.
-  if (mode_ == Mode::kRealtime) unlink(name);
+  // The clock master of a lockstep run with an uplink takes the name over and removes it;
+  // on other runs no one reads the count, and the name would outlive the run.
+  if (!ClockMasterReadsCount()) unlink(name);
 }
 
 void Launch::StartAll() {
