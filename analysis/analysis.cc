@@ -895,7 +895,10 @@ RunAnalysis AnalyseRun(const RunData& run) {
   std::vector<WorstSample> worst;
   if (a.has_formation) {
     AnalyseFormation(run, valid, &a, events ? &worst : nullptr);
-  } else {  // no formation metrics: the latest state time instead
+    // No tick with a state of every vehicle: the errors are unknown, not zero.
+    a.has_formation = a.complete_samples > 0;
+  }
+  if (!a.has_formation) {  // no formation metrics: the latest state time instead
     a.complete_samples =
         ForEachCompleteSample(run, valid, [](const StateMsg&, const std::vector<const StateMsg*>&) {});
     Micros t = 0;

@@ -185,7 +185,7 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
                                                  : "the log's scenario does not load; give --scenario FILE")
                 : static_cast<int>(run.scenario.offsets_m.size()) != run.followers
                     ? "the scenario's followers are not the log's"
-                    : "no leader states in the log");
+                    : "no tick has a valid state of every vehicle, the leader's too");
   } else {
     if (FormationConverged(a)) {
       std::fprintf(out, "  converged: yes, at %.2f s (position tol %.3g m, velocity tol %.3g m/s)\n",

@@ -214,19 +214,8 @@ void RunDataBuilder::Add(std::string_view ch, const std::uint8_t* data, int size
     }
   }
   ++d_->events;
-  // The earliest and latest stamps, not the first and last in the file: a log whose
-  // events are out of order (cut and joined again) still spans the time it recorded.
-  if (!have_time_) {
-    d_->first_timestamp = d_->last_timestamp = timestamp;
-    have_time_ = true;
-  }
-  d_->first_timestamp = std::min(d_->first_timestamp, timestamp);
-  d_->last_timestamp = std::max(d_->last_timestamp, timestamp);
   const channels::Parsed c = channels::Parse(ch);
-  if (c.kind == channels::Kind::kState &&
-      (d_->first_state_timestamp < 0 || timestamp < d_->first_state_timestamp)) {
-    d_->first_state_timestamp = timestamp;
-  }
+  NoteStamp(timestamp, c.kind == channels::Kind::kState);
   switch (c.kind) {
     case channels::Kind::kState:
       AddState(c.id, data, size);
@@ -404,6 +393,37 @@ std::int64_t ClockTicks(const RunData& run) {
   return ticks;
 }
 
+Micros DecodedTimeOf(std::string_view channel, const std::uint8_t* data, int size) {
+  const channels::Parsed c = channels::Parse(channel);
+  switch (c.kind) {
+    case channels::Kind::kState:
+    case channels::Kind::kRx: {
+      vehicle_state_t v;
+      if (!Decode(data, size, &v)) return -1;
+      return c.kind == channels::Kind::kRx || v.vehicle_id == c.id ? v.utime : -1;
+    }
+    case channels::Kind::kHealth: {
+      health2_t h;
+      return DecodeHealth(data, size, &h) ? h.utime : -1;
+    }
+    case channels::Kind::kChannelEvents: {
+      static thread_local std::vector<channel_event_t> events;
+      return DecodeChannelEvents(data, size, &events) ? I64(data + 8) : -1;
+    }
+    case channels::Kind::kClock: {
+      clock_window_t w;
+      return DecodeClock(data, size, &w) ? w.utime : -1;
+    }
+    case channels::Kind::kStatus: {
+      run_status_t st;
+      return Decode(data, size, &st) ? st.utime : -1;
+    }
+    case channels::Kind::kOther:
+      break;
+  }
+  return -1;
+}
+
 void RunDataBuilder::AddState(int id, const std::uint8_t* data, int size) {
   vehicle_state_t v;
   if (!Decode(data, size, &v)) {
@@ -477,7 +497,66 @@ void RunDataBuilder::ReserveByExtrapolation(double fraction) {
   seen_.Reserve(room(seen_.size()));
 }
 
+namespace {
+/// Two receive stamps more than an hour apart: no two neighbouring events of a run are (a
+/// run publishes every period), while one damaged bit of a stamp moves it by far more.
+bool FarApart(Micros a, Micros b) {
+  constexpr std::uint64_t kHourUs = 3600ULL * 1000000ULL;
+  const auto ua = static_cast<std::uint64_t>(a), ub = static_cast<std::uint64_t>(b);
+  return (a > b ? ua - ub : ub - ua) > kHourUs;  // modulo 2^64: the exact distance
+}
+}  // namespace
+
+void RunDataBuilder::NoteStamp(Micros t, bool state) {
+  if (stamps_ < 3) {
+    recent_[static_cast<std::size_t>(stamps_)] = {t, state};
+  } else {
+    recent_[0] = recent_[1];
+    recent_[1] = recent_[2];
+    recent_[2] = {t, state};
+  }
+  if (++stamps_ < 3) return;
+  const Micros a = recent_[0].t, b = recent_[1].t, c = recent_[2].t;
+  if (stamps_ == 3) JudgeStamp(0, FarApart(a, b) && FarApart(a, c) && !FarApart(b, c));
+  JudgeStamp(1, FarApart(b, a) && FarApart(b, c) && !FarApart(a, c));
+}
+
+void RunDataBuilder::JudgeStamp(int k, bool damaged) {
+  const Stamp& s = recent_[static_cast<std::size_t>(k)];
+  if (damaged) {
+    ++stamps_damaged_;
+    return;
+  }
+  // The earliest and latest stamps, not the first and last in the file: a log whose
+  // events are out of order (cut and joined again) still spans the time it recorded.
+  if (!have_time_) {
+    d_->first_timestamp = d_->last_timestamp = s.t;
+    have_time_ = true;
+  }
+  d_->first_timestamp = std::min(d_->first_timestamp, s.t);
+  d_->last_timestamp = std::max(d_->last_timestamp, s.t);
+  if (s.state && (d_->first_state_timestamp < 0 || s.t < d_->first_state_timestamp)) {
+    d_->first_state_timestamp = s.t;
+  }
+}
+
+void RunDataBuilder::StampsFinish() {
+  if (stamps_ < 3) {  // too few to judge: all taken
+    for (int k = 0; k < stamps_; ++k) JudgeStamp(k, false);
+  } else {
+    const Micros a = recent_[0].t, b = recent_[1].t, c = recent_[2].t;
+    JudgeStamp(2, FarApart(c, b) && FarApart(c, a) && !FarApart(a, b));
+  }
+  stamps_ = 0;
+  if (stamps_damaged_ > 0) {
+    d_->warnings.push_back(std::to_string(stamps_damaged_) +
+                           " event(s) have a receive time over an hour from both of their "
+                           "neighbours': damaged, left out of the recording's span");
+  }
+}
+
 void RunDataBuilder::Finish() {
+  StampsFinish();
   // n: the scenario's, else the statuses', else the largest id seen.
   int n = 0;
   if (d_->has_scenario) {

@@ -25,6 +25,7 @@
 // are kept (a diverging vehicle) and counted in VehicleTrack::nonfinite.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -274,6 +275,11 @@ class RunDataBuilder {
   void AddStatus(const std::uint8_t* data, int size);
   int IdLimit() const;
   VehicleTrack* Track(int id);
+  /// An event's stamp, judged once its neighbours' are known (StampsFinish for the last):
+  /// one far from both of theirs while they are close is damaged, left out of the span.
+  void NoteStamp(Micros t, bool state);
+  void JudgeStamp(int k, bool damaged);
+  void StampsFinish();
   /// Whether a message with this key (its publisher's identity for it) and these bytes was
   /// added before: a copy, as in a log recorded twice or a replay onto a recording bus.
   /// The same key with other bytes is a restarted publisher's message, and is new.
@@ -298,6 +304,13 @@ class RunDataBuilder {
   RunData* d_;
   LoadOptions opt_;
   bool have_time_ = false;
+  struct Stamp {
+    Micros t = 0;
+    bool state = false;
+  };
+  std::array<Stamp, 3> recent_{};  // the last three events' stamps, oldest first
+  std::int64_t stamps_ = 0;        // events stamped so far
+  std::int64_t stamps_damaged_ = 0;
   int max_status_followers_ = 0;
   SeenSet seen_;
   std::int64_t repeated_decisions_ = 0;
@@ -308,6 +321,11 @@ class RunDataBuilder {
 /// The distinct ticks the clock messages of a run cover (a window repeated, as in a log
 /// recorded twice, counts once).
 std::int64_t ClockTicks(const RunData& run);
+
+/// The mission time (utime) a message on a Shoal channel carries, if it decodes as that
+/// channel's type (a vehicle state with its channel's vehicle id); -1 otherwise, for a
+/// damaged or foreign message as for another channel.
+Micros DecodedTimeOf(std::string_view channel, const std::uint8_t* data, int size);
 
 /// Reads an LCM log into *out. False (with *error, a user-facing message) if the file is
 /// unreadable, empty, not an LCM log, or holds no complete Shoal message; a damaged log

@@ -24,6 +24,10 @@ bool RootAtMost(double sq, double tol) {
   if (tol > 0.0 && sq > t2 * (1.0 + 1e-12)) return false;
   return std::sqrt(sq) <= tol;
 }
+/// The larger of two squared errors, NaN once either is: a follower's NaN state is the
+/// worst error there is, which std::max (keeping its first argument) would drop.
+double WorseOf(double a, double b) { return a > b || a != a ? a : b; }
+
 }  // namespace
 
 FormationErrors ErrorsOf(const StateMsg& f, const Vec3& offset, const StateMsg& l) {
@@ -45,15 +49,15 @@ void FormationMetrics::Add(const StateMsg& leader, const std::vector<const State
   for (std::size_t i = 0; i < followers.size(); ++i) {
     const FormationErrors e = SquaredErrorsOf(*followers[i], offsets_[i], leader);
     final_sq_[i] = e;
-    worst.position_m = std::max(worst.position_m, e.position_m);
-    worst.velocity_mps = std::max(worst.velocity_mps, e.velocity_mps);
-    worst.attitude_rad = std::max(worst.attitude_rad, e.attitude_rad);
+    worst.position_m = WorseOf(worst.position_m, e.position_m);
+    worst.velocity_mps = WorseOf(worst.velocity_mps, e.velocity_mps);
+    worst.attitude_rad = WorseOf(worst.attitude_rad, e.attitude_rad);
     if (!(RootAtMost(e.position_m, tol_.position_tol_m) &&
           RootAtMost(e.velocity_mps, tol_.velocity_tol_mps))) {
       violating = true;
     }
   }
-  max_position_sq_ = std::max(max_position_sq_, worst.position_m);
+  max_position_sq_ = WorseOf(max_position_sq_, worst.position_m);
   worst_sq_ = worst;
   if (violating) {
     pending_start_ = true;

@@ -69,7 +69,26 @@ shut_down() {
   local pid left=()
   for pid in "${run_pids[@]}"; do if alive "$pid"; then left+=("$pid"); fi; done
   if [ ${#left[@]} != 0 ]; then stop TERM 2 "${left[@]}"; fi
-  if [ -n "$logger_pid" ] && alive "$logger_pid"; then sleep 0.2; stop INT 2 "$logger_pid"; fi
+  if [ -n "$logger_pid" ] && alive "$logger_pid"; then
+    sleep 0.2
+    logger_writes_all
+    stop INT 2 "$logger_pid"
+  fi
+  # Its count's name, if the clock master never took it over (a run stopped at its start).
+  if [ -n "$logger_pid" ]; then rm -f -- "/dev/shm/shoal-logger-$logger_pid"; fi
+}
+# lcm-logger's writer, stopped by SIGINT, drops what it has not written yet: until it has
+# written all it queued, by its count (four 64-bit words: a mark, messages handled, events
+# queued, events written), for 5 s at most. With an uplink the emulator has waited for it
+# already, and removed the count's name.
+logger_writes_all() {
+  local count="/dev/shm/shoal-logger-$logger_pid" queued written i
+  for ((i = 0; i < 250; i++)); do
+    [ -e "$count" ] || return 0
+    read -r queued written < <(od -An -v -t u8 -j 16 -N 16 "$count") || return 0
+    [ -n "$written" ] && [ "$written" -lt "$queued" ] || return 0
+    sleep 0.02
+  done
 }
 trap 'echo "$0: interrupted: stopping the run" >&2; exit 130' INT
 trap 'echo "$0: terminated: stopping the run" >&2; exit 143' TERM
@@ -284,6 +303,47 @@ void WriteStart(const PlannedProcess& p, const std::string& nice, const std::str
   o << "\n";
 }
 
+// Inside a wait for the logger: it exited (it could not open the bus, say) and will never
+// subscribe; nothing else is started.
+constexpr const char* kLoggerGone =
+    "if ! alive \"$logger_pid\"; then\n"
+    "    echo \"$0: lcm-logger exited before it subscribed ($out_dir/logger.txt)\" >&2\n"
+    "    exit 1\n"
+    "  fi\n";
+
+// Until the logger has subscribed: it creates the log before it does, and what the
+// processes sent before then would never reach it. On this host it makes its count's name
+// (which stays until the end: shut_down reads it, then removes it, unless the emulator
+// takes it over); on another it says so on its output.
+void WriteSubscriptionWait(const PlannedProcess& logger, std::ostream& o) {
+  const auto has = [&](const std::string& e) {
+    return std::find(logger.env.begin(), logger.env.end(), e) != logger.env.end();
+  };
+  std::string subscribed;
+  if (has("SHOAL_LOGGER_PROGRESS=1")) {
+    std::string name = "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME;
+    name.replace(name.find("%ld"), 3, "$logger_pid");
+    subscribed = "[ -e \"" + name + "\" ]";
+    o << "# It creates the log before it subscribes, and its count once subscribed: what the\n"
+      << "# processes sent before then would never reach it. The count's name stays until the\n"
+      << "# end (shut_down reads it, then removes it) unless the emulator takes it over.\n";
+  } else if (has(SHOAL_LOGGER_SAY_SUBSCRIBED_ENV "=1")) {
+    subscribed = "grep -qF '" SHOAL_LOGGER_SUBSCRIBED_LINE "' \"$out_dir/logger.txt\"";
+    o << "# It creates the log before it subscribes, and on another host says on its output\n"
+      << "# once subscribed: what the processes sent before then would never reach it.\n";
+  } else {
+    return;
+  }
+  o << "for ((i = 0; i < 1500; i++)); do\n"
+    << "  if " << subscribed << "; then break; fi\n"
+    << "  " << kLoggerGone << "  sleep 0.02\n"
+    << "done\n"
+    << "if ! " << subscribed << "; then\n"
+    << "  echo \"$0: warning: lcm-logger had not subscribed after 30 s: what the run\" \\\n"
+    << "       \"sends before it does is not in the log\" >&2\n"
+    << "fi\n";
+}
+
 void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
   const PlannedProcess& logger = plan.processes.front();
   o << "\n# lcm-logger, first (as root at nice -10: its subscription queue must not wait for\n"
@@ -296,36 +356,19 @@ void WriteProcesses(const LaunchPlan& plan, std::ostream& o) {
     << "rm -f -- \"$log\"\n";
   WriteStart(logger, "$logger_nice", plan.log, o);
   o << "logger_pid=$started_pid\n"
-    << "for ((i = 0; i < 250; i++)); do if [ -e \"$log\" ]; then break; fi; sleep 0.02; done\n"
+    << "for ((i = 0; i < 250; i++)); do\n"
+    << "  if [ -e \"$log\" ] || ! alive \"$logger_pid\"; then break; fi; sleep 0.02\n"
+    << "done\n"
     << "if [ ! -e \"$log\" ]; then\n"
-    << "  echo \"$0: lcm-logger did not create $log within 5 s ($out_dir/logger.txt)\" >&2\n"
+    << "  echo \"$0: lcm-logger did not create $log (it exited, or 5 s passed):\" \\\n"
+    << "       \"$out_dir/logger.txt\" >&2\n"
     << "  exit 1\nfi\n";
   // With an uplink the leader and the vehicles publish there, and the emulator passes it on.
-  bool uplink = false, recorder_wait = false;
+  bool uplink = false;
   for (const PlannedProcess& p : plan.processes) {
     uplink = uplink || std::find(p.argv.begin(), p.argv.end(), "--uplink-url") != p.argv.end();
-    recorder_wait = recorder_wait || std::find(p.argv.begin(), p.argv.end(), "--recorder-pid") !=
-                                         p.argv.end();
   }
-  if (std::find(logger.env.begin(), logger.env.end(), "SHOAL_LOGGER_PROGRESS=1") !=
-      logger.env.end()) {
-    o << "# It creates the log before it subscribes, and its count once subscribed: what the\n"
-      << "# processes sent before then would never reach it.\n";
-    std::string name = "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME;
-    name.replace(name.find("%ld"), 3, "$logger_pid");
-    o << "for ((i = 0; i < 1500; i++)); do\n"
-      << "  if [ -e \"" << name << "\" ]; then break; fi; sleep 0.02\n"
-      << "done\n"
-      << "if [ ! -e \"" << name << "\" ]; then\n"
-      << "  echo \"$0: warning: lcm-logger had not subscribed after 30 s: what the run\" \\\n"
-      << "       \"sends before it does is not in the log\" >&2\n";
-    // Read, and removed, only by the clock master of a lockstep run with an uplink.
-    if (plan.mode == Mode::kRealtime || !uplink || !recorder_wait) {
-      o << "else\n"
-        << "  rm -f -- \"" << name << "\"  # read by no one on this run\n";
-    }
-    o << "fi\n";
-  }
+  WriteSubscriptionWait(logger, o);
   if (!plan.insecure) o << "export " << bus_auth::kKeyEnv << "\n";
   o << "# Tick 0 on the wall clock, 4 s from now (ns since 1970).\n"
     << "t0=$(( $(date +%s%N) + 4000000000 ))\n";

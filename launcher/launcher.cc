@@ -530,6 +530,8 @@ class Launch {
   bool LoggerVisible() const;
   /// Whether the logger counts what it handles in shared memory (SHOAL_LOGGER_PROGRESS=1).
   bool LoggerCounts() const;
+  /// Whether the logger, on another host, says on its output once it has subscribed.
+  bool LoggerSaysSubscribed() const;
   /// Whether the lockstep clock master reads the logger's count (a run with an uplink).
   bool ClockMasterReadsCount() const;
   /// `url`: where the process publishes (empty: the run's bus).
@@ -540,12 +542,15 @@ class Launch {
   /// Returns true if all did.
   bool WaitFor(bool (*which)(const Child&), std::chrono::milliseconds limit);
   void Stop(bool logger, std::chrono::milliseconds grace);
+  /// Until the logger has written every message it queued for its writer, or `limit`.
+  void LoggerWritesAll(std::chrono::milliseconds limit);
   /// Once the logger was told to close the log: a problem if it ended otherwise.
   void CheckLoggerExit();
   /// Removes the name of the logger's count from /dev/shm, if it is still there.
   void RemoveLoggerCount();
-  /// Until the logger has subscribed (its progress count's name exists), or 30 s.
-  void WaitForSubscription(pid_t logger_pid);
+  /// Until the logger has subscribed (its progress count's name exists, or on another
+  /// host its output says so), or 30 s.
+  void WaitForSubscription(pid_t logger_pid, const std::string& output);
   double WallSeconds(std::chrono::steady_clock::time_point wall0) const;
   /// When a fault is seen: mission time and wall time, as the report says it.
   std::string When();
@@ -581,6 +586,8 @@ class Launch {
   std::string uplink_url_;  // where the vehicles and the leader publish; empty: the run's bus
   std::string vehicle_exe_, leader_exe_, emulator_exe_;
   std::string logger_queue_shim_;  // runtime/lcm_queue_shim.c, preloaded into lcm-logger
+  // The logger's count, mapped where the clock master does not read it (LoggerWritesAll).
+  const ShoalLoggerProgress* logger_count_ = nullptr;
   std::vector<Child> kids_;
   LaunchPlan plan_;
   std::int64_t t0_ns_ = 0;  // real time: tick 0 on CLOCK_MONOTONIC
@@ -835,6 +842,12 @@ bool Launch::LoggerCounts() const {
   return std::find(env.begin(), env.end(), "SHOAL_LOGGER_PROGRESS=1") != env.end();
 }
 
+bool Launch::LoggerSaysSubscribed() const {
+  if (plan_.processes.empty()) return false;
+  const std::vector<std::string>& env = plan_.processes.front().env;
+  return std::find(env.begin(), env.end(), SHOAL_LOGGER_SAY_SUBSCRIBED_ENV "=1") != env.end();
+}
+
 std::vector<int> Launch::ElsewhereIds() {
   std::vector<int> ids;
   for (const PlannedProcess& p : plan_.processes) {
@@ -965,7 +978,11 @@ void Launch::BuildPlan() {
     // which is then the only sender on its bus (channel_emulator/recorder_gate.h:
     // RecorderProgress). On every run whose logger is on this host the count's name says
     // when the logger has subscribed, before which nothing may start (StartAll).
-    if (LoggerVisible()) logger.env.push_back("SHOAL_LOGGER_PROGRESS=1");
+    if (LoggerVisible()) {
+      logger.env.push_back("SHOAL_LOGGER_PROGRESS=1");
+    } else {
+      logger.env.push_back(SHOAL_LOGGER_SAY_SUBSCRIBED_ENV "=1");
+    }
     // Lockstep: its wake-ups do not preempt the clock master finishing a window.
     if (mode_ == Mode::kLockstep) logger.env.push_back("SHOAL_LOGGER_BATCH=1");
   }
@@ -1048,6 +1065,22 @@ void Launch::PlanNodes() {
   }
 }
 
+/// The last `max_bytes` of a file ("" if it cannot be read): a process's exit lines.
+std::string ReadTail(const std::string& path, long max_bytes) {
+  std::string text;
+  if (FILE* f = std::fopen(path.c_str(), "rb")) {
+    if (std::fseek(f, 0, SEEK_END) == 0) {
+      const long size = std::ftell(f);
+      std::fseek(f, std::max(0L, size - max_bytes), SEEK_SET);
+    }
+    char buf[4096];
+    std::size_t n = 0;
+    while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) text.append(buf, n);
+    std::fclose(f);
+  }
+  return text;
+}
+
 /// False once `pid` has exited (a zombie until shoal run reaps it, which kill(pid, 0) does
 /// not tell).
 bool Running(pid_t pid) {
@@ -1062,13 +1095,20 @@ bool Running(pid_t pid) {
   return n > 0 && paren != nullptr && paren[1] == ' ' && paren[2] != 'Z' && paren[2] != 'X';
 }
 
-void Launch::WaitForSubscription(pid_t logger_pid) {
+void Launch::WaitForSubscription(pid_t logger_pid, const std::string& output) {
   char name[64];
   std::snprintf(name, sizeof(name), "/dev/shm" SHOAL_LOGGER_PROGRESS_NAME,
                 static_cast<long>(logger_pid));
+  // On this host its count's name; on another, the line its output carries over the login.
+  const bool counts = LoggerCounts();
+  const auto subscribed = [&] {
+    return counts ? access(name, F_OK) == 0
+                  : ReadTail(output, 1 << 16).find(SHOAL_LOGGER_SUBSCRIBED_LINE) !=
+                        std::string::npos;
+  };
   constexpr int kLimitS = 30;
   const auto start = std::chrono::steady_clock::now();
-  while (access(name, F_OK) != 0) {
+  while (!subscribed()) {
     // A logger that exited is reported by the supervision that follows, with its status.
     if (!Running(logger_pid) || StopSignals::Requested()) return;
     if (std::chrono::steady_clock::now() - start > std::chrono::seconds(kLimitS)) {
@@ -1080,8 +1120,16 @@ void Launch::WaitForSubscription(pid_t logger_pid) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   // The clock master of a lockstep run with an uplink takes the name over and removes it;
-  // on other runs no one reads the count, and the name would outlive the run.
-  if (!ClockMasterReadsCount()) unlink(name);
+  // on other runs shoal run reads the count at the end, and the name would outlive the run.
+  if (counts && !ClockMasterReadsCount()) {
+    const int fd = open(name, O_RDONLY);
+    if (fd >= 0) {
+      void* m = mmap(nullptr, sizeof(ShoalLoggerProgress), PROT_READ, MAP_SHARED, fd, 0);
+      if (m != MAP_FAILED) logger_count_ = static_cast<const ShoalLoggerProgress*>(m);
+      close(fd);
+    }
+    unlink(name);
+  }
 }
 
 void Launch::StartAll() {
@@ -1095,7 +1143,11 @@ void Launch::StartAll() {
   // never reach it: in lockstep the processes' ready statuses, for which the clock master
   // would then wait; in real time the emulator's first status, the one with the scenario's
   // text. Counting, it makes its count's name once subscribed (runtime/lcm_queue_shim.c).
-  if (logger_pid > 0 && LoggerCounts()) WaitForSubscription(logger_pid);
+  if (logger_pid > 0 && (LoggerCounts() || LoggerSaysSubscribed())) {
+    WaitForSubscription(logger_pid, kids_.back().output);
+  }
+  // Stopped while it waited: nothing else is started (nor, behind ssh, logged in to).
+  if (StopSignals::Requested()) return;
   // Real time: a start margin, longer by the logins the starts wait for (--hosts). On the
   // wall clock, it is converted to the monotonic clock as each process does (process.h).
   std::map<std::string, int> placed;  // processes by host
@@ -1249,22 +1301,6 @@ bool Launch::Respawn(Child& c, const std::string& what, const LaunchCallbacks& c
                  ": restarted as pid " + std::to_string(pid));
   }
   return true;
-}
-
-/// The last `max_bytes` of a file ("" if it cannot be read): a process's exit lines.
-std::string ReadTail(const std::string& path, long max_bytes) {
-  std::string text;
-  if (FILE* f = std::fopen(path.c_str(), "rb")) {
-    if (std::fseek(f, 0, SEEK_END) == 0) {
-      const long size = std::ftell(f);
-      std::fseek(f, std::max(0L, size - max_bytes), SEEK_SET);
-    }
-    char buf[4096];
-    std::size_t n = 0;
-    while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) text.append(buf, n);
-    std::fclose(f);
-  }
-  return text;
 }
 
 bool EndsWith(const std::string& text, const std::string& tail) {
@@ -1534,6 +1570,7 @@ void Launch::Shutdown() {
   // published; it drains its socket in between.
   Stop(false, milliseconds(fault ? 700 : 2000));
   std::this_thread::sleep_for(milliseconds(fault ? 100 : 200));
+  LoggerWritesAll(milliseconds(fault ? 1000 : 5000));
   Stop(true, milliseconds(fault ? 1000 : 2000));
   CheckLoggerExit();
   RemoveLoggerCount();
@@ -1554,6 +1591,25 @@ void Launch::Shutdown() {
       r_->problems.push_back(msg);
     }
   }
+}
+
+void Launch::LoggerWritesAll(std::chrono::milliseconds limit) {
+  // lcm-logger's writer, stopped by SIGINT, drops what it has not written: with a backlog
+  // (a large swarm, a loaded machine) the end of the run. With an uplink the clock master
+  // waits for it before its last status (ChannelEmulatorApp: DrainRecorder).
+  if (logger_count_ == nullptr) return;
+  pid_t logger = 0;
+  for (const Child& c : kids_) logger = IsLogger(c) && c.running ? c.pid : logger;
+  const auto load = [](const std::uint64_t& v) { return __atomic_load_n(&v, __ATOMIC_ACQUIRE); };
+  const auto start = std::chrono::steady_clock::now();
+  while (logger > 0 && Running(logger) &&
+         load(logger_count_->magic) == SHOAL_LOGGER_PROGRESS_MAGIC &&
+         load(logger_count_->written) < load(logger_count_->queued) &&
+         std::chrono::steady_clock::now() - start < limit) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  munmap(const_cast<ShoalLoggerProgress*>(logger_count_), sizeof(ShoalLoggerProgress));
+  logger_count_ = nullptr;
 }
 
 void Launch::CheckLoggerExit() {

@@ -791,6 +791,48 @@ def _delay_bound(table) -> float:
     raise _NotLoaded("model")
 
 
+def _ids(value, n: int) -> Optional[List[int]]:
+    """A list of follower ids, each an int in 1..n, or None."""
+    if not isinstance(value, list):
+        return None
+    if any(isinstance(i, bool) or not isinstance(i, int) or not 1 <= i <= n for i in value):
+        return None
+    return value
+
+
+def _swarm_loads(swarm: dict, control: dict, n: int) -> bool:
+    """What scenario/loader.cc requires of the follower graph and offsets, which every count
+    of the log depends on: leader_links distinct ids in 1..n, not empty; edges distinct
+    pairs of distinct ids in 1..n; every follower reached from the leader (Assumption 1);
+    offsets_m, if given, one per follower. A logged text damaged in its follower count
+    fails one of these, as shoal analyze's loader refuses it."""
+    links = _ids(swarm.get("leader_links"), n)
+    if not links or len(set(links)) != len(links):
+        return False
+    edges = swarm.get("edges", [])
+    if not isinstance(edges, list):
+        return False
+    pairs = []
+    for e in edges:
+        pair = _ids(e, n)
+        if pair is None or len(pair) != 2 or pair[0] == pair[1]:
+            return False
+        pairs.append((pair[0], pair[1]))
+    if len(set(pairs)) != len(pairs):
+        return False
+    reached, frontier = set(links), list(links)
+    while frontier:  # [i, j]: i receives from j
+        j = frontier.pop()
+        for i, k in pairs:
+            if k == j and i not in reached:
+                reached.add(i)
+                frontier.append(i)
+    if len(reached) != n:
+        return False
+    offsets = control.get("offsets_m")
+    return offsets is None or (isinstance(offsets, list) and len(offsets) == n)
+
+
 def _read_scenario(text: str) -> Optional[_Scenario]:
     """The logged scenario's followers, control period, last tick and largest delay, or
     None if it does not load. Needs tomllib (Python 3.11+): without it every log is read
@@ -807,6 +849,9 @@ def _read_scenario(text: str) -> Optional[_Scenario]:
         followers = swarm.get("followers") if isinstance(swarm, dict) else None
         if isinstance(followers, bool) or not isinstance(followers, int) or \
                 not 1 <= followers <= 1000 or not isinstance(channel, dict):
+            return None
+        control = root.get("control", {})
+        if not isinstance(control, dict) or not _swarm_loads(swarm, control, followers):
             return None
         duration = _number(run, "duration_s", 600.0)
         rate = _number(run, "control_rate_hz", 50.0)
@@ -826,6 +871,14 @@ def _read_scenario(text: str) -> Optional[_Scenario]:
         return None
     us = math.ceil(worst * 1e6) + 1.0
     return _Scenario(followers, period_us, final_tick, int(us) if us < 9e18 else INT64_MAX)
+
+
+def _has_tomllib() -> bool:
+    try:
+        import tomllib  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def _saturating_add(a: int, b: int) -> int:
@@ -1051,6 +1104,10 @@ class _Builder:
         if m.scenario_toml and self.log.scenario_toml is None:
             self.log.scenario_toml = m.scenario_toml
             self.scenario = _read_scenario(m.scenario_toml)
+            if self.scenario is None and _has_tomllib():
+                self.warnings.append(
+                    "the scenario text in the log does not load; its run's bounds are "
+                    "judged as for a log without one")
 
     def finish(self) -> None:
         """n (the scenario's, else the statuses', else the largest id), states beyond it
@@ -1451,9 +1508,10 @@ def format_summary(s: dict) -> str:
         lines.insert(1, "RETIMED log (event times in mission time) of %s; the wall time is the "
                      "original recording's" % s["retimed_from"]["log"])
     for v in s["vehicles"]:
-        lines.append("  vehicle %d%s: %d states, %.3f..%.3f s" % (
-            v["id"], " (leader)" if v["id"] == 0 else "", v["states"], v["first_s"],
-            v["last_s"]))
+        span = "no state" if v["first_s"] is None else "%.3f..%.3f s" % (v["first_s"],
+                                                                        v["last_s"])
+        lines.append("  vehicle %d%s: %d states, %s" % (
+            v["id"], " (leader)" if v["id"] == 0 else "", v["states"], span))
     lines.append("channel decisions: %d sent, %d delivered, %d dropped (loss %d, queue %d, "
                  "range %d, link down %d, deaf %d, invalid %d); not sent: modem busy %d, "
                  "silent %d" % (d["sent"], d["delivered"], d["dropped"], d["dropped_loss"],

@@ -3,6 +3,7 @@
 
 #include <zlib.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -63,6 +64,26 @@ Color VehicleColor(int id) {
 }
 
 std::string VehicleName(int id) { return id == 0 ? "leader" : "follower " + std::to_string(id); }
+
+bool ParseImageSize(const std::string& text, int* width, int* height) {
+  const auto number = [](const char** p, int* out) {
+    int digits = 0;
+    long v = 0;
+    for (; std::isdigit(static_cast<unsigned char>(**p)) && digits < 9; ++*p, ++digits) {
+      v = v * 10 + (**p - '0');
+    }
+    *out = static_cast<int>(v);
+    return digits > 0 && digits <= 8;
+  };
+  const char* p = text.c_str();
+  int w = 0, h = 0;
+  if (!number(&p, &w) || (*p != 'x' && *p != 'X')) return false;
+  ++p;
+  if (!number(&p, &h) || *p != '\0') return false;
+  *width = w;
+  *height = h;
+  return true;
+}
 
 namespace {
 

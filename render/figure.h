@@ -242,6 +242,10 @@ bool RenderPng(const Figure3D& figure, const std::string& path, std::string* err
 
 bool WritePng(const Image& image, const std::string& path, std::string* err);
 
+/// "WxH" (or "WXH") in pixels, each a decimal of at most 8 digits: false for anything else,
+/// a number past an int's range too (which sscanf's %d would wrap). Callers check the range.
+bool ParseImageSize(const std::string& text, int* width, int* height);
+
 /// Checks a figure without rendering it: false with a message naming the panel and
 /// series at fault and how to fix it.
 bool Validate(const Figure2D& figure, std::string* err);

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "render/figure.h"
 #include "render/shoal_figures.h"
 #include "render/synthetic_run.h"
 
@@ -85,8 +86,7 @@ int main(int argc, char** argv) {
   }
   int width = 0, height = 0;
   if (!size.empty()) {
-    char x = 0;
-    if (std::sscanf(size.c_str(), "%d%c%d", &width, &x, &height) != 3 || (x != 'x' && x != 'X')) {
+    if (!shoal::render::ParseImageSize(size, &width, &height)) {
       std::fprintf(stderr, "render_demo: --size '%s' is not WxH (e.g. 1600x1000)\n", size.c_str());
       return 2;
     }

@@ -29,9 +29,12 @@
       and lcm-logger's own mutex one after the other, never one inside the other, and the
       handler takes that mutex under the queue's lock, as it takes nothing else.
 
-   4. With SHOAL_LOGGER_PROGRESS=1 in its environment, the logger publishes how many
-      messages (datagrams, a bundle counting once) its handler has taken off LCM's queue, in
-      a shared memory object named after its pid (SHOAL_LOGGER_PROGRESS_NAME): the lockstep
+   4. With SHOAL_LOGGER_PROGRESS=1 in its environment, the logger publishes, once it has
+      subscribed, how many messages (datagrams, a bundle counting once) its handler has
+      taken off LCM's queue, in a shared memory object named after its pid
+      (SHOAL_LOGGER_PROGRESS_NAME); with SHOAL_LOGGER_SAY_SUBSCRIBED=1 (a logger on another
+      host, whose /dev/shm the launcher cannot see) it says on its standard error that it
+      has subscribed. The launcher starts the run's processes only then. The lockstep
       clock master, whose messages are all the logger hears on a run with an uplink, then
       knows how far behind the logger is, and lets it fall behind by a window instead of
       waiting at every window until it is idle (channel_emulator/recorder_gate.h). It also
@@ -314,18 +317,26 @@ lcm_subscription_t *lcm_subscribe(lcm_t *lcm, const char *channel, lcm_msg_handl
         free(t);
         return NULL;
     }
+    if (lcm_subscription_set_queue_capacity(s, SHOAL_LOGGER_QUEUE_CAPACITY) != 0) {
+        fprintf(stderr, "shoal lcm queue shim: cannot set the queue capacity of \"%s\"\n",
+                channel);
+    }
+    /* Said last: once the count's name exists (or the line is out) the run starts, and
+       until this call returns nothing takes messages off the queue, which must by then
+       hold a burst, and mlockall takes tens of milliseconds. */
     static int locked = 0;
     if (!locked && depth == 0) {
         locked = 1;
-        ShareProgress();
         if (mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
             fprintf(stderr, "shoal lcm queue shim: memory not locked (mlockall: %s)\n",
                     strerror(errno));
         }
-    }
-    if (lcm_subscription_set_queue_capacity(s, SHOAL_LOGGER_QUEUE_CAPACITY) != 0) {
-        fprintf(stderr, "shoal lcm queue shim: cannot set the queue capacity of \"%s\"\n",
-                channel);
+        ShareProgress();
+        const char *say = getenv(SHOAL_LOGGER_SAY_SUBSCRIBED_ENV);
+        if (say != NULL && strcmp(say, "1") == 0) {
+            fprintf(stderr, "%s\n", SHOAL_LOGGER_SUBSCRIBED_LINE);
+            fflush(stderr);
+        }
     }
     return s;
 }

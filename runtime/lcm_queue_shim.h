@@ -19,6 +19,12 @@
 #define SHOAL_LOGGER_PROGRESS_NAME "/shoal-logger-%ld"
 #define SHOAL_LOGGER_PROGRESS_MAGIC 0x53484f414c50524bULL /* "SHOALPRK" */
 
+/* A logger on another host (shoal run --hosts), whose /dev/shm the launcher cannot see,
+   says instead that it has subscribed: with SHOAL_LOGGER_SAY_SUBSCRIBED=1 in its
+   environment the shim writes this line to its standard error once it has. */
+#define SHOAL_LOGGER_SAY_SUBSCRIBED_ENV "SHOAL_LOGGER_SAY_SUBSCRIBED"
+#define SHOAL_LOGGER_SUBSCRIBED_LINE "shoal lcm queue shim: subscribed"
+
 #include <stdint.h>
 
 typedef struct {

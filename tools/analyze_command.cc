@@ -110,7 +110,8 @@ int RunAnalyze(const AnalyzeOptions& opt) {
     std::cerr << who << error << "\n";
     return kExitBadInput;
   }
-  if (!run.has_scenario) {
+  // A scenario text that is there and does not load has its own warning (LoadRunLog).
+  if (!run.has_scenario && run.scenario_text.empty()) {
     run.warnings.push_back(std::string("no scenario text in ") +
                            (opt.live ? "the received statuses" : "the log") +
                            "; formation errors and configured delays need --scenario FILE");

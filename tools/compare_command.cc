@@ -31,6 +31,32 @@ struct Sample {
 using Key = std::pair<int, std::int64_t>;  // (vehicle id, utime)
 using States = std::map<Key, Sample>;
 
+/// What ReadStates left out or could not check, one warning each.
+void WarnStates(const std::string& path, const std::string& used, const RunData& counts,
+                std::int64_t repeated, std::int64_t conflicting, std::int64_t undecodable,
+                std::int64_t inconsistent, std::vector<std::string>* warnings) {
+  if (repeated > 0) {
+    warnings->push_back(path + ": " + std::to_string(repeated) +
+                        " vehicle states appear more than once (same vehicle and time: a log "
+                        "recorded twice or concatenated, or replayed onto a recording bus), " +
+                        std::to_string(conflicting) + " of them with different values; the "
+                        "last copy of each is compared");
+  }
+  if (undecodable + inconsistent > 0) {
+    warnings->push_back(path + ": " + std::to_string(undecodable) +
+                        " vehicle states do not decode and " + std::to_string(inconsistent) +
+                        " name another vehicle than their channel's: damaged, not compared");
+  }
+  if (counts.unauthenticated > 0) {
+    warnings->push_back(path + ": " + std::to_string(counts.unauthenticated) +
+                        " states did not authenticate with " + used + " and were ignored");
+  }
+  if (counts.unverified > 0) {
+    warnings->push_back(path + ": " + std::to_string(counts.unverified) +
+                        " states were read unverified (no key file)");
+  }
+}
+
 /// Reads every SHOAL_STATE_<id> of a log with the project's log reader, so that a damaged
 /// or truncated log is read up to the damage and said to be so (the reader's warnings,
 /// which name the file). False, with a message, if the file cannot be read, is empty, or holds
@@ -45,12 +71,21 @@ bool ReadStates(const std::string& path, const std::string& key_file, States* ou
   RunData counts;  // authentication counts only
   LogVerifier verifier(key, &counts);
   LogEventView ev;
-  std::int64_t repeated = 0, conflicting = 0;
+  std::int64_t repeated = 0, conflicting = 0, undecodable = 0, inconsistent = 0;
   while (reader.Next(&ev)) {
-    if (!channels::ParseStateId(ev.channel)) continue;
+    const std::optional<int> id = channels::ParseStateId(ev.channel);
+    if (!id) continue;
     const int size = verifier.Check(ev.channel, ev.data, ev.size);
+    if (size < 0) continue;  // counted by the verifier
     vehicle_state_t m{};
-    if (size < 0 || !Decode(ev.data, size, &m)) continue;
+    if (!Decode(ev.data, size, &m)) {
+      ++undecodable;
+      continue;
+    }
+    if (m.vehicle_id != *id) {  // another vehicle's state on this one's channel
+      ++inconsistent;
+      continue;
+    }
     const Sample s{Load5(m.eta), Load5(m.eta_dot)};
     // The last copy of a state wins, as in shoal analyze; a copy that differs is two runs'
     // (or a damaged) state under one name, which the user must hear of.
@@ -61,21 +96,7 @@ bool ReadStates(const std::string& path, const std::string& key_file, States* ou
     it->second = s;
   }
   warnings->insert(warnings->end(), reader.warnings().begin(), reader.warnings().end());
-  if (repeated > 0) {
-    warnings->push_back(path + ": " + std::to_string(repeated) +
-                        " vehicle states appear more than once (same vehicle and time: a log "
-                        "recorded twice or concatenated, or replayed onto a recording bus), " +
-                        std::to_string(conflicting) + " of them with different values; the "
-                        "last copy of each is compared");
-  }
-  if (counts.unauthenticated > 0) {
-    warnings->push_back(path + ": " + std::to_string(counts.unauthenticated) +
-                        " states did not authenticate with " + used + " and were ignored");
-  }
-  if (counts.unverified > 0) {
-    warnings->push_back(path + ": " + std::to_string(counts.unverified) +
-                        " states were read unverified (no key file)");
-  }
+  WarnStates(path, used, counts, repeated, conflicting, undecodable, inconsistent, warnings);
   if (reader.events() == 0) {
     *err = path + ": no complete LCM event in the file" +
            (reader.warnings().empty() ? std::string() : " (" + reader.warnings().front() + ")");
@@ -88,6 +109,11 @@ bool ReadStates(const std::string& path, const std::string& key_file, States* ou
     *err = path + ": none of its " + std::to_string(counts.unauthenticated) +
            " states authenticates with " + used +
            " (the log of another run, or of a run with --insecure?)";
+    return false;
+  }
+  if (out->empty() && undecodable + inconsistent > 0) {
+    *err = path + ": none of its " + std::to_string(undecodable + inconsistent) +
+           " vehicle states is whole (they do not decode, or name another vehicle)";
     return false;
   }
   if (out->empty()) {

@@ -6,6 +6,7 @@
 
 #include "analysis/analysis.h"
 #include "analysis/run_data.h"
+#include "render/figure.h"
 #include "render/run_figures.h"
 #include "scenario/loader.h"
 
@@ -16,10 +17,7 @@ const char* kWho = "shoal render: ";
 
 bool ParseSize(const std::string& text, int* w, int* h) {
   int a = 0, b = 0;
-  char x = 0, extra = 0;
-  if (std::sscanf(text.c_str(), "%d%c%d%c", &a, &x, &b, &extra) != 3 || (x != 'x' && x != 'X')) {
-    return false;
-  }
+  if (!render::ParseImageSize(text, &a, &b)) return false;
   if (a < 320 || b < 240 || a > 8192 || b > 8192) return false;
   *w = a;
   *h = b;

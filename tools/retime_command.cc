@@ -31,15 +31,12 @@ namespace {
 
 constexpr const char* kWho = "shoal retime: ";
 
-/// The mission time a Shoal message holds: its utime, the int64 after the 8-byte
-/// fingerprint of every Shoal type (vehicle_state_t, channel_events_t, health, clock,
-/// status). -1 for other channels, too short a message, or a time outside [0, limit]
-/// (a status stamped with the wall clock, a damaged or forged time).
+/// The mission time a Shoal message holds: its utime, if it decodes as the analysis reads
+/// it. -1 for other channels, a message that does not decode (the analysis drops it), or
+/// a time outside [0, limit] (a status stamped with the wall clock, a damaged or forged
+/// time).
 Micros MissionTimeOf(std::string_view ch, const std::uint8_t* d, int n, Micros limit) {
-  if (channels::Parse(ch).kind == channels::Kind::kOther || n < 16) return -1;
-  std::uint64_t u = 0;
-  for (int k = 8; k < 16; ++k) u = (u << 8) | d[k];
-  const auto t = static_cast<Micros>(u);
+  const Micros t = DecodedTimeOf(ch, d, n);
   return t >= 0 && t <= limit ? t : -1;
 }
 
@@ -107,8 +104,8 @@ bool CopyKey(const std::string& from, const std::string& to, std::string* error)
   return Commit(tmp, to, 0600, error);
 }
 
-/// The earliest and latest stamps and the event count of the log (one pass), and its reader's
-/// warnings if it is damaged.
+/// The log's event count and its reader's warnings if it is damaged (one pass); its span,
+/// the earliest and latest stamps, as its analysis reads them (RunData).
 struct Stamps {
   std::int64_t first = 0, last = 0, events = 0;
   std::int64_t first_state = -1;  // the earliest vehicle state's stamp (-1: none)
@@ -119,15 +116,7 @@ bool ReadStamps(const std::string& path, Stamps* s, std::string* error) {
   LcmLogReader reader;
   if (!reader.Open(path, error)) return false;
   LogEventView ev;
-  while (reader.Next(&ev)) {
-    if (s->events++ == 0) s->first = s->last = ev.timestamp;
-    s->first = std::min(s->first, ev.timestamp);  // earliest and latest, in any order
-    s->last = std::max(s->last, ev.timestamp);
-    if ((s->first_state < 0 || ev.timestamp < s->first_state) &&
-        channels::Parse(ev.channel).kind == channels::Kind::kState) {
-      s->first_state = ev.timestamp;
-    }
-  }
+  while (reader.Next(&ev)) ++s->events;
   if (reader.damaged_regions() > 0) s->damage = reader.warnings();
   return true;
 }
@@ -136,7 +125,7 @@ bool ReadStamps(const std::string& path, Stamps* s, std::string* error) {
 /// only messages that verify set the mission time: a forged or damaged one, which the
 /// analysis drops, must not carry every later event to its time.
 bool WriteRetimed(const std::string& log, const std::string& tmp, Micros limit, const Stamps& s,
-                  const std::optional<bus_auth::Authenticator>& auth, std::int64_t* shoal_timed,
+                  const std::optional<bus_auth::Key>& key, std::int64_t* shoal_timed,
                   Micros* last_mission, std::string* error) {
   LcmLogReader reader;
   if (!reader.Open(log, error)) return false;
@@ -153,13 +142,23 @@ bool WriteRetimed(const std::string& log, const std::string& tmp, Micros limit, 
     const std::string marker = m.dump();
     w.WriteRaw(kRetimedChannel, s.first, marker.data(), static_cast<int>(marker.size()));
     Micros mission = 0;  // the running mission time: stamps never go back
+    RunData counts;      // the verifier's, unused
+    LogVerifier verifier(key, &counts);
     LogEventView ev;
     while (reader.Next(&ev)) {
-      Micros t = MissionTimeOf(ev.channel, ev.data, ev.size, limit);
-      if (t >= 0 && auth && auth->Verify(ev.channel, ev.data, ev.size) < 0) t = -1;
+      // The message as the analysis reads it: verified with the key and without its
+      // trailer (without a key, a trailer stripped unchecked).
+      const int size = verifier.Check(ev.channel, ev.data, ev.size);
+      const Micros t = size < 0 ? -1 : MissionTimeOf(ev.channel, ev.data, size, limit);
       if (t >= 0) {
         mission = std::max(mission, t);
         ++*shoal_timed;
+      }
+      if (s.first > 0 && mission > std::numeric_limits<Micros>::max() - s.first) {
+        *error = log + ": its first receive time (" + std::to_string(s.first) +
+                 " us) plus the mission time passes the largest stamp a log can hold: "
+                 "not a recording's clock";
+        return false;
       }
       w.WriteRaw(std::string(ev.channel), s.first + mission, ev.data, ev.size);
     }
@@ -220,18 +219,22 @@ int RunRetime(const RetimeOptions& opt) {
   std::int64_t timed = 0;
   Micros mission = 0;
   const bool key = access((opt.log + ".key").c_str(), F_OK) == 0;
-  std::optional<bus_auth::Authenticator> auth;
+  std::optional<bus_auth::Key> run_key;
   bus_auth::Key k{};
   if (key && !bus_auth::ReadKeyFile(opt.log + ".key", &k, &error)) {
     std::cerr << kWho << error << "\n";
     return kExitBadInput;
   }
-  if (key) auth.emplace(k);
+  if (key) run_key = k;
   if (!ReadStamps(opt.log, &s, &error) || !MakeTemp(opt.out, &tmp, &error)) {
     std::cerr << kWho << error << "\n";
     return kExitBadInput;
   }
-  if (!WriteRetimed(opt.log, tmp, limit, s, auth, &timed, &mission, &error) ||
+  // The span as the analysis takes it: without a damaged stamp far from its neighbours'.
+  s.first = run.first_timestamp;
+  s.last = run.last_timestamp;
+  s.first_state = run.first_state_timestamp;
+  if (!WriteRetimed(opt.log, tmp, limit, s, run_key, &timed, &mission, &error) ||
       !Commit(tmp, opt.out, 0644, &error)) {
     unlink(tmp.c_str());
     std::cerr << kWho << error << "\n";

@@ -1,6 +1,7 @@
 // `shoal analyze` as a user runs it: agreement with shoal sim's own figures, the JSON keys
 // of shoal run, CSV files, damaged logs and bad input.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -25,6 +26,7 @@ using shoal::testing::ParseJson;
 using shoal::testing::RunShoal;
 using shoal::testing::SourcePath;
 using shoal::testing::TmpPath;
+using Json = nlohmann::ordered_json;
 
 const std::string kExample2 = SourcePath("scenarios/paper_example2.toml");
 
@@ -424,6 +426,170 @@ TEST(AnalyzeCli, ChannelEventsAtImpossibleTimesAreDamagedNotMeasured) {
     EXPECT_FALSE(cl.empty()) << f;
     EXPECT_TRUE(d == cl) << f << ": " << d.size() << " rows, clean " << cl.size();
   }
+}
+
+/// A copy of `in` with each event passed through `edit` (its channel, stamp and bytes,
+/// which it may change), kept when it returns true.
+template <typename Edit>
+void Rewrite(const std::string& in, const std::string& out, Edit edit) {
+  LcmLogReader r;
+  std::string err;
+  ASSERT_TRUE(r.Open(in, &err)) << err;
+  LogWriter w(out);
+  LogEventView ev;
+  while (r.Next(&ev)) {
+    std::string channel(ev.channel);
+    std::int64_t stamp = ev.timestamp;
+    std::string data(reinterpret_cast<const char*>(ev.data), static_cast<std::size_t>(ev.size));
+    if (edit(channel, &stamp, &data)) {
+      w.WriteRaw(channel, stamp, data.data(), static_cast<int>(data.size()));
+    }
+  }
+  w.Close();
+}
+
+/// python/shoal_log.py LOG --json, parsed (and its exit status).
+std::pair<int, Json> PythonSummary(const std::string& log, const std::string& tag) {
+  const std::string out = TmpPath(tag + "_py.json"), err = TmpPath(tag + "_py.err");
+  const int raw = std::system(("python3 '" + SourcePath("python/shoal_log.py") + "' '" + log +
+                               "' --json >'" + out + "' 2>'" + err + "'").c_str());
+  const int status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  return {status, status == 0 ? ParseJson(ReadFile(out)) : Json(ReadFile(err))};
+}
+
+// Every state of follower 3 damaged (no bytes): no tick has every vehicle's state, so the
+// swarm's errors are unknown, not 0, and the run's length is its states', not 0 s.
+// shoal_log.py, given every state of one vehicle at an impossible time, says that vehicle
+// has none instead of failing.
+TEST(AnalyzeCli, NoTickWithEveryVehiclesStateLeavesTheErrorsUnknown) {
+  const std::string src = TmpPath("no_tick_src.lcmlog"), log = TmpPath("no_tick.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + kExample2 + " --duration 20 --quiet --out " + src, "no_tick_sim")
+                .status, 1);  // not converged in 20 s
+  Rewrite(src, log, [](const std::string& ch, std::int64_t*, std::string* data) {
+    if (ch == channels::State(3)) data->clear();
+    return true;
+  });
+  const auto r = RunShoal("analyze " + log + " --json", "no_tick_ana");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = ParseJson(r.out);
+  for (const char* key : {"final_position_error_m", "max_position_error_m", "converged"}) {
+    EXPECT_TRUE(j[key].is_null()) << key << ": " << j[key];
+  }
+  EXPECT_DOUBLE_EQ(j["sim_time_s"].get<double>(), 20.0) << r.out;
+  EXPECT_EQ(j["log_undecodable"], 1001) << r.out;
+  const auto t = RunShoal("analyze " + log, "no_tick_text");
+  EXPECT_NE(t.out.find("no tick has a valid state of every vehicle"), std::string::npos) << t.out;
+  EXPECT_EQ(t.out.find("final errors"), std::string::npos) << t.out;
+
+  const std::string negative = TmpPath("no_tick_negative.lcmlog");
+  Rewrite(src, negative, [](const std::string& ch, std::int64_t*, std::string* data) {
+    vehicle_state_t v;
+    if (ch == channels::State(3) &&
+        v.decode(data->data(), 0, static_cast<int>(data->size())) > 0) {
+      v.utime = -1 - v.utime;
+      data->assign(static_cast<std::size_t>(v.getEncodedSize()), '\0');
+      v.encode(data->data(), 0, static_cast<int>(data->size()));
+    }
+    return true;
+  });
+  const std::string text = TmpPath("no_tick_negative_py.txt");
+  EXPECT_EQ(std::system(("python3 '" + SourcePath("python/shoal_log.py") + "' '" + negative +
+                         "' >'" + text + "' 2>&1").c_str()), 0) << ReadFile(text);
+  EXPECT_NE(ReadFile(text).find("vehicle 3: 0 states, no state"), std::string::npos)
+      << ReadFile(text);
+}
+
+// The scenario text in the log damaged (its follower count changed to 3, which its edges
+// and offsets contradict): it does not load. Said once, as such, not also as missing; and
+// shoal_log.py reads it as shoal analyze does, with the statuses' 5 followers.
+TEST(AnalyzeCli, ADamagedScenarioTextIsSaidNotToLoadAndReadAsAnalyzeReadsIt) {
+  const std::string src = TmpPath("scen_damaged_src.lcmlog"), log = TmpPath("scen_damaged.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + kExample2 + " --duration 4 --quiet --out " + src, "scen_damaged_sim")
+                .status, 1);
+  int changed = 0;
+  Rewrite(src, log, [&changed](const std::string& ch, std::int64_t*, std::string* data) {
+    run_status_t st;
+    if (ch == channels::Status() &&
+        st.decode(data->data(), 0, static_cast<int>(data->size())) > 0) {
+      const std::size_t at = st.scenario_toml.find("followers = 5");
+      if (at != std::string::npos) {
+        st.scenario_toml[at + 12] = '3';
+        ++changed;
+        data->assign(static_cast<std::size_t>(st.getEncodedSize()), '\0');
+        st.encode(data->data(), 0, static_cast<int>(data->size()));
+      }
+    }
+    return true;
+  });
+  ASSERT_GT(changed, 0);
+  const auto r = RunShoal("analyze " + log + " --json", "scen_damaged_ana");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = ParseJson(r.out);
+  const std::string warnings = j["warnings"].dump();
+  EXPECT_NE(warnings.find("the scenario text in the log does not load"), std::string::npos)
+      << warnings;
+  EXPECT_EQ(warnings.find("no scenario text"), std::string::npos) << warnings;
+  const auto [status, py] = PythonSummary(log, "scen_damaged");
+  ASSERT_EQ(status, 0) << py;
+  EXPECT_EQ(py["followers"], 5) << py.dump();
+  EXPECT_EQ(py["states"], j["log_states"]) << py.dump();
+  EXPECT_NE(py["warnings"].dump().find("the scenario text in the log does not load"),
+            std::string::npos) << py["warnings"];
+}
+
+// A recording's stamps (here a shoal sim log restamped onto a wall clock) with one event's
+// stamp damaged to 2^62: it is left out of the recording's span, said, and the wall time
+// is the clean log's.
+TEST(AnalyzeCli, OneStampFarFromItsNeighboursIsLeftOutOfTheWallTime) {
+  const std::string src = TmpPath("stamp_src.lcmlog"), clean = TmpPath("stamp_clean.lcmlog");
+  const std::string damaged = TmpPath("stamp_damaged.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + kExample2 + " --duration 20 --quiet --out " + src, "stamp_sim")
+                .status, 1);
+  constexpr std::int64_t kWall = 1700000000000000;  // 2023-11-14, in us
+  Rewrite(src, clean, [](const std::string&, std::int64_t* stamp, std::string*) {
+    *stamp += kWall;
+    return true;
+  });
+  int n = 0;
+  Rewrite(src, damaged, [&n](const std::string&, std::int64_t* stamp, std::string*) {
+    *stamp = ++n == 5000 ? (std::int64_t{1} << 62) : *stamp + kWall;
+    return true;
+  });
+  const auto c = RunShoal("analyze " + clean + " --json", "stamp_clean_ana");
+  const auto d = RunShoal("analyze " + damaged + " --json", "stamp_damaged_ana");
+  ASSERT_EQ(d.status, 0) << d.err;
+  const auto cj = ParseJson(c.out), dj = ParseJson(d.out);
+  ASSERT_TRUE(cj["wall_time_s"].is_number()) << c.out;
+  EXPECT_DOUBLE_EQ(dj["wall_time_s"].get<double>(), cj["wall_time_s"].get<double>()) << d.out;
+  EXPECT_NE(dj["warnings"].dump().find("1 event(s) have a receive time over an hour"),
+            std::string::npos) << dj["warnings"];
+}
+
+// shoal compare says how many states it could not compare: states that do not decode, and
+// a state naming another vehicle than its channel's (not compared as that vehicle's).
+TEST(CompareCli, StatesThatDoNotDecodeOrNameAnotherVehicleAreCountedNotCompared) {
+  const std::string src = TmpPath("cmp_dmg_src.lcmlog"), log = TmpPath("cmp_dmg.lcmlog");
+  ASSERT_EQ(RunShoal("sim " + kExample2 + " --duration 4 --quiet --out " + src, "cmp_dmg_sim")
+                .status, 1);
+  int states2 = 0;
+  Rewrite(src, log, [&states2](const std::string& ch, std::int64_t*, std::string* data) {
+    if (ch == channels::State(3)) data->resize(data->size() / 2);  // cut: does not decode
+    vehicle_state_t v;
+    if (ch == channels::State(2) && ++states2 == 10 &&
+        v.decode(data->data(), 0, static_cast<int>(data->size())) > 0) {
+      v.vehicle_id = 4;  // follower 4's state on follower 2's channel
+      v.eta[0] += 100.0;
+      v.encode(data->data(), 0, static_cast<int>(data->size()));
+    }
+    return true;
+  });
+  const auto r = RunShoal("compare " + log + " " + src + " --allow-missing --json", "cmp_dmg");
+  EXPECT_EQ(r.status, 0) << r.out << r.err;
+  const auto j = ParseJson(r.out);
+  EXPECT_EQ(j["max_position_diff_m"].get<double>(), 0.0) << r.out;
+  EXPECT_NE(r.err.find("201 vehicle states do not decode and 1 name another vehicle than their "
+                       "channel's"),
+            std::string::npos) << r.err;
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <regex>
@@ -427,6 +428,90 @@ TEST(LaunchScript, CtrlCAtTheTerminalStopsTheLoggerLast) {
   const auto aj = ParseJson(ana.out);
   EXPECT_GT(aj["log_states"].get<int>(), 6 * 50) << ana.out;  // more than a second of ticks
   EXPECT_TRUE(aj["interrupted"].get<bool>()) << ana.out;     // the processes' last statuses
+}
+
+// Stopped just as the channel emulator starts, before the clock master of a lockstep run
+// with an uplink has taken over the logger's count (and removed its name): the script
+// removes it, as shoal run does; nothing is left in /dev/shm.
+TEST(LaunchScript, StoppedAtItsStartLeavesNothingInDevShm) {
+  const std::string log = TmpPath("ls_shm.lcmlog");
+  const Script s = Print(kExample2 + " --mode lockstep --duration 60 --out " + log, "ls_shm");
+  ASSERT_NE(s.text.find("/dev/shm/shoal-logger-"), std::string::npos) << s.text;
+  const std::string err = TmpPath("ls_shm.bash.err");
+  const pid_t bash = StartBash(s.path, err, false);
+  const std::regex started(R"(started .* \(pid ([0-9]+)\))");
+  std::vector<int> pids;
+  for (int i = 0; i < 2000 && pids.size() < 2; ++i) {  // the logger and the emulator
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    pids.clear();
+    const std::string text = ReadFile(err);
+    for (auto it = std::sregex_iterator(text.begin(), text.end(), started);
+         it != std::sregex_iterator(); ++it) {
+      pids.push_back(std::stoi((*it)[1]));
+    }
+  }
+  kill(bash, SIGTERM);
+  ASSERT_GE(pids.size(), 2u) << ReadFile(err);
+  EXPECT_EQ(shoal::testing::WaitExit(bash, 10.0, nullptr), 143) << ReadFile(err);
+  const std::string name = "/dev/shm/shoal-logger-" + std::to_string(pids[0]);
+  EXPECT_NE(access(name.c_str(), F_OK), 0) << name << " is left";
+  unlink(name.c_str());  // not left for the next run, whatever the result
+}
+
+// A logger that exits before it subscribes (here killed while a preloaded library holds
+// its subscription back) never will: the script says so and starts nothing else.
+TEST(LaunchScript, ALoggerGoneBeforeItSubscribesStopsTheScriptBeforeTheRun) {
+  const std::string lib = std::string(SHOAL_BINARY_DIR) + "/tests/libslow_logger_subscribe.so";
+  ASSERT_EQ(access(lib.c_str(), R_OK), 0) << lib;
+  const std::string log = TmpPath("ls_gone.lcmlog");
+  // Printed with it preloaded: the script's logger gets the queue library and it.
+  setenv("LD_PRELOAD", lib.c_str(), 1);
+  const Script s = Print(kExample2 + " --mode lockstep --duration 20 --out " + log, "ls_gone");
+  ASSERT_NE(s.text.find(lib), std::string::npos) << s.text;
+  const std::string err = TmpPath("ls_gone.bash.err");
+  setenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS", "60000", 1);
+  const pid_t bash = StartBash(s.path, err, false);
+  unsetenv("LD_PRELOAD");
+  unsetenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS");
+  const std::vector<int> pids = StartedPids(err, 1);
+  ASSERT_EQ(pids.size(), 1u) << ReadFile(err);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  kill(pids[0], SIGKILL);
+  double took = 0;
+  EXPECT_EQ(shoal::testing::WaitExit(bash, 10.0, &took), 1) << ReadFile(err);
+  EXPECT_LT(took, 5.0);
+  const std::string said = ReadFile(err);
+  EXPECT_NE(said.find("lcm-logger exited before it subscribed"), std::string::npos) << said;
+  EXPECT_EQ(said.find("started channel emulator"), std::string::npos) << said;
+}
+
+// lcm-logger's writer, stopped by SIGINT, drops what it has not written yet. A writer far
+// behind at the end (100 us more per event, preloaded) still writes the whole run of a
+// script on one bus for all: the script waits for it, by its count, as shoal run does.
+TEST(LaunchScript, ALoggerBehindAtTheEndWritesTheWholeRun) {
+  const std::string lib = std::string(SHOAL_BINARY_DIR) + "/tests/libslow_logger_subscribe.so";
+  ASSERT_EQ(access(lib.c_str(), R_OK), 0) << lib;
+  const std::string log = TmpPath("ls_slow_writer.lcmlog");
+  setenv("LD_PRELOAD", lib.c_str(), 1);
+  const Script s = Print(kExample2 + " --mode lockstep --duration 20 --shared-url --out " + log,
+                         "ls_slow_writer");
+  setenv("SHOAL_TEST_WRITE_DELAY_US", "100", 1);
+  const auto [status, err] = RunBash(s.path, "ls_slow_writer");
+  unsetenv("LD_PRELOAD");
+  unsetenv("SHOAL_TEST_WRITE_DELAY_US");
+  EXPECT_EQ(status, 0) << err;
+  const auto ana = RunShoal("analyze --json " + log, "ls_slow_writer_analyze");
+  const auto aj = ParseJson(ana.out);
+  EXPECT_EQ(aj["log_states"].get<int>(), 6 * 1001) << ana.out << ana.err;
+  EXPECT_EQ(aj["scenario_source"], "log") << ana.err;
+  const std::regex name("shoal-logger-[0-9]+");
+  for (const auto& e : std::filesystem::directory_iterator("/dev/shm")) {
+    const std::string n = e.path().filename().string();
+    // Only this test's logger could have left one: the script's tests run one at a time.
+    EXPECT_FALSE(std::regex_match(n, name) && err.find("(pid " + n.substr(13) + ")") !=
+                                                  std::string::npos)
+        << n << " is left";
+  }
 }
 
 TEST(ShoalRun, WallClockStartTimeRunsOnTime) {

@@ -267,6 +267,54 @@ TEST(LoggerQueue, ALoggerSlowToSubscribeStillRecordsTheWholeRunWithoutWaits) {
   }
 }
 
+// lcm-logger's writer, stopped by SIGINT, drops what it has not written yet. A writer far
+// behind at the end (a slow disk: 100 us more per event) still writes the whole run: the
+// clock master waits for it on an uplink, shoal run itself on one bus for all.
+TEST(LoggerQueue, ALoggerBehindAtTheEndWritesTheWholeRunBeforeItIsStopped) {
+  const std::string lib = std::string(SHOAL_BINARY_DIR) + "/tests/libslow_logger_subscribe.so";
+  ASSERT_EQ(access(lib.c_str(), R_OK), 0) << lib;
+  for (const std::string how : {"", " --shared-url"}) {
+    const std::string log = TmpPath("slow_writer.lcmlog");
+    setenv("LD_PRELOAD", lib.c_str(), 1);
+    setenv("SHOAL_TEST_WRITE_DELAY_US", "100", 1);
+    const auto r = RunShoal("run " + SourcePath("scenarios/paper_example2.toml") +
+                                " --mode lockstep --duration 20 --json --out " + log + how,
+                            "slow_writer");
+    unsetenv("LD_PRELOAD");
+    unsetenv("SHOAL_TEST_WRITE_DELAY_US");
+    const auto j = ParseJson(r.out);
+    EXPECT_EQ(j["log_complete"], true) << how << "\n" << r.out << r.err;
+    EXPECT_EQ(j["log_states"], j["log_states_expected"]) << how << "\n" << r.out;
+    const auto a = RunShoal("analyze " + log + " --json", "slow_writer_analyze");
+    EXPECT_EQ(ParseJson(a.out)["scenario_source"], "log") << how << "\n" << a.err;
+  }
+}
+
+// Ctrl-C while shoal run waits for the logger to subscribe: nothing else is started (nor,
+// behind ssh, logged in to), and the run says it was interrupted.
+TEST(LoggerQueue, CtrlCWhileTheLoggerSubscribesStartsNothingElse) {
+  const std::string lib = std::string(SHOAL_BINARY_DIR) + "/tests/libslow_logger_subscribe.so";
+  ASSERT_EQ(access(lib.c_str(), R_OK), 0) << lib;
+  const std::string log = TmpPath("slow_subscribe_stop.lcmlog");
+  std::system(("rm -rf '" + log + ".d'").c_str());
+  setenv("LD_PRELOAD", lib.c_str(), 1);
+  setenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS", "5000", 1);
+  const std::string out = TmpPath("slow_subscribe_stop.out");
+  const pid_t run = testing::StartShoal("run " + SourcePath("scenarios/paper_example2.toml") +
+                                            " --mode lockstep --duration 20 --out " + log,
+                                        out);
+  unsetenv("LD_PRELOAD");
+  unsetenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS");
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  kill(run, SIGINT);
+  EXPECT_EQ(testing::WaitExit(run, 30, nullptr), 130) << ReadFile(out);
+  for (const char* tag : {"emulator", "leader", "vehicle1"}) {
+    EXPECT_FALSE(std::filesystem::exists(log + ".d/" + tag + ".txt")) << tag << "\n"
+                                                                      << ReadFile(out);
+  }
+  EXPECT_TRUE(std::filesystem::exists(log + ".d/logger.txt")) << ReadFile(out);
+}
+
 // Real time has no ready handshake: the channel emulator sends its first status, the one
 // that carries the scenario's text, as soon as it starts. A logger subscribing after that
 // left a log that no analysis could judge ("the log holds no scenario"). shoal run starts

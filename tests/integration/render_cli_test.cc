@@ -224,6 +224,9 @@ TEST(RenderCli, BadInputExitsTwoWithAMessage) {
       {"render " + text + " --out " + dir, "LCM"},
       {"render " + empty + " --out " + dir + " --size 10x10", "--size"},
       {"render " + empty + " --out " + dir + " --size big", "--size"},
+      // Past an int's range: refused, not wrapped into it (4294968896 is 2^32 + 1600).
+      {"render " + empty + " --out " + dir + " --size 4294968896x1000", "--size"},
+      {"render " + empty + " --out " + dir + " --size 1600x1000px", "--size"},
       {"render " + empty + " --out " + text, "not a directory"},
       {"render " + empty, "--out"},
   };

@@ -6,9 +6,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -218,43 +220,83 @@ TEST_F(Retime, ReplacesTheOldKeyAndCountsTheMissionWritten) {
 // With the log's key, a message that does not verify (here one state's time moved near
 // the end of the mission, its trailer no longer matching) sets no mission time: the events
 // after it keep their own, as the analysis, which drops it, sees them.
-TEST_F(Retime, AMessageThatDoesNotVerifySetsNoTime) {
-  const std::string forged = TmpPath("retime_forged.lcmlog");
+// A state whose time is forged (with the key: it does not verify) or that does not decode
+// (without a key: its fingerprint damaged) sets no mission time: the analysis drops it,
+// and it must not carry every later event to its time.
+TEST_F(Retime, AMessageThatDoesNotVerifyOrDecodeSetsNoTime) {
+  for (const bool keyed : {true, false}) {
+    const std::string forged = TmpPath(keyed ? "retime_forged.lcmlog" : "retime_undecodable.lcmlog");
+    {
+      LcmLogReader in;
+      std::string err;
+      ASSERT_TRUE(in.Open(TheLogs().run, &err)) << err;
+      LogWriter out(forged);
+      LogEventView ev;
+      int states = 0;
+      while (in.Next(&ev)) {
+        std::string data(reinterpret_cast<const char*>(ev.data), static_cast<std::size_t>(ev.size));
+        if (ev.channel == "SHOAL_STATE_2" && ++states == 4 && data.size() >= 16) {
+          const std::uint64_t late = static_cast<std::uint64_t>((kMissionS - 0.1) * 1e6);
+          for (int k = 0; k < 8; ++k) data[8 + k] = static_cast<char>(late >> (8 * (7 - k)));
+          if (!keyed) data[0] = static_cast<char>(data[0] ^ 0x5a);
+        }
+        out.WriteRaw(std::string(ev.channel), ev.timestamp, data.data(),
+                     static_cast<int>(data.size()));
+      }
+      out.Close();
+    }
+    std::remove((forged + ".key").c_str());
+    if (keyed) {
+      ASSERT_EQ(std::system(("cp '" + TheLogs().run + ".key' '" + forged + ".key'").c_str()), 0);
+    }
+    const std::string out = TmpPath("retime_forged_out.lcmlog");
+    std::remove(out.c_str());
+    std::remove((out + ".key").c_str());
+    ASSERT_EQ(RunShoal("retime " + forged + " --out " + out + " --quiet", "retime_forged").status,
+              0);
+    LcmLogReader r;
+    std::string err;
+    ASSERT_TRUE(r.Open(out, &err)) << err;
+    LogEventView ev;
+    std::int64_t first = -1, events = 0, late = 0;
+    while (r.Next(&ev) && events < 300) {
+      if (first < 0) first = ev.timestamp;
+      late += ev.timestamp - first > 1000000;  // the first 300 events lie in the first second
+      ++events;
+    }
+    EXPECT_EQ(events, 300);
+    EXPECT_EQ(late, 0) << "events stamped at the forged time, " << (keyed ? "keyed" : "no key");
+  }
+}
+
+// Receive times so large that adding the mission time would pass the largest stamp: not a
+// recording's clock. Refused (exit 2) rather than written with stamps that wrap around.
+TEST_F(Retime, StampsThatWouldPassTheLargestAreRefused) {
+  const std::string huge = TmpPath("retime_huge.lcmlog");
   {
     LcmLogReader in;
     std::string err;
     ASSERT_TRUE(in.Open(TheLogs().run, &err)) << err;
-    LogWriter out(forged);
+    LogWriter out(huge);
     LogEventView ev;
-    int states = 0;
+    std::int64_t first = -1;
     while (in.Next(&ev)) {
-      std::string data(reinterpret_cast<const char*>(ev.data), static_cast<std::size_t>(ev.size));
-      if (ev.channel == "SHOAL_STATE_2" && ++states == 4 && data.size() >= 16) {
-        const std::uint64_t late = static_cast<std::uint64_t>((kMissionS - 0.1) * 1e6);
-        for (int k = 0; k < 8; ++k) data[8 + k] = static_cast<char>(late >> (8 * (7 - k)));
-      }
-      out.WriteRaw(std::string(ev.channel), ev.timestamp, data.data(),
-                   static_cast<int>(data.size()));
+      if (first < 0) first = ev.timestamp;
+      // 3 s of room above the first stamp, for a 6 s mission.
+      constexpr std::int64_t kMax = std::numeric_limits<std::int64_t>::max();
+      const std::int64_t after = std::min<std::int64_t>(ev.timestamp - first, 2000000);
+      out.WriteRaw(std::string(ev.channel), kMax - 3000000 + after, ev.data, ev.size);
     }
     out.Close();
   }
-  ASSERT_EQ(std::system(("cp '" + TheLogs().run + ".key' '" + forged + ".key'").c_str()), 0);
-  const std::string out = TmpPath("retime_forged_out.lcmlog");
+  ASSERT_EQ(std::system(("cp '" + TheLogs().run + ".key' '" + huge + ".key'").c_str()), 0);
+  const std::string out = TmpPath("retime_huge_out.lcmlog");
   std::remove(out.c_str());
   std::remove((out + ".key").c_str());
-  ASSERT_EQ(RunShoal("retime " + forged + " --out " + out + " --quiet", "retime_forged").status, 0);
-  LcmLogReader r;
-  std::string err;
-  ASSERT_TRUE(r.Open(out, &err)) << err;
-  LogEventView ev;
-  std::int64_t first = -1, events = 0, late = 0;
-  while (r.Next(&ev) && events < 300) {
-    if (first < 0) first = ev.timestamp;
-    late += ev.timestamp - first > 1000000;  // the first 300 events lie in the first second
-    ++events;
-  }
-  EXPECT_EQ(events, 300);
-  EXPECT_EQ(late, 0) << "events stamped at the forged time";
+  const auto r = RunShoal("retime " + huge + " --out " + out, "retime_huge");
+  EXPECT_EQ(r.status, 2) << r.err;
+  EXPECT_NE(r.err.find("passes the largest stamp"), std::string::npos) << r.err;
+  EXPECT_NE(access(out.c_str(), F_OK), 0) << "a retimed log was written";
 }
 
 TEST_F(Retime, RefusesToOverwriteAndSaysWhy) {

@@ -30,7 +30,9 @@
 set -euo pipefail
 
 src=${1:?usage: ssh_hosts_test.sh SOURCE_DIR SHOAL}
-shoal=${2:?usage: ssh_hosts_test.sh SOURCE_DIR SHOAL}
+shoal=${2:?usage: ssh_hosts_test.sh SOURCE_DIR SHOAL SLOW_SUBSCRIBE_LIB}
+# tests/tools/slow_logger_subscribe.c, built: preloaded into a run, it delays lcm-logger.
+slow_subscribe=${3:?usage: ssh_hosts_test.sh SOURCE_DIR SHOAL SLOW_SUBSCRIBE_LIB}
 readonly LOCKSTEP_S=10
 
 fail() {
@@ -311,6 +313,24 @@ done
   fail "run behind ssh: not every state logged: $(cat "$work/all.json")"
 only_sshd_left "after a run with everything behind ssh"
 echo "a real-time run with every process behind ssh logs every state"
+
+# --- A logger behind ssh slow to subscribe (1.5 s, preloaded) still records the start. ---
+# Its /dev/shm is not shoal run's to see: it says on its output once it has subscribed, and
+# nothing starts before. Else the emulator's first status, the scenario's text, sent as it
+# starts, would be lost.
+status=0
+ip netns exec "$h1" env LD_PRELOAD="$slow_subscribe" "$shoal" run --hosts "$work/all_ssh.toml" \
+  "$src/scenarios/paper_example2.toml" --mode realtime --duration 3 --json \
+  --out "$work/slow.lcmlog" >"$work/slow.json" 2>"$work/slow.err" || status=$?
+[ "$(json log_complete "$work/slow.json")" = true ] ||
+  fail "slow logger behind ssh: log incomplete (exit $status): $(cat "$work/slow.json" "$work/slow.err")"
+grep -qF "shoal lcm queue shim: subscribed" "$work/slow.lcmlog.d/logger.txt" ||
+  fail "slow logger behind ssh: it did not say it had subscribed: $(cat "$work/slow.lcmlog.d/logger.txt")"
+"$shoal" analyze "$work/slow.lcmlog" --json >"$work/slow_analyze.json" 2>"$work/slow_analyze.err" || true
+[ "$(json scenario_source "$work/slow_analyze.json")" = log ] ||
+  fail "slow logger behind ssh: the log lacks the scenario: $(cat "$work/slow_analyze.err")"
+only_sshd_left "after a run with a slow logger behind ssh"
+echo "a logger behind ssh slow to subscribe still records the run from its start"
 
 # --- More processes on one host than sshd lets log in at once. --------------------------
 # sshd's MaxStartups (default 10:30:100) drops connections still logging in beyond 10:
