@@ -893,12 +893,13 @@ RunAnalysis AnalyseRun(const RunData& run) {
   AnalyseFollowers(run, valid, &a);
   const bool events = run.has_scenario && !run.scenario.events.empty();
   std::vector<WorstSample> worst;
-  if (a.has_formation) {
-    AnalyseFormation(run, valid, &a, events ? &worst : nullptr);
-    // No tick with a state of every vehicle: the errors are unknown, not zero.
-    a.has_formation = a.complete_samples > 0;
-  }
-  if (!a.has_formation) {  // no formation metrics: the latest state time instead
+  if (a.has_formation) AnalyseFormation(run, valid, &a, events ? &worst : nullptr);
+  if (!a.has_formation || a.complete_samples == 0) {
+    // No tick with a state of every vehicle: the swarm's errors are unknown, not zero
+    // (each follower's own, against the leader, stand); the latest state time instead.
+    a.summary.final_worst = NaNErrors();
+    a.summary.max_position_error_m = kNaN;
+    a.summary.converged = false;
     a.complete_samples =
         ForEachCompleteSample(run, valid, [](const StateMsg&, const std::vector<const StateMsg*>&) {});
     Micros t = 0;

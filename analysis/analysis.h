@@ -178,7 +178,7 @@ struct RestartAnalysis {
 struct RunAnalysis {
   std::string mode;  // "sim", "lockstep", "realtime" or "unknown", inferred from the log
   Micros period_us = 0;
-  bool has_formation = false;  // scenario (offsets) and a tick with every vehicle's state
+  bool has_formation = false;  // scenario (offsets) and leader states available
   RunSummary summary;
   std::int64_t complete_samples = 0;  // times with the leader and every follower
   std::vector<FormationErrors> final_errors;  // per follower at the last complete sample

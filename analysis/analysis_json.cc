@@ -216,7 +216,8 @@ Json AnalysisJson(const RunData& run, const RunAnalysis& a, const AnalysisSource
   AddFormationKeys(conv, s.convergence_time_s,
                    f ? s.final_worst : FormationErrors{kNaN, kNaN, kNaN}, &j);
   j["max_position_error_m"] = f ? s.max_position_error_m : kNaN;
-  if (!f) j["converged"] = nullptr;  // unknown without the scenario's formation, not false
+  // Unknown without the scenario's formation or a tick of every vehicle's state, not false.
+  if (!f || a.complete_samples == 0) j["converged"] = nullptr;
   AddTimingKeys(s.sim_time_s, a.wall_time_s, &j);
   j["ticks"] = a.ticks;
   j["channel_delivered"] = a.channel.delivered;

@@ -185,9 +185,12 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
                                                  : "the log's scenario does not load; give --scenario FILE")
                 : static_cast<int>(run.scenario.offsets_m.size()) != run.followers
                     ? "the scenario's followers are not the log's"
-                    : "no tick has a valid state of every vehicle, the leader's too");
+                    : "no leader states in the log");
   } else {
-    if (FormationConverged(a)) {
+    if (a.complete_samples == 0) {
+      std::fprintf(out, "  swarm errors: unknown (no tick has a valid state of every vehicle, "
+                        "the leader's too)\n");
+    } else if (FormationConverged(a)) {
       std::fprintf(out, "  converged: yes, at %.2f s (position tol %.3g m, velocity tol %.3g m/s)\n",
                   s.convergence_time_s, run.scenario.metrics.position_tol_m,
                   run.scenario.metrics.velocity_tol_mps);
@@ -196,8 +199,10 @@ void PrintAnalysisText(std::FILE* out, const RunData& run, const RunAnalysis& a,
                   run.scenario.metrics.position_tol_m, run.scenario.metrics.velocity_tol_mps);
     }
     if (a.diverged_follower) std::fprintf(out, "  DIVERGED: follower %d\n", a.diverged_follower);
-    std::fprintf(out, "  final errors, worst follower: position %.4f m, velocity %.4f m/s, attitude %.4f rad\n",
-                s.final_worst.position_m, s.final_worst.velocity_mps, s.final_worst.attitude_rad);
+    if (a.complete_samples > 0) {
+      std::fprintf(out, "  final errors, worst follower: position %.4f m, velocity %.4f m/s, attitude %.4f rad\n",
+                  s.final_worst.position_m, s.final_worst.velocity_mps, s.final_worst.attitude_rad);
+    }
     std::fprintf(out, "  %-9s %12s %14s %14s %12s %10s %9s\n", "follower", "position[m]",
                 "velocity[m/s]", "attitude[rad]", "converged[s]", "saturated", "stale");
     for (std::size_t i = 0; i < a.followers.size(); ++i) {

@@ -1123,11 +1123,15 @@ void Launch::WaitForSubscription(pid_t logger_pid, const std::string& output) {
   // on other runs shoal run reads the count at the end, and the name would outlive the run.
   if (counts && !ClockMasterReadsCount()) {
     const int fd = open(name, O_RDONLY);
-    if (fd >= 0) {
+    struct stat st {};
+    // Its size is checked: the logger makes the name before it sizes the object, and a
+    // mapping past the end of a smaller one would fault when read.
+    if (fd >= 0 && fstat(fd, &st) == 0 &&
+        st.st_size >= static_cast<off_t>(sizeof(ShoalLoggerProgress))) {
       void* m = mmap(nullptr, sizeof(ShoalLoggerProgress), PROT_READ, MAP_SHARED, fd, 0);
       if (m != MAP_FAILED) logger_count_ = static_cast<const ShoalLoggerProgress*>(m);
-      close(fd);
     }
+    if (fd >= 0) close(fd);
     unlink(name);
   }
 }
@@ -1146,8 +1150,12 @@ void Launch::StartAll() {
   if (logger_pid > 0 && (LoggerCounts() || LoggerSaysSubscribed())) {
     WaitForSubscription(logger_pid, kids_.back().output);
   }
-  // Stopped while it waited: nothing else is started (nor, behind ssh, logged in to).
-  if (StopSignals::Requested()) return;
+  // Stopped while it waited: nothing else is started (nor, behind ssh, logged in to), and
+  // the run, which never began, began now (its wall time is 0, not the machine's uptime).
+  if (StopSignals::Requested()) {
+    t0_ns_ = MonotonicNs();
+    return;
+  }
   // Real time: a start margin, longer by the logins the starts wait for (--hosts). On the
   // wall clock, it is converted to the monotonic clock as each process does (process.h).
   std::map<std::string, int> placed;  // processes by host
@@ -1570,7 +1578,8 @@ void Launch::Shutdown() {
   // published; it drains its socket in between.
   Stop(false, milliseconds(fault ? 700 : 2000));
   std::this_thread::sleep_for(milliseconds(fault ? 100 : 200));
-  LoggerWritesAll(milliseconds(fault ? 1000 : 5000));
+  // After a fault shoal run exits within 2 s of it (the logger may be the fault, stopped).
+  LoggerWritesAll(milliseconds(fault ? 0 : 5000));
   Stop(true, milliseconds(fault ? 1000 : 2000));
   CheckLoggerExit();
   RemoveLoggerCount();

@@ -478,8 +478,13 @@ TEST(AnalyzeCli, NoTickWithEveryVehiclesStateLeavesTheErrorsUnknown) {
   EXPECT_DOUBLE_EQ(j["sim_time_s"].get<double>(), 20.0) << r.out;
   EXPECT_EQ(j["log_undecodable"], 1001) << r.out;
   const auto t = RunShoal("analyze " + log, "no_tick_text");
-  EXPECT_NE(t.out.find("no tick has a valid state of every vehicle"), std::string::npos) << t.out;
+  EXPECT_NE(t.out.find("swarm errors: unknown (no tick has a valid state of every vehicle"),
+            std::string::npos) << t.out;
   EXPECT_EQ(t.out.find("final errors"), std::string::npos) << t.out;
+  // Each follower's own errors, against the leader, stand: follower 1's are a number.
+  ASSERT_GE(j["followers"].size(), 1u) << r.out;
+  EXPECT_TRUE(j["followers"][0]["max_position_error_m"].is_number()) << j["followers"][0];
+  EXPECT_TRUE(j["followers"][0]["converged"].is_boolean()) << j["followers"][0];
 
   const std::string negative = TmpPath("no_tick_negative.lcmlog");
   Rewrite(src, negative, [](const std::string& ch, std::int64_t*, std::string* data) {

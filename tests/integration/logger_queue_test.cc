@@ -295,24 +295,32 @@ TEST(LoggerQueue, ALoggerBehindAtTheEndWritesTheWholeRunBeforeItIsStopped) {
 TEST(LoggerQueue, CtrlCWhileTheLoggerSubscribesStartsNothingElse) {
   const std::string lib = std::string(SHOAL_BINARY_DIR) + "/tests/libslow_logger_subscribe.so";
   ASSERT_EQ(access(lib.c_str(), R_OK), 0) << lib;
-  const std::string log = TmpPath("slow_subscribe_stop.lcmlog");
-  std::system(("rm -rf '" + log + ".d'").c_str());
-  setenv("LD_PRELOAD", lib.c_str(), 1);
-  setenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS", "5000", 1);
-  const std::string out = TmpPath("slow_subscribe_stop.out");
-  const pid_t run = testing::StartShoal("run " + SourcePath("scenarios/paper_example2.toml") +
-                                            " --mode lockstep --duration 20 --out " + log,
-                                        out);
-  unsetenv("LD_PRELOAD");
-  unsetenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS");
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  kill(run, SIGINT);
-  EXPECT_EQ(testing::WaitExit(run, 30, nullptr), 130) << ReadFile(out);
-  for (const char* tag : {"emulator", "leader", "vehicle1"}) {
-    EXPECT_FALSE(std::filesystem::exists(log + ".d/" + tag + ".txt")) << tag << "\n"
-                                                                      << ReadFile(out);
+  for (const std::string mode : {"lockstep", "realtime"}) {
+    const std::string log = TmpPath("slow_subscribe_stop.lcmlog");
+    std::system(("rm -rf '" + log + ".d'").c_str());
+    setenv("LD_PRELOAD", lib.c_str(), 1);
+    setenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS", "5000", 1);
+    const std::string out = TmpPath("slow_subscribe_stop.out");
+    const pid_t run = testing::StartShoal("run " + SourcePath("scenarios/paper_example2.toml") +
+                                              " --mode " + mode + " --duration 20 --out " + log,
+                                          out);
+    unsetenv("LD_PRELOAD");
+    unsetenv("SHOAL_TEST_SUBSCRIBE_DELAY_MS");
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    kill(run, SIGINT);
+    EXPECT_EQ(testing::WaitExit(run, 30, nullptr), 130) << mode << "\n" << ReadFile(out);
+    for (const char* tag : {"emulator", "leader", "vehicle1"}) {
+      EXPECT_FALSE(std::filesystem::exists(log + ".d/" + tag + ".txt"))
+          << mode << " " << tag << "\n" << ReadFile(out);
+    }
+    EXPECT_TRUE(std::filesystem::exists(log + ".d/logger.txt")) << mode << "\n" << ReadFile(out);
+    // A run that never began lasted no wall time (not the machine's uptime).
+    const std::string said = ReadFile(out);
+    const std::size_t wall = said.find(" s wall");
+    ASSERT_NE(wall, std::string::npos) << said;
+    const std::size_t from = said.rfind(' ', wall - 1) + 1;
+    EXPECT_LT(std::stod(said.substr(from, wall - from)), 10.0) << mode << "\n" << said;
   }
-  EXPECT_TRUE(std::filesystem::exists(log + ".d/logger.txt")) << ReadFile(out);
 }
 
 // Real time has no ready handshake: the channel emulator sends its first status, the one
